@@ -1,0 +1,198 @@
+//! One-dimensional atmospheres: plane-parallel homogeneous layers.
+//!
+//! Optical depth τ is counted **downwards from the top of the atmosphere** (τ = 0 at TOA,
+//! τ = τ_total at the ground), in f64. In a plane-parallel medium the radiation field depends on
+//! height only, so the integrators move photons in τ: a flight of optical path `s` in direction
+//! `d` changes τ by `−s·d_z`. Free paths are therefore sampled analytically and transmittances are
+//! exact, whatever the layering (each layer is homogeneous, so τ is linear in altitude inside it).
+//!
+//! Layer optics per wavelength: scattering optical thickness `tau_sca`, absorption optical
+//! thickness `tau_abs` (both vertical, dimensionless) and a phase function. The single-scattering
+//! albedo is `tau_sca / (tau_sca + tau_abs)`.
+
+use crate::phase::PhaseFunction;
+
+/// One homogeneous layer's optics at one wavelength.
+#[derive(Clone, Debug)]
+pub struct LayerOptics {
+    /// Bottom and top altitude, m.
+    pub bottom: f64,
+    pub top: f64,
+    pub tau_sca: f64,
+    pub tau_abs: f64,
+    pub phase: PhaseFunction,
+}
+
+/// A plane-parallel atmosphere at one wavelength, ready for transport.
+#[derive(Clone, Debug)]
+pub struct PlaneParallel {
+    /// Altitudes of the layer boundaries, m, from the top down (len = layers + 1).
+    z: Vec<f64>,
+    /// τ at those boundaries (from TOA), non-decreasing.
+    tau: Vec<f64>,
+    /// Per layer, top to bottom.
+    albedo: Vec<f64>,
+    phase: Vec<PhaseFunction>,
+    total_tau: f64,
+}
+
+impl PlaneParallel {
+    /// Build from layers given in any order; they must tile [ground, toa] without gaps or
+    /// overlaps (checked by the config resolver, which names the offending layer).
+    pub fn new(mut layers: Vec<LayerOptics>, ground: f64, toa: f64) -> Self {
+        layers.sort_by(|a, b| b.top.partial_cmp(&a.top).unwrap());
+        let mut z = vec![toa];
+        let mut tau = vec![0.0];
+        let mut albedo = Vec::new();
+        let mut phase = Vec::new();
+        for l in &layers {
+            let ext = l.tau_sca + l.tau_abs;
+            z.push(l.bottom);
+            tau.push(tau.last().unwrap() + ext);
+            albedo.push(if ext > 0.0 { l.tau_sca / ext } else { 1.0 });
+            phase.push(l.phase.clone());
+        }
+        if layers.is_empty() {
+            // No atmosphere: one empty layer keeps the indexing uniform.
+            z.push(ground);
+            tau.push(0.0);
+            albedo.push(1.0);
+            phase.push(PhaseFunction::Hg(crate::phase::HenyeyGreenstein { g: 0.0 }));
+        }
+        let total_tau = *tau.last().unwrap();
+        Self { z, tau, albedo, phase, total_tau }
+    }
+
+    /// Vertical optical thickness of the whole atmosphere.
+    #[inline]
+    pub fn total_tau(&self) -> f64 {
+        self.total_tau
+    }
+
+    /// Altitude of the top of the atmosphere and of the ground, m.
+    pub fn toa(&self) -> f64 {
+        self.z[0]
+    }
+    pub fn ground(&self) -> f64 {
+        *self.z.last().unwrap()
+    }
+
+    /// Index of the layer that holds optical depth `tau` (a collision point).
+    #[inline]
+    pub fn layer_at_tau(&self, tau: f64) -> usize {
+        // First boundary strictly below tau... boundaries are tau[0..=n]; the layer i spans
+        // [tau[i], tau[i+1]]; pick the one whose span contains tau with non-zero thickness.
+        let i = self.tau.partition_point(|&t| t < tau);
+        let n = self.albedo.len();
+        let mut i = i.clamp(1, n) - 1;
+        // Skip zero-thickness layers (no collision can happen in them).
+        while i + 1 < n && self.tau[i + 1] <= self.tau[i] {
+            i += 1;
+        }
+        i
+    }
+
+    /// Single-scattering albedo of layer `i`.
+    #[inline]
+    pub fn albedo(&self, i: usize) -> f64 {
+        self.albedo[i]
+    }
+
+    #[inline]
+    pub fn phase(&self, i: usize) -> &PhaseFunction {
+        &self.phase[i]
+    }
+
+    /// Optical depth from TOA at altitude `z` (m), clamped to the atmosphere.
+    pub fn tau_at_altitude(&self, z: f64) -> f64 {
+        if z >= self.z[0] {
+            return 0.0;
+        }
+        for i in 0..self.albedo.len() {
+            let (zt, zb) = (self.z[i], self.z[i + 1]);
+            if z >= zb {
+                let f = if zt > zb { (zt - z) / (zt - zb) } else { 0.0 };
+                return self.tau[i] + f * (self.tau[i + 1] - self.tau[i]);
+            }
+        }
+        self.total_tau
+    }
+
+    /// Layer count (including an empty placeholder when there is no atmosphere).
+    pub fn layer_count(&self) -> usize {
+        self.albedo.len()
+    }
+}
+
+/// Where a flight ends.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum FlightEnd {
+    /// Collision at optical depth τ.
+    Collision(f64),
+    /// Reaches the ground (τ = τ_total).
+    Surface,
+    /// Leaves through the top.
+    Escape,
+}
+
+impl PlaneParallel {
+    /// End of a flight of optical path `s` (sampled as −ln u) from `tau` along a direction with
+    /// vertical cosine `dz` (> 0 upwards).
+    #[inline]
+    pub fn fly(&self, tau: f64, dz: f64, s: f64) -> FlightEnd {
+        if dz.abs() < 1e-12 {
+            // Horizontal flight in a plane-parallel layer: collides if the layer is not empty.
+            if self.total_tau > 0.0 && tau > 0.0 && tau < self.total_tau {
+                return FlightEnd::Collision(tau);
+            }
+            return if dz >= 0.0 { FlightEnd::Escape } else { FlightEnd::Surface };
+        }
+        let t = tau - s * dz;
+        if t <= 0.0 {
+            FlightEnd::Escape
+        } else if t >= self.total_tau {
+            FlightEnd::Surface
+        } else {
+            FlightEnd::Collision(t)
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::phase::{PhaseFunction, Rayleigh};
+
+    fn ray() -> PhaseFunction {
+        PhaseFunction::Rayleigh(Rayleigh::new(0.0).unwrap())
+    }
+
+    #[test]
+    fn layering_and_lookup() {
+        let layers = vec![
+            LayerOptics { bottom: 0.0, top: 2000.0, tau_sca: 0.3, tau_abs: 0.1, phase: ray() },
+            LayerOptics { bottom: 2000.0, top: 10_000.0, tau_sca: 0.0, tau_abs: 0.0, phase: ray() },
+            LayerOptics { bottom: 10_000.0, top: 100_000.0, tau_sca: 0.1, tau_abs: 0.0, phase: ray() },
+        ];
+        let a = PlaneParallel::new(layers, 0.0, 100_000.0);
+        assert!((a.total_tau() - 0.5).abs() < 1e-15);
+        assert_eq!(a.layer_at_tau(0.05), 0);
+        // τ = 0.1 is the boundary with the empty layer: the collision belongs to a real layer.
+        assert_eq!(a.layer_at_tau(0.2), 2);
+        assert!((a.albedo(2) - 0.75).abs() < 1e-15);
+        assert!((a.tau_at_altitude(55_000.0) - 0.05).abs() < 1e-12);
+        assert!((a.tau_at_altitude(5_000.0) - 0.1).abs() < 1e-12);
+        assert!((a.tau_at_altitude(1_000.0) - 0.3).abs() < 1e-12);
+        assert_eq!(a.fly(0.1, -0.5, 1.0), FlightEnd::Surface);
+        assert_eq!(a.fly(0.1, 0.5, 1.0), FlightEnd::Escape);
+        assert_eq!(a.fly(0.1, -0.5, 0.2), FlightEnd::Collision(0.2));
+    }
+
+    /// The empty atmosphere: every downward flight reaches the ground.
+    #[test]
+    fn no_atmosphere() {
+        let a = PlaneParallel::new(vec![], 0.0, 100_000.0);
+        assert_eq!(a.total_tau(), 0.0);
+        assert_eq!(a.fly(0.0, -0.3, 0.001), FlightEnd::Surface);
+    }
+}

@@ -1,0 +1,150 @@
+//! `simulate`: run Monte Carlo radiative-transfer experiments.
+//!
+//! Exit codes: 0 success; 2 bad input (experiment file unreadable or invalid); 1 any other
+//! failure (an output that cannot be written, an internal error).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+use std::time::Instant;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+
+use simulator::config::Experiment;
+use simulator::error::ConfigError;
+use simulator::products;
+
+#[derive(Parser)]
+#[command(name = "simulate", version, about = "Monte Carlo radiative transfer for Earth-observation scenes")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Run an experiment and write OUTDIR/results.nc and OUTDIR/results.csv.
+    Run {
+        /// Experiment file (TOML; keys in docs/experiment.md).
+        experiment: PathBuf,
+        /// Output folder (created if missing).
+        #[arg(short, long, default_value = "out")]
+        output: PathBuf,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+        /// No progress bar.
+        #[arg(short, long)]
+        quiet: bool,
+    },
+    /// Validate an experiment file without running it.
+    Check {
+        experiment: PathBuf,
+    },
+    /// Time-to-precision benchmark on the reference workload (see BENCHMARKS.md).
+    Bench {
+        /// Target relative standard error in every direction.
+        #[arg(long, default_value_t = 1e-3)]
+        target: f64,
+        /// Walk: forward, backward or both.
+        #[arg(long, default_value = "both")]
+        method: String,
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+    },
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    match dispatch(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            if e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some()) {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
+    if let Some(n) = threads {
+        rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global().context("thread pool")?;
+    }
+    Ok(())
+}
+
+fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Check { experiment } => {
+            let exp = Experiment::load(&experiment)?;
+            println!(
+                "{}: valid ({} wavelength(s), {} measure(s))",
+                experiment.display(),
+                exp.wavelengths.len(),
+                exp.measures.len()
+            );
+            Ok(())
+        }
+        Command::Run { experiment, output, threads, quiet } => {
+            set_threads(threads)?;
+            let exp = Experiment::load(&experiment)?;
+            std::fs::create_dir_all(&output)
+                .with_context(|| format!("cannot create output folder {}", output.display()))?;
+            let t0 = Instant::now();
+            tracing::info!(
+                "running {} ({} wavelength(s), {} measure(s)) on {} thread(s)",
+                experiment.display(),
+                exp.wavelengths.len(),
+                exp.measures.len(),
+                rayon::current_num_threads()
+            );
+            let results = simulator::run::run(&exp, !quiet);
+            let rows = products::rows(&exp, &results);
+            let csv = output.join("results.csv");
+            let nc = output.join("results.nc");
+            products::csv::write(&csv, &rows)?;
+            products::netcdf::write(&nc, &exp, &rows)?;
+            print_summary(&rows);
+            tracing::info!("done in {:.2} s: wrote {} and {}", t0.elapsed().as_secs_f64(), csv.display(), nc.display());
+            Ok(())
+        }
+        Command::Bench { target, method, threads } => {
+            set_threads(threads)?;
+            simulator::bench::run(target, &method)
+        }
+    }
+}
+
+fn print_summary(rows: &[products::Row]) {
+    println!("{:<16} {:>9} {:>8} {:>8} {:>12} {:>10}", "measure", "wl [nm]", "vza", "vaa", "value", "rel.err");
+    for r in rows {
+        let (name, (v, e)) = match (r.brf, r.albedo) {
+            (Some(b), _) => ("brf", b),
+            (None, Some(a)) => ("albedo", a),
+            _ => continue,
+        };
+        let ang = |x: Option<f64>| x.map(|a| format!("{a:8.2}")).unwrap_or_else(|| format!("{:>8}", "-"));
+        println!(
+            "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%",
+            r.measure,
+            r.wavelength_nm,
+            ang(r.vza),
+            ang(r.vaa),
+            name,
+            v,
+            100.0 * e / v.abs().max(1e-300)
+        );
+    }
+}

@@ -1,0 +1,28 @@
+//! Lambertian (perfectly diffuse) reflection.
+//!
+//! | parameter     | unit | range  | meaning                                   |
+//! |---------------|------|--------|-------------------------------------------|
+//! | `reflectance` | —    | [0, 1] | hemispherical reflectance ρ (= the BRF)   |
+//!
+//! `f_r = ρ/π` sr⁻¹. The parameter is a BRF (equal to the albedo for this model).
+
+use glam::DVec3;
+
+#[derive(Clone, Debug)]
+pub struct Lambertian {
+    pub reflectance: f64,
+}
+
+impl Lambertian {
+    pub fn new(reflectance: f64) -> Result<Self, String> {
+        if !(0.0..=1.0).contains(&reflectance) {
+            return Err(format!("`reflectance` = {reflectance} must lie in [0, 1]"));
+        }
+        Ok(Self { reflectance })
+    }
+
+    #[inline]
+    pub fn eval(&self, _wi: DVec3, _wo: DVec3) -> f64 {
+        self.reflectance * std::f64::consts::FRAC_1_PI
+    }
+}

@@ -1,0 +1,246 @@
+//! The experiment file: raw serde types (this module) and their validation into runtime types
+//! ([`resolve`]).
+//!
+//! Every struct denies unknown fields, so a misspelt key is an error naming its path. Every key,
+//! its unit and its default are documented in `docs/experiment.md`; keep the two in step.
+//! Units at this boundary: wavelengths in nm, altitudes in km, angles in degrees. `resolve`
+//! converts to SI (m, radians) and checks ranges.
+
+pub mod resolve;
+
+use serde::Deserialize;
+
+pub use resolve::{resolve, Experiment};
+
+/// A per-wavelength quantity: one number for every wavelength, or one per wavelength.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum SpectralValue {
+    Scalar(f64),
+    List(Vec<f64>),
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ExperimentConfig {
+    /// "mono" (monochromatic).
+    #[serde(default = "default_mode")]
+    pub mode: String,
+    pub spectral: SpectralConfig,
+    #[serde(default)]
+    pub geometry: GeometryConfig,
+    #[serde(default)]
+    pub atmosphere: Option<AtmosphereConfig>,
+    pub surface: SurfaceConfig,
+    pub illumination: IlluminationConfig,
+    pub measures: Vec<MeasureConfig>,
+    #[serde(default)]
+    pub integrator: IntegratorConfig,
+    /// Seed of every random stream of the run.
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn default_mode() -> String {
+    "mono".into()
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpectralConfig {
+    /// nm.
+    pub wavelengths: Vec<f64>,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum GeometryConfig {
+    PlaneParallel {
+        /// km.
+        #[serde(default = "default_toa")]
+        toa_altitude: f64,
+        /// km.
+        #[serde(default)]
+        ground_altitude: f64,
+    },
+}
+
+fn default_toa() -> f64 {
+    100.0
+}
+
+impl Default for GeometryConfig {
+    fn default() -> Self {
+        GeometryConfig::PlaneParallel { toa_altitude: default_toa(), ground_altitude: 0.0 }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum AtmosphereConfig {
+    /// One layer from the ground to TOA.
+    Homogeneous {
+        optical_thickness: SpectralValue,
+        #[serde(default = "one")]
+        single_scattering_albedo: SpectralValue,
+        #[serde(default)]
+        phase: PhaseConfig,
+    },
+    /// Plane-parallel layers, each homogeneous.
+    Layered { layers: Vec<LayerConfig> },
+    /// No atmosphere (same as omitting the table).
+    None {},
+}
+
+fn one() -> SpectralValue {
+    SpectralValue::Scalar(1.0)
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LayerConfig {
+    /// km.
+    pub bottom: f64,
+    /// km.
+    pub top: f64,
+    /// Vertical scattering optical thickness.
+    #[serde(default)]
+    pub tau_sca: Option<SpectralValue>,
+    /// Vertical absorption optical thickness.
+    #[serde(default)]
+    pub tau_abs: Option<SpectralValue>,
+    /// Alternative to tau_sca/tau_abs: total optical thickness and single-scattering albedo.
+    #[serde(default)]
+    pub optical_thickness: Option<SpectralValue>,
+    #[serde(default)]
+    pub single_scattering_albedo: Option<SpectralValue>,
+    #[serde(default)]
+    pub phase: PhaseConfig,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum PhaseConfig {
+    Rayleigh {
+        #[serde(default)]
+        depolarization: f64,
+    },
+    Hg {
+        g: f64,
+    },
+    Isotropic {},
+    Tabulated {
+        file: String,
+        /// nm; default: each run wavelength.
+        #[serde(default)]
+        wavelength: Option<f64>,
+        #[serde(default)]
+        size_index: usize,
+    },
+}
+
+impl Default for PhaseConfig {
+    fn default() -> Self {
+        PhaseConfig::Rayleigh { depolarization: 0.0 }
+    }
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SurfaceConfig {
+    Lambertian {
+        reflectance: SpectralValue,
+    },
+    Rpv {
+        rho_0: SpectralValue,
+        k: SpectralValue,
+        g: SpectralValue,
+        #[serde(default)]
+        rho_c: Option<SpectralValue>,
+    },
+    Rtls {
+        f_iso: SpectralValue,
+        f_vol: SpectralValue,
+        f_geo: SpectralValue,
+    },
+    Hapke {
+        w: SpectralValue,
+        b: SpectralValue,
+        c: SpectralValue,
+        /// degrees.
+        theta: SpectralValue,
+        #[serde(rename = "B_0")]
+        b_0: SpectralValue,
+        h: SpectralValue,
+    },
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum IlluminationConfig {
+    Directional {
+        /// degrees, [0, 90).
+        zenith: f64,
+        /// degrees, clockwise from North.
+        #[serde(default)]
+        azimuth: f64,
+        /// W m⁻² nm⁻¹, normal to the beam.
+        #[serde(default = "one")]
+        irradiance: SpectralValue,
+    },
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MeasureConfig {
+    Mdistant {
+        id: String,
+        /// "hplane" (default when `azimuth` is given) or "directions".
+        #[serde(default)]
+        construct: Option<String>,
+        /// degrees; hplane: the half-plane azimuth.
+        #[serde(default)]
+        azimuth: Option<f64>,
+        /// degrees; hplane: signed zeniths; directions: view zeniths.
+        zeniths: Vec<f64>,
+        /// degrees; directions: view azimuths, one per zenith.
+        #[serde(default)]
+        azimuths: Option<Vec<f64>>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    Radiancemeter {
+        id: String,
+        /// km, [x, y, z]; z is the altitude.
+        origin: [f64; 3],
+        /// Looking direction (need not be normalised).
+        direction: [f64; 3],
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    DistantFlux {
+        id: String,
+        /// km; default: top of the atmosphere.
+        #[serde(default)]
+        altitude: Option<f64>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+}
+
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntegratorConfig {
+    /// "auto" (default), "forward" or "backward".
+    #[serde(default, rename = "type")]
+    pub kind: Option<String>,
+    /// Maximum scattering order (1 = single scattering); default unlimited.
+    #[serde(default)]
+    pub max_depth: Option<u32>,
+    /// Scattering order from which Russian roulette may end paths (default 5).
+    #[serde(default)]
+    pub rr_depth: Option<u32>,
+}

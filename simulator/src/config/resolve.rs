@@ -1,0 +1,496 @@
+//! Validation of an [`ExperimentConfig`] into runtime types that cannot hold an invalid state:
+//! ranges checked, files loaded, units converted (km → m, degrees → radians).
+//! Every error names the experiment file and the key path (e.g. `atmosphere.layers[1].tau_sca`).
+
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use super::*;
+use crate::atmosphere::{LayerOptics, PlaneParallel};
+use crate::bsdf::{Bsdf, Hapke, Lambertian, Rpv, Rtls};
+use crate::error::ConfigError;
+use crate::frame::direction_from_angles;
+use crate::measure::{Measure, MeasureKind};
+use crate::optics::OpticalState;
+use crate::phase::{HenyeyGreenstein, PhaseFunction, Rayleigh, Tabulated};
+
+/// Which walk serves the measures.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum IntegratorKind {
+    /// Forward for `mdistant` and `distant_flux`, backward for `radiancemeter`.
+    Auto,
+    /// Photons from the Sun with local estimates towards every direction (1D distant measures).
+    Forward,
+    /// Paths from the sensor with next-event estimation towards the Sun.
+    Backward,
+}
+
+#[derive(Clone, Debug)]
+pub struct IntegratorSettings {
+    pub kind: IntegratorKind,
+    /// Maximum scattering order counted (u32::MAX: unlimited).
+    pub max_depth: u32,
+    pub rr_depth: u32,
+}
+
+/// A validated experiment.
+#[derive(Clone, Debug)]
+pub struct Experiment {
+    pub wavelengths: Vec<f64>,
+    /// One per wavelength.
+    pub optics: Vec<OpticalState>,
+    /// Solar zenith and azimuth, radians.
+    pub sun_zenith: f64,
+    pub sun_azimuth: f64,
+    /// Unit vector from the target towards the Sun.
+    pub sun_dir: DVec3,
+    pub measures: Vec<Measure>,
+    pub integrator: IntegratorSettings,
+    pub seed: u64,
+    /// The experiment file's text (written into the products for provenance).
+    pub source_text: String,
+    pub source_path: PathBuf,
+}
+
+impl Experiment {
+    /// Read and resolve an experiment file; relative paths inside are taken from its folder.
+    pub fn load(path: &Path) -> Result<Experiment, ConfigError> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|source| ConfigError::Read { path: path.to_path_buf(), source })?;
+        Self::from_str(&text, path)
+    }
+
+    /// Parse and resolve experiment text; `path` names it in errors and anchors relative paths.
+    pub fn from_str(text: &str, path: &Path) -> Result<Experiment, ConfigError> {
+        let parse_err = |message: String| ConfigError::Parse { path: path.to_path_buf(), message };
+        let de = toml::Deserializer::parse(text).map_err(|e| parse_err(e.to_string()))?;
+        let cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner().to_string();
+            if key.is_empty() || key == "." {
+                parse_err(inner)
+            } else {
+                parse_err(format!("at key `{key}`: {inner}"))
+            }
+        })?;
+        resolve(cfg, text, path)
+    }
+}
+
+struct Ctx<'a> {
+    path: &'a Path,
+    nw: usize,
+}
+
+impl Ctx<'_> {
+    fn err(&self, key: impl Into<String>, message: impl Into<String>) -> ConfigError {
+        ConfigError::Invalid { path: self.path.to_path_buf(), key: key.into(), message: message.into() }
+    }
+
+    /// Expand a spectral value to one number per wavelength, each finite and within `range`.
+    fn spectral(
+        &self,
+        key: &str,
+        v: &SpectralValue,
+        lo: f64,
+        hi: f64,
+    ) -> Result<Vec<f64>, ConfigError> {
+        let vals = match v {
+            SpectralValue::Scalar(x) => vec![*x; self.nw],
+            SpectralValue::List(l) => {
+                if l.len() != self.nw {
+                    return Err(self.err(
+                        key,
+                        format!("has {} values but there are {} wavelengths", l.len(), self.nw),
+                    ));
+                }
+                l.clone()
+            }
+        };
+        for (i, x) in vals.iter().enumerate() {
+            if !x.is_finite() || *x < lo || *x > hi {
+                let at = if matches!(v, SpectralValue::List(_)) { format!("[{i}]") } else { String::new() };
+                return Err(self.err(format!("{key}{at}"), format!("{x} must lie in [{lo}, {hi}]")));
+            }
+        }
+        Ok(vals)
+    }
+
+    fn finite(&self, key: &str, x: f64) -> Result<f64, ConfigError> {
+        if x.is_finite() {
+            Ok(x)
+        } else {
+            Err(self.err(key, format!("{x} is not a finite number")))
+        }
+    }
+}
+
+/// Validate a parsed experiment. `text` and `path` are kept for provenance and messages.
+pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experiment, ConfigError> {
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let mut ctx = Ctx { path, nw: 0 };
+    if cfg.mode != "mono" {
+        return Err(ctx.err("mode", format!("\"{}\" is not supported (supported: \"mono\")", cfg.mode)));
+    }
+    let wavelengths = cfg.spectral.wavelengths.clone();
+    if wavelengths.is_empty() {
+        return Err(ctx.err("spectral.wavelengths", "must list at least one wavelength"));
+    }
+    for (i, w) in wavelengths.iter().enumerate() {
+        if !w.is_finite() || *w <= 0.0 {
+            return Err(ctx.err(format!("spectral.wavelengths[{i}]"), format!("{w} nm must be positive")));
+        }
+    }
+    ctx.nw = wavelengths.len();
+    let nw = ctx.nw;
+
+    // Geometry.
+    let GeometryConfig::PlaneParallel { toa_altitude, ground_altitude } = cfg.geometry;
+    let toa = ctx.finite("geometry.toa_altitude", toa_altitude)? * 1e3;
+    let ground = ctx.finite("geometry.ground_altitude", ground_altitude)? * 1e3;
+    if toa <= ground {
+        return Err(ctx.err(
+            "geometry.toa_altitude",
+            format!("{toa_altitude} km must be above ground_altitude = {ground_altitude} km"),
+        ));
+    }
+
+    // Atmosphere: per wavelength, a list of layers.
+    let mut layers_per_w: Vec<Vec<LayerOptics>> = vec![Vec::new(); nw];
+    let mut phase_cache: Vec<(String, f64, usize, Arc<Tabulated>)> = Vec::new();
+    let mut make_phase = |key: &str, p: &PhaseConfig, iw: usize| -> Result<PhaseFunction, ConfigError> {
+        Ok(match p {
+            PhaseConfig::Rayleigh { depolarization } => PhaseFunction::Rayleigh(
+                Rayleigh::new(*depolarization).map_err(|m| ctx.err(format!("{key}.depolarization"), m))?,
+            ),
+            PhaseConfig::Hg { g } => {
+                PhaseFunction::Hg(HenyeyGreenstein::new(*g).map_err(|m| ctx.err(format!("{key}.g"), m))?)
+            }
+            PhaseConfig::Isotropic {} => PhaseFunction::Hg(HenyeyGreenstein { g: 0.0 }),
+            PhaseConfig::Tabulated { file, wavelength, size_index } => {
+                let wl = wavelength.unwrap_or(wavelengths[iw]);
+                if let Some((_, _, _, t)) =
+                    phase_cache.iter().find(|(f, w, s, _)| f == file && *w == wl && s == size_index)
+                {
+                    return Ok(PhaseFunction::Tabulated(t.clone()));
+                }
+                let fpath = base.join(file);
+                if !fpath.exists() {
+                    return Err(ctx.err(format!("{key}.file"), format!("file {} not found", fpath.display())));
+                }
+                let t = Tabulated::load_libradtran(&fpath, wl, *size_index)
+                    .map_err(|e| ctx.err(format!("{key}.file"), e.to_string()))?;
+                let t = Arc::new(t);
+                phase_cache.push((file.clone(), wl, *size_index, t.clone()));
+                PhaseFunction::Tabulated(t)
+            }
+        })
+    };
+    match &cfg.atmosphere {
+        None | Some(AtmosphereConfig::None {}) => {}
+        Some(AtmosphereConfig::Homogeneous { optical_thickness, single_scattering_albedo, phase }) => {
+            let tau = ctx.spectral("atmosphere.optical_thickness", optical_thickness, 0.0, 1e6)?;
+            let ssa = ctx.spectral("atmosphere.single_scattering_albedo", single_scattering_albedo, 0.0, 1.0)?;
+            for iw in 0..nw {
+                let phase = make_phase("atmosphere.phase", phase, iw)?;
+                layers_per_w[iw].push(LayerOptics {
+                    bottom: ground,
+                    top: toa,
+                    tau_sca: tau[iw] * ssa[iw],
+                    tau_abs: tau[iw] * (1.0 - ssa[iw]),
+                    phase,
+                });
+            }
+        }
+        Some(AtmosphereConfig::Layered { layers }) => {
+            if layers.is_empty() {
+                return Err(ctx.err("atmosphere.layers", "must list at least one layer"));
+            }
+            let mut spans = Vec::new();
+            for (il, l) in layers.iter().enumerate() {
+                let key = format!("atmosphere.layers[{il}]");
+                let (b, t) = (ctx.finite(&format!("{key}.bottom"), l.bottom)?, ctx.finite(&format!("{key}.top"), l.top)?);
+                if t <= b {
+                    return Err(ctx.err(format!("{key}.top"), format!("{t} km must be above bottom = {b} km")));
+                }
+                spans.push((b * 1e3, t * 1e3, il));
+                let (tau_sca, tau_abs) = match (&l.tau_sca, &l.tau_abs, &l.optical_thickness, &l.single_scattering_albedo) {
+                    (sca, abs, None, None) if sca.is_some() || abs.is_some() => {
+                        let zero = SpectralValue::Scalar(0.0);
+                        (
+                            ctx.spectral(&format!("{key}.tau_sca"), sca.as_ref().unwrap_or(&zero), 0.0, 1e6)?,
+                            ctx.spectral(&format!("{key}.tau_abs"), abs.as_ref().unwrap_or(&zero), 0.0, 1e6)?,
+                        )
+                    }
+                    (None, None, Some(tau), ssa) => {
+                        let tau = ctx.spectral(&format!("{key}.optical_thickness"), tau, 0.0, 1e6)?;
+                        let ssa = ctx.spectral(
+                            &format!("{key}.single_scattering_albedo"),
+                            ssa.as_ref().unwrap_or(&SpectralValue::Scalar(1.0)),
+                            0.0,
+                            1.0,
+                        )?;
+                        (
+                            tau.iter().zip(&ssa).map(|(t, s)| t * s).collect(),
+                            tau.iter().zip(&ssa).map(|(t, s)| t * (1.0 - s)).collect(),
+                        )
+                    }
+                    _ => {
+                        return Err(ctx.err(
+                            key,
+                            "give either `tau_sca` and/or `tau_abs`, or `optical_thickness` (with an optional \
+                             `single_scattering_albedo`), not both",
+                        ))
+                    }
+                };
+                for iw in 0..nw {
+                    let phase = make_phase(&format!("{key}.phase"), &l.phase, iw)?;
+                    layers_per_w[iw].push(LayerOptics {
+                        bottom: b * 1e3,
+                        top: t * 1e3,
+                        tau_sca: tau_sca[iw],
+                        tau_abs: tau_abs[iw],
+                        phase,
+                    });
+                }
+            }
+            // The layers must tile [ground, toa].
+            spans.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+            let mut z = ground;
+            for &(b, t, il) in &spans {
+                if (b - z).abs() > 1e-6 {
+                    let what = if b > z { "leaves a gap below it" } else { "overlaps the layer below" };
+                    return Err(ctx.err(
+                        format!("atmosphere.layers[{il}].bottom"),
+                        format!("{} km {what} (expected {} km; layers must tile ground_altitude..toa_altitude)", b / 1e3, z / 1e3),
+                    ));
+                }
+                z = t;
+            }
+            if (z - toa).abs() > 1e-6 {
+                return Err(ctx.err(
+                    "atmosphere.layers",
+                    format!("the top layer ends at {} km but toa_altitude is {} km", z / 1e3, toa / 1e3),
+                ));
+            }
+        }
+    }
+
+    // Surface, per wavelength.
+    let surfaces: Vec<Bsdf> = {
+        let s = &cfg.surface;
+        let big = 1e6;
+        let mut out = Vec::with_capacity(nw);
+        match s {
+            SurfaceConfig::Lambertian { reflectance } => {
+                let r = ctx.spectral("surface.reflectance", reflectance, 0.0, 1.0)?;
+                for v in r {
+                    out.push(Bsdf::Lambertian(Lambertian::new(v).map_err(|m| ctx.err("surface.reflectance", m))?));
+                }
+            }
+            SurfaceConfig::Rpv { rho_0, k, g, rho_c } => {
+                let r0 = ctx.spectral("surface.rho_0", rho_0, -big, big)?;
+                let kk = ctx.spectral("surface.k", k, -big, big)?;
+                let gg = ctx.spectral("surface.g", g, -big, big)?;
+                let rc = match rho_c {
+                    Some(v) => ctx.spectral("surface.rho_c", v, -big, big)?,
+                    None => r0.clone(),
+                };
+                for iw in 0..nw {
+                    out.push(Bsdf::Rpv(
+                        Rpv::new(r0[iw], kk[iw], gg[iw], rc[iw]).map_err(|m| ctx.err("surface", m))?,
+                    ));
+                }
+            }
+            SurfaceConfig::Rtls { f_iso, f_vol, f_geo } => {
+                let a = ctx.spectral("surface.f_iso", f_iso, -big, big)?;
+                let b = ctx.spectral("surface.f_vol", f_vol, -big, big)?;
+                let c = ctx.spectral("surface.f_geo", f_geo, -big, big)?;
+                for iw in 0..nw {
+                    out.push(Bsdf::Rtls(Rtls::new(a[iw], b[iw], c[iw]).map_err(|m| ctx.err("surface", m))?));
+                }
+            }
+            SurfaceConfig::Hapke { w, b, c, theta, b_0, h } => {
+                let w = ctx.spectral("surface.w", w, -big, big)?;
+                let b = ctx.spectral("surface.b", b, -big, big)?;
+                let c = ctx.spectral("surface.c", c, -big, big)?;
+                let th = ctx.spectral("surface.theta", theta, -big, big)?;
+                let b0 = ctx.spectral("surface.B_0", b_0, -big, big)?;
+                let h = ctx.spectral("surface.h", h, -big, big)?;
+                for iw in 0..nw {
+                    out.push(Bsdf::Hapke(
+                        Hapke::new(w[iw], b[iw], c[iw], th[iw], b0[iw], h[iw]).map_err(|m| ctx.err("surface", m))?,
+                    ));
+                }
+            }
+        }
+        out
+    };
+
+    // Illumination.
+    let IlluminationConfig::Directional { zenith, azimuth, irradiance } = &cfg.illumination;
+    let zenith = ctx.finite("illumination.zenith", *zenith)?;
+    if !(0.0..90.0).contains(&zenith) {
+        return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90)")));
+    }
+    let azimuth = ctx.finite("illumination.azimuth", *azimuth)?;
+    if !(-360.0..=360.0).contains(&azimuth) {
+        return Err(ctx.err("illumination.azimuth", format!("{azimuth} degrees must lie in [-360, 360]")));
+    }
+    let irradiance = ctx.spectral("illumination.irradiance", irradiance, 0.0, 1e9)?;
+    let sun_zenith = zenith.to_radians();
+    let sun_azimuth = azimuth.rem_euclid(360.0).to_radians();
+    let sun_dir = direction_from_angles(sun_zenith, sun_azimuth);
+
+    // Measures.
+    if cfg.measures.is_empty() {
+        return Err(ctx.err("measures", "at least one measure is required"));
+    }
+    let mut measures = Vec::new();
+    for (im, m) in cfg.measures.iter().enumerate() {
+        let key = format!("measures[{im}]");
+        let (id, spp, target) = match m {
+            MeasureConfig::Mdistant { id, spp, target_rel_stderr, .. }
+            | MeasureConfig::Radiancemeter { id, spp, target_rel_stderr, .. }
+            | MeasureConfig::DistantFlux { id, spp, target_rel_stderr, .. } => (id, *spp, *target_rel_stderr),
+        };
+        if id.is_empty() || !id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') || id.starts_with(|c: char| c.is_ascii_digit()) {
+            return Err(ctx.err(format!("{key}.id"), format!("\"{id}\" must be a non-empty identifier of letters, digits and _ (not starting with a digit)")));
+        }
+        if measures.iter().any(|x: &Measure| &x.id == id) {
+            return Err(ctx.err(format!("{key}.id"), format!("\"{id}\" is used by another measure")));
+        }
+        if spp < 2 {
+            return Err(ctx.err(format!("{key}.spp"), format!("{spp} must be at least 2 (a standard error needs two samples)")));
+        }
+        if let Some(t) = target {
+            if !(t > 0.0 && t < 1.0) {
+                return Err(ctx.err(format!("{key}.target_rel_stderr"), format!("{t} must lie in (0, 1)")));
+            }
+        }
+        let kind = match m {
+            MeasureConfig::Mdistant { construct, azimuth, zeniths, azimuths, .. } => {
+                let construct = construct.clone().unwrap_or_else(|| {
+                    if azimuths.is_some() { "directions".into() } else { "hplane".into() }
+                });
+                if zeniths.is_empty() {
+                    return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
+                }
+                let (mut vza, mut vaa) = (Vec::new(), Vec::new());
+                match construct.as_str() {
+                    "hplane" => {
+                        if azimuths.is_some() {
+                            return Err(ctx.err(format!("{key}.azimuths"), "is not used by construct \"hplane\" (use `azimuth`)"));
+                        }
+                        let az = azimuth.ok_or_else(|| ctx.err(format!("{key}.azimuth"), "is required by construct \"hplane\""))?;
+                        let az = ctx.finite(&format!("{key}.azimuth"), az)?;
+                        for (i, &z) in zeniths.iter().enumerate() {
+                            if !z.is_finite() || z <= -90.0 || z >= 90.0 {
+                                return Err(ctx.err(format!("{key}.zeniths[{i}]"), format!("{z} degrees must lie in (-90, 90)")));
+                            }
+                            vza.push(z.abs());
+                            vaa.push(if z >= 0.0 { az } else { az + 180.0 }.rem_euclid(360.0));
+                        }
+                    }
+                    "directions" => {
+                        if azimuth.is_some() {
+                            return Err(ctx.err(format!("{key}.azimuth"), "is not used by construct \"directions\" (use `azimuths`)"));
+                        }
+                        let azs = azimuths.as_ref().ok_or_else(|| ctx.err(format!("{key}.azimuths"), "is required by construct \"directions\""))?;
+                        if azs.len() != zeniths.len() {
+                            return Err(ctx.err(format!("{key}.azimuths"), format!("has {} values but `zeniths` has {}", azs.len(), zeniths.len())));
+                        }
+                        for (i, (&z, &a)) in zeniths.iter().zip(azs).enumerate() {
+                            if !z.is_finite() || !(0.0..90.0).contains(&z) {
+                                return Err(ctx.err(format!("{key}.zeniths[{i}]"), format!("{z} degrees must lie in [0, 90)")));
+                            }
+                            let a = ctx.finite(&format!("{key}.azimuths[{i}]"), a)?;
+                            vza.push(z);
+                            vaa.push(a.rem_euclid(360.0));
+                        }
+                    }
+                    other => {
+                        return Err(ctx.err(format!("{key}.construct"), format!("\"{other}\" is unknown (known: \"hplane\", \"directions\")")))
+                    }
+                }
+                let directions = vza
+                    .iter()
+                    .zip(&vaa)
+                    .map(|(z, a): (&f64, &f64)| direction_from_angles(z.to_radians(), a.to_radians()))
+                    .collect();
+                MeasureKind::Distant { directions, vza, vaa }
+            }
+            MeasureConfig::Radiancemeter { origin, direction, .. } => {
+                for i in 0..3 {
+                    ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
+                    ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
+                }
+                let o = DVec3::from_array(*origin) * 1e3;
+                let d = DVec3::from_array(*direction);
+                if d.length() < 1e-12 {
+                    return Err(ctx.err(format!("{key}.direction"), "must not be the zero vector"));
+                }
+                if o.z < ground {
+                    return Err(ctx.err(format!("{key}.origin[2]"), format!("altitude {} km is below the ground ({} km)", origin[2], ground / 1e3)));
+                }
+                MeasureKind::Radiancemeter { origin: o, look: d.normalize() }
+            }
+            MeasureConfig::DistantFlux { altitude, .. } => {
+                let a = altitude.map(|a| a * 1e3).unwrap_or(toa);
+                if !a.is_finite() || a < ground || a > toa {
+                    return Err(ctx.err(format!("{key}.altitude"), format!("{} km must lie between the ground and the top of the atmosphere", a / 1e3)));
+                }
+                MeasureKind::DistantFlux { altitude: a }
+            }
+        };
+        measures.push(Measure { id: id.clone(), spp, target_rel_stderr: target, kind });
+    }
+
+    // Integrator.
+    let kind = match cfg.integrator.kind.as_deref() {
+        None | Some("auto") => IntegratorKind::Auto,
+        Some("forward") => IntegratorKind::Forward,
+        Some("backward") => IntegratorKind::Backward,
+        Some(other) => {
+            return Err(ctx.err("integrator.type", format!("\"{other}\" is unknown (known: \"auto\", \"forward\", \"backward\")")))
+        }
+    };
+    if kind == IntegratorKind::Forward {
+        if let Some((im, _)) = measures.iter().enumerate().find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. })) {
+            return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
+        }
+    }
+    let max_depth = match cfg.integrator.max_depth {
+        Some(0) => return Err(ctx.err("integrator.max_depth", "must be at least 1")),
+        Some(d) => d,
+        None => u32::MAX,
+    };
+    let integrator = IntegratorSettings { kind, max_depth, rr_depth: cfg.integrator.rr_depth.unwrap_or(5) };
+
+    let optics = layers_per_w
+        .into_iter()
+        .zip(surfaces)
+        .enumerate()
+        .map(|(iw, (layers, surface))| OpticalState {
+            wavelength: wavelengths[iw],
+            atmosphere: PlaneParallel::new(layers, ground, toa),
+            surface,
+            irradiance: irradiance[iw],
+        })
+        .collect();
+
+    Ok(Experiment {
+        wavelengths,
+        optics,
+        sun_zenith,
+        sun_azimuth,
+        sun_dir,
+        measures,
+        integrator,
+        seed: cfg.seed,
+        source_text: text.to_string(),
+        source_path: path.to_path_buf(),
+    })
+}

@@ -1,0 +1,86 @@
+//! Backward (adjoint) walk from a sensor with next-event estimation towards the Sun.
+//!
+//! A path starts at the sensor's optical depth τ₀ travelling along the looking direction `d`
+//! (opposite to the light). At every interaction the radiance scattered towards the sensor by
+//! the directly transmitted sunlight is added:
+//! * collision at τ in a layer of albedo ω: `w·ω·P(s·d)/(4π)·E0·e^{−τ/μ_s}` with `s` the unit
+//!   vector towards the Sun (light propagating along −s scatters into −d: cos Θ = s·d);
+//! * ground: `w·f_r(s, −d)·E0·μ_s·e^{−τ*/μ_s}`.
+//!
+//! The path then continues in a direction drawn from the phase function (reciprocal) or the
+//! BRDF sampler. A sample is `π·L/(E0 μ_s)`. The sky has no diffuse source above TOA and the
+//! direct solar beam (a delta in direction) is never seen by the sensor.
+
+use glam::DVec3;
+
+use super::roulette;
+use crate::atmosphere::FlightEnd;
+use crate::config::resolve::IntegratorSettings;
+use crate::frame::rotate_about;
+use crate::optics::OpticalState;
+use crate::rng::Stream;
+
+/// One path from (τ₀, d₀); returns the (single, multiple) parts of `π·L/(E0 μ_s)`.
+pub fn walk(
+    opt: &OpticalState,
+    sun_dir: DVec3,
+    tau0: f64,
+    d0: DVec3,
+    settings: &IntegratorSettings,
+    rng: &mut Stream,
+) -> (f64, f64) {
+    let atm = &opt.atmosphere;
+    let total = atm.total_tau();
+    let mu_s = sun_dir.z;
+    let t_sun_ground = (-total / mu_s).exp();
+    let (mut single, mut multiple) = (0.0, 0.0);
+    let mut score = |order: u32, v: f64| {
+        if order == 1 {
+            single += v;
+        } else {
+            multiple += v;
+        }
+    };
+    let mut d = d0;
+    let mut tau = tau0;
+    let mut w = 1.0_f64;
+    let mut order: u32 = 1;
+    while order <= settings.max_depth {
+        let s = -rng.next_f64_open0().ln();
+        match atm.fly(tau, d.z, s) {
+            FlightEnd::Escape => break,
+            FlightEnd::Surface => {
+                tau = total;
+                let wo = -d;
+                let f = opt.surface.eval(sun_dir, wo);
+                score(order, w * f * mu_s * t_sun_ground);
+                let smp = opt.surface.sample(wo, rng.next_f64(), rng.next_f64());
+                w *= smp.weight;
+                d = smp.wi;
+            }
+            FlightEnd::Collision(t) => {
+                tau = t;
+                let layer = atm.layer_at_tau(t);
+                let omega = atm.albedo(layer);
+                let phase = atm.phase(layer);
+                score(
+                    order,
+                    w * omega * phase.eval(sun_dir.dot(d)) * (0.25 * std::f64::consts::FRAC_1_PI) * (-tau / mu_s).exp(),
+                );
+                w *= omega;
+                let mu = phase.sample_cos(rng.next_f64());
+                let phi = std::f64::consts::TAU * rng.next_f64();
+                d = rotate_about(d, mu, phi);
+            }
+        }
+        order += 1;
+        if w <= 0.0 {
+            break;
+        }
+        if order > settings.rr_depth && !roulette(&mut w, rng.next_f64()) {
+            break;
+        }
+    }
+    let k = std::f64::consts::PI / mu_s;
+    (single * k, multiple * k)
+}

@@ -1,0 +1,31 @@
+//! `simulator`: a Monte Carlo radiative-transfer engine for Earth-observation scenes.
+//!
+//! Data flow inside one run:
+//!
+//! ```text
+//! experiment.toml ─► config (serde, raw) ─► resolve() ─► Experiment (validated runtime types)
+//!                                                         │
+//!                 per wavelength: OpticalState (atmosphere optics, surface BRDF)
+//!                                                         │
+//!                      integrator (forward or backward walks) ─► Film (sums, sums of squares)
+//!                                                         │
+//!                                    products (BRF, standard errors) ─► CSV, netCDF
+//! ```
+//!
+//! Units and conventions are written once in `docs/conventions.md`: SI inside except where a
+//! name says otherwise, wavelengths in nm, angles in degrees in config files and radians inside,
+//! BRF = π·L/(E0·cos SZA) with E0 the solar irradiance normal to the beam.
+
+pub mod atmosphere;
+pub mod bench;
+pub mod bsdf;
+pub mod config;
+pub mod error;
+pub mod frame;
+pub mod integrator;
+pub mod measure;
+pub mod optics;
+pub mod phase;
+pub mod products;
+pub mod rng;
+pub mod run;

@@ -1,0 +1,15 @@
+//! The optical state of a run at one spectral point: everything the transport needs that depends
+//! on wavelength. Built once per wavelength by the resolver; immutable during transport.
+
+use crate::atmosphere::PlaneParallel;
+use crate::bsdf::Bsdf;
+
+#[derive(Clone, Debug)]
+pub struct OpticalState {
+    /// Wavelength, nm.
+    pub wavelength: f64,
+    pub atmosphere: PlaneParallel,
+    pub surface: Bsdf,
+    /// Solar irradiance normal to the beam, W m⁻² nm⁻¹.
+    pub irradiance: f64,
+}

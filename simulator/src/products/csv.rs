@@ -1,0 +1,56 @@
+//! `results.csv`: one row per measure, wavelength and direction.
+//!
+//! Columns: `measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,
+//! brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,
+//! flux_stderr,n_samples`. Angles in degrees (`vaa` clockwise from North, direction from the
+//! target to the sensor); empty cells where a quantity does not apply to the measure type.
+
+use std::fmt::Write;
+use std::path::Path;
+
+use super::{write_atomic, Row};
+use crate::error::OutputError;
+
+pub const HEADER: &str = "measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,\
+brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,flux_stderr,n_samples";
+
+fn opt(x: Option<f64>) -> String {
+    x.map(|v| format!("{v:.10e}")).unwrap_or_default()
+}
+
+fn pair(p: Option<(f64, f64)>) -> String {
+    match p {
+        Some((a, b)) => format!("{},{}", opt(Some(a)), opt(Some(b))),
+        None => ",".into(),
+    }
+}
+
+pub fn to_string(rows: &[Row]) -> String {
+    let mut s = String::from(HEADER);
+    s.push('\n');
+    for r in rows {
+        let angle = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            r.measure,
+            r.kind,
+            r.method,
+            r.wavelength_nm,
+            angle(r.vza),
+            angle(r.vaa),
+            pair(r.radiance),
+            pair(r.brf),
+            pair(r.brf_single),
+            pair(r.brf_multiple),
+            pair(r.albedo),
+            pair(r.flux),
+            r.n_samples
+        );
+    }
+    s
+}
+
+pub fn write(path: &Path, rows: &[Row]) -> Result<(), OutputError> {
+    write_atomic(path, to_string(rows).as_bytes())
+}

@@ -1,0 +1,110 @@
+//! Products: turn the integrators' sums into physical quantities with standard errors, and
+//! write them (CSV table, CF netCDF). Files are written atomically: to a temporary name in the
+//! output folder, then renamed, so a crash or a full disk never leaves a truncated product.
+//!
+//! Quantities (units in `docs/conventions.md`):
+//! * `brf` = π·L/(E0·cos SZA) (dimensionless), its single- and multiple-scattering parts;
+//! * `radiance` L = brf·E0·cos SZA/π, W m⁻² sr⁻¹ nm⁻¹ when E0 is in W m⁻² nm⁻¹;
+//! * `albedo` = F↑/(E0·cos SZA) and `flux` F↑ (W m⁻² nm⁻¹) for `distant_flux`.
+//! Every quantity carries the Monte Carlo standard error of its mean.
+
+pub mod csv;
+pub mod netcdf;
+
+use std::path::Path;
+
+use crate::config::resolve::Experiment;
+use crate::error::OutputError;
+use crate::frame::angles_from_direction;
+use crate::measure::MeasureKind;
+use crate::run::MeasureResult;
+
+/// One output row: one measure, wavelength and direction.
+#[derive(Clone, Debug)]
+pub struct Row {
+    pub measure: String,
+    pub kind: &'static str,
+    pub method: &'static str,
+    pub wavelength_nm: f64,
+    /// Zenith and azimuth (degrees) of the direction from the target towards the sensor.
+    pub vza: Option<f64>,
+    pub vaa: Option<f64>,
+    pub radiance: Option<(f64, f64)>,
+    pub brf: Option<(f64, f64)>,
+    pub brf_single: Option<(f64, f64)>,
+    pub brf_multiple: Option<(f64, f64)>,
+    pub albedo: Option<(f64, f64)>,
+    pub flux: Option<(f64, f64)>,
+    pub n_samples: u64,
+}
+
+/// Rows for every result, in (wavelength, measure, direction) order.
+pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
+    let mu_s = exp.sun_dir.z;
+    let mut out = Vec::new();
+    for r in results {
+        let m = &exp.measures[r.measure];
+        let e0 = exp.optics[r.wavelength].irradiance;
+        let to_rad = e0 * mu_s / std::f64::consts::PI;
+        for c in 0..m.cell_count() {
+            let (t, te) = r.acc.mean_stderr(c, 0);
+            let single = r.acc.mean_stderr(c, 1);
+            let multiple = r.acc.mean_stderr(c, 2);
+            let mut row = Row {
+                measure: m.id.clone(),
+                kind: m.type_name(),
+                method: r.method.name(),
+                wavelength_nm: exp.wavelengths[r.wavelength],
+                vza: None,
+                vaa: None,
+                radiance: None,
+                brf: None,
+                brf_single: None,
+                brf_multiple: None,
+                albedo: None,
+                flux: None,
+                n_samples: r.acc.n[c],
+            };
+            match &m.kind {
+                MeasureKind::Distant { vza, vaa, .. } => {
+                    row.vza = Some(vza[c]);
+                    row.vaa = Some(vaa[c]);
+                }
+                MeasureKind::Radiancemeter { look, .. } => {
+                    let (z, a) = angles_from_direction(-*look);
+                    row.vza = Some(z.to_degrees());
+                    row.vaa = Some(a.to_degrees());
+                }
+                MeasureKind::DistantFlux { .. } => {}
+            }
+            if let MeasureKind::DistantFlux { .. } = m.kind {
+                row.albedo = Some((t, te));
+                row.flux = Some((t * e0 * mu_s, te * e0 * mu_s));
+            } else {
+                row.brf = Some((t, te));
+                row.brf_single = Some(single);
+                row.brf_multiple = Some(multiple);
+                row.radiance = Some((t * to_rad, te * to_rad));
+            }
+            out.push(row);
+        }
+    }
+    out
+}
+
+/// Write `bytes` to `path` atomically (temporary file in the same folder, then rename).
+pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
+    let tmp = tmp_path(path);
+    let io = |source| OutputError::Io { path: path.to_path_buf(), source };
+    std::fs::write(&tmp, bytes).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        io(e)
+    })?;
+    std::fs::rename(&tmp, path).map_err(io)
+}
+
+/// `dir/.name.partial`: where a product is written before the rename.
+pub fn tmp_path(path: &Path) -> std::path::PathBuf {
+    let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+    path.with_file_name(format!(".{name}.partial"))
+}

@@ -1,0 +1,120 @@
+//! `results.nc`: the same data as `results.csv`, as labelled CF-1.10 variables (xarray-ready).
+//!
+//! Layout: a global `wavelength` coordinate (nm). Each measure `ID` has its own variables,
+//! prefixed by its id:
+//! * `mdistant` / `radiancemeter`: dimension `ID_direction`, coordinates `ID_vza(ID_direction)`
+//!   and `ID_vaa(ID_direction)` (degrees), data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`,
+//!   `ID_brf_multiple`, `ID_radiance`, `ID_radiance_stderr`, `ID_n_samples`, all on
+//!   `(wavelength, ID_direction)`;
+//! * `distant_flux`: `ID_albedo`, `ID_albedo_stderr`, `ID_flux`, `ID_flux_stderr`,
+//!   `ID_n_samples` on `(wavelength)`.
+//! Global attributes: `Conventions`, `title`, `source` (crate and version), `history`,
+//! `seed`, `sun_zenith`, `sun_azimuth`, and `experiment` (the experiment file's text).
+
+use std::path::Path;
+
+use super::{tmp_path, Row};
+use crate::config::resolve::Experiment;
+use crate::error::OutputError;
+use crate::measure::MeasureKind;
+
+pub fn write(path: &Path, exp: &Experiment, rows: &[Row]) -> Result<(), OutputError> {
+    let tmp = tmp_path(path);
+    let _ = std::fs::remove_file(&tmp);
+    let nc = |source| OutputError::Netcdf { path: path.to_path_buf(), source };
+    {
+        let mut f = netcdf::create(&tmp).map_err(nc)?;
+        write_into(&mut f, exp, rows).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            nc(e)
+        })?;
+    }
+    std::fs::rename(&tmp, path).map_err(|source| OutputError::Io { path: path.to_path_buf(), source })
+}
+
+fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result<(), netcdf::Error> {
+    f.add_attribute("Conventions", "CF-1.10")?;
+    f.add_attribute("title", "Monte Carlo radiative transfer simulation")?;
+    f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
+    f.add_attribute("history", format!("created by `simulate run {}`", exp.source_path.display()))?;
+    f.add_attribute("seed", exp.seed as i64)?;
+    f.add_attribute("sun_zenith", exp.sun_zenith.to_degrees())?;
+    f.add_attribute("sun_azimuth", exp.sun_azimuth.to_degrees())?;
+    f.add_attribute("experiment", exp.source_text.as_str())?;
+    let nw = exp.wavelengths.len();
+    f.add_dimension("wavelength", nw)?;
+    {
+        let mut v = f.add_variable::<f64>("wavelength", &["wavelength"])?;
+        v.put_attribute("units", "nm")?;
+        v.put_attribute("long_name", "wavelength")?;
+        v.put_attribute("standard_name", "radiation_wavelength")?;
+        v.put_values(&exp.wavelengths, ..)?;
+    }
+    for m in &exp.measures {
+        let id = &m.id;
+        let mrows: Vec<&Row> = rows.iter().filter(|r| &r.measure == id).collect();
+        let nc = m.cell_count();
+        // Rows are in (wavelength, direction) order.
+        let col = |get: &dyn Fn(&Row) -> f64| -> Vec<f64> { mrows.iter().map(|r| get(r)).collect() };
+        let nan = f64::NAN;
+        match m.kind {
+            MeasureKind::DistantFlux { altitude } => {
+                let vars: [(&str, Vec<f64>, &str, &str); 4] = [
+                    ("albedo", col(&|r| r.albedo.map_or(nan, |p| p.0)), "1", "upwelling flux / (E0 cos SZA)"),
+                    ("albedo_stderr", col(&|r| r.albedo.map_or(nan, |p| p.1)), "1", "standard error of albedo"),
+                    ("flux", col(&|r| r.flux.map_or(nan, |p| p.0)), "W m-2 nm-1", "upwelling hemispherical flux"),
+                    ("flux_stderr", col(&|r| r.flux.map_or(nan, |p| p.1)), "W m-2 nm-1", "standard error of flux"),
+                ];
+                for (name, data, units, long) in vars {
+                    let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength"])?;
+                    v.put_attribute("units", units)?;
+                    v.put_attribute("long_name", long)?;
+                    v.put_attribute("altitude_m", altitude)?;
+                    v.put_values(&data, ..)?;
+                }
+                let n: Vec<i64> = mrows.iter().map(|r| r.n_samples as i64).collect();
+                let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength"])?;
+                v.put_attribute("long_name", "Monte Carlo samples")?;
+                v.put_values(&n, ..)?;
+            }
+            _ => {
+                let dim = format!("{id}_direction");
+                f.add_dimension(&dim, nc)?;
+                let first: Vec<&&Row> = mrows.iter().take(nc).collect();
+                for (name, get, long) in [
+                    ("vza", (|r: &Row| r.vza.unwrap_or(f64::NAN)) as fn(&Row) -> f64, "viewing zenith angle (target to sensor)"),
+                    ("vaa", |r: &Row| r.vaa.unwrap_or(f64::NAN), "viewing azimuth angle, clockwise from North (target to sensor)"),
+                ] {
+                    let data: Vec<f64> = first.iter().map(|r| get(r)).collect();
+                    let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &[&dim])?;
+                    v.put_attribute("units", "degree")?;
+                    v.put_attribute("long_name", long)?;
+                    v.put_values(&data, ..)?;
+                }
+                let coords = format!("{id}_vza {id}_vaa");
+                let vars: [(&str, Vec<f64>, &str, &str); 8] = [
+                    ("brf", col(&|r| r.brf.map_or(nan, |p| p.0)), "1", "bidirectional reflectance factor pi L / (E0 cos SZA)"),
+                    ("brf_stderr", col(&|r| r.brf.map_or(nan, |p| p.1)), "1", "standard error of brf"),
+                    ("brf_single", col(&|r| r.brf_single.map_or(nan, |p| p.0)), "1", "single-scattering part of brf"),
+                    ("brf_single_stderr", col(&|r| r.brf_single.map_or(nan, |p| p.1)), "1", "standard error of brf_single"),
+                    ("brf_multiple", col(&|r| r.brf_multiple.map_or(nan, |p| p.0)), "1", "multiple-scattering part of brf"),
+                    ("brf_multiple_stderr", col(&|r| r.brf_multiple.map_or(nan, |p| p.1)), "1", "standard error of brf_multiple"),
+                    ("radiance", col(&|r| r.radiance.map_or(nan, |p| p.0)), "W m-2 sr-1 nm-1", "radiance"),
+                    ("radiance_stderr", col(&|r| r.radiance.map_or(nan, |p| p.1)), "W m-2 sr-1 nm-1", "standard error of radiance"),
+                ];
+                for (name, data, units, long) in vars {
+                    let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dim])?;
+                    v.put_attribute("units", units)?;
+                    v.put_attribute("long_name", long)?;
+                    v.put_attribute("coordinates", coords.as_str())?;
+                    v.put_values(&data, ..)?;
+                }
+                let n: Vec<i64> = mrows.iter().map(|r| r.n_samples as i64).collect();
+                let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength", &dim])?;
+                v.put_attribute("long_name", "Monte Carlo samples")?;
+                v.put_values(&n, ..)?;
+            }
+        }
+    }
+    Ok(())
+}
