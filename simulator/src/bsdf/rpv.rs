@@ -29,6 +29,10 @@
 //! spot (θi = θo, Δφ = 0), where `G = 0` too. The scattering angle is `π − g`, so in the HG term
 //! a negative Θ peaks towards `g = 0`: `Θ < 0` is backward scattering, as in RAMI's notation.
 //!
+//! **Energy.** The ranges above do not make the model energy-conserving everywhere: bright,
+//! bowl-shaped sets (e.g. ρ₀ = 0.4, k = 0.75, Θ = −0.1, ρ_c = 0.4) reach a directional albedo
+//! above 1 at grazing incidence. Parameters fitted to real surfaces stay well below.
+//!
 //! **Degenerate case.** `k = 1, g = 0, ρ_c = 1` gives `M = F = H = 1`: a Lambertian of
 //! reflectance ρ₀.
 //!

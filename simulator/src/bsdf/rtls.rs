@@ -27,6 +27,9 @@
 //! physical BRDF everywhere). `eval` clamps the BRF at 0: the surface then reflects nothing in
 //! those directions, which keeps the Monte Carlo weights non-negative.
 //!
+//! **Energy.** As for any fitted kernel model, the weight ranges do not guarantee a
+//! directional albedo ≤ 1 (e.g. `f_iso = f_vol = 1`); MODIS-like weights stay well below.
+//!
 //! **Angle conventions.** `Δφ = φi − φo` is the relative azimuth of the outgoing vectors `wi`
 //! (towards the Sun) and `wo` (towards the viewer); the absolute azimuth origin (clockwise from
 //! North in this crate) cancels. `Δφ = 0`: viewer on the Sun's side (backscattering), where the

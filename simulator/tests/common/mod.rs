@@ -1,0 +1,95 @@
+//! Shared helpers of the system and benchmark tests.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use simulator::config::Experiment;
+use simulator::products::{rows, Row};
+
+pub fn data_dir() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data")
+}
+
+pub fn experiment(text: &str) -> Experiment {
+    // Relative paths in test experiments are taken from tests/data.
+    Experiment::from_str(text, &data_dir().join("test.toml")).unwrap_or_else(|e| panic!("{e}\n{text}"))
+}
+
+pub fn run_rows(exp: &Experiment) -> Vec<Row> {
+    let res = simulator::run::run(exp, false);
+    rows(exp, &res)
+}
+
+/// One comparison of a Monte Carlo value with a reference value.
+#[derive(Clone, Debug)]
+pub struct Cmp {
+    pub label: String,
+    pub reference: f64,
+    pub value: f64,
+    pub stderr: f64,
+}
+
+/// The statistical test used by every reference comparison:
+/// pass when |value − reference| ≤ K·stderr + max(ABS_FLOOR, REL_FLOOR·|reference|).
+/// K = 4.5 keeps the chance of a false alarm below 1e-3 over the few hundred comparisons of a
+/// test (seeds are fixed, so a result is reproducible either way); the floors cover the
+/// references' own discretisation error (DISORT: < 1e-6 relative; tables are printed with 10
+/// digits) and float noise.
+pub const K: f64 = 4.5;
+pub const ABS_FLOOR: f64 = 1e-5;
+pub const REL_FLOOR: f64 = 2e-4;
+
+pub fn check_all(case: &str, cmps: &[Cmp]) -> Result<(), String> {
+    let mut worst_rel: f64 = 0.0;
+    let mut worst_z: f64 = 0.0;
+    let mut failures = Vec::new();
+    for c in cmps {
+        let diff = (c.value - c.reference).abs();
+        let tol = K * c.stderr + ABS_FLOOR.max(REL_FLOOR * c.reference.abs());
+        let rel = if c.reference != 0.0 { diff / c.reference.abs() } else { diff };
+        worst_rel = worst_rel.max(rel);
+        if c.stderr > 0.0 {
+            worst_z = worst_z.max(diff / c.stderr);
+        }
+        if !(diff <= tol) {
+            failures.push(format!(
+                "  {}: value {:.6e} ± {:.2e}, reference {:.6e}, |diff| {:.2e} > tol {:.2e} (z = {:.1})",
+                c.label,
+                c.value,
+                c.stderr,
+                c.reference,
+                diff,
+                tol,
+                diff / c.stderr
+            ));
+        }
+    }
+    let med_se = {
+        let mut v: Vec<f64> = cmps.iter().map(|c| c.stderr / c.reference.abs().max(1e-12)).collect();
+        v.sort_by(|a, b| a.partial_cmp(b).unwrap());
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
+    };
+    println!(
+        "{case}: {} comparisons, max |rel diff| = {:.3e}, max z = {:.2}, median rel stderr = {:.2e}",
+        cmps.len(),
+        worst_rel,
+        worst_z,
+        med_se
+    );
+    if failures.is_empty() {
+        Ok(())
+    } else {
+        Err(format!("{case}: {} of {} comparisons failed:\n{}", failures.len(), cmps.len(), failures.join("\n")))
+    }
+}
+
+/// An `mdistant` measure TOML listing explicit directions.
+pub fn mdistant_toml(id: &str, vza: &[f64], vaa: &[f64], spp: u64) -> String {
+    let z: Vec<String> = vza.iter().map(|v| format!("{v:?}")).collect();
+    let a: Vec<String> = vaa.iter().map(|v| format!("{v:?}")).collect();
+    format!(
+        "[[measures]]\nid = \"{id}\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [{}]\nazimuths = [{}]\nspp = {spp}\n",
+        z.join(", "),
+        a.join(", ")
+    )
+}
