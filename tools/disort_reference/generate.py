@@ -115,7 +115,10 @@ class TabulatedPhase:
     def chi(self, n):
         mu = np.cos(np.radians(self._t))
         f = 0.5 * self._w * np.sin(np.radians(self._t)) * self(mu)
-        return npleg.legvander(mu, n - 1).T @ f
+        c = npleg.legvander(mu, n - 1).T @ f
+        assert abs(c[0] - 1) < 1e-12, c[0]
+        c[0] = 1.0  # exactly (cdisort rejects |chi_l| > 1)
+        return c
 
     def pmom_check(self):
         """Max relative difference between the tabulated phase and the file's Legendre series,

@@ -113,7 +113,7 @@ pub fn walk(
             }
         }
         if let Some(tl) = targets.flux_tau {
-            if d.z > 0.0 && tau > tl && order > 1 {
+            if d.z > 0.0 && tau >= tl && order > 1 {
                 let v = w * (-(tau - tl) / d.z).exp();
                 score(scratch, order - 1, 0, v);
             }
