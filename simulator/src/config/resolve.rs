@@ -68,14 +68,84 @@ impl Experiment {
         let de = toml::Deserializer::parse(text).map_err(|e| parse_err(e.to_string()))?;
         let cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
-            let inner = e.into_inner().to_string();
+            let inner = e.into_inner().to_string().trim_end().to_string();
+            let hint = locate_offender(text, &inner);
             if key.is_empty() || key == "." {
-                parse_err(inner)
+                parse_err(format!("{inner}{hint}"))
             } else {
-                parse_err(format!("at key `{key}`: {inner}"))
+                parse_err(format!("at key `{key}`: {inner}{hint}"))
             }
         })?;
         resolve(cfg, text, path)
+    }
+}
+
+/// serde loses the key path inside tagged tables (e.g. `atmosphere.phase`); find the full
+/// path(s) of the offending key or value named in `message` by walking the TOML tree.
+fn locate_offender(text: &str, message: &str) -> String {
+    let quoted = |prefix: &str| -> Option<String> {
+        let i = message.find(prefix)? + prefix.len();
+        let rest = &message[i..];
+        let end = rest.find('`')?;
+        Some(rest[..end].to_string())
+    };
+    let string_value = || -> Option<String> {
+        let i = message.find("invalid type: string \"")? + "invalid type: string \"".len();
+        let rest = &message[i..];
+        Some(rest[..rest.find('"')?].to_string())
+    };
+    let number_value = || -> Option<String> {
+        let i = message.find("invalid type: ")?;
+        let rest = &message[i..];
+        let a = rest.find('`')? + 1;
+        let b = a + rest[a..].find('`')?;
+        Some(rest[a..b].to_string())
+    };
+    let (needle, is_key) = if let Some(k) = quoted("unknown field `") {
+        (k, true)
+    } else if let Some(v) = quoted("unknown variant `").or_else(string_value) {
+        (v, false)
+    } else if let Some(v) = number_value() {
+        (v, false)
+    } else {
+        return String::new();
+    };
+    let Ok(root) = text.parse::<toml::Table>() else { return String::new() };
+    let mut found = Vec::new();
+    fn walk(v: &toml::Value, path: String, needle: &str, is_key: bool, found: &mut Vec<String>) {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, x) in t {
+                    let p = if path.is_empty() { k.clone() } else { format!("{path}.{k}") };
+                    let hit = if is_key {
+                        k == needle
+                    } else {
+                        match x {
+                            toml::Value::String(s) => s == needle,
+                            toml::Value::Integer(i) => i.to_string() == needle,
+                            toml::Value::Float(f) => f.to_string() == needle || format!("{f:?}") == needle,
+                            _ => false,
+                        }
+                    };
+                    if hit {
+                        found.push(p.clone());
+                    }
+                    walk(x, p, needle, is_key, found);
+                }
+            }
+            toml::Value::Array(a) => {
+                for (i, x) in a.iter().enumerate() {
+                    walk(x, format!("{path}[{i}]"), needle, is_key, found);
+                }
+            }
+            _ => {}
+        }
+    }
+    walk(&toml::Value::Table(root), String::new(), &needle, is_key, &mut found);
+    if found.is_empty() {
+        String::new()
+    } else {
+        format!(" (offending key: `{}`)", found.join("`, `"))
     }
 }
 
