@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Idempotent set-up of a Debian machine for this workspace: system libraries (netCDF, HDF5,
+# GDAL headers), then the Rust crates and a release build. Safe to run again: it installs only
+# what is missing. Used by the README's first command and by .ci/run.
+set -euo pipefail
+
+cd "$(dirname "$0")/.."
+
+PKGS=(pkg-config libnetcdf-dev libhdf5-dev netcdf-bin libgdal-dev)
+
+missing=()
+for p in "${PKGS[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+done
+if ((${#missing[@]})); then
+    echo "setup: installing Debian packages: ${missing[*]}"
+    SUDO=""
+    if [ "$(id -u)" -ne 0 ]; then SUDO="sudo"; fi
+    $SUDO apt-get update -qq
+    DEBIAN_FRONTEND=noninteractive $SUDO apt-get install -y -qq --no-install-recommends "${missing[@]}" >/dev/null
+else
+    echo "setup: Debian packages present"
+fi
+
+if ! command -v cargo >/dev/null 2>&1; then
+    echo "setup: cargo not found. Install a Rust toolchain >= 1.85 (https://rustup.rs) and run again." >&2
+    exit 1
+fi
+
+echo "setup: fetching crates and building (release)"
+cargo fetch --locked 2>/dev/null || cargo fetch
+cargo build --release --workspace --bins
+echo "setup: done"
