@@ -243,4 +243,7 @@ pub struct IntegratorConfig {
     /// Scattering order from which Russian roulette may end paths (default 5).
     #[serde(default)]
     pub rr_depth: Option<u32>,
+    /// "expected" (default): expected local estimates along flights; "collision": at collisions.
+    #[serde(default)]
+    pub local_estimate: Option<String>,
 }

@@ -33,6 +33,8 @@ pub struct IntegratorSettings {
     /// Maximum scattering order counted (u32::MAX: unlimited).
     pub max_depth: u32,
     pub rr_depth: u32,
+    /// Score the expected local estimate along each flight (true) or at sampled collisions.
+    pub expected_local_estimate: bool,
 }
 
 /// A validated experiment.
@@ -537,7 +539,15 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         Some(d) => d,
         None => u32::MAX,
     };
-    let integrator = IntegratorSettings { kind, max_depth, rr_depth: cfg.integrator.rr_depth.unwrap_or(5) };
+    let expected_local_estimate = match cfg.integrator.local_estimate.as_deref() {
+        None | Some("expected") => true,
+        Some("collision") => false,
+        Some(other) => {
+            return Err(ctx.err("integrator.local_estimate", format!("\"{other}\" is unknown (known: \"expected\", \"collision\")")))
+        }
+    };
+    let integrator =
+        IntegratorSettings { kind, max_depth, rr_depth: cfg.integrator.rr_depth.unwrap_or(5), expected_local_estimate };
 
     let optics = layers_per_w
         .into_iter()

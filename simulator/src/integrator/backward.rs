@@ -7,6 +7,10 @@
 //!   vector towards the Sun (light propagating along −s scatters into −d: cos Θ = s·d);
 //! * ground: `w·f_r(s, −d)·E0·μ_s·e^{−τ*/μ_s}`.
 //!
+//! By default the collision's estimate is replaced by its expectation over the collision
+//! position along the flight (exact, layer by layer; see the forward walk), so nothing is scored
+//! at the sampled collision; `integrator.local_estimate = "collision"` scores there instead.
+//!
 //! The path then continues in a direction drawn from the phase function (reciprocal) or the
 //! BRDF sampler. A sample is `π·L/(E0 μ_s)`. The sky has no diffuse source above TOA and the
 //! direct solar beam (a delta in direction) is never seen by the sensor.
@@ -45,7 +49,17 @@ pub fn walk(
     let mut tau = tau0;
     let mut w = 1.0_f64;
     let mut order: u32 = 1;
+    let inv_mu_s = 1.0 / mu_s;
     while order <= settings.max_depth {
+        if settings.expected_local_estimate {
+            // Expected next-event estimate of the next collision, exact along the flight.
+            let cos = sun_dir.dot(d);
+            let mut acc = 0.0;
+            atm.flight_integrals(tau, d.z, inv_mu_s, |l, i| {
+                acc += atm.albedo(l) * atm.phase(l).eval(cos) * i;
+            });
+            score(order, w * acc * (0.25 * std::f64::consts::FRAC_1_PI));
+        }
         let s = -rng.next_f64_open0().ln();
         match atm.fly(tau, d.z, s) {
             FlightEnd::Escape => break,
@@ -63,10 +77,12 @@ pub fn walk(
                 let layer = atm.layer_at_tau(t);
                 let omega = atm.albedo(layer);
                 let phase = atm.phase(layer);
-                score(
-                    order,
-                    w * omega * phase.eval(sun_dir.dot(d)) * (0.25 * std::f64::consts::FRAC_1_PI) * (-tau / mu_s).exp(),
-                );
+                if !settings.expected_local_estimate {
+                    score(
+                        order,
+                        w * omega * phase.eval(sun_dir.dot(d)) * (0.25 * std::f64::consts::FRAC_1_PI) * (-tau / mu_s).exp(),
+                    );
+                }
                 w *= omega;
                 let mu = phase.sample_cos(rng.next_f64());
                 let phi = std::f64::consts::TAU * rng.next_f64();

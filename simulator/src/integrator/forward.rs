@@ -7,7 +7,13 @@
 //!   with cos Θ = d·v (d the photon's direction before scattering);
 //! * reflection at the ground, for a photon arriving along `d`: `w·π·f_r(−d, v)·e^{−τ*/μ_v}`.
 //!
-//! Variance reduction: the ground contribution is added as its expected value at each downward
+//! Variance reduction: by default (`integrator.local_estimate = "expected"`) the local estimate
+//! of the next collision is replaced by its expectation over the collision position along the
+//! flight, integrated exactly layer by layer ([`PlaneParallel::flight_integrals`]); the walk then
+//! samples the collision as usual but scores nothing there. Single scattering thus carries no
+//! Monte Carlo noise at all, and higher orders lose the noise of the last flight. With
+//! `"collision"` the classic point estimate at the sampled collision is used (a cross-check).
+//! Likewise the ground contribution is added as its expected value at each downward
 //! flight, `w·e^{−(τ*−τ)/|d_z|}·π f_r·e^{−τ*/μ_v}`, instead of only when the sampled flight
 //! reaches the ground (unbiased since E[1_hit·X] = P(hit)·X); likewise the upward flux through a
 //! level is the expected crossing `w·e^{−(τ−τ_L)/d_z}` of every upward flight from below it.
@@ -18,6 +24,8 @@ use glam::DVec3;
 
 use super::{roulette, Accum};
 use crate::atmosphere::FlightEnd;
+#[allow(unused_imports)]
+use crate::atmosphere::PlaneParallel;
 use crate::config::resolve::IntegratorSettings;
 use crate::frame::rotate_about;
 use crate::optics::OpticalState;
@@ -112,6 +120,20 @@ pub fn walk(
                 }
             }
         }
+        if settings.expected_local_estimate && order <= settings.max_depth && !dirs.is_empty() {
+            // Expected value of the next collision's local estimates (exact along the flight).
+            for (k, v) in dirs.iter().enumerate() {
+                let im = scratch.inv_mu[k];
+                let cos = d.dot(*v);
+                let mut acc = 0.0;
+                atm.flight_integrals(tau, d.z, im, |l, i| {
+                    acc += atm.albedo(l) * atm.phase(l).eval(cos) * i;
+                });
+                if acc > 0.0 {
+                    score(scratch, order, k, w * 0.25 * im * acc);
+                }
+            }
+        }
         if let Some(tl) = targets.flux_tau {
             if d.z > 0.0 && tau >= tl && order > 1 {
                 let v = w * (-(tau - tl) / d.z).exp();
@@ -135,10 +157,12 @@ pub fn walk(
                 let layer = atm.layer_at_tau(t);
                 let omega = atm.albedo(layer);
                 let phase = atm.phase(layer);
-                let c = w * omega * 0.25;
-                for (k, v) in dirs.iter().enumerate() {
-                    let im = scratch.inv_mu[k];
-                    score(scratch, order, k, c * phase.eval(d.dot(*v)) * (-tau * im).exp() * im);
+                if !settings.expected_local_estimate {
+                    let c = w * omega * 0.25;
+                    for (k, v) in dirs.iter().enumerate() {
+                        let im = scratch.inv_mu[k];
+                        score(scratch, order, k, c * phase.eval(d.dot(*v)) * (-tau * im).exp() * im);
+                    }
                 }
                 w *= omega;
                 let mu = phase.sample_cos(rng.next_f64());
