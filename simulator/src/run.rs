@@ -126,6 +126,19 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
     out
 }
 
+/// End of the next round: the sample count at which the target should be met (the standard
+/// error falls as 1/√n), with a 10 % margin, at least 8 more blocks and at most 4× the samples
+/// done, rounded up to whole blocks. Depends only on results, so it is thread-count independent.
+fn next_round_end(done: u64, rel: f64, target: f64, spp: u64) -> u64 {
+    let grow = if rel.is_finite() && target > 0.0 {
+        (done as f64 * (rel / target).powi(2) * 1.1).ceil() as u64
+    } else {
+        done * 4
+    };
+    let n = grow.clamp(done + 8 * BLOCK, done * 4);
+    (n.div_ceil(BLOCK) * BLOCK).min(spp)
+}
+
 /// Run one measure at one wavelength, in rounds when a target precision is set.
 pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) -> MeasureResult {
     let m = &exp.measures[im];
@@ -178,7 +191,117 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
             break;
         }
-        next = (done * 2).min(m.spp);
+        next = next_round_end(done, acc.max_rel_stderr(), m.target_rel_stderr.unwrap_or(0.0), m.spp);
     }
     MeasureResult { measure: im, wavelength: iw, method, acc }
+}
+
+/// Checkpoints: after each (wavelength, measure) task its sums are written to
+/// `DIR/wWWW_mMMM.json` (atomically), stamped with a hash of the experiment text and the
+/// simulator version. A later run of the same experiment into the same folder reuses them, so
+/// an interrupted run resumes where it stopped; any change to the experiment invalidates them.
+pub mod checkpoint {
+    use std::path::{Path, PathBuf};
+
+    use serde::{Deserialize, Serialize};
+
+    use super::{Method, MeasureResult};
+    use crate::config::resolve::Experiment;
+    use crate::error::OutputError;
+    use crate::integrator::Accum;
+
+    #[derive(Serialize, Deserialize)]
+    struct Stored {
+        experiment_hash: String,
+        version: String,
+        measure: String,
+        wavelength_nm: f64,
+        method: String,
+        acc: Accum,
+    }
+
+    /// FNV-1a 64 of the experiment text: identifies the run a checkpoint belongs to.
+    pub fn experiment_hash(exp: &Experiment) -> String {
+        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+        for b in exp.source_text.bytes().chain(env!("CARGO_PKG_VERSION").bytes()) {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+        format!("{h:016x}")
+    }
+
+    fn path(dir: &Path, iw: usize, im: usize) -> PathBuf {
+        dir.join(format!("w{iw:03}_m{im:03}.json"))
+    }
+
+    /// A stored result for this task, if one exists and belongs to this experiment.
+    pub fn load(dir: &Path, exp: &Experiment, iw: usize, im: usize) -> Option<MeasureResult> {
+        let text = std::fs::read_to_string(path(dir, iw, im)).ok()?;
+        let s: Stored = serde_json::from_str(&text).ok()?;
+        let m = &exp.measures[im];
+        if s.experiment_hash != experiment_hash(exp) || s.measure != m.id || s.acc.n.len() != m.cell_count() {
+            return None;
+        }
+        let method = if s.method == "forward" { Method::Forward } else { Method::Backward };
+        Some(MeasureResult { measure: im, wavelength: iw, method, acc: s.acc })
+    }
+
+    pub fn store(dir: &Path, exp: &Experiment, r: &MeasureResult) -> Result<(), OutputError> {
+        std::fs::create_dir_all(dir).map_err(|source| OutputError::Io { path: dir.to_path_buf(), source })?;
+        let s = Stored {
+            experiment_hash: experiment_hash(exp),
+            version: env!("CARGO_PKG_VERSION").into(),
+            measure: exp.measures[r.measure].id.clone(),
+            wavelength_nm: exp.wavelengths[r.wavelength],
+            method: r.method.name().into(),
+            acc: r.acc.clone(),
+        };
+        let text = serde_json::to_string(&s).expect("checkpoint serialises");
+        crate::products::write_atomic(&path(dir, r.wavelength, r.measure), text.as_bytes())
+    }
+}
+
+/// [`run`] with checkpoints in `dir`: completed tasks are loaded instead of recomputed, and
+/// each newly completed task is stored before the next starts. Returns the results and the
+/// number of tasks resumed.
+pub fn run_resumable(
+    exp: &Experiment,
+    progress: bool,
+    dir: &std::path::Path,
+) -> Result<(Vec<MeasureResult>, usize), crate::error::OutputError> {
+    let bar = if progress {
+        let total: u64 = exp
+            .measures
+            .iter()
+            .map(|m| m.spp * if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 })
+            .sum::<u64>()
+            * exp.wavelengths.len() as u64;
+        let b = ProgressBar::new(total);
+        b.set_style(
+            ProgressStyle::with_template("{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})")
+                .unwrap(),
+        );
+        b
+    } else {
+        ProgressBar::hidden()
+    };
+    let mut out = Vec::new();
+    let mut resumed = 0;
+    for iw in 0..exp.wavelengths.len() {
+        for (im, m) in exp.measures.iter().enumerate() {
+            let per = if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 };
+            if let Some(r) = checkpoint::load(dir, exp, iw, im) {
+                bar.inc(m.spp * per);
+                resumed += 1;
+                out.push(r);
+                continue;
+            }
+            bar.set_message(format!("{} @ {} nm", m.id, exp.wavelengths[iw]));
+            let r = run_measure(exp, iw, im, &bar);
+            checkpoint::store(dir, exp, &r)?;
+            out.push(r);
+        }
+    }
+    bar.finish_and_clear();
+    Ok((out, resumed))
 }

@@ -43,6 +43,10 @@ fn cases(rows: &[RefRow]) -> Vec<(f64, f64, f64)> {
 }
 
 fn experiment_text(tau: f64, albedo: f64, sza: f64, integrator: &str, measure: &str) -> String {
+    let (integrator, estimator) = match integrator.split_once('+') {
+        Some((i, e)) => (i, e),
+        None => (integrator, "expected"),
+    };
     format!(
         r#"
 seed = 2024
@@ -61,6 +65,7 @@ zenith = {sza:?}
 azimuth = 0.0
 [integrator]
 type = "{integrator}"
+local_estimate = "{estimator}"
 {measure}"#
     )
 }
@@ -100,5 +105,22 @@ fn backward_matches_disort_case_a() {
     let all = load();
     let errs: Vec<String> =
         cases(&all).into_iter().filter_map(|c| run_case(&all, c, "backward", 60_000, 6).err()).collect();
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
+}
+
+/// The classic point local estimate at sampled collisions (`local_estimate = "collision"`) is
+/// an independent estimator of the same quantities: it must match DISORT too.
+#[test]
+fn collision_estimator_matches_disort_case_a() {
+    let all = load();
+    let picks = [(0.5, 0.3, 30.0), (0.1, 0.0, 60.0)];
+    let mut errs = Vec::new();
+    for c in picks {
+        for (integrator, spp, every) in [("forward+collision", 300_000, 1), ("backward+collision", 60_000, 6)] {
+            if let Err(e) = run_case(&all, c, integrator, spp, every) {
+                errs.push(e);
+            }
+        }
+    }
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }

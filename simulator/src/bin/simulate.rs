@@ -36,6 +36,9 @@ enum Command {
         /// No progress bar.
         #[arg(short, long)]
         quiet: bool,
+        /// Ignore checkpoints of an earlier, interrupted run in OUTDIR/checkpoints.
+        #[arg(long)]
+        fresh: bool,
     },
     /// Validate an experiment file without running it.
     Check {
@@ -97,7 +100,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Run { experiment, output, threads, quiet } => {
+        Command::Run { experiment, output, threads, quiet, fresh } => {
             set_threads(threads)?;
             let exp = Experiment::load(&experiment)?;
             std::fs::create_dir_all(&output)
@@ -110,13 +113,22 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 exp.measures.len(),
                 rayon::current_num_threads()
             );
-            let results = simulator::run::run(&exp, !quiet);
+            let ckpt = output.join("checkpoints");
+            if fresh {
+                let _ = std::fs::remove_dir_all(&ckpt);
+            }
+            let (results, resumed) = simulator::run::run_resumable(&exp, !quiet, &ckpt)?;
+            if resumed > 0 {
+                tracing::info!("resumed {resumed} completed task(s) from {}", ckpt.display());
+            }
             let rows = products::rows(&exp, &results);
             let csv = output.join("results.csv");
             let nc = output.join("results.nc");
             products::csv::write(&csv, &rows)?;
             products::netcdf::write(&nc, &exp, &rows)?;
             print_summary(&rows);
+            // Products are complete: the checkpoints are no longer needed.
+            let _ = std::fs::remove_dir_all(&ckpt);
             tracing::info!("done in {:.2} s: wrote {} and {}", t0.elapsed().as_secs_f64(), csv.display(), nc.display());
             Ok(())
         }

@@ -23,7 +23,7 @@ pub mod forward;
 pub const RR_THRESHOLD: f64 = 0.25;
 
 /// Per-cell sums of samples and of their squares, for the total and its two parts.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Accum {
     /// Samples per cell.
     pub n: Vec<u64>,
