@@ -96,7 +96,7 @@ fn run_case(all: &[RefRow], (tau, albedo, sza): (f64, f64, f64), integrator: &st
 fn forward_matches_disort_case_a() {
     let all = load();
     let errs: Vec<String> =
-        cases(&all).into_iter().filter_map(|c| run_case(&all, c, "forward", 400_000, 1).err()).collect();
+        cases(&all).into_iter().filter_map(|c| run_case(&all, c, "forward", 1_500_000, 1).err()).collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 
@@ -104,7 +104,7 @@ fn forward_matches_disort_case_a() {
 fn backward_matches_disort_case_a() {
     let all = load();
     let errs: Vec<String> =
-        cases(&all).into_iter().filter_map(|c| run_case(&all, c, "backward", 60_000, 6).err()).collect();
+        cases(&all).into_iter().filter_map(|c| run_case(&all, c, "backward", 200_000, 6).err()).collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 

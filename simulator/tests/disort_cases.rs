@@ -137,7 +137,7 @@ fn run_case(case: &Table, all: &[RefRow], integrator: &str, spp: u64, every: usi
 fn forward_matches_disort_cases_b_to_e() {
     let all = load_rows();
     let errs: Vec<String> =
-        load_cases().iter().filter_map(|c| run_case(c, &all, "forward", 300_000, 1).err()).collect();
+        load_cases().iter().filter_map(|c| run_case(c, &all, "forward", 1_500_000, 1).err()).collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 
@@ -145,6 +145,6 @@ fn forward_matches_disort_cases_b_to_e() {
 fn backward_matches_disort_cases_b_to_e() {
     let all = load_rows();
     let errs: Vec<String> =
-        load_cases().iter().filter_map(|c| run_case(c, &all, "backward", 40_000, 7).err()).collect();
+        load_cases().iter().filter_map(|c| run_case(c, &all, "backward", 150_000, 7).err()).collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
