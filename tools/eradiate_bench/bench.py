@@ -273,8 +273,10 @@ def main(argv=None) -> int:
         if sem_rep is not None:
             line += f" {sem_rep[i]:11.3e}"
         if zi in DISORT_REF:
-            se = sem_rep[i] if sem_rep is not None else (
-                sem_mom[i] if sem_mom is not None else np.nan)
+            # prefer the in-run (2nd moment) stderr: it is far less noisy
+            # than a stderr estimated from a handful of repeats
+            se = sem_mom[i] if sem_mom is not None else (
+                sem_rep[i] if sem_rep is not None else np.nan)
             line += f" {DISORT_REF[zi]:9.6f} {(mean[i] - DISORT_REF[zi]) / se:8.2f}"
         print(line)
 

@@ -48,6 +48,9 @@ pub struct Experiment {
     pub sun_azimuth: f64,
     /// Unit vector from the target towards the Sun.
     pub sun_dir: DVec3,
+    /// The solar angles as given, degrees (azimuth normalised to [0, 360)).
+    pub sun_zenith_deg: f64,
+    pub sun_azimuth_deg: f64,
     pub measures: Vec<Measure>,
     pub integrator: IntegratorSettings,
     pub seed: u64,
@@ -567,6 +570,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         sun_zenith,
         sun_azimuth,
         sun_dir,
+        sun_zenith_deg: zenith,
+        sun_azimuth_deg: azimuth.rem_euclid(360.0),
         measures,
         integrator,
         seed: cfg.seed,

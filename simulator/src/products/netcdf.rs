@@ -38,8 +38,8 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
     f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
     f.add_attribute("history", format!("created by `simulate run {}`", exp.source_path.display()))?;
     f.add_attribute("seed", exp.seed as i64)?;
-    f.add_attribute("sun_zenith", exp.sun_zenith.to_degrees())?;
-    f.add_attribute("sun_azimuth", exp.sun_azimuth.to_degrees())?;
+    f.add_attribute("sun_zenith", exp.sun_zenith_deg)?;
+    f.add_attribute("sun_azimuth", exp.sun_azimuth_deg)?;
     f.add_attribute("experiment", exp.source_text.as_str())?;
     let nw = exp.wavelengths.len();
     f.add_dimension("wavelength", nw)?;
