@@ -19,6 +19,7 @@
 pub mod atmosphere;
 pub mod bench;
 pub mod bsdf;
+pub mod bundle;
 pub mod config;
 pub mod error;
 pub mod frame;
