@@ -35,7 +35,7 @@ fn load() -> Vec<RefRow> {
 fn cases(rows: &[RefRow]) -> Vec<(f64, f64, f64)> {
     let mut c: Vec<(f64, f64, f64)> = Vec::new();
     for r in rows {
-        if !c.iter().any(|x| *x == (r.tau, r.albedo, r.sza)) {
+        if !c.contains(&(r.tau, r.albedo, r.sza)) {
             c.push((r.tau, r.albedo, r.sza));
         }
     }

@@ -4,6 +4,7 @@
 //! * C: the IPRT water-soluble aerosol phase function tabulated in a libRadtran `.mie.cdf` file;
 //! * D: three layers (HG and Rayleigh) with absorption;
 //! * E: RPV surfaces under a Rayleigh layer.
+//!
 //! Each case: TOA BRF in the principal and cross planes (forward walk, all directions), the TOA
 //! albedo (forward `distant_flux`), and a backward-walk subset of directions.
 //!

@@ -265,10 +265,10 @@ mod tests {
         ];
         let atm = PlaneParallel::new(layers, 0.0, 100_000.0);
         for &(tau_a, dz, b) in &[(0.0, -0.7, 2.0), (0.05, -0.3, 1.2), (0.5, 0.6, 1.0 / 0.6), (0.3, 0.2, 3.0), (0.45, 0.9, 1.1)] {
-            let mut got = vec![0.0; 3];
+            let mut got = [0.0; 3];
             atm.flight_integrals(tau_a, dz, b, |l, i| got[l] += i);
             let a = 1.0 / f64::abs(dz);
-            let mut want = vec![0.0; 3];
+            let mut want = [0.0; 3];
             let n = 200_000;
             let (lo, hi) = if dz < 0.0 { (tau_a, 0.5) } else { (0.0, tau_a) };
             for k in 0..n {

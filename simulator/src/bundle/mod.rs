@@ -1,2 +1,52 @@
 //! Scene bundle: the versioned contract between `scenegen` (writer) and `simulate` (reader).
-//! Needs no GDAL. (Being written; see docs/bundle.md.)
+//!
+//! A bundle is a directory (format described for people in `docs/bundle.md`):
+//!
+//! ```text
+//! BUNDLE/
+//!   manifest.toml   format version, CRS, local frame, extent, materials, templates, provenance
+//!   terrain.bin     terrain tiles: f32 positions (local frame of each tile), f32 uv, u32 indices
+//!   templates.bin   template meshes: f32 positions (template frame), u32 indices, u8 materials
+//!   instances.bin   one 64-byte record per instance: f64 translation, f32 3x3 linear, u32 template
+//!   materials.u8    the 8-bit material-index raster, row-major from the north-west corner
+//! ```
+//!
+//! Units: metres everywhere; the working frame is the projected CRS named in the manifest with
+//! x = easting, y = northing, z = height above the DEM's vertical datum (East-North-Up, as in
+//! `docs/conventions.md`). Geometry is stored in f32 relative to f64 origins: over 100 km an f32
+//! resolves only about 1 cm, relative to a tile origin it resolves well under 1 mm.
+//! Binary buffers are little-endian and tightly packed; byte offsets are given in the manifest.
+//!
+//! This module needs no GDAL: georeferencing is carried as WKT and a geotransform.
+
+mod io;
+mod manifest;
+
+pub use io::{Bundle, BundleWriter, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES};
+pub use manifest::*;
+
+use std::path::PathBuf;
+
+/// The format version written by this code. Readers refuse other major versions.
+pub const FORMAT_VERSION: u32 = 1;
+/// The `format` key of every manifest.
+pub const FORMAT_NAME: &str = "eo-scene-bundle";
+/// Material-raster value meaning "no material" (outside the land-cover data).
+pub const NO_MATERIAL: u8 = 255;
+
+/// Errors from reading or writing a bundle; each names the file and what is wrong.
+#[derive(Debug, thiserror::Error)]
+pub enum BundleError {
+    #[error("cannot read {}: {source}", path.display())]
+    Read { path: PathBuf, source: std::io::Error },
+    #[error("cannot write {}: {source}", path.display())]
+    Write { path: PathBuf, source: std::io::Error },
+    #[error("{}: invalid manifest: {message}", path.display())]
+    Manifest { path: PathBuf, message: String },
+    #[error("{}: bundle format version {found} is not supported (this build reads version {FORMAT_VERSION})", path.display())]
+    Version { path: PathBuf, found: u32 },
+    #[error("{}: {message}", path.display())]
+    Corrupt { path: PathBuf, message: String },
+    #[error("output directory {} already exists (use --force to replace it)", path.display())]
+    Exists { path: PathBuf },
+}

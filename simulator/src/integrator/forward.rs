@@ -58,6 +58,7 @@ impl Scratch {
     }
 }
 
+#[allow(clippy::too_many_arguments)]
 /// Run photons `samples` of one stream family and add one sample per cell per photon to `acc`.
 pub fn run_block(
     opt: &OpticalState,

@@ -89,7 +89,7 @@ impl Tabulated {
             cdf[i] = cdf[i - 1] + 0.5 * (p[i] + p[i - 1]) * (mu[i] - mu[i - 1]);
         }
         let total = cdf[mu.len() - 1];
-        if !(total > 0.0) {
+        if total.is_nan() || total <= 0.0 {
             return Err("phase function integrates to zero".into());
         }
         // ∫P dμ must be 2 (mean 1 over the sphere).

@@ -6,6 +6,7 @@
 //! * `brf` = π·L/(E0·cos SZA) (dimensionless), its single- and multiple-scattering parts;
 //! * `radiance` L = brf·E0·cos SZA/π, W m⁻² sr⁻¹ nm⁻¹ when E0 is in W m⁻² nm⁻¹;
 //! * `albedo` = F↑/(E0·cos SZA) and `flux` F↑ (W m⁻² nm⁻¹) for `distant_flux`.
+//!
 //! Every quantity carries the Monte Carlo standard error of its mean.
 
 pub mod csv;

@@ -8,6 +8,7 @@
 //!   `(wavelength, ID_direction)`;
 //! * `distant_flux`: `ID_albedo`, `ID_albedo_stderr`, `ID_flux`, `ID_flux_stderr`,
 //!   `ID_n_samples` on `(wavelength)`.
+//!
 //! Global attributes: `Conventions`, `title`, `source` (crate and version), `history`,
 //! `seed`, `sun_zenith`, `sun_azimuth`, and `experiment` (the experiment file's text).
 

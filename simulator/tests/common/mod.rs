@@ -51,6 +51,7 @@ pub fn check_all(case: &str, cmps: &[Cmp]) -> Result<(), String> {
         if c.stderr > 0.0 {
             worst_z = worst_z.max(diff / c.stderr);
         }
+        #[allow(clippy::neg_cmp_op_on_partial_ord)] // NaN must fail
         if !(diff <= tol) {
             failures.push(format!(
                 "  {}: value {:.6e} ± {:.2e}, reference {:.6e}, |diff| {:.2e} > tol {:.2e} (z = {:.1})",

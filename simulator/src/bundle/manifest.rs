@@ -1,0 +1,275 @@
+//! The bundle manifest (`manifest.toml`): serde types, one per table, with units in the field
+//! docs. Unknown keys are refused (`deny_unknown_fields`) so that a reader never silently ignores
+//! something a newer writer meant.
+
+use serde::{Deserialize, Serialize};
+
+/// Top level of `manifest.toml`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Manifest {
+    /// Always [`super::FORMAT_NAME`].
+    pub format: String,
+    /// [`super::FORMAT_VERSION`] of the writer.
+    pub format_version: u32,
+    pub crs: Crs,
+    pub frame: LocalFrame,
+    pub extent: Extent,
+    pub terrain: Terrain,
+    pub material_raster: MaterialRaster,
+    /// Material table; the material raster and template triangles index it.
+    pub materials: Vec<Material>,
+    #[serde(default)]
+    pub templates: Vec<Template>,
+    pub instances: Instances,
+    pub provenance: Provenance,
+}
+
+/// The working (projected, metric) CRS.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Crs {
+    /// OGC WKT of the working CRS.
+    pub wkt: String,
+    /// EPSG code where the CRS has one.
+    #[serde(default)]
+    pub epsg: Option<u32>,
+    /// PROJ definition where the CRS was built from one (the default local frame).
+    #[serde(default)]
+    pub proj: Option<String>,
+}
+
+/// The local frame: world (working CRS) coordinates = `origin` + local coordinates.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LocalFrame {
+    /// How the frame relates to the CRS: "projected_enu" (x = easting, y = northing, z = height,
+    /// metres; Earth curvature is that of the map projection, i.e. none).
+    pub kind: String,
+    /// Working-CRS coordinates of the local origin, metres.
+    pub origin: [f64; 3],
+    /// Longitude, latitude of the area's centre, degrees (WGS 84).
+    pub centre_lon_lat: [f64; 2],
+    /// Vertical datum of z, as given by the DEM (e.g. "EGM2008 geoid" or "unknown").
+    #[serde(default)]
+    pub vertical_datum: String,
+}
+
+/// Extent of the scene.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Extent {
+    /// Working-CRS minimum x, y, metres.
+    pub min: [f64; 2],
+    /// Working-CRS maximum x, y, metres.
+    pub max: [f64; 2],
+    /// Lowest and highest terrain height, metres.
+    pub height_range: [f64; 2],
+    /// West, south, east, north, degrees (WGS 84) of the area of interest.
+    pub lon_lat_bbox: [f64; 4],
+}
+
+/// Terrain: a TIN split into tiles; every tile's vertices are in its own local f32 frame.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Terrain {
+    /// Binary file, relative to the bundle.
+    pub file: String,
+    /// Maximum vertical error of the triangulated surface at every DEM sample, metres.
+    pub tolerance_m: f64,
+    /// Spacing of the working DEM grid, metres.
+    pub dem_spacing_m: f64,
+    /// DEM samples in the working grid.
+    pub dem_samples: u64,
+    pub vertex_count: u64,
+    pub triangle_count: u64,
+    pub tiles: Vec<TerrainTileInfo>,
+}
+
+/// One terrain tile's place in `terrain.bin`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TerrainTileInfo {
+    /// Column, row of the tile (row 0 is the southernmost).
+    pub id: [u32; 2],
+    /// Working-CRS coordinates of the tile's local origin, metres.
+    pub origin: [f64; 3],
+    /// Byte offset of `vertex_count` × [f32; 3] positions (local, metres).
+    pub positions_offset: u64,
+    /// Byte offset of `vertex_count` × [f32; 2] texture coordinates into the material raster
+    /// (u to the east, v to the south, both in [0, 1] over the raster).
+    pub uvs_offset: u64,
+    /// Byte offset of `triangle_count` × [u32; 3] vertex indices, counter-clockwise seen from above.
+    pub indices_offset: u64,
+    pub vertex_count: u64,
+    pub triangle_count: u64,
+}
+
+/// The material-index raster.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MaterialRaster {
+    pub file: String,
+    pub width: u32,
+    pub height: u32,
+    /// GDAL-order geotransform in the working CRS: x = gt[0] + col·gt[1] + row·gt[2],
+    /// y = gt[3] + col·gt[4] + row·gt[5] (for the pixel corner; gt[5] < 0, row 0 is the north).
+    pub geotransform: [f64; 6],
+    /// How the land cover was resampled onto this grid ("mode" or "nearest").
+    pub resampling: String,
+    /// Pixels per material index (index = position in the list), for summaries.
+    pub histogram: Vec<u64>,
+}
+
+/// A material: its place in the table, its BRDF, where it came from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Material {
+    /// Index used by the raster and template triangles (0..=254).
+    pub index: u8,
+    pub name: String,
+    pub brdf: BrdfSpec,
+    /// Land-cover class codes mapped to it (empty for template materials).
+    #[serde(default)]
+    pub class_codes: Vec<u32>,
+    /// Where the parameters come from.
+    #[serde(default)]
+    pub source: String,
+}
+
+/// A reflectance-like quantity: one value at every wavelength, or a table (linear interpolation,
+/// constant beyond the ends).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(untagged)]
+pub enum Spectrum {
+    Constant(f64),
+    Table { wavelengths_nm: Vec<f64>, values: Vec<f64> },
+}
+
+impl Spectrum {
+    /// Value at `wavelength_nm`.
+    pub fn at(&self, wavelength_nm: f64) -> f64 {
+        match self {
+            Spectrum::Constant(v) => *v,
+            Spectrum::Table { wavelengths_nm: w, values: v } => {
+                if w.is_empty() {
+                    return f64::NAN;
+                }
+                if wavelength_nm <= w[0] {
+                    return v[0];
+                }
+                if wavelength_nm >= w[w.len() - 1] {
+                    return v[v.len() - 1];
+                }
+                let i = w.partition_point(|&x| x <= wavelength_nm) - 1;
+                let t = (wavelength_nm - w[i]) / (w[i + 1] - w[i]);
+                v[i] + t * (v[i + 1] - v[i])
+            }
+        }
+    }
+
+    /// Checks: same lengths, increasing wavelengths, values finite. Returns a message.
+    pub fn validate(&self) -> Result<(), String> {
+        match self {
+            Spectrum::Constant(v) if !v.is_finite() => Err(format!("value {v} is not finite")),
+            Spectrum::Constant(_) => Ok(()),
+            Spectrum::Table { wavelengths_nm: w, values: v } => {
+                if w.is_empty() || w.len() != v.len() {
+                    return Err(format!(
+                        "wavelengths_nm ({}) and values ({}) must be non-empty and of equal length",
+                        w.len(),
+                        v.len()
+                    ));
+                }
+                if w.windows(2).any(|p| p[1] <= p[0]) {
+                    return Err("wavelengths_nm must increase".into());
+                }
+                if v.iter().any(|x| !x.is_finite()) {
+                    return Err("values must be finite".into());
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// BRDF of a material, named as in the simulator's surface models (`docs/experiment.md`).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum BrdfSpec {
+    /// Lambertian, hemispherical reflectance in [0, 1].
+    Lambertian { reflectance: Spectrum },
+    /// Two-sided leaf: Lambertian reflection and transmission (reflectance + transmittance ≤ 1).
+    BiLambertian { reflectance: Spectrum, transmittance: Spectrum },
+    /// Rahman–Pinty–Verstraete.
+    Rpv { rho_0: Spectrum, k: Spectrum, g: Spectrum, #[serde(default)] rho_c: Option<Spectrum> },
+    /// Ross-Thick Li-Sparse (MODIS kernels).
+    Rtls { f_iso: Spectrum, f_vol: Spectrum, f_geo: Spectrum },
+}
+
+/// A template mesh stored once in `templates.bin`.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Template {
+    pub id: u32,
+    pub name: String,
+    /// File or generator it came from.
+    pub source: String,
+    /// Byte offset of `vertex_count` × [f32; 3] positions (template frame: metres, z up, origin
+    /// at the centre of the footprint on the ground).
+    pub positions_offset: u64,
+    /// Byte offset of `triangle_count` × [u32; 3] indices.
+    pub indices_offset: u64,
+    /// Byte offset of `triangle_count` × u8 material indices (into the bundle's table).
+    pub materials_offset: u64,
+    pub vertex_count: u64,
+    pub triangle_count: u64,
+    /// Axis-aligned bounds in the template frame, metres.
+    pub bounds_min: [f32; 3],
+    pub bounds_max: [f32; 3],
+}
+
+/// Where the instance records are.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Instances {
+    pub file: String,
+    pub count: u64,
+    /// Instances per template id.
+    #[serde(default)]
+    pub per_template: Vec<u64>,
+}
+
+/// Where the bundle came from.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Provenance {
+    pub generator: String,
+    pub generator_version: String,
+    pub seed: u64,
+    /// The region file's text.
+    pub region_toml: String,
+    pub inputs: Vec<InputFile>,
+    /// SHA-256 of every binary file of the bundle, in the order terrain, templates, instances,
+    /// materials (hex), each also listed in `files`.
+    pub files: Vec<FileDigest>,
+}
+
+/// An input file and its checksum.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct InputFile {
+    pub role: String,
+    pub path: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
+
+/// A bundle file and its checksum.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FileDigest {
+    pub file: String,
+    pub bytes: u64,
+    pub sha256: String,
+}
