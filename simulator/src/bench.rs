@@ -35,18 +35,28 @@ spp = 100000000
 target_rel_stderr = {target}
 "#;
 
-pub fn run(target: f64, method: &str) -> anyhow::Result<()> {
+pub fn run(target: f64, method: &str, polarized: bool) -> anyhow::Result<()> {
     let methods: Vec<&str> = match method {
         "both" => vec!["forward", "backward"],
         m @ ("forward" | "backward") => vec![m],
         other => anyhow::bail!("unknown --method {other} (forward, backward or both)"),
     };
     let threads = rayon::current_num_threads();
-    println!("workload: Rayleigh tau=0.5, Lambertian 0.3, SZA 30, 35 principal-plane directions");
+    println!(
+        "workload: Rayleigh tau=0.5, Lambertian 0.3, SZA 30, 35 principal-plane directions, {}",
+        if polarized { "polarized (I, Q, U, V)" } else { "scalar" }
+    );
     println!("target: max relative standard error <= {target:e} in every direction; {threads} thread(s)");
     println!("{:<9} {:>10} {:>14} {:>16} {:>18} {:>12}", "method", "wall [s]", "walks", "walks/s/core", "dir-samples/s", "max rel.err");
     for m in methods {
-        let text = WORKLOAD.replace("{integrator}", m).replace("{target}", &format!("{target:e}"));
+        if polarized && m == "backward" {
+            println!("{m:<9} (no polarized backward walk yet)");
+            continue;
+        }
+        let mut text = WORKLOAD.replace("{integrator}", m).replace("{target}", &format!("{target:e}"));
+        if polarized {
+            text = format!("polarized = true\n{text}");
+        }
         let exp = Experiment::from_str(&text, Path::new("<bench workload>"))?;
         let t0 = Instant::now();
         let res = crate::run::run(&exp, false);

@@ -30,3 +30,4 @@ pub mod phase;
 pub mod products;
 pub mod rng;
 pub mod run;
+pub mod stokes;

@@ -10,6 +10,7 @@ use rayon::prelude::*;
 use crate::config::resolve::{Experiment, IntegratorKind};
 use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
+use crate::integrator::forward_pol;
 use crate::integrator::{backward, Accum};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
@@ -59,15 +60,25 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
     let ids = [iw as u64, im as u64, cell as u64];
     match method {
         Method::Forward => {
-            let (dirs, flux_tau): (&[DVec3], Option<f64>) = match &m.kind {
-                MeasureKind::Distant { directions, .. } => (directions, None),
-                MeasureKind::DistantFlux { altitude } => (&[], Some(opt.atmosphere.tau_at_altitude(*altitude))),
+            let (dirs, flux_tau, hints): (&[DVec3], Option<f64>, Vec<f64>) = match &m.kind {
+                MeasureKind::Distant { directions, vaa, .. } => {
+                    (directions, None, vaa.iter().map(|a| a.to_radians()).collect())
+                }
+                MeasureKind::DistantFlux { altitude } => {
+                    (&[], Some(opt.atmosphere.tau_at_altitude(*altitude)), Vec::new())
+                }
                 MeasureKind::Radiancemeter { .. } => unreachable!("resolver forbids forward radiancemeters"),
             };
-            let targets = ForwardTargets { directions: dirs, flux_tau };
-            let mut acc = Accum::new(m.cell_count());
-            forward::run_block(opt, exp.sun_dir, &targets, &exp.integrator, exp.seed, ids, range, &mut acc);
-            acc
+            let targets = ForwardTargets { directions: dirs, flux_tau, azimuth_hints: &hints };
+            if exp.polarized {
+                let mut acc = Accum::new_polarized(m.cell_count());
+                forward_pol::run_block(opt, exp.sun_dir, &targets, &exp.integrator, exp.seed, ids, range, &mut acc);
+                acc
+            } else {
+                let mut acc = Accum::new(m.cell_count());
+                forward::run_block(opt, exp.sun_dir, &targets, &exp.integrator, exp.seed, ids, range, &mut acc);
+                acc
+            }
         }
         Method::Backward => {
             let mut acc = Accum::new(1);
@@ -145,7 +156,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     let method = method_for(exp, m);
     let cells = m.cell_count();
     let walk_cells: Vec<usize> = if method == Method::Forward { vec![0] } else { (0..cells).collect() };
-    let mut acc = Accum::new(cells);
+    let mut acc = if exp.polarized { Accum::new_polarized(cells) } else { Accum::new(cells) };
     let mut done = 0u64;
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
@@ -175,11 +186,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             if method == Method::Forward {
                 acc.merge(part);
             } else {
-                acc.n[*c] += part.n[0];
-                for k in 0..3 {
-                    acc.sum[*c][k] += part.sum[0][k];
-                    acc.sum2[*c][k] += part.sum2[0][k];
-                }
+                acc.merge_cell(*c, part, 0);
             }
         }
         done = next;

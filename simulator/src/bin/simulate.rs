@@ -52,6 +52,9 @@ enum Command {
         /// Walk: forward, backward or both.
         #[arg(long, default_value = "both")]
         method: String,
+        /// Polarized (Stokes) transport.
+        #[arg(long)]
+        polarized: bool,
         #[arg(short = 'j', long)]
         threads: Option<usize>,
     },
@@ -133,9 +136,9 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             tracing::info!("done in {:.2} s: wrote {} and {}", t0.elapsed().as_secs_f64(), csv.display(), nc.display());
             Ok(())
         }
-        Command::Bench { target, method, threads } => {
+        Command::Bench { target, method, polarized, threads } => {
             set_threads(threads)?;
-            simulator::bench::run(target, &method)
+            simulator::bench::run(target, &method, polarized)
         }
     }
 }

@@ -22,7 +22,7 @@
 mod io;
 mod manifest;
 
-pub use io::{Bundle, BundleWriter, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES};
+pub use io::{Bundle, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES};
 pub use manifest::*;
 
 use std::path::PathBuf;

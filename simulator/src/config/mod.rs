@@ -39,6 +39,9 @@ pub struct ExperimentConfig {
     /// Seed of every random stream of the run.
     #[serde(default)]
     pub seed: u64,
+    /// Vector (Stokes) transport instead of scalar.
+    #[serde(default)]
+    pub polarized: bool,
 }
 
 fn default_mode() -> String {

@@ -54,6 +54,8 @@ pub struct Experiment {
     pub measures: Vec<Measure>,
     pub integrator: IntegratorSettings,
     pub seed: u64,
+    /// Stokes-vector transport.
+    pub polarized: bool,
     /// The experiment file's text (written into the products for provenance).
     pub source_text: String,
     pub source_path: PathBuf,
@@ -537,6 +539,14 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
         }
     }
+    if cfg.polarized {
+        if kind == IntegratorKind::Backward {
+            return Err(ctx.err("integrator.type", "polarized runs use the forward walk (\"auto\" or \"forward\"); the polarized backward walk is not implemented yet"));
+        }
+        if let Some((im, _)) = measures.iter().enumerate().find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. })) {
+            return Err(ctx.err(format!("measures[{im}]"), "radiancemeters are not available in polarized runs yet (they need the polarized backward walk)"));
+        }
+    }
     let max_depth = match cfg.integrator.max_depth {
         Some(0) => return Err(ctx.err("integrator.max_depth", "must be at least 1")),
         Some(d) => d,
@@ -575,6 +585,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         measures,
         integrator,
         seed: cfg.seed,
+        polarized: cfg.polarized,
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
     })

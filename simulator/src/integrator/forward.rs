@@ -37,6 +37,8 @@ pub struct ForwardTargets<'a> {
     pub directions: &'a [DVec3],
     /// Optical depth of a flux level (one cell), if the measure is a flux.
     pub flux_tau: Option<f64>,
+    /// Azimuth (radians) fixing the meridian plane of zenith directions (polarized runs).
+    pub azimuth_hints: &'a [f64],
 }
 
 /// Scratch buffers of one walk (per direction: single and multiple parts), reused across walks.

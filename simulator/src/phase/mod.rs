@@ -50,6 +50,16 @@ impl PhaseFunction {
         }
     }
 
+    /// The phase matrix at cos Θ (polarized runs). Rayleigh is polarizing; Henyey–Greenstein and
+    /// P11-only tables act as depolarizers (only I scatters), as in Eradiate and MYSTIC.
+    #[inline]
+    pub fn matrix(&self, cos_theta: f64) -> crate::stokes::PhaseMatrix {
+        match self {
+            PhaseFunction::Rayleigh(p) => p.matrix(cos_theta),
+            _ => crate::stokes::PhaseMatrix::depolarizing(self.eval(cos_theta)),
+        }
+    }
+
     /// Asymmetry parameter ⟨cos Θ⟩.
     pub fn asymmetry(&self) -> f64 {
         match self {

@@ -32,6 +32,26 @@ impl Rayleigh {
         self.a + self.b * mu * mu
     }
 
+    /// Phase matrix (Hansen & Travis 1974, eqs. 2.15–2.16): `Δ·F_R + (1−Δ)·diag(1, 0, 0, 0)` with
+    /// the pure Rayleigh matrix `F_R`, `Δ = (1−ρ)/(1+ρ/2)`, and the circular element scaled by
+    /// `Δ' = (1−2ρ)/(1−ρ)`. Its a1 equals `eval`.
+    #[inline]
+    pub fn matrix(&self, mu: f64) -> crate::stokes::PhaseMatrix {
+        let rho = self.depolarization;
+        let delta = (1.0 - rho) / (1.0 + 0.5 * rho);
+        let delta_p = (1.0 - 2.0 * rho) / (1.0 - rho);
+        let m2 = mu * mu;
+        let a2 = delta * 0.75 * (1.0 + m2);
+        crate::stokes::PhaseMatrix {
+            a1: a2 + (1.0 - delta),
+            b1: -delta * 0.75 * (1.0 - m2),
+            a2,
+            a3: delta * 1.5 * mu,
+            b2: 0.0,
+            a4: delta * delta_p * 1.5 * mu,
+        }
+    }
+
     #[inline]
     pub fn sample_cos(&self, u: f64) -> f64 {
         // CDF F(μ) = [a(μ+1) + b(μ³+1)/3] / 2 (since the mean over the sphere is 1, a + b/3 = 1).
@@ -77,6 +97,19 @@ mod tests {
             .sum::<f64>()
             / n as f64;
         assert!((chi2 - 0.1).abs() < 1e-8, "{chi2}");
+    }
+
+    /// The matrix's a1 is the scalar phase function; at ρ = 0 it is the textbook matrix.
+    #[test]
+    fn matrix_consistent() {
+        for d in [0.0, 0.03, 0.2] {
+            let r = Rayleigh::new(d).unwrap();
+            for mu in [-1.0, -0.4, 0.0, 0.3, 1.0] {
+                assert!((r.matrix(mu).a1 - r.eval(mu)).abs() < 1e-14);
+            }
+        }
+        let m = Rayleigh::new(0.0).unwrap().matrix(0.5);
+        assert!((m.b1 + 0.75 * 0.75).abs() < 1e-15 && (m.a3 - 0.75).abs() < 1e-15 && (m.a4 - 0.75).abs() < 1e-15);
     }
 
     #[test]

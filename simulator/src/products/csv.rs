@@ -2,7 +2,9 @@
 //!
 //! Columns: `measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,
 //! brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,
-//! flux_stderr,n_samples`. Angles in degrees (`vaa` clockwise from North, direction from the
+//! flux_stderr,n_samples,brf_q,brf_q_stderr,brf_u,brf_u_stderr,brf_v,brf_v_stderr,dolp,dolp_stderr`
+//! (the last eight filled in polarized runs only: Stokes Q, U, V normalised like the BRF, in the
+//! meridian frame of the view direction, and the degree of linear polarization). Angles in degrees (`vaa` clockwise from North, direction from the
 //! target to the sensor); empty cells where a quantity does not apply to the measure type.
 
 use std::fmt::Write;
@@ -12,7 +14,8 @@ use super::{write_atomic, Row};
 use crate::error::OutputError;
 
 pub const HEADER: &str = "measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,\
-brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,flux_stderr,n_samples";
+brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,flux_stderr,n_samples,\
+brf_q,brf_q_stderr,brf_u,brf_u_stderr,brf_v,brf_v_stderr,dolp,dolp_stderr";
 
 fn opt(x: Option<f64>) -> String {
     x.map(|v| format!("{v:.10e}")).unwrap_or_default()
@@ -32,7 +35,7 @@ pub fn to_string(rows: &[Row]) -> String {
         let angle = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.measure,
             r.kind,
             r.method,
@@ -45,7 +48,11 @@ pub fn to_string(rows: &[Row]) -> String {
             pair(r.brf_multiple),
             pair(r.albedo),
             pair(r.flux),
-            r.n_samples
+            r.n_samples,
+            pair(r.brf_q),
+            pair(r.brf_u),
+            pair(r.brf_v),
+            pair(r.dolp)
         );
     }
     s

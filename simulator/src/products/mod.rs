@@ -36,7 +36,35 @@ pub struct Row {
     pub brf_multiple: Option<(f64, f64)>,
     pub albedo: Option<(f64, f64)>,
     pub flux: Option<(f64, f64)>,
+    /// Polarized runs: BRF-normalised Stokes Q, U, V (π·Q/(E0 cos SZA), meridian frame of the
+    /// view direction) and the degree of linear polarization √(Q²+U²)/I.
+    pub brf_q: Option<(f64, f64)>,
+    pub brf_u: Option<(f64, f64)>,
+    pub brf_v: Option<(f64, f64)>,
+    pub dolp: Option<(f64, f64)>,
     pub n_samples: u64,
+}
+
+/// Degree of linear polarization and its standard error (delta method with the estimated
+/// covariances of the means of I, Q, U).
+fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
+    use crate::integrator::{Q, TOTAL, U};
+    let (i, ei) = acc.mean_stderr(c, TOTAL);
+    let (q, eq) = acc.mean_stderr(c, Q);
+    let (u, eu) = acc.mean_stderr(c, U);
+    let pl = (q * q + u * u).sqrt();
+    if !(i > 0.0) {
+        return (f64::NAN, f64::NAN);
+    }
+    let p = pl / i;
+    if pl == 0.0 {
+        return (0.0, ((eq * eq + eu * eu) / 2.0).sqrt() / i);
+    }
+    // Gradient of √(Q²+U²)/I with respect to (I, Q, U).
+    let (gi, gq, gu) = (-p / i, q / (pl * i), u / (pl * i));
+    let var = gi * gi * ei * ei + gq * gq * eq * eq + gu * gu * eu * eu
+        + 2.0 * (gi * gq * acc.cov_of_means(c, 0) + gi * gu * acc.cov_of_means(c, 1) + gq * gu * acc.cov_of_means(c, 2));
+    (p, var.max(0.0).sqrt())
 }
 
 /// Rows for every result, in (wavelength, measure, direction) order.
@@ -64,8 +92,19 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 brf_multiple: None,
                 albedo: None,
                 flux: None,
+                brf_q: None,
+                brf_u: None,
+                brf_v: None,
+                dolp: None,
                 n_samples: r.acc.n[c],
             };
+            if r.acc.is_polarized() && !matches!(m.kind, MeasureKind::DistantFlux { .. }) {
+                use crate::integrator::{Q, U, V};
+                row.brf_q = Some(r.acc.mean_stderr(c, Q));
+                row.brf_u = Some(r.acc.mean_stderr(c, U));
+                row.brf_v = Some(r.acc.mean_stderr(c, V));
+                row.dolp = Some(dolp(&r.acc, c));
+            }
             match &m.kind {
                 MeasureKind::Distant { vza, vaa, .. } => {
                     row.vza = Some(vza[c]);

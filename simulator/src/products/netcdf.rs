@@ -6,6 +6,8 @@
 //!   and `ID_vaa(ID_direction)` (degrees), data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`,
 //!   `ID_brf_multiple`, `ID_radiance`, `ID_radiance_stderr`, `ID_n_samples`, all on
 //!   `(wavelength, ID_direction)`;
+//! * polarized runs add `ID_brf_q`, `ID_brf_u`, `ID_brf_v` (Stokes components normalised like
+//!   the BRF, meridian frame of the view direction), `ID_dolp` and their `_stderr`;
 //! * `distant_flux`: `ID_albedo`, `ID_albedo_stderr`, `ID_flux`, `ID_flux_stderr`,
 //!   `ID_n_samples` on `(wavelength)`.
 //!
@@ -39,6 +41,7 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
     f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
     f.add_attribute("history", format!("created by `simulate run {}`", exp.source_path.display()))?;
     f.add_attribute("seed", exp.seed as i64)?;
+    f.add_attribute("polarized", if exp.polarized { "true" } else { "false" })?;
     f.add_attribute("sun_zenith", exp.sun_zenith_deg)?;
     f.add_attribute("sun_azimuth", exp.sun_azimuth_deg)?;
     f.add_attribute("experiment", exp.source_text.as_str())?;
@@ -109,6 +112,25 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
                     v.put_attribute("long_name", long)?;
                     v.put_attribute("coordinates", coords.as_str())?;
                     v.put_values(&data, ..)?;
+                }
+                if mrows.first().is_some_and(|r| r.brf_q.is_some()) {
+                    let pol: [(&str, Vec<f64>, &str, &str); 8] = [
+                        ("brf_q", col(&|r| r.brf_q.map_or(nan, |p| p.0)), "1", "Stokes Q normalised like brf (meridian frame of the view direction)"),
+                        ("brf_q_stderr", col(&|r| r.brf_q.map_or(nan, |p| p.1)), "1", "standard error of brf_q"),
+                        ("brf_u", col(&|r| r.brf_u.map_or(nan, |p| p.0)), "1", "Stokes U normalised like brf (meridian frame of the view direction)"),
+                        ("brf_u_stderr", col(&|r| r.brf_u.map_or(nan, |p| p.1)), "1", "standard error of brf_u"),
+                        ("brf_v", col(&|r| r.brf_v.map_or(nan, |p| p.0)), "1", "Stokes V normalised like brf"),
+                        ("brf_v_stderr", col(&|r| r.brf_v.map_or(nan, |p| p.1)), "1", "standard error of brf_v"),
+                        ("dolp", col(&|r| r.dolp.map_or(nan, |p| p.0)), "1", "degree of linear polarization sqrt(Q^2+U^2)/I"),
+                        ("dolp_stderr", col(&|r| r.dolp.map_or(nan, |p| p.1)), "1", "standard error of dolp (delta method)"),
+                    ];
+                    for (name, data, units, long) in pol {
+                        let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dim])?;
+                        v.put_attribute("units", units)?;
+                        v.put_attribute("long_name", long)?;
+                        v.put_attribute("coordinates", coords.as_str())?;
+                        v.put_values(&data, ..)?;
+                    }
                 }
                 let n: Vec<i64> = mrows.iter().map(|r| r.n_samples as i64).collect();
                 let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength", &dim])?;

@@ -1,0 +1,582 @@
+//! Reading and writing bundles. Writing is atomic: everything goes to a temporary directory
+//! beside the destination (`.NAME.tmp-PID`), which is renamed onto the destination at the end,
+//! so an interrupted or failed write (full disk included) never leaves a half bundle. Buffers are
+//! little-endian; see the module doc of [`super`] for the layout.
+
+use std::fs::File;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+
+use sha2::{Digest, Sha256};
+
+use super::manifest::*;
+use super::{BundleError, FORMAT_NAME, FORMAT_VERSION};
+
+/// Bytes of one record of `instances.bin`: translation [f64; 3] (local frame, metres), linear
+/// part [f32; 9] (column-major 3×3: rotation × scale, template frame → local frame), template id
+/// u32.
+pub const INSTANCE_RECORD_BYTES: usize = 64;
+
+/// One terrain tile in memory.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TerrainTile {
+    pub id: [u32; 2],
+    /// Working-CRS coordinates of the tile's origin, metres.
+    pub origin: [f64; 3],
+    /// Positions relative to `origin`, metres.
+    pub positions: Vec<[f32; 3]>,
+    pub uvs: Vec<[f32; 2]>,
+    pub indices: Vec<[u32; 3]>,
+}
+
+/// One template mesh in memory (template frame: metres, z up, origin on the ground).
+#[derive(Clone, Debug, PartialEq)]
+pub struct TemplateMesh {
+    pub name: String,
+    pub source: String,
+    pub positions: Vec<[f32; 3]>,
+    pub indices: Vec<[u32; 3]>,
+    /// Per triangle, an index into the bundle's material table.
+    pub materials: Vec<u8>,
+}
+
+/// One placed template: world = frame origin + translation + linear · p_template.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Instance {
+    /// Relative to the bundle's local-frame origin, metres.
+    pub translation: [f64; 3],
+    /// Column-major 3×3 (rotation × scale).
+    pub linear: [f32; 9],
+    pub template: u32,
+}
+
+/// A whole bundle in memory. `manifest` holds the descriptive tables; [`Bundle::write`] fills in
+/// file names, offsets, counts and digests from the buffers.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Bundle {
+    pub manifest: Manifest,
+    pub terrain: Vec<TerrainTile>,
+    pub templates: Vec<TemplateMesh>,
+    pub instances: Vec<Instance>,
+    /// Row-major, row 0 at the north, `manifest.material_raster.width × height` bytes.
+    pub material_raster: Vec<u8>,
+}
+
+const TERRAIN_FILE: &str = "terrain.bin";
+const TEMPLATES_FILE: &str = "templates.bin";
+const INSTANCES_FILE: &str = "instances.bin";
+const MATERIALS_FILE: &str = "materials.u8";
+const MANIFEST_FILE: &str = "manifest.toml";
+
+/// A file being written with its running SHA-256 and length.
+struct HashedFile {
+    path: PathBuf,
+    out: BufWriter<File>,
+    hasher: Sha256,
+    len: u64,
+}
+
+impl HashedFile {
+    fn create(path: PathBuf) -> Result<Self, BundleError> {
+        let f = File::create(&path).map_err(|source| BundleError::Write { path: path.clone(), source })?;
+        Ok(HashedFile { path, out: BufWriter::with_capacity(1 << 20, f), hasher: Sha256::new(), len: 0 })
+    }
+    fn put(&mut self, bytes: &[u8]) -> Result<(), BundleError> {
+        self.hasher.update(bytes);
+        self.len += bytes.len() as u64;
+        self.out.write_all(bytes).map_err(|source| BundleError::Write { path: self.path.clone(), source })
+    }
+    fn put_f32s(&mut self, v: impl IntoIterator<Item = f32>) -> Result<(), BundleError> {
+        let mut buf = Vec::with_capacity(4096);
+        for x in v {
+            buf.extend_from_slice(&x.to_le_bytes());
+            if buf.len() >= 4096 {
+                self.put(&buf)?;
+                buf.clear();
+            }
+        }
+        self.put(&buf)
+    }
+    fn put_u32s(&mut self, v: impl IntoIterator<Item = u32>) -> Result<(), BundleError> {
+        self.put_f32s(v.into_iter().map(f32::from_bits))
+    }
+    fn finish(self, name: &str) -> Result<FileDigest, BundleError> {
+        let path = self.path.clone();
+        let f = self.out.into_inner().map_err(|e| BundleError::Write { path: path.clone(), source: e.into_error() })?;
+        f.sync_all().map_err(|source| BundleError::Write { path, source })?;
+        Ok(FileDigest { file: name.into(), bytes: self.len, sha256: hex(&self.hasher.finalize()) })
+    }
+}
+
+fn hex(bytes: &[u8]) -> String {
+    bytes.iter().map(|b| format!("{b:02x}")).collect()
+}
+
+/// Removes the temporary directory unless the write completed.
+struct TmpDirGuard {
+    path: PathBuf,
+    done: bool,
+}
+
+impl Drop for TmpDirGuard {
+    fn drop(&mut self) {
+        if !self.done {
+            let _ = std::fs::remove_dir_all(&self.path);
+        }
+    }
+}
+
+impl Bundle {
+    /// Write the bundle to `dir` atomically. Refuses an existing `dir` unless `force`, in which
+    /// case the old directory is replaced only after the new one is complete.
+    /// Returns the manifest as written (offsets, counts and digests filled in).
+    pub fn write(&self, dir: &Path, force: bool) -> Result<Manifest, BundleError> {
+        if dir.exists() && !force {
+            return Err(BundleError::Exists { path: dir.to_path_buf() });
+        }
+        self.check_consistency(dir)?;
+        let parent = match dir.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&parent).map_err(|source| BundleError::Write { path: parent.clone(), source })?;
+        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "bundle".into());
+        let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&tmp);
+        std::fs::create_dir(&tmp).map_err(|source| BundleError::Write { path: tmp.clone(), source })?;
+        let mut guard = TmpDirGuard { path: tmp.clone(), done: false };
+
+        let mut m = self.manifest.clone();
+        m.format = FORMAT_NAME.into();
+        m.format_version = FORMAT_VERSION;
+        let mut digests = Vec::new();
+
+        // Terrain: per tile positions, uvs, indices.
+        let mut f = HashedFile::create(tmp.join(TERRAIN_FILE))?;
+        m.terrain.file = TERRAIN_FILE.into();
+        m.terrain.tiles.clear();
+        let (mut nv, mut nt) = (0u64, 0u64);
+        for t in &self.terrain {
+            let positions_offset = f.len;
+            f.put_f32s(t.positions.iter().flatten().copied())?;
+            let uvs_offset = f.len;
+            f.put_f32s(t.uvs.iter().flatten().copied())?;
+            let indices_offset = f.len;
+            f.put_u32s(t.indices.iter().flatten().copied())?;
+            nv += t.positions.len() as u64;
+            nt += t.indices.len() as u64;
+            m.terrain.tiles.push(TerrainTileInfo {
+                id: t.id,
+                origin: t.origin,
+                positions_offset,
+                uvs_offset,
+                indices_offset,
+                vertex_count: t.positions.len() as u64,
+                triangle_count: t.indices.len() as u64,
+            });
+        }
+        m.terrain.vertex_count = nv;
+        m.terrain.triangle_count = nt;
+        digests.push(f.finish(TERRAIN_FILE)?);
+
+        // Templates.
+        let mut f = HashedFile::create(tmp.join(TEMPLATES_FILE))?;
+        let old = std::mem::take(&mut m.templates);
+        for (id, t) in self.templates.iter().enumerate() {
+            let positions_offset = f.len;
+            f.put_f32s(t.positions.iter().flatten().copied())?;
+            let indices_offset = f.len;
+            f.put_u32s(t.indices.iter().flatten().copied())?;
+            let materials_offset = f.len;
+            f.put(&t.materials)?;
+            // Keep 4-byte alignment of the next template's floats.
+            let pad = (4 - (f.len % 4) as usize) % 4;
+            f.put(&[0u8; 4][..pad])?;
+            let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+            for p in &t.positions {
+                for k in 0..3 {
+                    lo[k] = lo[k].min(p[k]);
+                    hi[k] = hi[k].max(p[k]);
+                }
+            }
+            if t.positions.is_empty() {
+                (lo, hi) = ([0.0; 3], [0.0; 3]);
+            }
+            m.templates.push(Template {
+                id: id as u32,
+                name: t.name.clone(),
+                source: old.get(id).map(|o| o.source.clone()).unwrap_or_else(|| t.source.clone()),
+                positions_offset,
+                indices_offset,
+                materials_offset,
+                vertex_count: t.positions.len() as u64,
+                triangle_count: t.indices.len() as u64,
+                bounds_min: lo,
+                bounds_max: hi,
+            });
+        }
+        digests.push(f.finish(TEMPLATES_FILE)?);
+
+        // Instances.
+        let mut f = HashedFile::create(tmp.join(INSTANCES_FILE))?;
+        let mut per_template = vec![0u64; self.templates.len()];
+        let mut buf = Vec::with_capacity(INSTANCE_RECORD_BYTES * 1024);
+        for inst in &self.instances {
+            for x in inst.translation {
+                buf.extend_from_slice(&x.to_le_bytes());
+            }
+            for x in inst.linear {
+                buf.extend_from_slice(&x.to_le_bytes());
+            }
+            buf.extend_from_slice(&inst.template.to_le_bytes());
+            per_template[inst.template as usize] += 1;
+            if buf.len() >= INSTANCE_RECORD_BYTES * 1024 {
+                f.put(&buf)?;
+                buf.clear();
+            }
+        }
+        f.put(&buf)?;
+        m.instances = Instances { file: INSTANCES_FILE.into(), count: self.instances.len() as u64, per_template };
+        digests.push(f.finish(INSTANCES_FILE)?);
+
+        // Material raster.
+        let mut f = HashedFile::create(tmp.join(MATERIALS_FILE))?;
+        f.put(&self.material_raster)?;
+        m.material_raster.file = MATERIALS_FILE.into();
+        let mut hist = vec![0u64; 256];
+        for &v in &self.material_raster {
+            hist[v as usize] += 1;
+        }
+        let last = hist.iter().rposition(|&c| c > 0).map_or(0, |i| i + 1);
+        hist.truncate(last.max(m.materials.len()));
+        m.material_raster.histogram = hist;
+        digests.push(f.finish(MATERIALS_FILE)?);
+
+        m.provenance.files = digests;
+        let text = toml::to_string(&m).map_err(|e| BundleError::Manifest { path: tmp.join(MANIFEST_FILE), message: e.to_string() })?;
+        let mut f = HashedFile::create(tmp.join(MANIFEST_FILE))?;
+        f.put(text.as_bytes())?;
+        f.finish(MANIFEST_FILE)?;
+
+        // Commit: move an existing destination aside, rename, then delete the old one.
+        if dir.exists() {
+            let trash = parent.join(format!(".{name}.old-{}", std::process::id()));
+            std::fs::rename(dir, &trash).map_err(|source| BundleError::Write { path: dir.to_path_buf(), source })?;
+            std::fs::rename(&tmp, dir).map_err(|source| BundleError::Write { path: dir.to_path_buf(), source })?;
+            let _ = std::fs::remove_dir_all(&trash);
+        } else {
+            std::fs::rename(&tmp, dir).map_err(|source| BundleError::Write { path: dir.to_path_buf(), source })?;
+        }
+        guard.done = true;
+        Ok(m)
+    }
+
+    fn check_consistency(&self, dir: &Path) -> Result<(), BundleError> {
+        let bad = |message: String| BundleError::Corrupt { path: dir.to_path_buf(), message };
+        let r = &self.manifest.material_raster;
+        if self.material_raster.len() != r.width as usize * r.height as usize {
+            return Err(bad(format!(
+                "material raster has {} bytes, expected {} × {}",
+                self.material_raster.len(),
+                r.width,
+                r.height
+            )));
+        }
+        for t in &self.terrain {
+            if t.uvs.len() != t.positions.len() {
+                return Err(bad(format!("terrain tile {:?}: {} uvs for {} vertices", t.id, t.uvs.len(), t.positions.len())));
+            }
+            if let Some(tri) = t.indices.iter().find(|tri| tri.iter().any(|&i| i as usize >= t.positions.len())) {
+                return Err(bad(format!("terrain tile {:?}: triangle {tri:?} indexes past {} vertices", t.id, t.positions.len())));
+            }
+        }
+        for (k, t) in self.templates.iter().enumerate() {
+            if t.materials.len() != t.indices.len() {
+                return Err(bad(format!("template {k}: {} materials for {} triangles", t.materials.len(), t.indices.len())));
+            }
+            if t.indices.iter().flatten().any(|&i| i as usize >= t.positions.len()) {
+                return Err(bad(format!("template {k}: an index points past {} vertices", t.positions.len())));
+            }
+        }
+        if let Some(i) = self.instances.iter().find(|i| i.template as usize >= self.templates.len()) {
+            return Err(bad(format!("instance of template {} but only {} templates", i.template, self.templates.len())));
+        }
+        Ok(())
+    }
+
+    /// Read and validate `dir/manifest.toml` only (for summaries).
+    pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
+        let path = dir.join(MANIFEST_FILE);
+        let text = std::fs::read_to_string(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
+        // Check the version before the schema, so an old reader says "version" not "unknown key".
+        let table: toml::Table =
+            text.parse().map_err(|e: toml::de::Error| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
+        if table.get("format").and_then(|v| v.as_str()) != Some(FORMAT_NAME) {
+            return Err(BundleError::Manifest { path, message: format!("`format` is not \"{FORMAT_NAME}\"") });
+        }
+        match table.get("format_version").and_then(|v| v.as_integer()) {
+            Some(v) if v == FORMAT_VERSION as i64 => {}
+            Some(v) => return Err(BundleError::Version { path, found: v as u32 }),
+            None => return Err(BundleError::Manifest { path, message: "missing `format_version`".into() }),
+        }
+        let de = toml::Deserializer::parse(&text).map_err(|e| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
+        serde_path_to_error::deserialize(de).map_err(|e| BundleError::Manifest {
+            path: path.clone(),
+            message: format!("at key `{}`: {}", e.path(), e.inner().to_string().trim_end()),
+        })
+    }
+
+    /// Read a whole bundle, checking every offset and count against the file sizes.
+    pub fn open(dir: &Path) -> Result<Bundle, BundleError> {
+        let manifest = Self::read_manifest(dir)?;
+        let read = |name: &str| -> Result<(PathBuf, Vec<u8>), BundleError> {
+            let path = dir.join(name);
+            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
+            Ok((path, bytes))
+        };
+        let slice = |path: &Path, bytes: &[u8], off: u64, len: u64, what: &str| -> Result<std::ops::Range<usize>, BundleError> {
+            let end = off.checked_add(len).filter(|&e| e <= bytes.len() as u64).ok_or_else(|| BundleError::Corrupt {
+                path: path.to_path_buf(),
+                message: format!("{what}: bytes {off}..{} beyond the file's {} bytes", off.saturating_add(len), bytes.len()),
+            })?;
+            Ok(off as usize..end as usize)
+        };
+
+        let (path, bytes) = read(&manifest.terrain.file)?;
+        let mut terrain = Vec::with_capacity(manifest.terrain.tiles.len());
+        for t in &manifest.terrain.tiles {
+            let what = format!("terrain tile {:?}", t.id);
+            let p = slice(&path, &bytes, t.positions_offset, t.vertex_count * 12, &what)?;
+            let u = slice(&path, &bytes, t.uvs_offset, t.vertex_count * 8, &what)?;
+            let i = slice(&path, &bytes, t.indices_offset, t.triangle_count * 12, &what)?;
+            let indices: Vec<[u32; 3]> = u32s(&bytes[i]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            if indices.iter().flatten().any(|&k| k as u64 >= t.vertex_count) {
+                return Err(BundleError::Corrupt { path, message: format!("{what}: a vertex index is out of range") });
+            }
+            terrain.push(TerrainTile {
+                id: t.id,
+                origin: t.origin,
+                positions: f32s(&bytes[p]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                uvs: f32s(&bytes[u]).chunks_exact(2).map(|c| [c[0], c[1]]).collect(),
+                indices,
+            });
+        }
+
+        let (path, bytes) = read(TEMPLATES_FILE)?;
+        let mut templates = Vec::with_capacity(manifest.templates.len());
+        for t in &manifest.templates {
+            let what = format!("template {} ({})", t.id, t.name);
+            let p = slice(&path, &bytes, t.positions_offset, t.vertex_count * 12, &what)?;
+            let i = slice(&path, &bytes, t.indices_offset, t.triangle_count * 12, &what)?;
+            let mm = slice(&path, &bytes, t.materials_offset, t.triangle_count, &what)?;
+            let indices: Vec<[u32; 3]> = u32s(&bytes[i]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
+            if indices.iter().flatten().any(|&k| k as u64 >= t.vertex_count) {
+                return Err(BundleError::Corrupt { path, message: format!("{what}: a vertex index is out of range") });
+            }
+            templates.push(TemplateMesh {
+                name: t.name.clone(),
+                source: t.source.clone(),
+                positions: f32s(&bytes[p]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                indices,
+                materials: bytes[mm].to_vec(),
+            });
+        }
+
+        let (path, bytes) = read(&manifest.instances.file)?;
+        if bytes.len() as u64 != manifest.instances.count * INSTANCE_RECORD_BYTES as u64 {
+            return Err(BundleError::Corrupt {
+                path,
+                message: format!("{} bytes for {} instances of {INSTANCE_RECORD_BYTES} bytes", bytes.len(), manifest.instances.count),
+            });
+        }
+        let mut instances = Vec::with_capacity(manifest.instances.count as usize);
+        for rec in bytes.chunks_exact(INSTANCE_RECORD_BYTES) {
+            let f64at = |k: usize| f64::from_le_bytes(rec[k..k + 8].try_into().unwrap());
+            let f32at = |k: usize| f32::from_le_bytes(rec[k..k + 4].try_into().unwrap());
+            let mut linear = [0f32; 9];
+            for (j, l) in linear.iter_mut().enumerate() {
+                *l = f32at(24 + 4 * j);
+            }
+            let template = u32::from_le_bytes(rec[60..64].try_into().unwrap());
+            if template as usize >= templates.len() {
+                return Err(BundleError::Corrupt { path, message: format!("an instance names template {template} of {}", templates.len()) });
+            }
+            instances.push(Instance { translation: [f64at(0), f64at(8), f64at(16)], linear, template });
+        }
+
+        let (path, material_raster) = read(&manifest.material_raster.file)?;
+        let r = &manifest.material_raster;
+        if material_raster.len() != r.width as usize * r.height as usize {
+            return Err(BundleError::Corrupt {
+                path,
+                message: format!("{} bytes for a {} × {} raster", material_raster.len(), r.width, r.height),
+            });
+        }
+        Ok(Bundle { manifest, terrain, templates, instances, material_raster })
+    }
+
+    /// Recompute the SHA-256 of every binary file and compare with the manifest.
+    pub fn verify(dir: &Path) -> Result<(), BundleError> {
+        let m = Self::read_manifest(dir)?;
+        for d in &m.provenance.files {
+            let path = dir.join(&d.file);
+            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
+            let got = hex(&Sha256::digest(&bytes));
+            if got != d.sha256 {
+                return Err(BundleError::Corrupt { path, message: format!("SHA-256 {got} differs from the manifest's {}", d.sha256) });
+            }
+        }
+        Ok(())
+    }
+}
+
+fn f32s(b: &[u8]) -> Vec<f32> {
+    b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+fn u32s(b: &[u8]) -> Vec<u32> {
+    b.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sample() -> Bundle {
+        let manifest = Manifest {
+            format: FORMAT_NAME.into(),
+            format_version: FORMAT_VERSION,
+            crs: Crs { wkt: "LOCAL_CS[\"test\"]".into(), epsg: None, proj: Some("+proj=aeqd".into()) },
+            frame: LocalFrame { kind: "projected_enu".into(), origin: [0.0; 3], centre_lon_lat: [5.7, 45.2], vertical_datum: "unknown".into() },
+            extent: Extent { min: [-100.0, -100.0], max: [100.0, 100.0], height_range: [1.0, 2.0], lon_lat_bbox: [5.6, 45.1, 5.8, 45.3] },
+            terrain: Terrain { file: String::new(), tolerance_m: 1.0, dem_spacing_m: 30.0, dem_samples: 49, vertex_count: 0, triangle_count: 0, tiles: vec![] },
+            material_raster: MaterialRaster {
+                file: String::new(),
+                width: 2,
+                height: 2,
+                geotransform: [-100.0, 100.0, 0.0, 100.0, 0.0, -100.0],
+                resampling: "mode".into(),
+                histogram: vec![],
+            },
+            materials: vec![
+                Material { index: 0, name: "grass".into(), brdf: BrdfSpec::Lambertian { reflectance: Spectrum::Constant(0.2) }, class_codes: vec![30], source: "test".into() },
+                Material {
+                    index: 1,
+                    name: "leaf".into(),
+                    brdf: BrdfSpec::BiLambertian {
+                        reflectance: Spectrum::Table { wavelengths_nm: vec![400.0, 800.0], values: vec![0.05, 0.45] },
+                        transmittance: Spectrum::Constant(0.4),
+                    },
+                    class_codes: vec![],
+                    source: "test".into(),
+                },
+            ],
+            templates: vec![],
+            instances: Instances { file: String::new(), count: 0, per_template: vec![] },
+            provenance: Provenance {
+                generator: "test".into(),
+                generator_version: "0".into(),
+                seed: 7,
+                region_toml: "a = 1\n".into(),
+                inputs: vec![InputFile { role: "dem".into(), path: "x.tif".into(), bytes: 3, sha256: "00".into() }],
+                files: vec![],
+            },
+        };
+        Bundle {
+            manifest,
+            terrain: vec![TerrainTile {
+                id: [0, 0],
+                origin: [-100.0, -100.0, 0.0],
+                positions: vec![[0.0, 0.0, 1.0], [200.0, 0.0, 2.0], [0.0, 200.0, 1.5]],
+                uvs: vec![[0.0, 1.0], [1.0, 1.0], [0.0, 0.0]],
+                indices: vec![[0, 1, 2]],
+            }],
+            templates: vec![TemplateMesh {
+                name: "tri".into(),
+                source: "procedural".into(),
+                positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
+                indices: vec![[0, 1, 2]],
+                materials: vec![1],
+            }],
+            instances: vec![
+                Instance { translation: [1.5, -2.25, 1.0e5 + 0.125], linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], template: 0 },
+                Instance { translation: [3.0, 4.0, 5.0], linear: [0.0, 2.0, 0.0, -2.0, 0.0, 0.0, 0.0, 0.0, 2.0], template: 0 },
+            ],
+            material_raster: vec![0, 1, 255, 0],
+        }
+    }
+
+    /// Rationale: the bundle is the contract between two programs; everything written must come
+    /// back bit for bit, and the manifest must carry the counts, offsets and digests.
+    #[test]
+    fn write_then_open_round_trips() {
+        let dir = std::env::temp_dir().join(format!("bundle-rt-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let b = sample();
+        let written = b.write(&dir, false).unwrap();
+        let back = Bundle::open(&dir).unwrap();
+        assert_eq!(back.manifest, written);
+        assert_eq!(back.terrain, b.terrain);
+        assert_eq!(back.templates, b.templates);
+        assert_eq!(back.instances, b.instances);
+        assert_eq!(back.material_raster, b.material_raster);
+        assert_eq!(written.instances.per_template, vec![2]);
+        assert_eq!(written.material_raster.histogram[0], 2);
+        assert_eq!(written.material_raster.histogram[255], 1);
+        assert_eq!(written.provenance.files.len(), 4);
+        Bundle::verify(&dir).unwrap();
+        // An existing directory is refused without force, replaced with it.
+        assert!(matches!(b.write(&dir, false), Err(BundleError::Exists { .. })));
+        b.write(&dir, true).unwrap();
+        // A flipped byte is caught by verify.
+        let p = dir.join("materials.u8");
+        std::fs::write(&p, [0u8, 1, 255, 1]).unwrap();
+        assert!(matches!(Bundle::verify(&dir), Err(BundleError::Corrupt { .. })));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rationale: a reader must refuse a bundle of another version with a message saying so,
+    /// and a truncated buffer with the file named, instead of misreading it.
+    #[test]
+    fn wrong_version_and_truncation_are_refused() {
+        let dir = std::env::temp_dir().join(format!("bundle-bad-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        sample().write(&dir, false).unwrap();
+        let mpath = dir.join("manifest.toml");
+        let text = std::fs::read_to_string(&mpath).unwrap();
+        std::fs::write(&mpath, text.replace("format_version = 1", "format_version = 99")).unwrap();
+        let e = Bundle::open(&dir).unwrap_err();
+        assert!(matches!(e, BundleError::Version { found: 99, .. }), "{e}");
+        std::fs::write(&mpath, &text).unwrap();
+        let t = dir.join("instances.bin");
+        let bytes = std::fs::read(&t).unwrap();
+        std::fs::write(&t, &bytes[..bytes.len() - 1]).unwrap();
+        let e = Bundle::open(&dir).unwrap_err();
+        assert!(e.to_string().contains("instances.bin"), "{e}");
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rationale: a failed write (here an inconsistent bundle) must leave neither the
+    /// destination nor a temporary directory behind.
+    #[test]
+    fn failed_write_leaves_nothing() {
+        let parent = std::env::temp_dir().join(format!("bundle-fail-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&parent);
+        std::fs::create_dir_all(&parent).unwrap();
+        let mut b = sample();
+        b.material_raster.pop();
+        let dir = parent.join("out");
+        assert!(b.write(&dir, false).is_err());
+        assert_eq!(std::fs::read_dir(&parent).unwrap().count(), 0);
+        std::fs::remove_dir_all(&parent).unwrap();
+    }
+
+    #[test]
+    fn spectrum_interpolates_and_clamps() {
+        let s = Spectrum::Table { wavelengths_nm: vec![400.0, 500.0], values: vec![0.1, 0.3] };
+        assert!((s.at(450.0) - 0.2).abs() < 1e-12);
+        assert_eq!(s.at(300.0), 0.1);
+        assert_eq!(s.at(900.0), 0.3);
+        assert!(Spectrum::Table { wavelengths_nm: vec![500.0, 400.0], values: vec![0.1, 0.3] }.validate().is_err());
+    }
+}
