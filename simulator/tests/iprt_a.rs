@@ -2,7 +2,10 @@
 //! their standard deviations (`tests/data/iprt/`, provenance in `fixtures/PROVENANCE.md`):
 //! * A1: Rayleigh layer τ = 0.5 over a black surface; (sza, saa, depolarization) = (0, 65, 0),
 //!   (30, 0, 0.03), (30, 65, 0.1);
-//! * A2: Rayleigh τ = 0.1, depolarization 0.03, Lambertian 0.3, sza 50, saa 0.
+//! * A2: Rayleigh τ = 0.1, depolarization 0.03, Lambertian 0.3, sza 50, saa 0;
+//! * A3: spherical aerosol (`waso.mie.cdf`, 4 phase-matrix elements, ω 0.97568) τ = 0.2, black
+//!   surface, sza 40, saa 0;
+//! * A4: prolate spheroids (`sizedistr_spheroid.cdf`, 6 elements, ω 0.787581), otherwise as A3.
 //!
 //! Only the top-of-layer rows are compared (our `mdistant` is a TOA measure). IPRT conventions
 //! (MANIFEST §2): radiance for F0 = 1 normal to the beam (so BRF-like = π·L/μ0); (vza, vaa) is the
@@ -39,14 +42,18 @@ fn load(name: &str) -> Vec<Row> {
 }
 
 fn run_case(case: &str, rows: &[&Row], tau: f64, albedo: f64, spp: u64) -> Result<(), String> {
+    let phase = format!("{{ type = \"rayleigh\", depolarization = {:?} }}", rows[0].depol);
+    run_case_with(case, rows, &format!("optical_thickness = {tau:?}\nphase = {phase}"), albedo, spp)
+}
+
+fn run_case_with(case: &str, rows: &[&Row], atmosphere: &str, albedo: f64, spp: u64) -> Result<(), String> {
     let r0 = rows[0];
     let vza: Vec<f64> = rows.iter().map(|r| 180.0 - r.va).collect();
     let vaa: Vec<f64> = rows.iter().map(|r| (r.phi + 180.0).rem_euclid(360.0)).collect();
     let text = format!(
-        "seed = 5\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = {tau:?}\n\
-         phase = {{ type = \"rayleigh\", depolarization = {:?} }}\n[surface]\ntype = \"lambertian\"\nreflectance = {albedo:?}\n\
+        "seed = 5\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\n{atmosphere}\n\
+         [surface]\ntype = \"lambertian\"\nreflectance = {albedo:?}\n\
          [illumination]\ntype = \"directional\"\nzenith = {:?}\nazimuth = {:?}\n{}",
-        r0.depol,
         r0.sza,
         r0.saa,
         mdistant_toml("toa", &vza, &vaa, spp)
@@ -88,4 +95,20 @@ fn iprt_a2_rayleigh_lambertian() {
     let rows = load("a2_toa.dat");
     let sub: Vec<&Row> = rows.iter().collect();
     run_case("IPRT A2", &sub, 0.1, 0.3, 300_000).unwrap();
+}
+
+#[test]
+fn iprt_a3_a4_aerosol_phase_matrices() {
+    let mut errs = Vec::new();
+    for (file, table, ssa) in [("a3_toa.dat", "waso.mie.cdf", 0.97568), ("a4_toa.dat", "sizedistr_spheroid.cdf", 0.787581)] {
+        let rows = load(file);
+        let sub: Vec<&Row> = rows.iter().collect();
+        let atm = format!(
+            "optical_thickness = 0.2\nsingle_scattering_albedo = {ssa:?}\nphase = {{ type = \"tabulated\", file = \"fixtures/{table}\", wavelength = 350.0 }}"
+        );
+        if let Err(e) = run_case_with(&format!("IPRT {file}"), &sub, &atm, 0.0, 300_000) {
+            errs.push(e);
+        }
+    }
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
 }

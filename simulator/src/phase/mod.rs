@@ -50,13 +50,14 @@ impl PhaseFunction {
         }
     }
 
-    /// The phase matrix at cos Θ (polarized runs). Rayleigh is polarizing; Henyey–Greenstein and
-    /// P11-only tables act as depolarizers (only I scatters), as in Eradiate and MYSTIC.
+    /// The phase matrix at cos Θ (polarized runs). Rayleigh and tables with phase-matrix elements
+    /// are polarizing; Henyey–Greenstein and P11-only tables act as depolarizers (only I scatters).
     #[inline]
     pub fn matrix(&self, cos_theta: f64) -> crate::stokes::PhaseMatrix {
         match self {
             PhaseFunction::Rayleigh(p) => p.matrix(cos_theta),
-            _ => crate::stokes::PhaseMatrix::depolarizing(self.eval(cos_theta)),
+            PhaseFunction::Tabulated(t) => t.matrix(cos_theta),
+            PhaseFunction::Hg(_) => crate::stokes::PhaseMatrix::depolarizing(self.eval(cos_theta)),
         }
     }
 

@@ -8,8 +8,12 @@
 //! | `size_index`  | —    | 0                  | index along the file's second dimension (`reff` or `hum`) |
 //!
 //! File layout used: `wavelen(nlam)` in µm; `theta(nlam, n2, nphamat, nthetamax)` in degrees (any
-//! order); `phase(nlam, n2, nphamat, nthetamax)`; `ntheta(nlam, n2, nphamat)`. Only `P11` (the
-//! first phase-matrix element) enters scalar transport.
+//! order); `phase(nlam, n2, nphamat, nthetamax)`; `ntheta(nlam, n2, nphamat)`. Scalar transport
+//! uses `P11` only. Polarized runs use the full matrix: with `nphamat = 4` (spheres) the elements
+//! are P11, P12, P33, P34 (P22 = P11, P44 = P33); with 6 (e.g. spheroids from MOPSMAP) P11, P12,
+//! P33, P34, P22, P44 — i.e. `[[P11, P12, 0, 0], [P12, P22, 0, 0], [0, 0, P33, P34],
+//! [0, 0, −P34, P44]]` in the scattering-plane frame of `stokes.rs`, each element interpolated
+//! linearly in scattering angle and scaled with P11's normalisation.
 //!
 //! Representation: the table is interpolated **linearly in scattering angle** (the IPRT
 //! convention) on a grid refined 16× between the file's nodes, and then treated as exactly
@@ -30,6 +34,22 @@ pub struct Tabulated {
     p: Vec<f64>,
     /// CDF of cos Θ at `mu` (density P/2), from 0 to 1.
     cdf: Vec<f64>,
+    /// Polarized tables: the other phase-matrix elements (b1, a2, a3, b2, a4) at `mu`, with the
+    /// same normalisation as `p`.
+    pol: Option<[Vec<f64>; 5]>,
+}
+
+/// Linear interpolation in the first coordinate of sorted (x, y) pairs (clamped at the ends).
+fn interp_sorted(pairs: &[(f64, f64)], x: f64) -> f64 {
+    let i = pairs.partition_point(|p| p.0 <= x);
+    if i == 0 {
+        return pairs[0].1;
+    }
+    if i >= pairs.len() {
+        return pairs[pairs.len() - 1].1;
+    }
+    let ((x0, y0), (x1, y1)) = (pairs[i - 1], pairs[i]);
+    if x1 > x0 { y0 + (y1 - y0) * (x - x0) / (x1 - x0) } else { y0 }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -83,6 +103,59 @@ impl Tabulated {
         Self::from_mu(mu, p)
     }
 
+    /// Build a polarized table: P11 on `theta_deg`, and the elements (b1, a2, a3, b2, a4) each on
+    /// its own angle grid (degrees), all interpolated linearly in scattering angle and sharing
+    /// P11's normalisation.
+    pub fn from_matrix_table(
+        theta_deg: &[f64],
+        p11: &[f64],
+        elems: [(&[f64], &[f64]); 5],
+    ) -> Result<Self, String> {
+        let mut t = Self::from_table(theta_deg, p11)?;
+        let mut raw: Vec<(f64, f64)> = theta_deg.iter().copied().zip(p11.iter().copied()).collect();
+        raw.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+        // The normalisation factor applied to P11, recovered at the forward peak node.
+        let scale = t.p[t.p.len() - 1] / raw[0].1.max(1e-300);
+        let mut out: [Vec<f64>; 5] = Default::default();
+        for (k, (th, val)) in elems.iter().enumerate() {
+            if th.len() != val.len() || th.len() < 2 {
+                return Err(format!("phase-matrix element {} needs at least two (theta, value) pairs", k + 2));
+            }
+            let mut pairs: Vec<(f64, f64)> = th.iter().copied().zip(val.iter().copied()).collect();
+            if pairs.iter().any(|p| !p.0.is_finite() || !p.1.is_finite()) {
+                return Err(format!("phase-matrix element {} has non-finite values", k + 2));
+            }
+            pairs.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+            out[k] = t
+                .mu
+                .iter()
+                .map(|&m| interp_sorted(&pairs, m.clamp(-1.0, 1.0).acos().to_degrees()) * scale)
+                .collect();
+        }
+        t.pol = Some(out);
+        Ok(t)
+    }
+
+    /// Whether the table carries a full phase matrix.
+    pub fn is_polarized(&self) -> bool {
+        self.pol.is_some()
+    }
+
+    /// Phase matrix at cos Θ (a depolarizer for P11-only tables).
+    #[inline]
+    pub fn matrix(&self, mu: f64) -> crate::stokes::PhaseMatrix {
+        let mu = mu.clamp(-1.0, 1.0);
+        let i = self.interval(mu);
+        let (m0, m1) = (self.mu[i], self.mu[i + 1]);
+        let f = if m1 > m0 { (mu - m0) / (m1 - m0) } else { 0.0 };
+        let at = |v: &Vec<f64>| v[i] + (v[i + 1] - v[i]) * f;
+        let a1 = at(&self.p);
+        match &self.pol {
+            None => crate::stokes::PhaseMatrix::depolarizing(a1),
+            Some(e) => crate::stokes::PhaseMatrix { a1, b1: at(&e[0]), a2: at(&e[1]), a3: at(&e[2]), b2: at(&e[3]), a4: at(&e[4]) },
+        }
+    }
+
     fn from_mu(mu: Vec<f64>, mut p: Vec<f64>) -> Result<Self, String> {
         let mut cdf = vec![0.0; mu.len()];
         for i in 1..mu.len() {
@@ -96,7 +169,7 @@ impl Tabulated {
         let scale = 2.0 / total;
         p.iter_mut().for_each(|v| *v *= scale);
         cdf.iter_mut().for_each(|v| *v /= total);
-        Ok(Self { mu, p, cdf })
+        Ok(Self { mu, p, cdf, pol: None })
     }
 
     /// Linear mixture `(1−t)·a + t·b` of two normalised tables, on the union of their grids.
@@ -105,7 +178,16 @@ impl Tabulated {
         mu.sort_by(|x, y| x.partial_cmp(y).unwrap());
         mu.dedup();
         let p: Vec<f64> = mu.iter().map(|&m| (1.0 - t) * a.eval(m) + t * b.eval(m)).collect();
-        Self::from_mu(mu, p).expect("mixture of valid tables is valid")
+        let mut out = Self::from_mu(mu, p).expect("mixture of valid tables is valid");
+        if a.is_polarized() && b.is_polarized() {
+            // Both inputs are normalised, so the mixture needs no further scaling.
+            let mats: Vec<_> = out.mu.iter().map(|&m| (a.matrix(m), b.matrix(m))).collect();
+            let mix = |g: fn(&crate::stokes::PhaseMatrix) -> f64| -> Vec<f64> {
+                mats.iter().map(|(x, y)| (1.0 - t) * g(x) + t * g(y)).collect()
+            };
+            out.pol = Some([mix(|m| m.b1), mix(|m| m.a2), mix(|m| m.a3), mix(|m| m.b2), mix(|m| m.a4)]);
+        }
+        out
     }
 
     #[inline]
@@ -198,8 +280,30 @@ impl Tabulated {
                 return Err(content(format!("ntheta = {nt} out of range at wavelength index {il}")));
             }
             let off = ((il * n2 + size_index) * nphamat) * nthmax;
-            Tabulated::from_table(&theta[off..off + nt], &phase[off..off + nt])
-                .map_err(|m| content(format!("wavelength {} nm: {m}", wl_um[il] * 1e3)))
+            let elem = |k: usize| -> Result<(&[f64], &[f64]), PhaseTableError> {
+                let n = ntheta[(il * n2 + size_index) * nphamat + k] as usize;
+                if n < 2 || n > nthmax {
+                    return Err(content(format!("ntheta = {n} out of range for element {} at wavelength index {il}", k + 1)));
+                }
+                let o = off + k * nthmax;
+                Ok((&theta[o..o + n], &phase[o..o + n]))
+            };
+            let wl_err = |m: String| content(format!("wavelength {} nm: {m}", wl_um[il] * 1e3));
+            // Element order (libRadtran / MOPSMAP): 4 elements for spheres P11, P12, P33, P34
+            // (P22 = P11, P44 = P33); 6 elements P11, P12, P33, P34, P22, P44.
+            match nphamat {
+                4 => {
+                    let (e11, e12, e33, e34) = (elem(0)?, elem(1)?, elem(2)?, elem(3)?);
+                    Tabulated::from_matrix_table(&theta[off..off + nt], &phase[off..off + nt], [e12, e11, e33, e34, e33])
+                        .map_err(wl_err)
+                }
+                6 => {
+                    let (e12, e33, e34, e22, e44) = (elem(1)?, elem(2)?, elem(3)?, elem(4)?, elem(5)?);
+                    Tabulated::from_matrix_table(&theta[off..off + nt], &phase[off..off + nt], [e12, e22, e33, e34, e44])
+                        .map_err(wl_err)
+                }
+                _ => Tabulated::from_table(&theta[off..off + nt], &phase[off..off + nt]).map_err(wl_err),
+            }
         };
         let wl_nm: Vec<f64> = wl_um.iter().map(|w| w * 1e3).collect();
         if let Some(i) = wl_nm.iter().position(|&w| (w - wavelength_nm).abs() < 1e-3) {
