@@ -1,6 +1,7 @@
 //! The optical state of a run at one spectral point: everything the transport needs that depends
 //! on wavelength. Built once per wavelength by the resolver; immutable during transport.
 
+use crate::atmosphere::spherical::SphericalShell;
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::Bsdf;
 
@@ -9,6 +10,8 @@ pub struct OpticalState {
     /// Wavelength, nm.
     pub wavelength: f64,
     pub atmosphere: PlaneParallel,
+    /// The same layers as spherical shells, in spherical-shell experiments.
+    pub shell: Option<SphericalShell>,
     pub surface: Bsdf,
     /// Solar irradiance normal to the beam, W m⁻² nm⁻¹.
     pub irradiance: f64,

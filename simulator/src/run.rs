@@ -11,7 +11,8 @@ use crate::config::resolve::{Experiment, IntegratorKind};
 use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
 use crate::integrator::forward_pol;
-use crate::integrator::{backward, Accum};
+use crate::atmosphere::spherical::SphericalShell;
+use crate::integrator::{backward, backward_sph, Accum};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::rng::Stream;
@@ -45,6 +46,9 @@ pub struct MeasureResult {
 }
 
 pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
+    if exp.planet_radius.is_some() {
+        return Method::Backward;
+    }
     match (exp.integrator.kind, &m.kind) {
         (_, MeasureKind::Radiancemeter { .. }) => Method::Backward,
         (IntegratorKind::Backward, _) => Method::Backward,
@@ -82,6 +86,20 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
         }
         Method::Backward => {
             let mut acc = Accum::new(1);
+            if let Some(shell) = &opt.shell {
+                let mu_norm = exp.mu_norm();
+                for s in range {
+                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+                    let (a, b) = match spherical_start(shell, m, cell, &mut rng) {
+                        Some((p0, l0, d0)) => backward_sph::walk(
+                            shell, &opt.surface, exp.sun_dir, mu_norm, p0, l0, d0, &exp.integrator, &mut rng,
+                        ),
+                        None => (0.0, 0.0),
+                    };
+                    acc.add(0, a, b);
+                }
+                return acc;
+            }
             for s in range {
                 let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
                 let (tau0, d0) = backward_start(opt, m, cell, &mut rng);
@@ -91,6 +109,34 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
             acc
         }
     }
+}
+
+/// Starting point, shell and path direction of a backward sample in a spherical shell (planet
+/// centred; the target point is at (0, 0, R_ground)); `None` when the line of sight misses the
+/// atmosphere.
+fn spherical_start(shell: &SphericalShell, m: &Measure, cell: usize, rng: &mut Stream) -> Option<(DVec3, usize, DVec3)> {
+    let rg = shell.ground_radius();
+    let target = DVec3::new(0.0, 0.0, rg);
+    let (p, d) = match &m.kind {
+        MeasureKind::Distant { directions, .. } => {
+            // The line of sight through the target, entered from TOA.
+            let v = directions[cell];
+            let r = shell.toa_radius();
+            let b = target.dot(v);
+            let t = -b + (b * b - (rg * rg - r * r)).sqrt();
+            (target + v * t, -v)
+        }
+        MeasureKind::Radiancemeter { origin, look } => {
+            let p = DVec3::new(origin.x, origin.y, shell.planet_radius + origin.z);
+            (shell.entry_point(p, *look)?, *look)
+        }
+        MeasureKind::DistantFlux { altitude } => {
+            let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
+            (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), -up)
+        }
+    };
+    let l = shell.shell_at(p.length()).min(shell.shell_count() - 1);
+    Some((p, l, d))
 }
 
 /// Starting optical depth and path direction of a backward sample.

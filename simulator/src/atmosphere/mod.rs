@@ -10,6 +10,8 @@
 //! thickness `tau_abs` (both vertical, dimensionless) and a phase function. The single-scattering
 //! albedo is `tau_sca / (tau_sca + tau_abs)`.
 
+pub mod spherical;
+
 use crate::phase::PhaseFunction;
 
 /// One homogeneous layer's optics at one wavelength.
@@ -116,6 +118,11 @@ impl PlaneParallel {
             }
         }
         self.total_tau
+    }
+
+    /// Layer boundaries from the top down: (altitude m, optical depth from TOA).
+    pub fn boundaries(&self) -> impl Iterator<Item = (f64, f64)> + '_ {
+        self.z.iter().copied().zip(self.tau.iter().copied())
     }
 
     /// Layer count (including an empty placeholder when there is no atmosphere).

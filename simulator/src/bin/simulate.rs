@@ -146,9 +146,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
 fn print_summary(rows: &[products::Row]) {
     println!("{:<16} {:>9} {:>8} {:>8} {:>12} {:>10}", "measure", "wl [nm]", "vza", "vaa", "value", "rel.err");
     for r in rows {
-        let (name, (v, e)) = match (r.brf, r.albedo) {
-            (Some(b), _) => ("brf", b),
-            (None, Some(a)) => ("albedo", a),
+        let (name, (v, e)) = match (r.brf, r.albedo, r.radiance, r.flux) {
+            (Some(b), _, _, _) => ("brf", b),
+            (None, Some(a), _, _) => ("albedo", a),
+            (None, None, Some(l), _) => ("radiance", l),
+            (None, None, None, Some(f)) => ("flux", f),
             _ => continue,
         };
         let ang = |x: Option<f64>| x.map(|a| format!("{a:8.2}")).unwrap_or_else(|| format!("{:>8}", "-"));

@@ -66,6 +66,22 @@ pub enum GeometryConfig {
         #[serde(default)]
         ground_altitude: f64,
     },
+    /// Concentric shells around a spherical planet.
+    SphericalShell {
+        /// km.
+        #[serde(default = "default_toa")]
+        toa_altitude: f64,
+        /// km.
+        #[serde(default)]
+        ground_altitude: f64,
+        /// km.
+        #[serde(default = "default_planet_radius")]
+        planet_radius: f64,
+    },
+}
+
+fn default_planet_radius() -> f64 {
+    6378.1
 }
 
 fn default_toa() -> f64 {

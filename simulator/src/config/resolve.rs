@@ -8,6 +8,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::*;
+use crate::atmosphere::spherical::SphericalShell;
 use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Rpv, Rtls};
 use crate::error::ConfigError;
@@ -56,12 +57,29 @@ pub struct Experiment {
     pub seed: u64,
     /// Stokes-vector transport.
     pub polarized: bool,
+    /// Spherical-shell geometry: the planet radius, m (None: plane-parallel).
+    pub planet_radius: Option<f64>,
     /// The experiment file's text (written into the products for provenance).
     pub source_text: String,
     pub source_path: PathBuf,
 }
 
 impl Experiment {
+    /// The cosine that normalises samples and BRFs: cos SZA when the Sun is above the target's
+    /// horizon, else 1 (twilight in spherical shells: radiance only, no BRF).
+    /// Whether the Sun is above the target's horizon (SZA below 90° by more than 0.2″).
+    pub fn sun_up(&self) -> bool {
+        self.sun_dir.z > 1e-6
+    }
+
+    pub fn mu_norm(&self) -> f64 {
+        if self.sun_up() {
+            self.sun_dir.z
+        } else {
+            1.0
+        }
+    }
+
     /// Read and resolve an experiment file; relative paths inside are taken from its folder.
     pub fn load(path: &Path) -> Result<Experiment, ConfigError> {
         let text = std::fs::read_to_string(path)
@@ -224,7 +242,19 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let nw = ctx.nw;
 
     // Geometry.
-    let GeometryConfig::PlaneParallel { toa_altitude, ground_altitude } = cfg.geometry;
+    let (toa_altitude, ground_altitude, planet_radius) = match cfg.geometry {
+        GeometryConfig::PlaneParallel { toa_altitude, ground_altitude } => (toa_altitude, ground_altitude, None),
+        GeometryConfig::SphericalShell { toa_altitude, ground_altitude, planet_radius } => {
+            let r = ctx.finite("geometry.planet_radius", planet_radius)?;
+            if r <= 0.0 {
+                return Err(ctx.err("geometry.planet_radius", format!("{r} km must be positive")));
+            }
+            if r + ground_altitude <= 0.0 {
+                return Err(ctx.err("geometry.ground_altitude", "lies below the planet's centre"));
+            }
+            (toa_altitude, ground_altitude, Some(r * 1e3))
+        }
+    };
     let toa = ctx.finite("geometry.toa_altitude", toa_altitude)? * 1e3;
     let ground = ctx.finite("geometry.ground_altitude", ground_altitude)? * 1e3;
     if toa <= ground {
@@ -409,8 +439,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     // Illumination.
     let IlluminationConfig::Directional { zenith, azimuth, irradiance } = &cfg.illumination;
     let zenith = ctx.finite("illumination.zenith", *zenith)?;
-    if !(0.0..90.0).contains(&zenith) {
-        return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90)")));
+    if planet_radius.is_none() && !(0.0..90.0).contains(&zenith) {
+        return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
+    }
+    if !(0.0..=180.0).contains(&zenith) {
+        return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 180]")));
     }
     let azimuth = ctx.finite("illumination.azimuth", *azimuth)?;
     if !(-360.0..=360.0).contains(&azimuth) {
@@ -534,6 +567,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             return Err(ctx.err("integrator.type", format!("\"{other}\" is unknown (known: \"auto\", \"forward\", \"backward\")")))
         }
     };
+    if planet_radius.is_some() && kind == IntegratorKind::Forward {
+        return Err(ctx.err("integrator.type", "spherical-shell atmospheres use the backward walk (\"auto\" or \"backward\")"));
+    }
+    if planet_radius.is_some() && cfg.polarized {
+        return Err(ctx.err("polarized", "polarized transport in spherical shells is not implemented yet"));
+    }
     if kind == IntegratorKind::Forward {
         if let Some((im, _)) = measures.iter().enumerate().find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. })) {
             return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
@@ -566,11 +605,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         .into_iter()
         .zip(surfaces)
         .enumerate()
-        .map(|(iw, (layers, surface))| OpticalState {
-            wavelength: wavelengths[iw],
-            atmosphere: PlaneParallel::new(layers, ground, toa),
-            surface,
-            irradiance: irradiance[iw],
+        .map(|(iw, (layers, surface))| {
+            let atmosphere = PlaneParallel::new(layers, ground, toa);
+            let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
+            OpticalState { wavelength: wavelengths[iw], atmosphere, shell, surface, irradiance: irradiance[iw] }
         })
         .collect();
 
@@ -586,6 +624,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         integrator,
         seed: cfg.seed,
         polarized: cfg.polarized,
+        planet_radius,
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
     })

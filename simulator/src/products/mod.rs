@@ -69,7 +69,8 @@ fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
 
 /// Rows for every result, in (wavelength, measure, direction) order.
 pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
-    let mu_s = exp.sun_dir.z;
+    let mu_s = exp.mu_norm();
+    let sun_up = exp.sun_up();
     let mut out = Vec::new();
     for r in results {
         let m = &exp.measures[r.measure];
@@ -118,12 +119,16 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 MeasureKind::DistantFlux { .. } => {}
             }
             if let MeasureKind::DistantFlux { .. } = m.kind {
-                row.albedo = Some((t, te));
+                if sun_up {
+                    row.albedo = Some((t, te));
+                }
                 row.flux = Some((t * e0 * mu_s, te * e0 * mu_s));
             } else {
-                row.brf = Some((t, te));
-                row.brf_single = Some(single);
-                row.brf_multiple = Some(multiple);
+                if sun_up {
+                    row.brf = Some((t, te));
+                    row.brf_single = Some(single);
+                    row.brf_multiple = Some(multiple);
+                }
                 row.radiance = Some((t * to_rad, te * to_rad));
             }
             out.push(row);

@@ -1,0 +1,94 @@
+//! Backward walk in a spherical-shell atmosphere, with next-event estimation towards the Sun.
+//!
+//! As the plane-parallel [`backward`](super::backward) walk, but in planet-centred coordinates:
+//! flights cross shells exactly ([`SphericalShell::fly`]) and the solar transmittance to each
+//! interaction is the exact chord sum through the shells, zero when the Sun is below the local
+//! horizon of the ray (Earth's shadow), so points lit at twilight (SZA > 90° at the target) are
+//! handled. The local estimate is scored at the sampled collision (the along-flight expectation
+//! of the plane-parallel walk has no closed form here). The ground's normal is the local
+//! vertical; BRDFs are evaluated in the local frame there.
+//!
+//! A sample is `π·L/E0` divided by `mu_norm` (cos SZA at the target when the Sun is up, else 1).
+
+use glam::DVec3;
+
+use super::roulette;
+use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
+use crate::bsdf::Bsdf;
+use crate::config::resolve::IntegratorSettings;
+use crate::frame::{basis_around, rotate_about};
+use crate::rng::Stream;
+
+/// One path from `p0` (in shell `l0`) along `d0`; returns the (single, multiple) parts.
+#[allow(clippy::too_many_arguments)]
+pub fn walk(
+    shell: &SphericalShell,
+    surface: &Bsdf,
+    sun_dir: DVec3,
+    mu_norm: f64,
+    p0: DVec3,
+    l0: usize,
+    d0: DVec3,
+    settings: &IntegratorSettings,
+    rng: &mut Stream,
+) -> (f64, f64) {
+    let (mut single, mut multiple) = (0.0, 0.0);
+    let mut score = |order: u32, v: f64| {
+        if order == 1 {
+            single += v;
+        } else {
+            multiple += v;
+        }
+    };
+    let (mut p, mut l, mut d) = (p0, l0, d0);
+    let mut w = 1.0_f64;
+    let mut order: u32 = 1;
+    let inv4pi = 0.25 * std::f64::consts::FRAC_1_PI;
+    while order <= settings.max_depth {
+        let s = -rng.next_f64_open0().ln();
+        match shell.fly(p, l, d, s) {
+            ShellEnd::Escape => break,
+            ShellEnd::Surface(q) => {
+                p = q;
+                l = 0;
+                let n = q / q.length();
+                let (a, b) = basis_around(n);
+                let local = |v: DVec3| DVec3::new(v.dot(a), v.dot(b), v.dot(n));
+                let wo = local(-d);
+                let cos_sun = sun_dir.dot(n);
+                if cos_sun > 0.0 {
+                    let t = shell.transmittance_to_space(p, 0, sun_dir);
+                    if t > 0.0 {
+                        score(order, w * surface.eval(local(sun_dir), wo) * cos_sun * t);
+                    }
+                }
+                let smp = surface.sample(wo, rng.next_f64(), rng.next_f64());
+                w *= smp.weight;
+                d = a * smp.wi.x + b * smp.wi.y + n * smp.wi.z;
+            }
+            ShellEnd::Collision(q, lq) => {
+                p = q;
+                l = lq;
+                let omega = shell.albedo(l);
+                let phase = shell.phase(l);
+                let t = shell.transmittance_to_space(p, l, sun_dir);
+                if t > 0.0 {
+                    score(order, w * omega * phase.eval(sun_dir.dot(d)) * inv4pi * t);
+                }
+                w *= omega;
+                let mu = phase.sample_cos(rng.next_f64());
+                let phi = std::f64::consts::TAU * rng.next_f64();
+                d = rotate_about(d, mu, phi);
+            }
+        }
+        order += 1;
+        if w <= 0.0 {
+            break;
+        }
+        if order > settings.rr_depth && !roulette(&mut w, rng.next_f64()) {
+            break;
+        }
+    }
+    let k = std::f64::consts::PI / mu_norm;
+    (single * k, multiple * k)
+}
