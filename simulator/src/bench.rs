@@ -35,7 +35,7 @@ spp = 100000000
 target_rel_stderr = {target}
 "#;
 
-pub fn run(target: f64, method: &str, polarized: bool) -> anyhow::Result<()> {
+pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyhow::Result<()> {
     let methods: Vec<&str> = match method {
         "both" => vec!["forward", "backward"],
         m @ ("forward" | "backward") => vec![m],
@@ -46,9 +46,16 @@ pub fn run(target: f64, method: &str, polarized: bool) -> anyhow::Result<()> {
         "workload: Rayleigh tau=0.5, Lambertian 0.3, SZA 30, 35 principal-plane directions, {}",
         if polarized { "polarized (I, Q, U, V)" } else { "scalar" }
     );
+    if spherical {
+        println!("geometry: spherical shell, planet radius 6378.1 km, TOA 100 km");
+    }
     println!("target: max relative standard error <= {target:e} in every direction; {threads} thread(s)");
     println!("{:<9} {:>10} {:>14} {:>16} {:>18} {:>12}", "method", "wall [s]", "walks", "walks/s/core", "dir-samples/s", "max rel.err");
     for m in methods {
+        if spherical && m == "forward" {
+            println!("{m:<9} (spherical shells use the backward walk)");
+            continue;
+        }
         if polarized && m == "backward" {
             println!("{m:<9} (no polarized backward walk yet)");
             continue;
@@ -56,6 +63,11 @@ pub fn run(target: f64, method: &str, polarized: bool) -> anyhow::Result<()> {
         let mut text = WORKLOAD.replace("{integrator}", m).replace("{target}", &format!("{target:e}"));
         if polarized {
             text = format!("polarized = true\n{text}");
+        }
+        if spherical {
+            text = format!("[geometry]\ntype = \"spherical_shell\"\n{text}");
+            // The geometry table must come before other tables: move `mode` etc. first.
+            text = text.replace("\nmode = \"mono\"", "");
         }
         let exp = Experiment::from_str(&text, Path::new("<bench workload>"))?;
         let t0 = Instant::now();

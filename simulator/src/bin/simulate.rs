@@ -55,6 +55,9 @@ enum Command {
         /// Polarized (Stokes) transport.
         #[arg(long)]
         polarized: bool,
+        /// Spherical-shell geometry (Earth radius) instead of plane-parallel.
+        #[arg(long)]
+        spherical: bool,
         #[arg(short = 'j', long)]
         threads: Option<usize>,
     },
@@ -136,9 +139,9 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             tracing::info!("done in {:.2} s: wrote {} and {}", t0.elapsed().as_secs_f64(), csv.display(), nc.display());
             Ok(())
         }
-        Command::Bench { target, method, polarized, threads } => {
+        Command::Bench { target, method, polarized, spherical, threads } => {
             set_threads(threads)?;
-            simulator::bench::run(target, &method, polarized)
+            simulator::bench::run(target, &method, polarized, spherical)
         }
     }
 }
