@@ -151,27 +151,29 @@ fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream
     }
 }
 
+/// Walks a measure costs per sample index (a forward walk serves every direction).
+fn walks_per_sample(exp: &Experiment, m: &Measure) -> u64 {
+    if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 }
+}
+
+/// The run's progress bar (hidden when `progress` is false), counted in walks.
+fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
+    if !progress {
+        return ProgressBar::hidden();
+    }
+    let total: u64 =
+        exp.measures.iter().map(|m| m.spp * walks_per_sample(exp, m)).sum::<u64>() * exp.wavelengths.len() as u64;
+    let b = ProgressBar::new(total);
+    b.set_style(
+        ProgressStyle::with_template("{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})")
+            .expect("valid progress template"),
+    );
+    b
+}
+
 /// Run `exp` completely. `progress`: draw a progress bar on stderr.
 pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
-    let total: u64 = exp
-        .measures
-        .iter()
-        .map(|m| {
-            let per = if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 };
-            m.spp * per
-        })
-        .sum::<u64>()
-        * exp.wavelengths.len() as u64;
-    let bar = if progress {
-        let b = ProgressBar::new(total);
-        b.set_style(
-            ProgressStyle::with_template("{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})")
-                .unwrap(),
-        );
-        b
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = progress_bar(exp, progress);
     let mut out = Vec::new();
     for iw in 0..exp.wavelengths.len() {
         for (im, m) in exp.measures.iter().enumerate() {
@@ -239,8 +241,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
         let reached = m.target_rel_stderr.is_some_and(|t| acc.max_rel_stderr() <= t);
         if done >= m.spp || reached {
             if reached && done < m.spp {
-                let per = if method == Method::Forward { 1 } else { cells as u64 };
-                bar.inc((m.spp - done) * per);
+                bar.inc((m.spp - done) * walks_per_sample(exp, m));
             }
             break;
         }
@@ -322,27 +323,12 @@ pub fn run_resumable(
     progress: bool,
     dir: &std::path::Path,
 ) -> Result<(Vec<MeasureResult>, usize), crate::error::OutputError> {
-    let bar = if progress {
-        let total: u64 = exp
-            .measures
-            .iter()
-            .map(|m| m.spp * if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 })
-            .sum::<u64>()
-            * exp.wavelengths.len() as u64;
-        let b = ProgressBar::new(total);
-        b.set_style(
-            ProgressStyle::with_template("{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})")
-                .unwrap(),
-        );
-        b
-    } else {
-        ProgressBar::hidden()
-    };
+    let bar = progress_bar(exp, progress);
     let mut out = Vec::new();
     let mut resumed = 0;
     for iw in 0..exp.wavelengths.len() {
         for (im, m) in exp.measures.iter().enumerate() {
-            let per = if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 };
+            let per = walks_per_sample(exp, m);
             if let Some(r) = checkpoint::load(dir, exp, iw, im) {
                 bar.inc(m.spp * per);
                 resumed += 1;

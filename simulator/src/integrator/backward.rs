@@ -17,10 +17,9 @@
 
 use glam::DVec3;
 
-use super::roulette;
+use super::{roulette, sample_scattered};
 use crate::atmosphere::FlightEnd;
 use crate::config::resolve::IntegratorSettings;
-use crate::frame::rotate_about;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 
@@ -84,9 +83,7 @@ pub fn walk(
                     );
                 }
                 w *= omega;
-                let mu = phase.sample_cos(rng.next_f64());
-                let phi = std::f64::consts::TAU * rng.next_f64();
-                d = rotate_about(d, mu, phi);
+                d = sample_scattered(phase, d, rng);
             }
         }
         order += 1;

@@ -12,11 +12,11 @@
 
 use glam::DVec3;
 
-use super::roulette;
+use super::{roulette, sample_scattered};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::bsdf::Bsdf;
 use crate::config::resolve::IntegratorSettings;
-use crate::frame::{basis_around, rotate_about};
+use crate::frame::basis_around;
 use crate::rng::Stream;
 
 /// One path from `p0` (in shell `l0`) along `d0`; returns the (single, multiple) parts.
@@ -76,9 +76,7 @@ pub fn walk(
                     score(order, w * omega * phase.eval(sun_dir.dot(d)) * inv4pi * t);
                 }
                 w *= omega;
-                let mu = phase.sample_cos(rng.next_f64());
-                let phi = std::f64::consts::TAU * rng.next_f64();
-                d = rotate_about(d, mu, phi);
+                d = sample_scattered(phase, d, rng);
             }
         }
         order += 1;

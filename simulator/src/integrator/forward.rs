@@ -22,12 +22,11 @@
 
 use glam::DVec3;
 
-use super::{roulette, Accum};
+use super::{roulette, sample_scattered, Accum};
 use crate::atmosphere::FlightEnd;
 #[allow(unused_imports)]
 use crate::atmosphere::PlaneParallel;
 use crate::config::resolve::IntegratorSettings;
-use crate::frame::rotate_about;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 
@@ -168,9 +167,7 @@ pub fn walk(
                     }
                 }
                 w *= omega;
-                let mu = phase.sample_cos(rng.next_f64());
-                let phi = std::f64::consts::TAU * rng.next_f64();
-                d = rotate_about(d, mu, phi);
+                d = sample_scattered(phase, d, rng);
             }
         }
         order += 1;

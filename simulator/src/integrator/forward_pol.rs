@@ -16,10 +16,9 @@
 use glam::DVec3;
 
 use super::forward::ForwardTargets;
-use super::{Accum, RR_THRESHOLD};
+use super::{sample_scattered, Accum, RR_THRESHOLD};
 use crate::atmosphere::FlightEnd;
 use crate::config::resolve::IntegratorSettings;
-use crate::frame::rotate_about;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::stokes::{any_perpendicular, meridian_axis, rotate_to, scatter, PhaseMatrix, Stokes};
@@ -154,9 +153,7 @@ pub fn walk(
                 let layer = atm.layer_at_tau(t);
                 let omega = atm.albedo(layer);
                 let phase = atm.phase(layer);
-                let mu = phase.sample_cos(rng.next_f64());
-                let phi = std::f64::consts::TAU * rng.next_f64();
-                let d2 = rotate_about(d, mu, phi);
+                let d2 = sample_scattered(phase, d, rng);
                 let f = phase.matrix(d.dot(d2));
                 let (s2, l2) = scatter(st, d, e1, d2, &f);
                 let k = omega / f.a1;

@@ -166,6 +166,15 @@ impl Accum {
     }
 }
 
+/// A new propagation direction after scattering along `d`: cos Θ from the phase function, a
+/// uniform azimuth about `d` (two random numbers).
+#[inline]
+pub(crate) fn sample_scattered(phase: &crate::phase::PhaseFunction, d: glam::DVec3, rng: &mut crate::rng::Stream) -> glam::DVec3 {
+    let mu = phase.sample_cos(rng.next_f64());
+    let phi = std::f64::consts::TAU * rng.next_f64();
+    crate::frame::rotate_about(d, mu, phi)
+}
+
 /// Russian roulette on a weight: returns false when the path dies.
 #[inline]
 pub(crate) fn roulette(w: &mut f64, u: f64) -> bool {
