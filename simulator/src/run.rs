@@ -12,7 +12,7 @@ use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
 use crate::integrator::forward_pol;
 use crate::atmosphere::spherical::SphericalShell;
-use crate::integrator::{backward, backward_sph, Accum};
+use crate::integrator::{backward, backward_pol, backward_sph, Accum};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::rng::Stream;
@@ -86,6 +86,9 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
         }
         Method::Backward => {
             let mut acc = Accum::new(1);
+            if exp.polarized && opt.shell.is_some() {
+                unreachable!("resolver forbids polarized spherical runs");
+            }
             if let Some(shell) = &opt.shell {
                 let mu_norm = exp.mu_norm();
                 for s in range {
@@ -97,6 +100,21 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
                         None => (0.0, 0.0),
                     };
                     acc.add(0, a, b);
+                }
+                return acc;
+            }
+            if exp.polarized {
+                let mut acc = Accum::new_polarized(1);
+                for s in range {
+                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+                    let (tau0, d0) = backward_start(opt, m, cell, &mut rng);
+                    let hint = match &m.kind {
+                        MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
+                        _ => 0.0,
+                    };
+                    let e1 = crate::stokes::meridian_axis(-d0, hint);
+                    let x = backward_pol::walk(opt, exp.sun_dir, tau0, d0, e1, &exp.integrator, &mut rng);
+                    acc.add_stokes(0, x[0], x[1], x[2], x[3], x[4]);
                 }
                 return acc;
             }

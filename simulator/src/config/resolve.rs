@@ -578,14 +578,6 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
         }
     }
-    if cfg.polarized {
-        if kind == IntegratorKind::Backward {
-            return Err(ctx.err("integrator.type", "polarized runs use the forward walk (\"auto\" or \"forward\"); the polarized backward walk is not implemented yet"));
-        }
-        if let Some((im, _)) = measures.iter().enumerate().find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. })) {
-            return Err(ctx.err(format!("measures[{im}]"), "radiancemeters are not available in polarized runs yet (they need the polarized backward walk)"));
-        }
-    }
     let max_depth = match cfg.integrator.max_depth {
         Some(0) => return Err(ctx.err("integrator.max_depth", "must be at least 1")),
         Some(d) => d,

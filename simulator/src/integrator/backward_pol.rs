@@ -1,0 +1,156 @@
+//! Polarized backward walk (plane-parallel), with next-event estimation towards the Sun.
+//!
+//! The adjoint of the polarized forward walk. The path carries `T`, the 4×4 product of
+//! rotation and phase matrices that maps a Stokes vector of light arriving along the current
+//! path segment (in that segment's frame, first axis `e1`) to the Stokes vector measured by the
+//! sensor (meridian frame of the direction towards the sensor, `stokes.rs`). At a collision along
+//! `d` the new path direction `d'` is drawn from `a1 = P11` (as in the scalar walk), and
+//! `T ← T · R(l_out → e1) · F(Θ) · ω / a1(Θ)`, where the scattering-plane frame is that of light
+//! going from `−d'` to `−d`; the new segment's frame is `l_in`. Next-event estimation scatters the
+//! unpolarized solar beam the same way: `T · R · F(Θ_sun) · (1, 0, 0, 0) · ω/(4π) · T_sun`,
+//! integrated exactly along each flight as in the scalar walk. Surfaces depolarize: their Mueller
+//! matrix has only the (I, I) element, so after a reflection only `T`'s first column survives.
+//!
+//! A sample is the Stokes vector `π·(I, Q, U, V)/(E0 μ_s)`.
+
+use glam::{DMat4, DVec3, DVec4};
+
+use super::{sample_scattered, RR_THRESHOLD};
+use crate::atmosphere::FlightEnd;
+use crate::config::resolve::IntegratorSettings;
+use crate::optics::OpticalState;
+use crate::rng::Stream;
+use crate::stokes::{any_perpendicular, PhaseMatrix};
+
+/// Mueller matrix of a phase matrix (row-major layout in the docs; glam is column-major).
+#[inline]
+fn mueller(f: &PhaseMatrix) -> DMat4 {
+    DMat4::from_cols(
+        DVec4::new(f.a1, f.b1, 0.0, 0.0),
+        DVec4::new(f.b1, f.a2, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, f.a3, -f.b2),
+        DVec4::new(0.0, 0.0, f.b2, f.a4),
+    )
+}
+
+/// Rotation of Stokes vectors from first axis `from` to first axis `to` (both ⊥ `w`).
+#[inline]
+fn rotation(w: DVec3, from: DVec3, to: DVec3) -> DMat4 {
+    let (c, s) = (to.dot(from), to.dot(w.cross(from)));
+    let (c2, s2) = (c * c - s * s, 2.0 * c * s);
+    DMat4::from_cols(
+        DVec4::new(1.0, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, c2, -s2, 0.0),
+        DVec4::new(0.0, s2, c2, 0.0),
+        DVec4::new(0.0, 0.0, 0.0, 1.0),
+    )
+}
+
+/// Scattering-plane frame for light going from propagation direction `w_in` to `w_out`:
+/// (perpendicular axis r, parallel axis of the incoming light, parallel axis of the outgoing).
+#[inline]
+fn plane(w_in: DVec3, w_out: DVec3, fallback: DVec3) -> (DVec3, DVec3, DVec3) {
+    let mut r = w_in.cross(w_out);
+    let len = r.length();
+    if len < 1e-12 {
+        r = w_out.cross(fallback).normalize();
+    } else {
+        r /= len;
+    }
+    (r, r.cross(w_in), r.cross(w_out))
+}
+
+/// One path from (τ₀, d₀) whose sensor frame has first axis `e1_sensor` (⊥ d₀); returns the
+/// (I single, I multiple, Q, U, V) parts of `π·S/(E0 μ_s)`.
+pub fn walk(
+    opt: &OpticalState,
+    sun_dir: DVec3,
+    tau0: f64,
+    d0: DVec3,
+    e1_sensor: DVec3,
+    settings: &IntegratorSettings,
+    rng: &mut Stream,
+) -> [f64; 5] {
+    let atm = &opt.atmosphere;
+    let total = atm.total_tau();
+    let mu_s = sun_dir.z;
+    let inv_mu_s = 1.0 / mu_s;
+    let t_sun_ground = (-total * inv_mu_s).exp();
+    let mut out = [0.0; 5];
+    let mut score = |order: u32, s: DVec4| {
+        if order == 1 {
+            out[0] += s.x;
+        } else {
+            out[1] += s.x;
+        }
+        out[2] += s.y;
+        out[3] += s.z;
+        out[4] += s.w;
+    };
+    let w_sun = -sun_dir;
+    let mut d = d0;
+    let mut e1 = e1_sensor;
+    let mut tau = tau0;
+    let mut t = DMat4::IDENTITY;
+    let mut order: u32 = 1;
+    let inv4pi = 0.25 * std::f64::consts::FRAC_1_PI;
+    while order <= settings.max_depth {
+        // Expected next-event estimate of the next collision (exact along the flight).
+        let w_out = -d;
+        let cos = sun_dir.dot(d);
+        let mut m = PhaseMatrix { a1: 0.0, b1: 0.0, a2: 0.0, a3: 0.0, b2: 0.0, a4: 0.0 };
+        atm.flight_integrals(tau, d.z, inv_mu_s, |l, i| {
+            m.add(&atm.phase(l).matrix(cos).scaled(atm.albedo(l) * i));
+        });
+        if m.a1 > 0.0 {
+            let (_, _, l_out) = plane(w_sun, w_out, e1);
+            let sv = DVec4::new(m.a1, m.b1, 0.0, 0.0); // F · (1, 0, 0, 0)
+            score(order, t * (rotation(w_out, l_out, e1) * sv) * inv4pi);
+        }
+        let s = -rng.next_f64_open0().ln();
+        match atm.fly(tau, d.z, s) {
+            FlightEnd::Escape => break,
+            FlightEnd::Surface => {
+                tau = total;
+                let wo = -d;
+                let f = opt.surface.eval(sun_dir, wo);
+                score(order, t.col(0) * (f * mu_s * t_sun_ground));
+                let smp = opt.surface.sample(wo, rng.next_f64(), rng.next_f64());
+                // Depolarizer: only the first column of T survives.
+                t = DMat4::from_cols(t.col(0) * smp.weight, DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
+                d = smp.wi;
+                e1 = any_perpendicular(d);
+            }
+            FlightEnd::Collision(tc) => {
+                tau = tc;
+                let layer = atm.layer_at_tau(tc);
+                let omega = atm.albedo(layer);
+                let phase = atm.phase(layer);
+                let d2 = sample_scattered(phase, d, rng);
+                // Light arrives along −d2 and leaves along −d.
+                let (w_in, w_out) = (-d2, -d);
+                let f = phase.matrix(d.dot(d2));
+                let (_, l_in, l_out) = plane(w_in, w_out, e1);
+                t = t * rotation(w_out, l_out, e1) * mueller(&f) * (omega / f.a1);
+                d = d2;
+                e1 = l_in;
+            }
+        }
+        order += 1;
+        // T's (I, I) element is the path's intensity weight (a product of Mueller matrices has
+        // T00 ≥ |T0j|).
+        let w = t.col(0).x;
+        if w <= 0.0 {
+            break;
+        }
+        if order > settings.rr_depth && w < RR_THRESHOLD {
+            if rng.next_f64() < w / RR_THRESHOLD {
+                t *= RR_THRESHOLD / w;
+            } else {
+                break;
+            }
+        }
+    }
+    let k = std::f64::consts::PI / mu_s;
+    out.map(|x| x * k)
+}
