@@ -86,8 +86,28 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
         }
         Method::Backward => {
             let mut acc = Accum::new(1);
-            if exp.polarized && opt.shell.is_some() {
-                unreachable!("resolver forbids polarized spherical runs");
+            let frame_hint = |m: &Measure| match &m.kind {
+                MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
+                _ => 0.0,
+            };
+            if let (true, Some(shell)) = (exp.polarized, &opt.shell) {
+                let mut acc = Accum::new_polarized(1);
+                let mu_norm = exp.mu_norm();
+                for s in range {
+                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+                    let x = match spherical_start(shell, m, cell, &mut rng) {
+                        Some((p0, l0, d0)) => {
+                            // The sensor frame is the meridian frame at the target's vertical.
+                            let e1 = crate::stokes::meridian_axis(-d0, frame_hint(m));
+                            backward_pol::walk_spherical(
+                                shell, &opt.surface, exp.sun_dir, mu_norm, p0, l0, d0, e1, &exp.integrator, &mut rng,
+                            )
+                        }
+                        None => [0.0; 5],
+                    };
+                    acc.add_stokes(0, x[0], x[1], x[2], x[3], x[4]);
+                }
+                return acc;
             }
             if let Some(shell) = &opt.shell {
                 let mu_norm = exp.mu_norm();
@@ -108,11 +128,7 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
                 for s in range {
                     let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
                     let (tau0, d0) = backward_start(opt, m, cell, &mut rng);
-                    let hint = match &m.kind {
-                        MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
-                        _ => 0.0,
-                    };
-                    let e1 = crate::stokes::meridian_axis(-d0, hint);
+                    let e1 = crate::stokes::meridian_axis(-d0, frame_hint(m));
                     let x = backward_pol::walk(opt, exp.sun_dir, tau0, d0, e1, &exp.integrator, &mut rng);
                     acc.add_stokes(0, x[0], x[1], x[2], x[3], x[4]);
                 }

@@ -220,3 +220,56 @@ fn earth_shadow() {
         last = l;
     }
 }
+
+/// Polarized spherical shells: on a planet of radius 10⁷ km the polarized spherical walk gives
+/// the plane-parallel Stokes vector (Natraj et al. 2009, τ 0.5, A 0.25, μ0 0.6: I, Q, U at
+/// μ = 0.4 and 0.84 for φ = 0, 60, 120, 180°; table mapping as in `natraj_2009.rs`).
+#[test]
+fn polarized_huge_planet_equals_natraj() {
+    let read = |c: &str| -> Vec<(f64, f64, Vec<f64>)> {
+        let text = std::fs::read_to_string(data_dir().join(format!("natraj_2009/{c}_UP_TAU_0.5"))).unwrap();
+        let mut inside = false;
+        let mut out = Vec::new();
+        for l in text.lines() {
+            let t = l.trim();
+            if let Some(a) = t.strip_prefix("albedo = ") {
+                inside = a.trim() == "0.25";
+                continue;
+            }
+            let f: Vec<f64> = t.split_whitespace().filter_map(|x| x.parse().ok()).collect();
+            if inside && f.len() == 9 {
+                out.push((f[0], f[1], f[2..].to_vec()));
+            }
+        }
+        out
+    };
+    let (ti, tq, tu) = (read("I"), read("Q"), read("U"));
+    let mu0: f64 = 0.6;
+    let (mut vza, mut vaa, mut refs) = (Vec::new(), Vec::new(), Vec::new());
+    for mu in [0.4, 0.84] {
+        let pick = |t: &Vec<(f64, f64, Vec<f64>)>| t.iter().find(|r| r.0 == mu0 && r.1 == mu).unwrap().2.clone();
+        let (i, q, u) = (pick(&ti), pick(&tq), pick(&tu));
+        for k in [0usize, 2, 4, 6] {
+            let phi = 30.0 * k as f64;
+            vza.push(f64::acos(mu).to_degrees());
+            vaa.push((phi - 180.0f64).rem_euclid(360.0));
+            refs.push([i[k] / mu0, -q[k] / mu0, -u[k] / mu0]);
+        }
+    }
+    let text = format!(
+        "seed = 31\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[geometry]\ntype = \"spherical_shell\"\nplanet_radius = 1e7\n\
+         [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5\n[surface]\ntype = \"lambertian\"\nreflectance = 0.25\n\
+         [illumination]\ntype = \"directional\"\nzenith = {:?}\nazimuth = 0.0\n{}",
+        mu0.acos().to_degrees(),
+        mdistant_toml("toa", &vza, &vaa, 100_000)
+    );
+    let rows = run_rows(&experiment(&text));
+    let mut cmps = Vec::new();
+    for (r, (o, z)) in refs.iter().zip(rows.iter().zip(&vza)) {
+        for (k, (name, x)) in [("I", o.brf), ("Q", o.brf_q), ("U", o.brf_u)].into_iter().enumerate() {
+            let (v, e) = x.unwrap();
+            cmps.push(Cmp { label: format!("{name} vza {z:.1} vaa {:?}", o.vaa), reference: r[k], value: v, stderr: e });
+        }
+    }
+    check_all("polarized spherical R=1e7 km vs Natraj", &cmps).unwrap();
+}

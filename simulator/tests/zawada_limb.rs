@@ -254,8 +254,9 @@ fn probe_cost() {
         let geo = data_lines("solar_zenith_azimuth.txt");
         let (sza, raa) = (geo[isol][0], geo[isol][1]);
         let (layers, _, _) = layers_toml(wav, oz);
-        for h in HEIGHTS {
-            let spp = 20_000;
+        let hs: Vec<f64> = std::env::var("PROBE_H").map(|v| v.split(',').map(|x| x.parse().unwrap()).collect()).unwrap_or(HEIGHTS.to_vec());
+        let spp: u64 = std::env::var("PROBE_SPP").map(|v| v.parse().unwrap()).unwrap_or(20_000);
+        for h in hs {
             let measures = format!("[[measures]]\nid = \"m\"\ntype = \"radiancemeter\"\norigin = [0.0, -3000.0, {h:?}]\ndirection = [0.0, 1.0, 0.0]\nspp = {spp}\n");
             let text = format!(
                 "seed = 1\n[spectral]\nwavelengths = [{wav:?}]\n[geometry]\ntype = \"spherical_shell\"\nplanet_radius = 6371.0\n\
@@ -266,7 +267,7 @@ fn probe_cost() {
             let rows = run_rows(&exp);
             let dt = t0.elapsed().as_secs_f64();
             let (v, e) = rows[0].radiance.unwrap();
-            println!("{wav} h {h}: {:.2} us/sample (wall, 1 thread?), per-sample rel std {:.3}", dt / spp as f64 * 1e6, e / v * (spp as f64).sqrt());
+            println!("{wav} h {h}: {v:.7e} ± {e:.2e} {:.2} us/sample, per-sample rel std {:.3}", dt / spp as f64 * 1e6, e / v * (spp as f64).sqrt());
         }
     }
 }

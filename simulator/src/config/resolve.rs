@@ -570,9 +570,6 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if planet_radius.is_some() && kind == IntegratorKind::Forward {
         return Err(ctx.err("integrator.type", "spherical-shell atmospheres use the backward walk (\"auto\" or \"backward\")"));
     }
-    if planet_radius.is_some() && cfg.polarized {
-        return Err(ctx.err("polarized", "polarized transport in spherical shells is not implemented yet"));
-    }
     if kind == IntegratorKind::Forward {
         if let Some((im, _)) = measures.iter().enumerate().find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. })) {
             return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));

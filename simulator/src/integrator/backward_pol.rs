@@ -16,11 +16,15 @@
 use glam::{DMat4, DVec3, DVec4};
 
 use super::{sample_scattered, RR_THRESHOLD};
+use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::atmosphere::FlightEnd;
+use crate::bsdf::Bsdf;
+use crate::frame::basis_around;
 use crate::config::resolve::IntegratorSettings;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::stokes::{any_perpendicular, PhaseMatrix};
+
 
 /// Mueller matrix of a phase matrix (row-major layout in the docs; glam is column-major).
 #[inline]
@@ -152,5 +156,98 @@ pub fn walk(
         }
     }
     let k = std::f64::consts::PI / mu_s;
+    out.map(|x| x * k)
+}
+
+/// The polarized backward walk in a spherical shell (see `backward_sph` for the geometry: exact
+/// shell traversal, Earth's shadow, NEE at sampled collisions). `e1_sensor` ⊥ `d0` is the first
+/// axis of the sensor's frame; a sample is `π·S/E0` divided by `mu_norm`.
+#[allow(clippy::too_many_arguments)]
+pub fn walk_spherical(
+    shell: &SphericalShell,
+    surface: &Bsdf,
+    sun_dir: DVec3,
+    mu_norm: f64,
+    p0: DVec3,
+    l0: usize,
+    d0: DVec3,
+    e1_sensor: DVec3,
+    settings: &IntegratorSettings,
+    rng: &mut Stream,
+) -> [f64; 5] {
+    let mut out = [0.0; 5];
+    let mut score = |order: u32, s: DVec4| {
+        if order == 1 {
+            out[0] += s.x;
+        } else {
+            out[1] += s.x;
+        }
+        out[2] += s.y;
+        out[3] += s.z;
+        out[4] += s.w;
+    };
+    let w_sun = -sun_dir;
+    let (mut p, mut l, mut d, mut e1) = (p0, l0, d0, e1_sensor);
+    let mut t = DMat4::IDENTITY;
+    let mut order: u32 = 1;
+    let inv4pi = 0.25 * std::f64::consts::FRAC_1_PI;
+    while order <= settings.max_depth {
+        let s = -rng.next_f64_open0().ln();
+        match shell.fly(p, l, d, s) {
+            ShellEnd::Escape => break,
+            ShellEnd::Surface(q) => {
+                p = q;
+                l = 0;
+                let n = q / q.length();
+                let (a, b) = basis_around(n);
+                let local = |v: DVec3| DVec3::new(v.dot(a), v.dot(b), v.dot(n));
+                let wo = local(-d);
+                let cos_sun = sun_dir.dot(n);
+                if cos_sun > 0.0 {
+                    let tr = shell.transmittance_to_space(p, 0, sun_dir);
+                    if tr > 0.0 {
+                        score(order, t.col(0) * (surface.eval(local(sun_dir), wo) * cos_sun * tr));
+                    }
+                }
+                let smp = surface.sample(wo, rng.next_f64(), rng.next_f64());
+                t = DMat4::from_cols(t.col(0) * smp.weight, DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
+                d = a * smp.wi.x + b * smp.wi.y + n * smp.wi.z;
+                e1 = any_perpendicular(d);
+            }
+            ShellEnd::Collision(q, lq) => {
+                p = q;
+                l = lq;
+                let omega = shell.albedo(l);
+                let phase = shell.phase(l);
+                let w_out = -d;
+                let tr = shell.transmittance_to_space(p, l, sun_dir);
+                if tr > 0.0 {
+                    let f = phase.matrix(sun_dir.dot(d));
+                    let (_, _, l_out) = plane(w_sun, w_out, e1);
+                    let sv = DVec4::new(f.a1, f.b1, 0.0, 0.0);
+                    score(order, t * (rotation(w_out, l_out, e1) * sv) * (omega * inv4pi * tr));
+                }
+                let d2 = sample_scattered(phase, d, rng);
+                let f = phase.matrix(d.dot(d2));
+                let (_, l_in, l_out) = plane(-d2, w_out, e1);
+                t = t * rotation(w_out, l_out, e1) * mueller(&f) * (omega / f.a1);
+                d = d2;
+                e1 = l_in;
+            }
+        }
+        order += 1;
+        let w = t.col(0).x;
+        if w <= 0.0 {
+            break;
+        }
+        if order > settings.rr_depth && w < RR_THRESHOLD {
+            if rng.next_f64() < w / RR_THRESHOLD {
+                t *= RR_THRESHOLD / w;
+            } else {
+                break;
+            }
+        }
+    }
+    let k = std::f64::consts::PI / mu_norm;
     out.map(|x| x * k)
 }
