@@ -5,7 +5,9 @@
 //! * A2: Rayleigh τ = 0.1, depolarization 0.03, Lambertian 0.3, sza 50, saa 0;
 //! * A3: spherical aerosol (`waso.mie.cdf`, 4 phase-matrix elements, ω 0.97568) τ = 0.2, black
 //!   surface, sza 40, saa 0;
-//! * A4: prolate spheroids (`sizedistr_spheroid.cdf`, 6 elements, ω 0.787581), otherwise as A3.
+//! * A4: prolate spheroids (`sizedistr_spheroid.cdf`, 6 elements, ω 0.787581), otherwise as A3;
+//! * A6: Rayleigh τ = 0.1, depolarization 0.03, over a rough ocean (Cox–Munk, n = 1.33, wind
+//!   2 m/s, with shadowing: Mishchenko & Travis 1997), sza 45, saa 0 — forward and backward walks.
 //!
 //! Only the top-of-layer rows are compared (our `mdistant` is a TOA measure). IPRT conventions
 //! (MANIFEST §2): radiance for F0 = 1 normal to the beam (so BRF-like = π·L/μ0); (vza, vaa) is the
@@ -47,13 +49,17 @@ fn run_case(case: &str, rows: &[&Row], tau: f64, albedo: f64, spp: u64) -> Resul
 }
 
 fn run_case_with(case: &str, rows: &[&Row], atmosphere: &str, albedo: f64, spp: u64) -> Result<(), String> {
+    run_case_full(case, rows, atmosphere, &format!("type = \"lambertian\"\nreflectance = {albedo:?}"), "forward", spp)
+}
+
+fn run_case_full(case: &str, rows: &[&Row], atmosphere: &str, surface: &str, integrator: &str, spp: u64) -> Result<(), String> {
     let r0 = rows[0];
     let vza: Vec<f64> = rows.iter().map(|r| 180.0 - r.va).collect();
     let vaa: Vec<f64> = rows.iter().map(|r| (r.phi + 180.0).rem_euclid(360.0)).collect();
     let text = format!(
         "seed = 5\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\n{atmosphere}\n\
-         [surface]\ntype = \"lambertian\"\nreflectance = {albedo:?}\n\
-         [illumination]\ntype = \"directional\"\nzenith = {:?}\nazimuth = {:?}\n{}",
+         [surface]\n{surface}\n\
+         [illumination]\ntype = \"directional\"\nzenith = {:?}\nazimuth = {:?}\n[integrator]\ntype = \"{integrator}\"\n{}",
         r0.sza,
         r0.saa,
         mdistant_toml("toa", &vza, &vaa, spp)
@@ -107,6 +113,26 @@ fn iprt_a3_a4_aerosol_phase_matrices() {
             "optical_thickness = 0.2\nsingle_scattering_albedo = {ssa:?}\nphase = {{ type = \"tabulated\", file = \"fixtures/{table}\", wavelength = 350.0 }}"
         );
         if let Err(e) = run_case_with(&format!("IPRT {file}"), &sub, &atm, 0.0, 300_000) {
+            errs.push(e);
+        }
+    }
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
+}
+
+#[test]
+fn iprt_a6_ocean() {
+    let rows = load("a6_toa.dat");
+    // Exact nadir views (va = 180) are left out: there the Stokes vectors of all `phi` are the
+    // same light in rotated frames, so √(Q²+U²) must not depend on `phi`; in the MYSTIC file it
+    // varies by 3 % (0.01376 at phi 0, 0.01337 at phi 60, in BRF units), far beyond its stated
+    // standard deviations (~0.3 %), so the reference is not usable there. Ours is invariant.
+    let sub: Vec<&Row> = rows.iter().filter(|r| r.va < 179.5).collect();
+    let atm = "optical_thickness = 0.1\nphase = { type = \"rayleigh\", depolarization = 0.03 }";
+    let surf = "type = \"ocean\"\nwind_speed = 2.0\nrefractive_index = 1.33";
+    let mut errs = Vec::new();
+    for (integrator, spp) in [("forward", 400_000), ("backward", 30_000)] {
+        let pick: Vec<&Row> = if integrator == "backward" { sub.iter().copied().step_by(9).collect() } else { sub.clone() };
+        if let Err(e) = run_case_full(&format!("IPRT A6 ocean [{integrator}]"), &pick, atm, surf, integrator, spp) {
             errs.push(e);
         }
     }

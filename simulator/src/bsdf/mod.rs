@@ -15,6 +15,7 @@
 
 pub mod hapke;
 pub mod lambertian;
+pub mod ocean;
 pub mod rpv;
 pub mod rtls;
 
@@ -22,6 +23,7 @@ use glam::DVec3;
 
 pub use hapke::Hapke;
 pub use lambertian::Lambertian;
+pub use ocean::Ocean;
 pub use rpv::Rpv;
 pub use rtls::Rtls;
 
@@ -45,6 +47,7 @@ pub enum Bsdf {
     Rpv(Rpv),
     Rtls(Rtls),
     Hapke(Hapke),
+    Ocean(Ocean),
 }
 
 impl Bsdf {
@@ -59,6 +62,19 @@ impl Bsdf {
             Bsdf::Rpv(m) => m.eval(wi, wo),
             Bsdf::Rtls(m) => m.eval(wi, wo),
             Bsdf::Hapke(m) => m.eval(wi, wo),
+            Bsdf::Ocean(m) => m.eval(wi, wo),
+        }
+    }
+
+    /// The reflection Mueller matrix in the scattering-plane frame of light going from `−wi` to
+    /// `wo` (`stokes.rs`), for polarizing models; `None` for depolarizing ones (the reflected
+    /// light is unpolarized with intensity `eval`).
+    #[inline]
+    pub fn matrix(&self, wi: DVec3, wo: DVec3) -> Option<crate::stokes::PhaseMatrix> {
+        match self {
+            Bsdf::Ocean(m) if wi.z > 0.0 && wo.z > 0.0 => Some(m.matrix(wi, wo)),
+            Bsdf::Ocean(_) => Some(crate::stokes::PhaseMatrix::depolarizing(0.0)),
+            _ => None,
         }
     }
 

@@ -192,6 +192,19 @@ pub enum SurfaceConfig {
         b_0: SpectralValue,
         h: SpectralValue,
     },
+    /// Rough ocean (Cox–Munk, Fresnel, shadowing); polarizing.
+    Ocean {
+        /// m/s.
+        wind_speed: SpectralValue,
+        #[serde(default)]
+        refractive_index: Option<SpectralValue>,
+        #[serde(default = "yes")]
+        shadowing: bool,
+    },
+}
+
+fn yes() -> bool {
+    true
 }
 
 #[derive(Clone, Debug, Deserialize)]

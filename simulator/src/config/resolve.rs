@@ -10,7 +10,7 @@ use glam::DVec3;
 use super::*;
 use crate::atmosphere::spherical::SphericalShell;
 use crate::atmosphere::{LayerOptics, PlaneParallel};
-use crate::bsdf::{Bsdf, Hapke, Lambertian, Rpv, Rtls};
+use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
 use crate::error::ConfigError;
 use crate::frame::direction_from_angles;
 use crate::measure::{Measure, MeasureKind};
@@ -417,6 +417,18 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 let c = ctx.spectral("surface.f_geo", f_geo, -big, big)?;
                 for iw in 0..nw {
                     out.push(Bsdf::Rtls(Rtls::new(a[iw], b[iw], c[iw]).map_err(|m| ctx.err("surface", m))?));
+                }
+            }
+            SurfaceConfig::Ocean { wind_speed, refractive_index, shadowing } => {
+                let ws = ctx.spectral("surface.wind_speed", wind_speed, 0.0, 40.0)?;
+                let n = ctx.spectral(
+                    "surface.refractive_index",
+                    refractive_index.as_ref().unwrap_or(&SpectralValue::Scalar(1.33)),
+                    1.0,
+                    3.0,
+                )?;
+                for iw in 0..nw {
+                    out.push(Bsdf::Ocean(Ocean::new(ws[iw], n[iw], *shadowing).map_err(|m| ctx.err("surface", m))?));
                 }
             }
             SurfaceConfig::Hapke { w, b, c, theta, b_0, h } => {

@@ -8,8 +8,9 @@
 //! `T ← T · R(l_out → e1) · F(Θ) · ω / a1(Θ)`, where the scattering-plane frame is that of light
 //! going from `−d'` to `−d`; the new segment's frame is `l_in`. Next-event estimation scatters the
 //! unpolarized solar beam the same way: `T · R · F(Θ_sun) · (1, 0, 0, 0) · ω/(4π) · T_sun`,
-//! integrated exactly along each flight as in the scalar walk. Surfaces depolarize: their Mueller
-//! matrix has only the (I, I) element, so after a reflection only `T`'s first column survives.
+//! integrated exactly along each flight as in the scalar walk. Depolarizing surfaces have a
+//! Mueller matrix with only the (I, I) element, so after a reflection only `T`'s first column
+//! survives; polarizing surfaces (the ocean) act like a scattering in the plane of incidence.
 //!
 //! A sample is the Stokes vector `π·(I, Q, U, V)/(E0 μ_s)`.
 
@@ -117,13 +118,8 @@ pub fn walk(
             FlightEnd::Surface => {
                 tau = total;
                 let wo = -d;
-                let f = opt.surface.eval(sun_dir, wo);
-                score(order, t.col(0) * (f * mu_s * t_sun_ground));
-                let smp = opt.surface.sample(wo, rng.next_f64(), rng.next_f64());
-                // Depolarizer: only the first column of T survives.
-                t = DMat4::from_cols(t.col(0) * smp.weight, DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
-                d = smp.wi;
-                e1 = any_perpendicular(d);
+                let (w_sun_l, wo_l, sun_l) = (w_sun, wo, sun_dir);
+                (t, d, e1) = surface_event(&opt.surface, &mut t, d, e1, (w_sun_l, wo_l, sun_l), mu_s * t_sun_ground, rng, |s| score(order, s));
             }
             FlightEnd::Collision(tc) => {
                 tau = tc;
@@ -201,18 +197,10 @@ pub fn walk_spherical(
                 let n = q / q.length();
                 let (a, b) = basis_around(n);
                 let local = |v: DVec3| DVec3::new(v.dot(a), v.dot(b), v.dot(n));
-                let wo = local(-d);
                 let cos_sun = sun_dir.dot(n);
-                if cos_sun > 0.0 {
-                    let tr = shell.transmittance_to_space(p, 0, sun_dir);
-                    if tr > 0.0 {
-                        score(order, t.col(0) * (surface.eval(local(sun_dir), wo) * cos_sun * tr));
-                    }
-                }
-                let smp = surface.sample(wo, rng.next_f64(), rng.next_f64());
-                t = DMat4::from_cols(t.col(0) * smp.weight, DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
-                d = a * smp.wi.x + b * smp.wi.y + n * smp.wi.z;
-                e1 = any_perpendicular(d);
+                let tr = if cos_sun > 0.0 { shell.transmittance_to_space(p, 0, sun_dir) } else { 0.0 };
+                let to_world = |v: DVec3| a * v.x + b * v.y + n * v.z;
+                (t, d, e1) = surface_event_local(surface, &mut t, d, e1, w_sun, sun_dir, cos_sun * tr, &local, &to_world, rng, |s| score(order, s));
             }
             ShellEnd::Collision(q, lq) => {
                 p = q;
@@ -250,4 +238,69 @@ pub fn walk_spherical(
     }
     let k = std::f64::consts::PI / mu_norm;
     out.map(|x| x * k)
+}
+
+/// A surface interaction of the plane-parallel walk (local frame = world frame). See
+/// [`surface_event_local`].
+#[allow(clippy::too_many_arguments)]
+fn surface_event(
+    surface: &Bsdf,
+    t: &mut DMat4,
+    d: DVec3,
+    e1: DVec3,
+    (w_sun, _wo, sun_dir): (DVec3, DVec3, DVec3),
+    sun_factor: f64,
+    rng: &mut Stream,
+    score: impl FnMut(DVec4),
+) -> (DMat4, DVec3, DVec3) {
+    surface_event_local(surface, t, d, e1, w_sun, sun_dir, sun_factor, &|v| v, &|v| v, rng, score)
+}
+
+/// A surface interaction: next-event estimate of the reflected sunlight (`sun_factor` =
+/// cos θ_sun·T_sun at the point, 0 in shadow), then the new path direction and the updated `T`.
+/// Depolarizing BRDFs keep only `T`'s first column; polarizing ones (ocean) multiply `T` by their
+/// reflection matrix in the plane of incidence. `local`/`to_world` map world vectors to the
+/// surface's frame (normal = z) and back.
+#[allow(clippy::too_many_arguments)]
+fn surface_event_local(
+    surface: &Bsdf,
+    t: &mut DMat4,
+    d: DVec3,
+    e1: DVec3,
+    w_sun: DVec3,
+    sun_dir: DVec3,
+    sun_factor: f64,
+    local: &dyn Fn(DVec3) -> DVec3,
+    to_world: &dyn Fn(DVec3) -> DVec3,
+    rng: &mut Stream,
+    mut score: impl FnMut(DVec4),
+) -> (DMat4, DVec3, DVec3) {
+    let w_out = -d;
+    let wo_l = local(w_out);
+    if sun_factor > 0.0 {
+        let sun_l = local(sun_dir);
+        match surface.matrix(sun_l, wo_l) {
+            Some(m) if m.a1 > 0.0 => {
+                let (_, _, l_out) = plane(w_sun, w_out, e1);
+                let sv = DVec4::new(m.a1, m.b1, 0.0, 0.0);
+                score(*t * (rotation(w_out, l_out, e1) * sv) * sun_factor);
+            }
+            Some(_) => {}
+            None => score(t.col(0) * (surface.eval(sun_l, wo_l) * sun_factor)),
+        }
+    }
+    let smp = surface.sample(wo_l, rng.next_f64(), rng.next_f64());
+    let d2 = to_world(smp.wi);
+    match surface.matrix(smp.wi, wo_l) {
+        Some(m) => {
+            let (_, l_in, l_out) = plane(-d2, w_out, e1);
+            let t2 = *t * rotation(w_out, l_out, e1) * mueller(&m) * (smp.wi.z / smp.pdf);
+            (t2, d2, l_in)
+        }
+        None => {
+            // Depolarizer: only the first column of T survives.
+            let t2 = DMat4::from_cols(t.col(0) * smp.weight, DVec4::ZERO, DVec4::ZERO, DVec4::ZERO);
+            (t2, d2, any_perpendicular(d2))
+        }
+    }
 }

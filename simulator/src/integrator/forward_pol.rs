@@ -7,8 +7,9 @@
 //! intensity is `(F·S_rot)_I / 4π` and the sampling density is `a1·I/4π`. The local estimate
 //! towards a direction `v` sends `F(Θ_v)·S_rot(v)` and rotates it into `v`'s meridian frame; as in
 //! the scalar walk it is integrated exactly over the next collision's position along the flight
-//! (the frame and Θ_v do not change along a flight, only the scalar factor does). All surfaces
-//! are depolarizing: they reflect `I` only.
+//! (the frame and Θ_v do not change along a flight, only the scalar factor does). Depolarizing
+//! surfaces reflect `I` only; polarizing ones (the ocean) apply their reflection matrix in the
+//! plane of incidence like a scattering.
 //!
 //! Scores are BRF-normalised Stokes components `π·(I, Q, U, V)/(E0 cos SZA)` in the meridian
 //! frame of each direction; flux measures score I only.
@@ -107,6 +108,15 @@ pub fn walk(
                 // Expected ground reflection (depolarizing surfaces: I only).
                 let p_hit = (-(total - tau) / (-d.z)).exp();
                 for (k, v) in dirs.iter().enumerate() {
+                    if let Some(m) = opt.surface.matrix(-d, *v) {
+                        // Polarizing surface: reflect the Stokes vector like a scattering.
+                        if m.a1 > 0.0 {
+                            let (sv, lv) = scatter(st, d, e1, *v, &m);
+                            let sm = rotate_to(sv, *v, lv, scratch.e_theta[k]);
+                            add(&mut scratch.score[k], order, sm, p_hit * scratch.t_ground[k]);
+                        }
+                        continue;
+                    }
                     let f = opt.surface.eval(-d, *v);
                     if f > 0.0 {
                         let val = st[0] * p_hit * f * scratch.t_ground[k];
@@ -144,9 +154,16 @@ pub fn walk(
             FlightEnd::Surface => {
                 tau = total;
                 let smp = opt.surface.sample(-d, rng.next_f64(), rng.next_f64());
+                if let Some(m) = opt.surface.matrix(-d, smp.wi) {
+                    let (s2, l2) = scatter(st, d, e1, smp.wi, &m);
+                    let k = smp.wi.z / smp.pdf;
+                    st = [s2[0] * k, s2[1] * k, s2[2] * k, s2[3] * k];
+                    e1 = l2;
+                } else {
+                    st = [st[0] * smp.weight, 0.0, 0.0, 0.0];
+                    e1 = any_perpendicular(smp.wi);
+                }
                 d = smp.wi;
-                st = [st[0] * smp.weight, 0.0, 0.0, 0.0];
-                e1 = any_perpendicular(d);
             }
             FlightEnd::Collision(t) => {
                 tau = t;
