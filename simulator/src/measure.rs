@@ -35,6 +35,9 @@ pub enum MeasureKind {
         origin: DVec3,
         /// Unit looking direction.
         look: DVec3,
+        /// Azimuth (radians, clockwise from North) of the direction towards the sensor that fixes
+        /// the Stokes meridian plane of a vertical view.
+        frame_azimuth: f64,
     },
     DistantFlux {
         /// Altitude of the level, m.

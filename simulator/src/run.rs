@@ -88,7 +88,8 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
             let mut acc = Accum::new(1);
             let frame_hint = |m: &Measure| match &m.kind {
                 MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
-                _ => 0.0,
+                MeasureKind::Radiancemeter { frame_azimuth, .. } => *frame_azimuth,
+                MeasureKind::DistantFlux { .. } => 0.0,
             };
             if let (true, Some(shell)) = (exp.polarized, &opt.shell) {
                 let mut acc = Accum::new_polarized(1);
@@ -160,7 +161,7 @@ fn spherical_start(shell: &SphericalShell, m: &Measure, cell: usize, rng: &mut S
             let t = -b + (b * b - (rg * rg - r * r)).sqrt();
             (target + v * t, -v)
         }
-        MeasureKind::Radiancemeter { origin, look } => {
+        MeasureKind::Radiancemeter { origin, look, .. } => {
             let p = DVec3::new(origin.x, origin.y, shell.planet_radius + origin.z);
             (shell.entry_point(p, *look)?, *look)
         }
@@ -177,7 +178,7 @@ fn spherical_start(shell: &SphericalShell, m: &Measure, cell: usize, rng: &mut S
 fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
     match &m.kind {
         MeasureKind::Distant { directions, .. } => (0.0, -directions[cell]),
-        MeasureKind::Radiancemeter { origin, look } => (opt.atmosphere.tau_at_altitude(origin.z), *look),
+        MeasureKind::Radiancemeter { origin, look, .. } => (opt.atmosphere.tau_at_altitude(origin.z), *look),
         MeasureKind::DistantFlux { altitude } => {
             let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
             (opt.atmosphere.tau_at_altitude(*altitude), -up)

@@ -23,7 +23,7 @@
 //! * Rayleigh phase function **without depolarization**, P = 3/4 (1 + cos²Θ) [limbss
 //!   `main_limbss.py`]; for unpolarized sunlight the single-scattered I does not depend on
 //!   polarization. (Depolarization 0.0286 would change I by −1 % … +0.3 % depending on Θ,
-//!   inconsistent with the near-constant offset seen below.)
+//!   whereas the quadrature below is offset by the same +0.06 … +0.11 % in all four geometries.)
 //! * No refraction (test case `itst0`); black Lambertian surface (`ialb0`: albedo 0
 //!   [limbss `main_limbss.py`: "black - do not change"]); no twilight (SZA ≤ 80° here).
 //! * Radiance per unit solar irradiance on a plane normal to the beam (F0 = 1, no factor π)
@@ -59,8 +59,8 @@
 //! +0.06 … +0.11 % above the tabulated values at every case and height tried (0.5–60.5 km). The
 //! same quadrature on our 5-sub-shell atmosphere differs from the linear one by −0.005 … +0.034 %,
 //! and long runs of this test's experiments agree with it within noise (e.g. 60.5 km, SZA 50°:
-//! 7.6158e-4 ± 3.7e-6 vs 7.6065e-4). The absolute floor 1e-5 is dropped: it would exceed the
-//! 300 nm radiances (~2e-3). The Monte Carlo noise per point is 0.03–0.35 % up to 30.5 km,
+//! 7.6158e-4 ± 3.7e-6 vs 7.6065e-4). The absolute floor 1e-5 is dropped: it would be 0.3–1 % of
+//! the radiances at 300 nm and at the upper tangent heights (1e-3 … 4e-3). The Monte Carlo noise per point is 0.03–0.35 % up to 30.5 km,
 //! 0.2–0.8 % at 40.5 and 50.5 km and 0.8–1.6 % at 60.5 km: the walk samples an analogue
 //! collision along the line of sight, so most samples of an optically thin, high LOS escape
 //! unscored (the upper tangent heights are therefore a coarse check only).

@@ -248,6 +248,9 @@ pub enum MeasureConfig {
         origin: [f64; 3],
         /// Looking direction (need not be normalised).
         direction: [f64; 3],
+        /// degrees: azimuth fixing the Stokes meridian plane when the view is vertical.
+        #[serde(default)]
+        frame_azimuth: Option<f64>,
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,

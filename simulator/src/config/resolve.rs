@@ -544,7 +544,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     .collect();
                 MeasureKind::Distant { directions, vza, vaa }
             }
-            MeasureConfig::Radiancemeter { origin, direction, .. } => {
+            MeasureConfig::Radiancemeter { origin, direction, frame_azimuth, .. } => {
                 for i in 0..3 {
                     ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
                     ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
@@ -557,7 +557,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 if o.z < ground {
                     return Err(ctx.err(format!("{key}.origin[2]"), format!("altitude {} km is below the ground ({} km)", origin[2], ground / 1e3)));
                 }
-                MeasureKind::Radiancemeter { origin: o, look: d.normalize() }
+                let frame_azimuth = match frame_azimuth {
+                    Some(a) => ctx.finite(&format!("{key}.frame_azimuth"), *a)?.to_radians(),
+                    None => 0.0,
+                };
+                MeasureKind::Radiancemeter { origin: o, look: d.normalize(), frame_azimuth }
             }
             MeasureConfig::DistantFlux { altitude, .. } => {
                 let a = altitude.map(|a| a * 1e3).unwrap_or(toa);
