@@ -30,26 +30,29 @@ fn huge_planet_equals_plane_parallel_disort() {
             .collect();
         let vza: Vec<f64> = rows.iter().map(|r| r.0).collect();
         let vaa: Vec<f64> = rows.iter().map(|r| r.1).collect();
-        let exp = experiment(&experiment_text(
-            "type = \"spherical_shell\"\nplanet_radius = 1e7",
-            "type = \"homogeneous\"\noptical_thickness = 0.5",
-            "type = \"lambertian\"\nreflectance = 0.3",
-            sza,
-            "",
-            &mdistant_toml("toa", &vza, &vaa, 150_000),
-        ));
-        let out = run_rows(&exp);
-        assert!(out.iter().all(|r| r.method == "backward"));
-        let cmps: Vec<Cmp> = rows
-            .iter()
-            .zip(&out)
-            .map(|(r, o)| {
-                let (v, e) = o.brf.unwrap();
-                Cmp { label: format!("vza {} raa {}", r.0, r.1), reference: r.2, value: v, stderr: e }
-            })
-            .collect();
-        if let Err(e) = check_all(&format!("spherical R=1e7 km vs DISORT sza {sza}"), &cmps) {
-            errs.push(e);
+        // Both next-event estimators: stratified along flights (default) and at collisions.
+        for (estimator, spp) in [("expected", 150_000u64), ("collision", 150_000)] {
+            let exp = experiment(&experiment_text(
+                "type = \"spherical_shell\"\nplanet_radius = 1e7",
+                "type = \"homogeneous\"\noptical_thickness = 0.5",
+                "type = \"lambertian\"\nreflectance = 0.3",
+                sza,
+                &format!("local_estimate = \"{estimator}\""),
+                &mdistant_toml("toa", &vza, &vaa, spp),
+            ));
+            let out = run_rows(&exp);
+            assert!(out.iter().all(|r| r.method == "backward"));
+            let cmps: Vec<Cmp> = rows
+                .iter()
+                .zip(&out)
+                .map(|(r, o)| {
+                    let (v, e) = o.brf.unwrap();
+                    Cmp { label: format!("vza {} raa {}", r.0, r.1), reference: r.2, value: v, stderr: e }
+                })
+                .collect();
+            if let Err(e) = check_all(&format!("spherical R=1e7 km vs DISORT sza {sza} [{estimator}]"), &cmps) {
+                errs.push(e);
+            }
         }
     }
     assert!(errs.is_empty(), "{}", errs.join("\n"));

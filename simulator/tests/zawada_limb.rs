@@ -60,10 +60,10 @@
 //! same quadrature on our 5-sub-shell atmosphere differs from the linear one by −0.005 … +0.034 %,
 //! and long runs of this test's experiments agree with it within noise (e.g. 60.5 km, SZA 50°:
 //! 7.6158e-4 ± 3.7e-6 vs 7.6065e-4). The absolute floor 1e-5 is dropped: it would be 0.3–1 % of
-//! the radiances at 300 nm and at the upper tangent heights (1e-3 … 4e-3). The Monte Carlo noise per point is 0.03–0.35 % up to 30.5 km,
-//! 0.2–0.8 % at 40.5 and 50.5 km and 0.8–1.6 % at 60.5 km: the walk samples an analogue
-//! collision along the line of sight, so most samples of an optically thin, high LOS escape
-//! unscored (the upper tangent heights are therefore a coarse check only).
+//! the radiances at 300 nm and at the upper tangent heights (1e-3 … 4e-3). The Monte Carlo noise
+//! per point is 0.03–0.35 % up to 30.5 km, 0.2–0.8 % at 40.5 and 50.5 km and 0.8–1.6 % at
+//! 60.5 km: the walk samples an analogue collision along the line of sight, so most samples of an
+//! optically thin, high LOS escape unscored (the upper tangent heights are a coarse check only).
 
 mod common;
 use common::*;
@@ -224,7 +224,13 @@ fn check(case: &str, cmps: &[Cmp]) -> Result<(), String> {
         if !(diff <= tol) {
             failures.push(format!(
                 "  {}: value {:.6e} ± {:.1e}, reference {:.6e}, |diff| {:.2e} > tol {:.2e} (z = {:.1})",
-                c.label, c.value, c.stderr, c.reference, diff, tol, diff / c.stderr
+                c.label,
+                c.value,
+                c.stderr,
+                c.reference,
+                diff,
+                tol,
+                diff / c.stderr
             ));
         }
     }

@@ -155,6 +155,22 @@ impl SphericalShell {
         }
     }
 
+    /// Optical depth from `p` (in shell `l`) along `d` until the ray leaves the atmosphere, through
+    /// the top or into the ground.
+    pub fn optical_depth_to_exit(&self, mut p: DVec3, mut l: usize, d: DVec3) -> f64 {
+        let n = self.sigma.len() as isize;
+        let mut tau = 0.0;
+        loop {
+            let (t, next) = self.exit(p, d, l);
+            tau += self.sigma[l] * t;
+            p += d * t;
+            if next < 0 || next >= n {
+                return tau;
+            }
+            l = next as usize;
+        }
+    }
+
     /// Transmittance from `p` to space along `d` (0 in the planet's shadow).
     #[inline]
     pub fn transmittance_to_space(&self, p: DVec3, l: usize, d: DVec3) -> f64 {

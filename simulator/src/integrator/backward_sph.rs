@@ -4,8 +4,10 @@
 //! flights cross shells exactly ([`SphericalShell::fly`]) and the solar transmittance to each
 //! interaction is the exact chord sum through the shells, zero when the Sun is below the local
 //! horizon of the ray (Earth's shadow), so points lit at twilight (SZA > 90° at the target) are
-//! handled. The local estimate is scored at the sampled collision (the along-flight expectation
-//! of the plane-parallel walk has no closed form here). The ground's normal is the local
+//! handled. By default (`local_estimate = "expected"`) the next collision's NEE is estimated
+//! along each flight from `NEE_STRATA` stratified collision points (the along-flight expectation
+//! of the plane-parallel walk has no closed form here); with `"collision"` it is scored at the
+//! sampled collision. The ground's normal is the local
 //! vertical; BRDFs are evaluated in the local frame there.
 //!
 //! A sample is `π·L/E0` divided by `mu_norm` (cos SZA at the target when the Sun is up, else 1).
@@ -18,6 +20,9 @@ use crate::bsdf::Bsdf;
 use crate::config::resolve::IntegratorSettings;
 use crate::frame::basis_around;
 use crate::rng::Stream;
+
+/// Collision points per flight of the stratified next-event estimate.
+pub const NEE_STRATA: usize = 4;
 
 /// One path from `p0` (in shell `l0`) along `d0`; returns the (single, multiple) parts.
 #[allow(clippy::too_many_arguments)]
@@ -45,6 +50,30 @@ pub fn walk(
     let mut order: u32 = 1;
     let inv4pi = 0.25 * std::f64::consts::FRAC_1_PI;
     while order <= settings.max_depth {
+        if settings.expected_local_estimate {
+            // Stratified estimate of the next collision's NEE along this flight: K collision
+            // points drawn by stratified inversion of the flight's optical depth, each weighted
+            // by P(collision before leaving)/K. Unbiased for the expectation the collision NEE
+            // estimates; nothing is scored at the sampled collision below.
+            let tau_exit = shell.optical_depth_to_exit(p, l, d);
+            let p_coll = -(-tau_exit).exp_m1();
+            if p_coll > 0.0 {
+                let xi = rng.next_f64();
+                let cos = sun_dir.dot(d);
+                let mut acc = 0.0;
+                for k in 0..NEE_STRATA {
+                    let u = (k as f64 + xi) / NEE_STRATA as f64;
+                    let s_k = -(-u * p_coll).ln_1p();
+                    if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s_k) {
+                        let t = shell.transmittance_to_space(q, lq, sun_dir);
+                        if t > 0.0 {
+                            acc += shell.albedo(lq) * shell.phase(lq).eval(cos) * t;
+                        }
+                    }
+                }
+                score(order, w * p_coll / NEE_STRATA as f64 * acc * inv4pi);
+            }
+        }
         let s = -rng.next_f64_open0().ln();
         match shell.fly(p, l, d, s) {
             ShellEnd::Escape => break,
@@ -71,9 +100,11 @@ pub fn walk(
                 l = lq;
                 let omega = shell.albedo(l);
                 let phase = shell.phase(l);
-                let t = shell.transmittance_to_space(p, l, sun_dir);
-                if t > 0.0 {
-                    score(order, w * omega * phase.eval(sun_dir.dot(d)) * inv4pi * t);
+                if !settings.expected_local_estimate {
+                    let t = shell.transmittance_to_space(p, l, sun_dir);
+                    if t > 0.0 {
+                        score(order, w * omega * phase.eval(sun_dir.dot(d)) * inv4pi * t);
+                    }
                 }
                 w *= omega;
                 d = sample_scattered(phase, d, rng);
