@@ -265,3 +265,39 @@ single_scattering_albedo = 0.9
         assert!(z < 4.5, "{}: z = {z}", x.measure);
     }
 }
+
+/// A molecular (AFGL US standard, Rayleigh) atmosphere in plane-parallel geometry: every layer
+/// has the same phase function and albedo, and the walks move in optical depth, so a stack of
+/// 200 layers is indistinguishable from one homogeneous layer of the same total τ (0.0972 at
+/// 550 nm) and depolarization (from Bates' King factor): with the same seed the results must be
+/// identical to rounding. Catches wrong layer sums, gaps, or a wrong depolarization. The τ value
+/// itself is checked against the literature in `atmosphere::molecular`.
+#[test]
+fn molecular_equals_homogeneous() {
+    use simulator::atmosphere::molecular::{depolarization, rayleigh_cross_section, Profile};
+    let p = Profile::builtin("afgl_1986-us_standard").unwrap();
+    let tau = p.column(0.0, 100e3) * rayleigh_cross_section(550.0);
+    let rho = depolarization(550.0);
+    let surf = "type = \"lambertian\"\nreflectance = 0.1";
+    let m = mdistant_toml("toa", &VZA, &VAA, 20_000);
+    let a = run_rows(&experiment(&base(
+        "[atmosphere]\ntype = \"molecular\"\nlayer_thickness = 0.5",
+        surf,
+        40.0,
+        "forward",
+        "",
+        &m,
+    )));
+    let b = run_rows(&experiment(&base(
+        &format!("[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = {tau:?}\nphase = {{ type = \"rayleigh\", depolarization = {rho:?} }}"),
+        surf,
+        40.0,
+        "forward",
+        "",
+        &m,
+    )));
+    for (x, y) in a.iter().zip(&b) {
+        let (u, v) = (x.brf.unwrap().0, y.brf.unwrap().0);
+        assert!((u - v).abs() <= 1e-12 * v, "vza {:?}: layered {u} vs homogeneous {v}", x.vza);
+    }
+}

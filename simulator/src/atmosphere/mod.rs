@@ -10,6 +10,7 @@
 //! thickness `tau_abs` (both vertical, dimensionless) and a phase function. The single-scattering
 //! albedo is `tau_sca / (tau_sca + tau_abs)`.
 
+pub mod molecular;
 pub mod spherical;
 
 use crate::phase::PhaseFunction;

@@ -253,7 +253,8 @@ impl Bundle {
         digests.push(f.finish(MATERIALS_FILE)?);
 
         m.provenance.files = digests;
-        let text = toml::to_string(&m).map_err(|e| BundleError::Manifest { path: tmp.join(MANIFEST_FILE), message: e.to_string() })?;
+        let text = toml::to_string(&m)
+            .map_err(|e| BundleError::Manifest { path: tmp.join(MANIFEST_FILE), message: e.to_string() })?;
         let mut f = HashedFile::create(tmp.join(MANIFEST_FILE))?;
         f.put(text.as_bytes())?;
         f.finish(MANIFEST_FILE)?;
@@ -284,22 +285,39 @@ impl Bundle {
         }
         for t in &self.terrain {
             if t.uvs.len() != t.positions.len() {
-                return Err(bad(format!("terrain tile {:?}: {} uvs for {} vertices", t.id, t.uvs.len(), t.positions.len())));
+                return Err(bad(format!(
+                    "terrain tile {:?}: {} uvs for {} vertices",
+                    t.id,
+                    t.uvs.len(),
+                    t.positions.len()
+                )));
             }
             if let Some(tri) = t.indices.iter().find(|tri| tri.iter().any(|&i| i as usize >= t.positions.len())) {
-                return Err(bad(format!("terrain tile {:?}: triangle {tri:?} indexes past {} vertices", t.id, t.positions.len())));
+                return Err(bad(format!(
+                    "terrain tile {:?}: triangle {tri:?} indexes past {} vertices",
+                    t.id,
+                    t.positions.len()
+                )));
             }
         }
         for (k, t) in self.templates.iter().enumerate() {
             if t.materials.len() != t.indices.len() {
-                return Err(bad(format!("template {k}: {} materials for {} triangles", t.materials.len(), t.indices.len())));
+                return Err(bad(format!(
+                    "template {k}: {} materials for {} triangles",
+                    t.materials.len(),
+                    t.indices.len()
+                )));
             }
             if t.indices.iter().flatten().any(|&i| i as usize >= t.positions.len()) {
                 return Err(bad(format!("template {k}: an index points past {} vertices", t.positions.len())));
             }
         }
         if let Some(i) = self.instances.iter().find(|i| i.template as usize >= self.templates.len()) {
-            return Err(bad(format!("instance of template {} but only {} templates", i.template, self.templates.len())));
+            return Err(bad(format!(
+                "instance of template {} but only {} templates",
+                i.template,
+                self.templates.len()
+            )));
         }
         Ok(())
     }
@@ -309,8 +327,9 @@ impl Bundle {
         let path = dir.join(MANIFEST_FILE);
         let text = std::fs::read_to_string(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
         // Check the version before the schema, so an old reader says "version" not "unknown key".
-        let table: toml::Table =
-            text.parse().map_err(|e: toml::de::Error| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
+        let table: toml::Table = text
+            .parse()
+            .map_err(|e: toml::de::Error| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
         if table.get("format").and_then(|v| v.as_str()) != Some(FORMAT_NAME) {
             return Err(BundleError::Manifest { path, message: format!("`format` is not \"{FORMAT_NAME}\"") });
         }
@@ -319,7 +338,8 @@ impl Bundle {
             Some(v) => return Err(BundleError::Version { path, found: v as u32 }),
             None => return Err(BundleError::Manifest { path, message: "missing `format_version`".into() }),
         }
-        let de = toml::Deserializer::parse(&text).map_err(|e| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
+        let de = toml::Deserializer::parse(&text)
+            .map_err(|e| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
         serde_path_to_error::deserialize(de).map_err(|e| BundleError::Manifest {
             path: path.clone(),
             message: format!("at key `{}`: {}", e.path(), e.inner().to_string().trim_end()),
@@ -334,11 +354,21 @@ impl Bundle {
             let bytes = std::fs::read(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
             Ok((path, bytes))
         };
-        let slice = |path: &Path, bytes: &[u8], off: u64, len: u64, what: &str| -> Result<std::ops::Range<usize>, BundleError> {
-            let end = off.checked_add(len).filter(|&e| e <= bytes.len() as u64).ok_or_else(|| BundleError::Corrupt {
-                path: path.to_path_buf(),
-                message: format!("{what}: bytes {off}..{} beyond the file's {} bytes", off.saturating_add(len), bytes.len()),
-            })?;
+        let slice = |path: &Path,
+                     bytes: &[u8],
+                     off: u64,
+                     len: u64,
+                     what: &str|
+         -> Result<std::ops::Range<usize>, BundleError> {
+            let end =
+                off.checked_add(len).filter(|&e| e <= bytes.len() as u64).ok_or_else(|| BundleError::Corrupt {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "{what}: bytes {off}..{} beyond the file's {} bytes",
+                        off.saturating_add(len),
+                        bytes.len()
+                    ),
+                })?;
             Ok(off as usize..end as usize)
         };
 
@@ -386,7 +416,11 @@ impl Bundle {
         if bytes.len() as u64 != manifest.instances.count * INSTANCE_RECORD_BYTES as u64 {
             return Err(BundleError::Corrupt {
                 path,
-                message: format!("{} bytes for {} instances of {INSTANCE_RECORD_BYTES} bytes", bytes.len(), manifest.instances.count),
+                message: format!(
+                    "{} bytes for {} instances of {INSTANCE_RECORD_BYTES} bytes",
+                    bytes.len(),
+                    manifest.instances.count
+                ),
             });
         }
         let mut instances = Vec::with_capacity(manifest.instances.count as usize);
@@ -399,7 +433,10 @@ impl Bundle {
             }
             let template = u32::from_le_bytes(rec[60..64].try_into().unwrap());
             if template as usize >= templates.len() {
-                return Err(BundleError::Corrupt { path, message: format!("an instance names template {template} of {}", templates.len()) });
+                return Err(BundleError::Corrupt {
+                    path,
+                    message: format!("an instance names template {template} of {}", templates.len()),
+                });
             }
             instances.push(Instance { translation: [f64at(0), f64at(8), f64at(16)], linear, template });
         }
@@ -423,7 +460,10 @@ impl Bundle {
             let bytes = std::fs::read(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
             let got = hex(&Sha256::digest(&bytes));
             if got != d.sha256 {
-                return Err(BundleError::Corrupt { path, message: format!("SHA-256 {got} differs from the manifest's {}", d.sha256) });
+                return Err(BundleError::Corrupt {
+                    path,
+                    message: format!("SHA-256 {got} differs from the manifest's {}", d.sha256),
+                });
             }
         }
         Ok(())
@@ -447,9 +487,27 @@ mod tests {
             format: FORMAT_NAME.into(),
             format_version: FORMAT_VERSION,
             crs: Crs { wkt: "LOCAL_CS[\"test\"]".into(), epsg: None, proj: Some("+proj=aeqd".into()) },
-            frame: LocalFrame { kind: "projected_enu".into(), origin: [0.0; 3], centre_lon_lat: [5.7, 45.2], vertical_datum: "unknown".into() },
-            extent: Extent { min: [-100.0, -100.0], max: [100.0, 100.0], height_range: [1.0, 2.0], lon_lat_bbox: [5.6, 45.1, 5.8, 45.3] },
-            terrain: Terrain { file: String::new(), tolerance_m: 1.0, dem_spacing_m: 30.0, dem_samples: 49, vertex_count: 0, triangle_count: 0, tiles: vec![] },
+            frame: LocalFrame {
+                kind: "projected_enu".into(),
+                origin: [0.0; 3],
+                centre_lon_lat: [5.7, 45.2],
+                vertical_datum: "unknown".into(),
+            },
+            extent: Extent {
+                min: [-100.0, -100.0],
+                max: [100.0, 100.0],
+                height_range: [1.0, 2.0],
+                lon_lat_bbox: [5.6, 45.1, 5.8, 45.3],
+            },
+            terrain: Terrain {
+                file: String::new(),
+                tolerance_m: 1.0,
+                dem_spacing_m: 30.0,
+                dem_samples: 49,
+                vertex_count: 0,
+                triangle_count: 0,
+                tiles: vec![],
+            },
             material_raster: MaterialRaster {
                 file: String::new(),
                 width: 2,
@@ -459,7 +517,13 @@ mod tests {
                 histogram: vec![],
             },
             materials: vec![
-                Material { index: 0, name: "grass".into(), brdf: BrdfSpec::Lambertian { reflectance: Spectrum::Constant(0.2) }, class_codes: vec![30], source: "test".into() },
+                Material {
+                    index: 0,
+                    name: "grass".into(),
+                    brdf: BrdfSpec::Lambertian { reflectance: Spectrum::Constant(0.2) },
+                    class_codes: vec![30],
+                    source: "test".into(),
+                },
                 Material {
                     index: 1,
                     name: "leaf".into(),
@@ -499,8 +563,16 @@ mod tests {
                 materials: vec![1],
             }],
             instances: vec![
-                Instance { translation: [1.5, -2.25, 1.0e5 + 0.125], linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0], template: 0 },
-                Instance { translation: [3.0, 4.0, 5.0], linear: [0.0, 2.0, 0.0, -2.0, 0.0, 0.0, 0.0, 0.0, 2.0], template: 0 },
+                Instance {
+                    translation: [1.5, -2.25, 1.0e5 + 0.125],
+                    linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                    template: 0,
+                },
+                Instance {
+                    translation: [3.0, 4.0, 5.0],
+                    linear: [0.0, 2.0, 0.0, -2.0, 0.0, 0.0, 0.0, 0.0, 2.0],
+                    template: 0,
+                },
             ],
             material_raster: vec![0, 1, 255, 0],
         }

@@ -202,7 +202,13 @@ pub enum BrdfSpec {
     /// Two-sided leaf: Lambertian reflection and transmission (reflectance + transmittance ≤ 1).
     BiLambertian { reflectance: Spectrum, transmittance: Spectrum },
     /// Rahman–Pinty–Verstraete.
-    Rpv { rho_0: Spectrum, k: Spectrum, g: Spectrum, #[serde(default)] rho_c: Option<Spectrum> },
+    Rpv {
+        rho_0: Spectrum,
+        k: Spectrum,
+        g: Spectrum,
+        #[serde(default)]
+        rho_c: Option<Spectrum>,
+    },
     /// Ross-Thick Li-Sparse (MODIS kernels).
     Rtls { f_iso: Spectrum, f_vol: Spectrum, f_geo: Spectrum },
 }

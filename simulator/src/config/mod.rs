@@ -107,8 +107,24 @@ pub enum AtmosphereConfig {
     },
     /// Plane-parallel layers, each homogeneous.
     Layered { layers: Vec<LayerConfig> },
+    /// Rayleigh-scattering air from a thermophysical profile (no gas absorption yet).
+    Molecular {
+        #[serde(default = "default_profile")]
+        profile: String,
+        /// km.
+        #[serde(default = "default_layer_thickness")]
+        layer_thickness: f64,
+    },
     /// No atmosphere (same as omitting the table).
     None {},
+}
+
+fn default_profile() -> String {
+    "afgl_1986-us_standard".into()
+}
+
+fn default_layer_thickness() -> f64 {
+    1.0
 }
 
 fn one() -> SpectralValue {

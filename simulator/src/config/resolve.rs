@@ -8,6 +8,7 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::*;
+use crate::atmosphere::molecular::{depolarization as molecular_depolarization, rayleigh_cross_section, Profile};
 use crate::atmosphere::spherical::SphericalShell;
 use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
@@ -309,6 +310,41 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     tau_abs: tau[iw] * (1.0 - ssa[iw]),
                     phase,
                 });
+            }
+        }
+        Some(AtmosphereConfig::Molecular { profile, layer_thickness }) => {
+            let prof = Profile::builtin(profile).map_err(|m| ctx.err("atmosphere.profile", m))?;
+            let dz = ctx.finite("atmosphere.layer_thickness", *layer_thickness)? * 1e3;
+            if dz <= 0.0 {
+                return Err(ctx.err("atmosphere.layer_thickness", format!("{layer_thickness} km must be positive")));
+            }
+            if ground < prof.z[0] || toa > prof.top() + 1e-6 {
+                return Err(ctx.err(
+                    "geometry",
+                    format!(
+                        "ground_altitude..toa_altitude = {}..{} km must lie within the profile's {}..{} km",
+                        ground / 1e3,
+                        toa / 1e3,
+                        prof.z[0] / 1e3,
+                        prof.top() / 1e3
+                    ),
+                ));
+            }
+            let mut z = ground;
+            while z < toa - 1e-6 {
+                let top = (z + dz).min(toa);
+                let column = prof.column(z, top);
+                for iw in 0..nw {
+                    let wl = wavelengths[iw];
+                    layers_per_w[iw].push(LayerOptics {
+                        bottom: z,
+                        top,
+                        tau_sca: column * rayleigh_cross_section(wl),
+                        tau_abs: 0.0,
+                        phase: PhaseFunction::Rayleigh(Rayleigh::new(molecular_depolarization(wl)).expect("air depolarization is in range")),
+                    });
+                }
+                z = top;
             }
         }
         Some(AtmosphereConfig::Layered { layers }) => {
