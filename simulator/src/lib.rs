@@ -29,5 +29,6 @@ pub mod optics;
 pub mod phase;
 pub mod products;
 pub mod rng;
+pub mod solar;
 pub mod run;
 pub mod stokes;

@@ -301,3 +301,36 @@ fn molecular_equals_homogeneous() {
         assert!((u - v).abs() <= 1e-12 * v, "vza {:?}: layered {u} vs homogeneous {v}", x.vza);
     }
 }
+
+/// Solar spectra and the Earth–Sun distance scale radiances, never BRFs: with the same seed,
+/// `irradiance = "tsis_1"` and a date give the same BRF as E0 = 1 and a radiance larger by
+/// E_TSIS(λ)·(r0/r)² exactly; unknown spectra and wavelengths outside a spectrum are errors
+/// naming the key.
+#[test]
+fn solar_spectrum_and_date() {
+    use simulator::solar::{day_of_year, earth_sun_factor, Spectrum};
+    let atm = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2";
+    let surf = "type = \"lambertian\"\nreflectance = 0.2";
+    let m = mdistant_toml("toa", &[10.0, 50.0], &[0.0, 90.0], 2000);
+    let a = run_rows(&experiment(&base(atm, surf, 30.0, "forward", "", &m)));
+    let text = base(atm, surf, 30.0, "forward", "", &m)
+        .replace("azimuth = 40.0\n", "azimuth = 40.0\nirradiance = \"tsis_1\"\ndate = \"2024-01-03\"\n");
+    let b = run_rows(&experiment(&text));
+    let k = Spectrum::builtin("tsis_1").unwrap().at(550.0).unwrap() * earth_sun_factor(day_of_year("2024-01-03").unwrap());
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.brf, y.brf);
+        let (ra, rb) = (x.radiance.unwrap().0, y.radiance.unwrap().0);
+        assert!((rb / ra / k - 1.0).abs() < 1e-12, "{rb} / {ra} vs {k}");
+    }
+    let bad = simulator::config::Experiment::from_str(
+        &text.replace("wavelengths = [550.0]", "wavelengths = [3000.0]"),
+        std::path::Path::new("x.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(bad.contains("illumination.irradiance") && bad.contains("3000"), "{bad}");
+    let bad = simulator::config::Experiment::from_str(&text.replace("tsis_1", "no_such_sun"), std::path::Path::new("x.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(bad.contains("illumination.irradiance") && bad.contains("no_such_sun"), "{bad}");
+}

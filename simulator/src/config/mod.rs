@@ -127,6 +127,18 @@ fn default_layer_thickness() -> f64 {
     1.0
 }
 
+/// Solar irradiance: numbers, or the name of a built-in spectrum / a CSV file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum IrradianceValue {
+    Value(SpectralValue),
+    Spectrum(String),
+}
+
+fn one_irradiance() -> IrradianceValue {
+    IrradianceValue::Value(SpectralValue::Scalar(1.0))
+}
+
 fn one() -> SpectralValue {
     SpectralValue::Scalar(1.0)
 }
@@ -232,9 +244,12 @@ pub enum IlluminationConfig {
         /// degrees, clockwise from North.
         #[serde(default)]
         azimuth: f64,
-        /// W m⁻² nm⁻¹, normal to the beam.
-        #[serde(default = "one")]
-        irradiance: SpectralValue,
+        /// W m⁻² nm⁻¹, normal to the beam: a number, a list, or a spectrum name / file.
+        #[serde(default = "one_irradiance")]
+        irradiance: IrradianceValue,
+        /// "YYYY-MM-DD": scale the irradiance by the Earth–Sun distance of that day.
+        #[serde(default)]
+        date: Option<String>,
     },
 }
 

@@ -10,6 +10,7 @@ use glam::DVec3;
 use super::*;
 use crate::atmosphere::molecular::{depolarization as molecular_depolarization, rayleigh_cross_section, Profile};
 use crate::atmosphere::spherical::SphericalShell;
+use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
 use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
 use crate::error::ConfigError;
@@ -485,7 +486,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
 
     // Illumination.
-    let IlluminationConfig::Directional { zenith, azimuth, irradiance } = &cfg.illumination;
+    let IlluminationConfig::Directional { zenith, azimuth, irradiance, date } = &cfg.illumination;
     let zenith = ctx.finite("illumination.zenith", *zenith)?;
     if planet_radius.is_none() && !(0.0..90.0).contains(&zenith) {
         return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
@@ -497,7 +498,37 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if !(-360.0..=360.0).contains(&azimuth) {
         return Err(ctx.err("illumination.azimuth", format!("{azimuth} degrees must lie in [-360, 360]")));
     }
-    let irradiance = ctx.spectral("illumination.irradiance", irradiance, 0.0, 1e9)?;
+    let mut irradiance = match irradiance {
+        IrradianceValue::Value(v) => ctx.spectral("illumination.irradiance", v, 0.0, 1e9)?,
+        IrradianceValue::Spectrum(name) => {
+            let spectrum = match Spectrum::builtin(name) {
+                Some(s) => s,
+                None => {
+                    let fpath = base.join(name);
+                    let text = std::fs::read_to_string(&fpath).map_err(|e| {
+                        ctx.err("illumination.irradiance", format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
+                    })?;
+                    Spectrum::from_csv(name, &text).map_err(|m| ctx.err("illumination.irradiance", format!("{}: {m}", fpath.display())))?
+                }
+            };
+            wavelengths
+                .iter()
+                .map(|&w| {
+                    spectrum.at(w).ok_or_else(|| {
+                        ctx.err(
+                            "illumination.irradiance",
+                            format!("wavelength {w} nm is outside the spectrum \"{name}\" ({}–{} nm)", spectrum.wavelength[0], spectrum.wavelength[spectrum.wavelength.len() - 1]),
+                        )
+                    })
+                })
+                .collect::<Result<Vec<f64>, _>>()?
+        }
+    };
+    if let Some(d) = date {
+        let doy = day_of_year(d).map_err(|m| ctx.err("illumination.date", m))?;
+        let k = earth_sun_factor(doy);
+        irradiance.iter_mut().for_each(|e| *e *= k);
+    }
     let sun_zenith = zenith.to_radians();
     let sun_azimuth = azimuth.rem_euclid(360.0).to_radians();
     let sun_dir = direction_from_angles(sun_zenith, sun_azimuth);
