@@ -30,5 +30,6 @@ pub mod phase;
 pub mod products;
 pub mod rng;
 pub mod solar;
+pub mod srf;
 pub mod run;
 pub mod stokes;

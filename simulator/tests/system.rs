@@ -334,3 +334,43 @@ fn solar_spectrum_and_date() {
         .to_string();
     assert!(bad.contains("illumination.irradiance") && bad.contains("no_such_sun"), "{bad}");
 }
+
+/// Sensor bands: with `spectral.srf` the run samples the band and reports band-weighted values.
+/// Over a bare Lambertian surface whose reflectance varies across the band the BRF of each
+/// wavelength is exact, so the band BRF must equal Σ S·Δλ·E0·ρ / Σ S·Δλ·E0 computed here from the
+/// same SRF and the TSIS-1 spectrum, to rounding.
+#[test]
+fn band_weighted_outputs() {
+    use simulator::solar::Spectrum;
+    use simulator::srf::Srf;
+    let (wl, w) = Srf::builtin("sentinel_2a-msi-4").unwrap().unwrap().grid(2.0).unwrap();
+    let rho: Vec<f64> = wl.iter().map(|l| 0.2 + 0.004 * (l - 650.0)).collect();
+    let list: Vec<String> = rho.iter().map(|r| format!("{r:?}")).collect();
+    let text = format!(
+        "[spectral]\nsrf = \"sentinel_2a-msi-4\"\nwavelength_step = 2.0\n[surface]\ntype = \"lambertian\"\nreflectance = [{}]\n\
+         [illumination]\ntype = \"directional\"\nzenith = 30.0\nirradiance = \"tsis_1\"\n{}",
+        list.join(", "),
+        mdistant_toml("toa", &[0.0, 40.0], &[0.0, 90.0], 100)
+    );
+    let exp = experiment(&text);
+    assert_eq!(exp.wavelengths, wl);
+    let rows = run_rows(&exp);
+    let band = simulator::products::band_rows(&exp, &rows);
+    assert_eq!(band.len(), 2);
+    let tsis = Spectrum::builtin("tsis_1").unwrap();
+    let e0: Vec<f64> = wl.iter().map(|l| tsis.at(*l).unwrap()).collect();
+    let num: f64 = (0..wl.len()).map(|k| w[k] * e0[k] * rho[k]).sum();
+    let den: f64 = (0..wl.len()).map(|k| w[k] * e0[k]).sum();
+    for b in &band {
+        let (v, _) = b.brf.unwrap();
+        assert!((v / (num / den) - 1.0).abs() < 1e-12, "{v} vs {}", num / den);
+        // Band radiance and band irradiance are consistent with the band BRF.
+        let (l, _) = b.radiance.unwrap();
+        let mu0 = 30f64.to_radians().cos();
+        assert!((std::f64::consts::PI * l / (b.irradiance * mu0) / v - 1.0).abs() < 1e-12);
+    }
+    let err = simulator::config::Experiment::from_str(&text.replace("sentinel_2a-msi-4", "sentinel_2a-msi-99"), std::path::Path::new("x.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(err.contains("spectral.srf") && err.contains("8a"), "{err}");
+}

@@ -133,6 +133,16 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let nc = output.join("results.nc");
             products::csv::write(&csv, &rows)?;
             products::netcdf::write(&nc, &exp, &rows)?;
+            let band = products::band_rows(&exp, &rows);
+            if !band.is_empty() {
+                let path = output.join("results_band.csv");
+                products::csv::write_band(&path, &band)?;
+                for b in &band {
+                    if let Some((v, e)) = b.brf.or(b.albedo) {
+                        println!("{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}", b.measure, b.band, b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into()));
+                    }
+                }
+            }
             print_summary(&rows);
             // Products are complete: the checkpoints are no longer needed.
             let _ = std::fs::remove_dir_all(&ckpt);

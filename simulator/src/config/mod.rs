@@ -52,7 +52,14 @@ fn default_mode() -> String {
 #[serde(deny_unknown_fields)]
 pub struct SpectralConfig {
     /// nm.
-    pub wavelengths: Vec<f64>,
+    #[serde(default)]
+    pub wavelengths: Option<Vec<f64>>,
+    /// A sensor band (embedded SRF name or CSV file): sample it and add band-weighted outputs.
+    #[serde(default)]
+    pub srf: Option<String>,
+    /// nm: spacing of the wavelengths sampling an SRF (default 5).
+    #[serde(default)]
+    pub wavelength_step: Option<f64>,
 }
 
 #[derive(Clone, Debug, Deserialize)]

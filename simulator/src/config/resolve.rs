@@ -11,6 +11,7 @@ use super::*;
 use crate::atmosphere::molecular::{depolarization as molecular_depolarization, rayleigh_cross_section, Profile};
 use crate::atmosphere::spherical::SphericalShell;
 use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
+use crate::srf::Srf;
 use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
 use crate::error::ConfigError;
@@ -40,10 +41,20 @@ pub struct IntegratorSettings {
     pub expected_local_estimate: bool,
 }
 
+/// A sensor band sampled by the run's wavelengths.
+#[derive(Clone, Debug)]
+pub struct Band {
+    pub name: String,
+    /// Trapezoid weights `S(λ_k)·Δλ_k`, one per wavelength.
+    pub weights: Vec<f64>,
+}
+
 /// A validated experiment.
 #[derive(Clone, Debug)]
 pub struct Experiment {
     pub wavelengths: Vec<f64>,
+    /// The sensor band the wavelengths sample, if `spectral.srf` was given.
+    pub band: Option<Band>,
     /// One per wavelength.
     pub optics: Vec<OpticalState>,
     /// Solar zenith and azimuth, radians.
@@ -231,7 +242,34 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if cfg.mode != "mono" {
         return Err(ctx.err("mode", format!("\"{}\" is not supported (supported: \"mono\")", cfg.mode)));
     }
-    let wavelengths = cfg.spectral.wavelengths.clone();
+    let (wavelengths, band) = match (&cfg.spectral.wavelengths, &cfg.spectral.srf) {
+        (Some(w), None) => {
+            if cfg.spectral.wavelength_step.is_some() {
+                return Err(ctx.err("spectral.wavelength_step", "is used only with `srf`"));
+            }
+            (w.clone(), None)
+        }
+        (None, Some(name)) => {
+            let srf = match Srf::builtin(name).map_err(|m| ctx.err("spectral.srf", m))? {
+                Some(s) => s,
+                None => {
+                    let fpath = base.join(name);
+                    let text = std::fs::read_to_string(&fpath).map_err(|e| {
+                        ctx.err("spectral.srf", format!("\"{name}\" is neither an embedded SRF (e.g. \"sentinel_2a-msi-4\") nor a readable file ({}: {e})", fpath.display()))
+                    })?;
+                    Srf::from_csv(name, &text).map_err(|m| ctx.err("spectral.srf", format!("{}: {m}", fpath.display())))?
+                }
+            };
+            let step = cfg.spectral.wavelength_step.unwrap_or(5.0);
+            if !(step > 0.0 && step.is_finite()) {
+                return Err(ctx.err("spectral.wavelength_step", format!("{step} nm must be positive")));
+            }
+            let (w, weights) = srf.grid(step).map_err(|m| ctx.err("spectral.srf", m))?;
+            (w, Some(Band { name: name.clone(), weights }))
+        }
+        (Some(_), Some(_)) => return Err(ctx.err("spectral", "give either `wavelengths` or `srf`, not both")),
+        (None, None) => return Err(ctx.err("spectral", "give `wavelengths` (nm) or a sensor band `srf`")),
+    };
     if wavelengths.is_empty() {
         return Err(ctx.err("spectral.wavelengths", "must list at least one wavelength"));
     }
@@ -686,6 +724,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
 
     Ok(Experiment {
         wavelengths,
+        band,
         optics,
         sun_zenith,
         sun_azimuth,

@@ -61,3 +61,34 @@ pub fn to_string(rows: &[Row]) -> String {
 pub fn write(path: &Path, rows: &[Row]) -> Result<(), OutputError> {
     write_atomic(path, to_string(rows).as_bytes())
 }
+
+pub const BAND_HEADER: &str =
+    "measure,type,band,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,flux,flux_stderr,albedo,albedo_stderr,band_irradiance";
+
+/// `results_band.csv`: band-weighted quantities (runs with `spectral.srf`).
+pub fn band_to_string(rows: &[super::BandRow]) -> String {
+    let mut s = String::from(BAND_HEADER);
+    s.push('\n');
+    for r in rows {
+        let angle = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{},{:.10e}",
+            r.measure,
+            r.kind,
+            r.band,
+            angle(r.vza),
+            angle(r.vaa),
+            pair(r.radiance),
+            pair(r.brf),
+            pair(r.flux),
+            pair(r.albedo),
+            r.irradiance
+        );
+    }
+    s
+}
+
+pub fn write_band(path: &Path, rows: &[super::BandRow]) -> Result<(), OutputError> {
+    write_atomic(path, band_to_string(rows).as_bytes())
+}

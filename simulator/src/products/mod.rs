@@ -153,3 +153,62 @@ pub fn tmp_path(path: &Path) -> std::path::PathBuf {
     let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
     path.with_file_name(format!(".{name}.partial"))
 }
+
+/// A band-weighted row (see `srf.rs` for the weighting): one per measure and direction.
+#[derive(Clone, Debug)]
+pub struct BandRow {
+    pub measure: String,
+    pub kind: &'static str,
+    pub band: String,
+    pub vza: Option<f64>,
+    pub vaa: Option<f64>,
+    /// Band radiance (W m⁻² sr⁻¹ nm⁻¹) or flux (W m⁻² nm⁻¹), and its standard error.
+    pub radiance: Option<(f64, f64)>,
+    pub flux: Option<(f64, f64)>,
+    /// Band BRF or albedo, and its standard error.
+    pub brf: Option<(f64, f64)>,
+    pub albedo: Option<(f64, f64)>,
+    /// Band irradiance E0_b (W m⁻² nm⁻¹).
+    pub irradiance: f64,
+}
+
+/// Band-weighted rows from per-wavelength rows (empty unless `spectral.srf` was given).
+pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
+    let Some(band) = &exp.band else { return Vec::new() };
+    let wsum: f64 = band.weights.iter().sum();
+    let e0: Vec<f64> = exp.optics.iter().map(|o| o.irradiance).collect();
+    let e0_b = band.weights.iter().zip(&e0).map(|(w, e)| w * e).sum::<f64>() / wsum;
+    let mut out = Vec::new();
+    for m in &exp.measures {
+        for c in 0..m.cell_count() {
+            // Rows of this measure and cell, one per wavelength, in wavelength order.
+            let cells: Vec<&Row> = rows.iter().filter(|r| r.measure == m.id).skip(c).step_by(m.cell_count()).collect();
+            let combine = |get: &dyn Fn(&Row) -> Option<(f64, f64)>, by_e0: bool| -> Option<(f64, f64)> {
+                let mut num = 0.0;
+                let mut var = 0.0;
+                let mut den = 0.0;
+                for (k, r) in cells.iter().enumerate() {
+                    let (v, e) = get(r)?;
+                    let w = band.weights[k] * if by_e0 { e0[k] } else { 1.0 };
+                    num += w * v;
+                    var += (w * e).powi(2);
+                    den += w;
+                }
+                Some((num / den, var.sqrt() / den))
+            };
+            out.push(BandRow {
+                measure: m.id.clone(),
+                kind: m.type_name(),
+                band: band.name.clone(),
+                vza: cells[0].vza,
+                vaa: cells[0].vaa,
+                radiance: combine(&|r| r.radiance, false),
+                flux: combine(&|r| r.flux, false),
+                brf: combine(&|r| r.brf, true),
+                albedo: combine(&|r| r.albedo, true),
+                irradiance: e0_b,
+            });
+        }
+    }
+    out
+}

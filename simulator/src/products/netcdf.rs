@@ -22,12 +22,13 @@ use crate::error::OutputError;
 use crate::measure::MeasureKind;
 
 pub fn write(path: &Path, exp: &Experiment, rows: &[Row]) -> Result<(), OutputError> {
+    let band = super::band_rows(exp, rows);
     let tmp = tmp_path(path);
     let _ = std::fs::remove_file(&tmp);
     let nc = |source| OutputError::Netcdf { path: path.to_path_buf(), source };
     {
         let mut f = netcdf::create(&tmp).map_err(nc)?;
-        write_into(&mut f, exp, rows).map_err(|e| {
+        write_into(&mut f, exp, rows).and_then(|_| write_band(&mut f, exp, &band)).map_err(|e| {
             let _ = std::fs::remove_file(&tmp);
             nc(e)
         })?;
@@ -137,6 +138,48 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
                 v.put_attribute("long_name", "Monte Carlo samples")?;
                 v.put_values(&n, ..)?;
             }
+        }
+    }
+    Ok(())
+}
+
+/// Band-weighted variables `ID_band_brf`, `ID_band_radiance` (and `_stderr`; `ID_band_albedo`,
+/// `ID_band_flux` for fluxes) on the measure's direction dimension, with the band's name and
+/// irradiance as attributes.
+fn write_band(f: &mut netcdf::FileMut, exp: &Experiment, band: &[super::BandRow]) -> Result<(), netcdf::Error> {
+    let Some(b) = &exp.band else { return Ok(()) };
+    f.add_attribute("srf", b.name.as_str())?;
+    for m in &exp.measures {
+        let id = &m.id;
+        let rows: Vec<&super::BandRow> = band.iter().filter(|r| &r.measure == id).collect();
+        let dim = match m.kind {
+            MeasureKind::DistantFlux { .. } => {
+                let d = format!("{id}_band_cell");
+                f.add_dimension(&d, 1)?;
+                d
+            }
+            _ => format!("{id}_direction"),
+        };
+        let nan = f64::NAN;
+        let vars: [(&str, Vec<f64>, &str); 8] = [
+            ("band_brf", rows.iter().map(|r| r.brf.map_or(nan, |p| p.0)).collect(), "1"),
+            ("band_brf_stderr", rows.iter().map(|r| r.brf.map_or(nan, |p| p.1)).collect(), "1"),
+            ("band_radiance", rows.iter().map(|r| r.radiance.map_or(nan, |p| p.0)).collect(), "W m-2 sr-1 nm-1"),
+            ("band_radiance_stderr", rows.iter().map(|r| r.radiance.map_or(nan, |p| p.1)).collect(), "W m-2 sr-1 nm-1"),
+            ("band_albedo", rows.iter().map(|r| r.albedo.map_or(nan, |p| p.0)).collect(), "1"),
+            ("band_albedo_stderr", rows.iter().map(|r| r.albedo.map_or(nan, |p| p.1)).collect(), "1"),
+            ("band_flux", rows.iter().map(|r| r.flux.map_or(nan, |p| p.0)).collect(), "W m-2 nm-1"),
+            ("band_flux_stderr", rows.iter().map(|r| r.flux.map_or(nan, |p| p.1)).collect(), "W m-2 nm-1"),
+        ];
+        for (name, data, units) in vars {
+            if data.iter().all(|v| v.is_nan()) {
+                continue;
+            }
+            let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &[&dim])?;
+            v.put_attribute("units", units)?;
+            v.put_attribute("long_name", format!("{name} weighted by the spectral response {}", b.name).as_str())?;
+            v.put_attribute("band_irradiance", rows.first().map_or(nan, |r| r.irradiance))?;
+            v.put_values(&data, ..)?;
         }
     }
     Ok(())
