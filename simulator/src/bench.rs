@@ -44,13 +44,22 @@ pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyho
     let threads = rayon::current_num_threads();
     println!(
         "workload: Rayleigh tau=0.5, Lambertian 0.3, SZA 30, 35 principal-plane directions, {}",
-        if polarized { "polarized (I, Q, U, V)" } else { "scalar" }
+        if polarized {
+            "polarized (I, Q, U, V)"
+        } else {
+            "scalar"
+        }
     );
     if spherical {
         println!("geometry: spherical shell, planet radius 6378.1 km, TOA 100 km");
     }
-    println!("target: max relative standard error <= {target:e} in every direction; {threads} thread(s)");
-    println!("{:<9} {:>10} {:>14} {:>16} {:>18} {:>12}", "method", "wall [s]", "walks", "walks/s/core", "dir-samples/s", "max rel.err");
+    println!(
+        "target: max relative standard error <= {target:e} in every direction; {threads} thread(s)"
+    );
+    println!(
+        "{:<9} {:>10} {:>14} {:>16} {:>18} {:>12}",
+        "method", "wall [s]", "walks", "walks/s/core", "dir-samples/s", "max rel.err"
+    );
     for m in methods {
         if spherical && m == "forward" {
             println!("{m:<9} (spherical shells use the backward walk)");
@@ -60,7 +69,9 @@ pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyho
             println!("{m:<9} (no polarized backward walk yet)");
             continue;
         }
-        let mut text = WORKLOAD.replace("{integrator}", m).replace("{target}", &format!("{target:e}"));
+        let mut text = WORKLOAD
+            .replace("{integrator}", m)
+            .replace("{target}", &format!("{target:e}"));
         if polarized {
             text = format!("polarized = true\n{text}");
         }
@@ -76,7 +87,11 @@ pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyho
         let acc = &res[0].acc;
         let cells = acc.n.len() as f64;
         // A forward walk serves every direction; a backward walk one.
-        let walks: u64 = if m == "forward" { acc.n[0] } else { acc.n.iter().sum() };
+        let walks: u64 = if m == "forward" {
+            acc.n[0]
+        } else {
+            acc.n.iter().sum()
+        };
         let dir_samples: f64 = acc.n.iter().map(|&n| n as f64).sum();
         println!(
             "{:<9} {:>10.2} {:>14} {:>16.3e} {:>18.3e} {:>12.3e}",

@@ -5,19 +5,32 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ConfigError {
     #[error("cannot read experiment file {}: {source}", path.display())]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// TOML syntax, unknown or missing key, wrong type; `message` names the key path.
     #[error("{}: {message}", path.display())]
     Parse { path: PathBuf, message: String },
     /// A value out of range or inconsistent.
     #[error("{}: `{key}`: {message}", path.display())]
-    Invalid { path: PathBuf, key: String, message: String },
+    Invalid {
+        path: PathBuf,
+        key: String,
+        message: String,
+    },
 }
 
 #[derive(Debug, thiserror::Error)]
 pub enum OutputError {
     #[error("cannot write {}: {source}", path.display())]
-    Io { path: PathBuf, source: std::io::Error },
+    Io {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("cannot write netCDF file {}: {source}", path.display())]
-    Netcdf { path: PathBuf, source: netcdf::Error },
+    Netcdf {
+        path: PathBuf,
+        source: netcdf::Error,
+    },
 }

@@ -71,7 +71,10 @@ mod tests {
         for &(z, a) in &[(0.3, 0.1), (1.2, 3.0), (2.5, 5.9), (0.01, 1.0)] {
             let d = direction_from_angles(z, a);
             let (z2, a2) = angles_from_direction(d);
-            assert!((z - z2).abs() < 1e-12 && (a - a2).abs() < 1e-12, "{z} {a} {z2} {a2}");
+            assert!(
+                (z - z2).abs() < 1e-12 && (a - a2).abs() < 1e-12,
+                "{z} {a} {z2} {a2}"
+            );
         }
         // Azimuth 90° (clockwise from North) points East.
         let e = direction_from_angles(std::f64::consts::FRAC_PI_2, std::f64::consts::FRAC_PI_2);

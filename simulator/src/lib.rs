@@ -29,7 +29,7 @@ pub mod optics;
 pub mod phase;
 pub mod products;
 pub mod rng;
+pub mod run;
 pub mod solar;
 pub mod srf;
-pub mod run;
 pub mod stokes;

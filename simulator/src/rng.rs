@@ -109,7 +109,10 @@ mod tests {
     /// Known-answer test from the Random123 distribution (kat_vectors, philox4x32_10).
     #[test]
     fn philox_known_answers() {
-        assert_eq!(philox4x32([0; 4], [0; 2]), [0x6627e8d5, 0xe169c58d, 0xbc57ac4c, 0x9b00dbd8]);
+        assert_eq!(
+            philox4x32([0; 4], [0; 2]),
+            [0x6627e8d5, 0xe169c58d, 0xbc57ac4c, 0x9b00dbd8]
+        );
         assert_eq!(
             philox4x32([u32::MAX; 4], [u32::MAX; 2]),
             [0x408f276d, 0x41c83b0e, 0xa20bc7c6, 0x6d5451fd]
@@ -143,9 +146,24 @@ mod tests {
 
     #[test]
     fn distinct_ids_give_distinct_streams() {
-        let a: Vec<u32> = (0..8).map({ let mut s = Stream::new(1, [0, 0, 0, 0]); move |_| s.next_u32() }).collect();
-        let b: Vec<u32> = (0..8).map({ let mut s = Stream::new(1, [0, 0, 0, 1]); move |_| s.next_u32() }).collect();
-        let c: Vec<u32> = (0..8).map({ let mut s = Stream::new(2, [0, 0, 0, 0]); move |_| s.next_u32() }).collect();
+        let a: Vec<u32> = (0..8)
+            .map({
+                let mut s = Stream::new(1, [0, 0, 0, 0]);
+                move |_| s.next_u32()
+            })
+            .collect();
+        let b: Vec<u32> = (0..8)
+            .map({
+                let mut s = Stream::new(1, [0, 0, 0, 1]);
+                move |_| s.next_u32()
+            })
+            .collect();
+        let c: Vec<u32> = (0..8)
+            .map({
+                let mut s = Stream::new(2, [0, 0, 0, 0]);
+                move |_| s.next_u32()
+            })
+            .collect();
         assert_ne!(a, b);
         assert_ne!(a, c);
     }

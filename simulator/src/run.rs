@@ -7,11 +7,11 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
+use crate::atmosphere::spherical::SphericalShell;
 use crate::config::resolve::{Experiment, IntegratorKind};
 use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
 use crate::integrator::forward_pol;
-use crate::atmosphere::spherical::SphericalShell;
 use crate::integrator::{backward, backward_pol, backward_sph, Accum};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
@@ -57,7 +57,13 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
 }
 
 /// Run the samples `range` of measure `im` at wavelength `iw` (one block).
-fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::ops::Range<u64>) -> Accum {
+fn run_block(
+    exp: &Experiment,
+    iw: usize,
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Accum {
     let m = &exp.measures[im];
     let opt = &exp.optics[iw];
     let method = method_for(exp, m);
@@ -65,22 +71,52 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
     match method {
         Method::Forward => {
             let (dirs, flux_tau, hints): (&[DVec3], Option<f64>, Vec<f64>) = match &m.kind {
-                MeasureKind::Distant { directions, vaa, .. } => {
-                    (directions, None, vaa.iter().map(|a| a.to_radians()).collect())
+                MeasureKind::Distant {
+                    directions, vaa, ..
+                } => (
+                    directions,
+                    None,
+                    vaa.iter().map(|a| a.to_radians()).collect(),
+                ),
+                MeasureKind::DistantFlux { altitude } => (
+                    &[],
+                    Some(opt.atmosphere.tau_at_altitude(*altitude)),
+                    Vec::new(),
+                ),
+                MeasureKind::Radiancemeter { .. } => {
+                    unreachable!("resolver forbids forward radiancemeters")
                 }
-                MeasureKind::DistantFlux { altitude } => {
-                    (&[], Some(opt.atmosphere.tau_at_altitude(*altitude)), Vec::new())
-                }
-                MeasureKind::Radiancemeter { .. } => unreachable!("resolver forbids forward radiancemeters"),
             };
-            let targets = ForwardTargets { directions: dirs, flux_tau, azimuth_hints: &hints };
+            let targets = ForwardTargets {
+                directions: dirs,
+                flux_tau,
+                azimuth_hints: &hints,
+            };
             if exp.polarized {
                 let mut acc = Accum::new_polarized(m.cell_count());
-                forward_pol::run_block(opt, exp.sun_dir, &targets, &exp.integrator, exp.seed, ids, range, &mut acc);
+                forward_pol::run_block(
+                    opt,
+                    exp.sun_dir,
+                    &targets,
+                    &exp.integrator,
+                    exp.seed,
+                    ids,
+                    range,
+                    &mut acc,
+                );
                 acc
             } else {
                 let mut acc = Accum::new(m.cell_count());
-                forward::run_block(opt, exp.sun_dir, &targets, &exp.integrator, exp.seed, ids, range, &mut acc);
+                forward::run_block(
+                    opt,
+                    exp.sun_dir,
+                    &targets,
+                    &exp.integrator,
+                    exp.seed,
+                    ids,
+                    range,
+                    &mut acc,
+                );
                 acc
             }
         }
@@ -101,7 +137,16 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
                             // The sensor frame is the meridian frame at the target's vertical.
                             let e1 = crate::stokes::meridian_axis(-d0, frame_hint(m));
                             backward_pol::walk_spherical(
-                                shell, &opt.surface, exp.sun_dir, mu_norm, p0, l0, d0, e1, &exp.integrator, &mut rng,
+                                shell,
+                                &opt.surface,
+                                exp.sun_dir,
+                                mu_norm,
+                                p0,
+                                l0,
+                                d0,
+                                e1,
+                                &exp.integrator,
+                                &mut rng,
                             )
                         }
                         None => [0.0; 5],
@@ -116,7 +161,15 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
                     let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
                     let (a, b) = match spherical_start(shell, m, cell, &mut rng) {
                         Some((p0, l0, d0)) => backward_sph::walk(
-                            shell, &opt.surface, exp.sun_dir, mu_norm, p0, l0, d0, &exp.integrator, &mut rng,
+                            shell,
+                            &opt.surface,
+                            exp.sun_dir,
+                            mu_norm,
+                            p0,
+                            l0,
+                            d0,
+                            &exp.integrator,
+                            &mut rng,
                         ),
                         None => (0.0, 0.0),
                     };
@@ -130,7 +183,15 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
                     let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
                     let (tau0, d0) = backward_start(opt, m, cell, &mut rng);
                     let e1 = crate::stokes::meridian_axis(-d0, frame_hint(m));
-                    let x = backward_pol::walk(opt, exp.sun_dir, tau0, d0, e1, &exp.integrator, &mut rng);
+                    let x = backward_pol::walk(
+                        opt,
+                        exp.sun_dir,
+                        tau0,
+                        d0,
+                        e1,
+                        &exp.integrator,
+                        &mut rng,
+                    );
                     acc.add_stokes(0, x[0], x[1], x[2], x[3], x[4]);
                 }
                 return acc;
@@ -149,7 +210,12 @@ fn run_block(exp: &Experiment, iw: usize, im: usize, cell: usize, range: std::op
 /// Starting point, shell and path direction of a backward sample in a spherical shell (planet
 /// centred; the target point is at (0, 0, R_ground)); `None` when the line of sight misses the
 /// atmosphere.
-fn spherical_start(shell: &SphericalShell, m: &Measure, cell: usize, rng: &mut Stream) -> Option<(DVec3, usize, DVec3)> {
+fn spherical_start(
+    shell: &SphericalShell,
+    m: &Measure,
+    cell: usize,
+    rng: &mut Stream,
+) -> Option<(DVec3, usize, DVec3)> {
     let rg = shell.ground_radius();
     let target = DVec3::new(0.0, 0.0, rg);
     let (p, d) = match &m.kind {
@@ -178,7 +244,9 @@ fn spherical_start(shell: &SphericalShell, m: &Measure, cell: usize, rng: &mut S
 fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
     match &m.kind {
         MeasureKind::Distant { directions, .. } => (0.0, -directions[cell]),
-        MeasureKind::Radiancemeter { origin, look, .. } => (opt.atmosphere.tau_at_altitude(origin.z), *look),
+        MeasureKind::Radiancemeter { origin, look, .. } => {
+            (opt.atmosphere.tau_at_altitude(origin.z), *look)
+        }
         MeasureKind::DistantFlux { altitude } => {
             let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
             (opt.atmosphere.tau_at_altitude(*altitude), -up)
@@ -188,7 +256,11 @@ fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream
 
 /// Walks a measure costs per sample index (a forward walk serves every direction).
 fn walks_per_sample(exp: &Experiment, m: &Measure) -> u64 {
-    if method_for(exp, m) == Method::Forward { 1 } else { m.cell_count() as u64 }
+    if method_for(exp, m) == Method::Forward {
+        1
+    } else {
+        m.cell_count() as u64
+    }
 }
 
 /// The run's progress bar (hidden when `progress` is false), counted in walks.
@@ -196,12 +268,18 @@ fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
     if !progress {
         return ProgressBar::hidden();
     }
-    let total: u64 =
-        exp.measures.iter().map(|m| m.spp * walks_per_sample(exp, m)).sum::<u64>() * exp.wavelengths.len() as u64;
+    let total: u64 = exp
+        .measures
+        .iter()
+        .map(|m| m.spp * walks_per_sample(exp, m))
+        .sum::<u64>()
+        * exp.wavelengths.len() as u64;
     let b = ProgressBar::new(total);
     b.set_style(
-        ProgressStyle::with_template("{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})")
-            .expect("valid progress template"),
+        ProgressStyle::with_template(
+            "{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})",
+        )
+        .expect("valid progress template"),
     );
     b
 }
@@ -238,8 +316,16 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     let m = &exp.measures[im];
     let method = method_for(exp, m);
     let cells = m.cell_count();
-    let walk_cells: Vec<usize> = if method == Method::Forward { vec![0] } else { (0..cells).collect() };
-    let mut acc = if exp.polarized { Accum::new_polarized(cells) } else { Accum::new(cells) };
+    let walk_cells: Vec<usize> = if method == Method::Forward {
+        vec![0]
+    } else {
+        (0..cells).collect()
+    };
+    let mut acc = if exp.polarized {
+        Accum::new_polarized(cells)
+    } else {
+        Accum::new(cells)
+    };
     let mut done = 0u64;
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
@@ -273,16 +359,28 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
         }
         done = next;
-        let reached = m.target_rel_stderr.is_some_and(|t| acc.max_rel_stderr() <= t);
+        let reached = m
+            .target_rel_stderr
+            .is_some_and(|t| acc.max_rel_stderr() <= t);
         if done >= m.spp || reached {
             if reached && done < m.spp {
                 bar.inc((m.spp - done) * walks_per_sample(exp, m));
             }
             break;
         }
-        next = next_round_end(done, acc.max_rel_stderr(), m.target_rel_stderr.unwrap_or(0.0), m.spp);
+        next = next_round_end(
+            done,
+            acc.max_rel_stderr(),
+            m.target_rel_stderr.unwrap_or(0.0),
+            m.spp,
+        );
     }
-    MeasureResult { measure: im, wavelength: iw, method, acc }
+    MeasureResult {
+        measure: im,
+        wavelength: iw,
+        method,
+        acc,
+    }
 }
 
 /// Checkpoints: after each (wavelength, measure) task its sums are written to
@@ -294,7 +392,7 @@ pub mod checkpoint {
 
     use serde::{Deserialize, Serialize};
 
-    use super::{Method, MeasureResult};
+    use super::{MeasureResult, Method};
     use crate::config::resolve::Experiment;
     use crate::error::OutputError;
     use crate::integrator::Accum;
@@ -312,7 +410,11 @@ pub mod checkpoint {
     /// FNV-1a 64 of the experiment text: identifies the run a checkpoint belongs to.
     pub fn experiment_hash(exp: &Experiment) -> String {
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in exp.source_text.bytes().chain(env!("CARGO_PKG_VERSION").bytes()) {
+        for b in exp
+            .source_text
+            .bytes()
+            .chain(env!("CARGO_PKG_VERSION").bytes())
+        {
             h ^= b as u64;
             h = h.wrapping_mul(0x0000_0100_0000_01b3);
         }
@@ -328,15 +430,30 @@ pub mod checkpoint {
         let text = std::fs::read_to_string(path(dir, iw, im)).ok()?;
         let s: Stored = serde_json::from_str(&text).ok()?;
         let m = &exp.measures[im];
-        if s.experiment_hash != experiment_hash(exp) || s.measure != m.id || s.acc.n.len() != m.cell_count() {
+        if s.experiment_hash != experiment_hash(exp)
+            || s.measure != m.id
+            || s.acc.n.len() != m.cell_count()
+        {
             return None;
         }
-        let method = if s.method == "forward" { Method::Forward } else { Method::Backward };
-        Some(MeasureResult { measure: im, wavelength: iw, method, acc: s.acc })
+        let method = if s.method == "forward" {
+            Method::Forward
+        } else {
+            Method::Backward
+        };
+        Some(MeasureResult {
+            measure: im,
+            wavelength: iw,
+            method,
+            acc: s.acc,
+        })
     }
 
     pub fn store(dir: &Path, exp: &Experiment, r: &MeasureResult) -> Result<(), OutputError> {
-        std::fs::create_dir_all(dir).map_err(|source| OutputError::Io { path: dir.to_path_buf(), source })?;
+        std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
+            path: dir.to_path_buf(),
+            source,
+        })?;
         let s = Stored {
             experiment_hash: experiment_hash(exp),
             version: env!("CARGO_PKG_VERSION").into(),

@@ -41,7 +41,10 @@ impl Spectrum {
         let (mut w, mut v) = (Vec::new(), Vec::new());
         for (i, line) in text.lines().enumerate() {
             let line = line.trim();
-            if line.is_empty() || line.starts_with('#') || (i == 0 && line.chars().next().is_some_and(|c| c.is_alphabetic())) {
+            if line.is_empty()
+                || line.starts_with('#')
+                || (i == 0 && line.chars().next().is_some_and(|c| c.is_alphabetic()))
+            {
                 continue;
             }
             let mut f = line.split(',').map(str::trim);
@@ -52,13 +55,22 @@ impl Spectrum {
                     w.push(x);
                     v.push(y);
                 }
-                _ => return Err(format!("line {}: expected `wavelength_nm,irradiance` (non-negative numbers)", i + 1)),
+                _ => {
+                    return Err(format!(
+                        "line {}: expected `wavelength_nm,irradiance` (non-negative numbers)",
+                        i + 1
+                    ))
+                }
             }
         }
         if w.len() < 2 || w.windows(2).any(|p| p[1] <= p[0]) {
             return Err("need at least two rows with increasing wavelengths".into());
         }
-        Ok(Spectrum { name: name.into(), wavelength: w, value: v })
+        Ok(Spectrum {
+            name: name.into(),
+            wavelength: w,
+            value: v,
+        })
     }
 
     /// Linear interpolation at `nm`; `None` outside the tabulated range.
@@ -81,9 +93,26 @@ pub fn day_of_year(date: &str) -> Result<u32, String> {
     if p.len() != 3 || p[0].len() != 4 || p[1].len() != 2 || p[2].len() != 2 {
         return Err(bad());
     }
-    let (y, m, d): (i64, u32, u32) = (p[0].parse().map_err(|_| bad())?, p[1].parse().map_err(|_| bad())?, p[2].parse().map_err(|_| bad())?);
+    let (y, m, d): (i64, u32, u32) = (
+        p[0].parse().map_err(|_| bad())?,
+        p[1].parse().map_err(|_| bad())?,
+        p[2].parse().map_err(|_| bad())?,
+    );
     let leap = (y % 4 == 0 && y % 100 != 0) || y % 400 == 0;
-    let days = [31, if leap { 29 } else { 28 }, 31, 30, 31, 30, 31, 31, 30, 31, 30, 31];
+    let days = [
+        31,
+        if leap { 29 } else { 28 },
+        31,
+        30,
+        31,
+        30,
+        31,
+        31,
+        30,
+        31,
+        30,
+        31,
+    ];
     if !(1..=12).contains(&m) || d < 1 || d > days[(m - 1) as usize] {
         return Err(bad());
     }
@@ -93,7 +122,11 @@ pub fn day_of_year(date: &str) -> Result<u32, String> {
 /// `(r0/r)²`: the factor on the 1 AU irradiance for a day of the year (Spencer 1971).
 pub fn earth_sun_factor(day_of_year: u32) -> f64 {
     let g = std::f64::consts::TAU * (day_of_year as f64 - 1.0) / 365.0;
-    1.000110 + 0.034221 * g.cos() + 0.001280 * g.sin() + 0.000719 * (2.0 * g).cos() + 0.000077 * (2.0 * g).sin()
+    1.000110
+        + 0.034221 * g.cos()
+        + 0.001280 * g.sin()
+        + 0.000719 * (2.0 * g).cos()
+        + 0.000077 * (2.0 * g).sin()
 }
 
 #[cfg(test)]
@@ -108,7 +141,12 @@ mod tests {
             let s = Spectrum::builtin(name).unwrap();
             let e = s.at(550.0).unwrap();
             assert!((1.75..1.95).contains(&e), "{name}: {e}");
-            let total: f64 = s.wavelength.windows(2).zip(s.value.windows(2)).map(|(w, v)| 0.5 * (v[0] + v[1]) * (w[1] - w[0])).sum();
+            let total: f64 = s
+                .wavelength
+                .windows(2)
+                .zip(s.value.windows(2))
+                .map(|(w, v)| 0.5 * (v[0] + v[1]) * (w[1] - w[0]))
+                .sum();
             println!("{name}: E(550) = {e:.4}, integral = {total:.1} W/m2");
             assert!((1250.0..1361.0).contains(&total), "{name}: {total}");
         }

@@ -14,14 +14,33 @@
 //! errors combine in quadrature.
 
 const FAMILIES: [(&str, &str); 5] = [
-    ("sentinel_2a-msi", include_str!("../data/srf/sentinel_2a-msi.csv")),
-    ("sentinel_2b-msi", include_str!("../data/srf/sentinel_2b-msi.csv")),
+    (
+        "sentinel_2a-msi",
+        include_str!("../data/srf/sentinel_2a-msi.csv"),
+    ),
+    (
+        "sentinel_2b-msi",
+        include_str!("../data/srf/sentinel_2b-msi.csv"),
+    ),
     ("terra-modis", include_str!("../data/srf/terra-modis.csv")),
     ("aqua-modis", include_str!("../data/srf/aqua-modis.csv")),
-    ("landsat_8-oli", include_str!("../data/srf/landsat_8-oli.csv")),
+    (
+        "landsat_8-oli",
+        include_str!("../data/srf/landsat_8-oli.csv"),
+    ),
 ];
 
-const OLI_BANDS: [&str; 9] = ["CoastalAerosol", "Blue", "Green", "Red", "NIR", "SWIR1", "SWIR2", "Pan", "Cirrus"];
+const OLI_BANDS: [&str; 9] = [
+    "CoastalAerosol",
+    "Blue",
+    "Green",
+    "Red",
+    "NIR",
+    "SWIR1",
+    "SWIR2",
+    "Pan",
+    "Cirrus",
+];
 
 /// A spectral response: increasing wavelengths (nm) and responses (any scale, ≥ 0).
 #[derive(Clone, Debug)]
@@ -34,7 +53,10 @@ pub struct Srf {
 impl Srf {
     /// An embedded SRF by name; `Err` lists what exists when the name is unknown.
     pub fn builtin(name: &str) -> Result<Option<Srf>, String> {
-        let Some((family, text)) = FAMILIES.iter().find(|(f, _)| name.starts_with(&format!("{f}-"))) else {
+        let Some((family, text)) = FAMILIES
+            .iter()
+            .find(|(f, _)| name.starts_with(&format!("{f}-")))
+        else {
             return Ok(None);
         };
         let mut band = name[family.len() + 1..].to_string();
@@ -61,15 +83,26 @@ impl Srf {
             }
         }
         if w.is_empty() {
-            return Err(format!("{family} has no band \"{band}\" (bands: {})", bands.join(", ")));
+            return Err(format!(
+                "{family} has no band \"{band}\" (bands: {})",
+                bands.join(", ")
+            ));
         }
-        Ok(Some(Srf { name: name.into(), wavelength: w, response: r }))
+        Ok(Some(Srf {
+            name: name.into(),
+            wavelength: w,
+            response: r,
+        }))
     }
 
     /// Parse a `wavelength_nm,response` CSV (a header line is skipped).
     pub fn from_csv(name: &str, text: &str) -> Result<Srf, String> {
         let s = crate::solar::Spectrum::from_csv(name, text)?;
-        Ok(Srf { name: name.into(), wavelength: s.wavelength, response: s.value })
+        Ok(Srf {
+            name: name.into(),
+            wavelength: s.wavelength,
+            response: s.value,
+        })
     }
 
     fn at(&self, nm: f64) -> f64 {
@@ -84,7 +117,11 @@ impl Srf {
 
     /// The sampling grid over the support (step `step` nm) and its trapezoid weights.
     pub fn grid(&self, step: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
-        let first = self.response.iter().position(|&r| r > 0.0).ok_or("the response is zero everywhere")?;
+        let first = self
+            .response
+            .iter()
+            .position(|&r| r > 0.0)
+            .ok_or("the response is zero everywhere")?;
         let last = self.response.iter().rposition(|&r| r > 0.0).unwrap();
         // The support includes the zero just outside the first and last positive samples.
         let lo = self.wavelength[first.saturating_sub(1)];

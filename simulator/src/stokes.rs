@@ -82,7 +82,14 @@ pub struct PhaseMatrix {
 impl PhaseMatrix {
     /// A depolarizer with phase function value `p`: only I scatters.
     pub fn depolarizing(p: f64) -> Self {
-        Self { a1: p, b1: 0.0, a2: 0.0, a3: 0.0, b2: 0.0, a4: 0.0 }
+        Self {
+            a1: p,
+            b1: 0.0,
+            a2: 0.0,
+            a3: 0.0,
+            b2: 0.0,
+            a4: 0.0,
+        }
     }
 
     #[inline]
@@ -97,7 +104,14 @@ impl PhaseMatrix {
 
     #[inline]
     pub fn scaled(&self, k: f64) -> Self {
-        Self { a1: self.a1 * k, b1: self.b1 * k, a2: self.a2 * k, a3: self.a3 * k, b2: self.b2 * k, a4: self.a4 * k }
+        Self {
+            a1: self.a1 * k,
+            b1: self.b1 * k,
+            a2: self.a2 * k,
+            a3: self.a3 * k,
+            b2: self.b2 * k,
+            a4: self.a4 * k,
+        }
     }
 
     #[inline]
@@ -167,7 +181,14 @@ mod tests {
     /// the scattering plane: in the (l, r) frame, Q = −I.
     #[test]
     fn rayleigh_at_90_degrees() {
-        let f = PhaseMatrix { a1: 0.75, b1: -0.75, a2: 0.75, a3: 0.0, b2: 0.0, a4: 0.0 };
+        let f = PhaseMatrix {
+            a1: 0.75,
+            b1: -0.75,
+            a2: 0.75,
+            a3: 0.0,
+            b2: 0.0,
+            a4: 0.0,
+        };
         let d = DVec3::new(0.0, 0.0, -1.0);
         let (s, l2) = scatter([1.0, 0.0, 0.0, 0.0], d, DVec3::X, DVec3::Y, &f);
         assert!((s[0] - 0.75).abs() < 1e-15 && (s[1] + 0.75).abs() < 1e-15);

@@ -24,15 +24,34 @@ fn example() -> PathBuf {
 #[test]
 fn example_runs_and_writes_products() {
     let out = tmpdir("example");
-    let text = std::fs::read_to_string(example()).unwrap().replace("spp = 100000", "spp = 5000");
+    let text = std::fs::read_to_string(example())
+        .unwrap()
+        .replace("spp = 100000", "spp = 5000");
     let exp = out.join("exp.toml");
     std::fs::write(&exp, text).unwrap();
-    let o = bin().args(["run", exp.to_str().unwrap(), "-o", out.to_str().unwrap(), "--quiet"]).output().unwrap();
+    let o = bin()
+        .args([
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
     let mut lines = csv.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    for col in ["measure", "wavelength_nm", "vza", "vaa", "radiance", "brf", "brf_stderr"] {
+    for col in [
+        "measure",
+        "wavelength_nm",
+        "vza",
+        "vaa",
+        "radiance",
+        "brf",
+        "brf_stderr",
+    ] {
         assert!(header.contains(&col), "missing column {col}");
     }
     let rows: Vec<Vec<&str>> = lines.map(|l| l.split(',').collect()).collect();
@@ -44,22 +63,45 @@ fn example_runs_and_writes_products() {
     assert_eq!(rows[10][idx("vaa")].parse::<f64>().unwrap(), 0.0);
 
     let f = netcdf::open(out.join("results.nc")).unwrap();
-    let brf: Vec<f64> = f.variable("toa_pp_brf").unwrap().get_values::<f64, _>(..).unwrap();
-    let vza: Vec<f64> = f.variable("toa_pp_vza").unwrap().get_values::<f64, _>(..).unwrap();
+    let brf: Vec<f64> = f
+        .variable("toa_pp_brf")
+        .unwrap()
+        .get_values::<f64, _>(..)
+        .unwrap();
+    let vza: Vec<f64> = f
+        .variable("toa_pp_vza")
+        .unwrap()
+        .get_values::<f64, _>(..)
+        .unwrap();
     assert_eq!(brf.len(), 11);
     for (i, r) in rows.iter().enumerate() {
         let b: f64 = r[idx("brf")].parse().unwrap();
         assert!((b - brf[i]).abs() <= 1e-9 * b.abs(), "row {i}");
         assert_eq!(vza[i], r[idx("vza")].parse::<f64>().unwrap());
     }
-    let conv: String = f.attribute("Conventions").unwrap().value().unwrap().try_into().unwrap();
+    let conv: String = f
+        .attribute("Conventions")
+        .unwrap()
+        .value()
+        .unwrap()
+        .try_into()
+        .unwrap();
     assert_eq!(conv, "CF-1.10");
-    let units: String =
-        f.variable("toa_pp_radiance").unwrap().attribute("units").unwrap().value().unwrap().try_into().unwrap();
+    let units: String = f
+        .variable("toa_pp_radiance")
+        .unwrap()
+        .attribute("units")
+        .unwrap()
+        .value()
+        .unwrap()
+        .try_into()
+        .unwrap();
     assert_eq!(units, "W m-2 sr-1 nm-1");
     // No temporary files are left behind.
-    let names: Vec<String> =
-        std::fs::read_dir(&out).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+    let names: Vec<String> = std::fs::read_dir(&out)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into())
+        .collect();
     assert!(names.iter().all(|n| !n.ends_with(".partial")), "{names:?}");
 }
 
@@ -68,25 +110,82 @@ fn example_runs_and_writes_products() {
 fn bad_input_is_a_clear_error() {
     let base = std::fs::read_to_string(example()).unwrap();
     let cases: Vec<(&str, String, Vec<&str>)> = vec![
-        ("misspelt key", base.replace("optical_thickness", "optical_thicknes"), vec!["optical_thicknes", "atmosphere"]),
-        ("missing key", base.replace("reflectance = 0.3", ""), vec!["reflectance", "surface"]),
-        ("negative tau", base.replace("optical_thickness = 0.5", "optical_thickness = -0.5"), vec!["atmosphere.optical_thickness", "-0.5"]),
-        ("albedo above 1", base.replace("reflectance = 0.3", "reflectance = 1.3"), vec!["surface.reflectance", "1.3"]),
-        ("zenith above 90", base.replace("zenith = 30.0", "zenith = 95.0"), vec!["illumination.zenith", "95"]),
-        ("NaN", base.replace("zenith = 30.0", "zenith = nan"), vec!["illumination.zenith", "NaN"]),
-        ("view zenith out of range", base.replace("75.0]", "95.0]"), vec!["measures[0].zeniths[10]", "95"]),
-        ("unknown phase", base.replace("type = \"rayleigh\"", "type = \"mie\""), vec!["atmosphere.phase", "mie"]),
-        ("missing table", base.replace("{ type = \"rayleigh\" }", "{ type = \"tabulated\", file = \"nope.cdf\" }"), vec!["atmosphere.phase.file", "nope.cdf"]),
-        ("wrong type", base.replace("spp = 100000", "spp = \"many\""), vec!["measures[0].spp"]),
+        (
+            "misspelt key",
+            base.replace("optical_thickness", "optical_thicknes"),
+            vec!["optical_thicknes", "atmosphere"],
+        ),
+        (
+            "missing key",
+            base.replace("reflectance = 0.3", ""),
+            vec!["reflectance", "surface"],
+        ),
+        (
+            "negative tau",
+            base.replace("optical_thickness = 0.5", "optical_thickness = -0.5"),
+            vec!["atmosphere.optical_thickness", "-0.5"],
+        ),
+        (
+            "albedo above 1",
+            base.replace("reflectance = 0.3", "reflectance = 1.3"),
+            vec!["surface.reflectance", "1.3"],
+        ),
+        (
+            "zenith above 90",
+            base.replace("zenith = 30.0", "zenith = 95.0"),
+            vec!["illumination.zenith", "95"],
+        ),
+        (
+            "NaN",
+            base.replace("zenith = 30.0", "zenith = nan"),
+            vec!["illumination.zenith", "NaN"],
+        ),
+        (
+            "view zenith out of range",
+            base.replace("75.0]", "95.0]"),
+            vec!["measures[0].zeniths[10]", "95"],
+        ),
+        (
+            "unknown phase",
+            base.replace("type = \"rayleigh\"", "type = \"mie\""),
+            vec!["atmosphere.phase", "mie"],
+        ),
+        (
+            "missing table",
+            base.replace(
+                "{ type = \"rayleigh\" }",
+                "{ type = \"tabulated\", file = \"nope.cdf\" }",
+            ),
+            vec!["atmosphere.phase.file", "nope.cdf"],
+        ),
+        (
+            "wrong type",
+            base.replace("spp = 100000", "spp = \"many\""),
+            vec!["measures[0].spp"],
+        ),
         ("not TOML", "this is [not toml".to_string(), vec!["line 1"]),
     ];
     let dir = tmpdir("bad");
     for (name, text, needles) in cases {
         let path = dir.join("bad.toml");
         std::fs::write(&path, &text).unwrap();
-        let o = bin().args(["run", path.to_str().unwrap(), "-o", dir.join("out").to_str().unwrap(), "--quiet"]).output().unwrap();
+        let o = bin()
+            .args([
+                "run",
+                path.to_str().unwrap(),
+                "-o",
+                dir.join("out").to_str().unwrap(),
+                "--quiet",
+            ])
+            .output()
+            .unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
-        assert_eq!(o.status.code(), Some(2), "{name}: exit code {:?}, stderr {err}", o.status.code());
+        assert_eq!(
+            o.status.code(),
+            Some(2),
+            "{name}: exit code {:?}, stderr {err}",
+            o.status.code()
+        );
         assert!(err.contains("bad.toml"), "{name}: file not named in: {err}");
         for n in needles {
             assert!(err.contains(n), "{name}: `{n}` not in: {err}");
@@ -94,7 +193,10 @@ fn bad_input_is_a_clear_error() {
         assert!(!err.contains("panicked"), "{name}: {err}");
     }
     // A missing experiment file.
-    let o = bin().args(["run", "/no/such/experiment.toml", "--quiet"]).output().unwrap();
+    let o = bin()
+        .args(["run", "/no/such/experiment.toml", "--quiet"])
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2));
     assert!(err.contains("/no/such/experiment.toml"), "{err}");
@@ -106,11 +208,22 @@ fn unwritable_output_is_reported() {
     let dir = tmpdir("unwritable");
     let blocker = dir.join("file");
     std::fs::write(&blocker, "x").unwrap();
-    let text = std::fs::read_to_string(example()).unwrap().replace("spp = 100000", "spp = 100");
+    let text = std::fs::read_to_string(example())
+        .unwrap()
+        .replace("spp = 100000", "spp = 100");
     let exp = dir.join("exp.toml");
     std::fs::write(&exp, text).unwrap();
     let target = blocker.join("sub");
-    let o = bin().args(["run", exp.to_str().unwrap(), "-o", target.to_str().unwrap(), "--quiet"]).output().unwrap();
+    let o = bin()
+        .args([
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            target.to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains(target.to_str().unwrap()), "{err}");

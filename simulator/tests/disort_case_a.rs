@@ -21,13 +21,21 @@ struct RefRow {
 }
 
 fn load() -> Vec<RefRow> {
-    let text = std::fs::read_to_string(data_dir().join("fixtures/caseA_disort_public.csv")).unwrap();
+    let text =
+        std::fs::read_to_string(data_dir().join("fixtures/caseA_disort_public.csv")).unwrap();
     text.lines()
         .skip(1)
         .map(|l| {
             let f: Vec<&str> = l.split(',').collect();
             let p = |i: usize| f[i].parse::<f64>().unwrap();
-            RefRow { tau: p(2), albedo: p(3), sza: p(4), raa: p(6), vza: p(8), value: p(10) }
+            RefRow {
+                tau: p(2),
+                albedo: p(3),
+                sza: p(4),
+                raa: p(6),
+                vza: p(8),
+                value: p(10),
+            }
         })
         .collect()
 }
@@ -70,7 +78,13 @@ local_estimate = "{estimator}"
     )
 }
 
-fn run_case(all: &[RefRow], (tau, albedo, sza): (f64, f64, f64), integrator: &str, spp: u64, every: usize) -> Result<(), String> {
+fn run_case(
+    all: &[RefRow],
+    (tau, albedo, sza): (f64, f64, f64),
+    integrator: &str,
+    spp: u64,
+    every: usize,
+) -> Result<(), String> {
     let rows: Vec<&RefRow> = all
         .iter()
         .filter(|r| (r.tau, r.albedo, r.sza) == (tau, albedo, sza))
@@ -79,32 +93,50 @@ fn run_case(all: &[RefRow], (tau, albedo, sza): (f64, f64, f64), integrator: &st
     // raa = φ_v − φ_s with the Sun at azimuth 0, so the view azimuth is raa.
     let vza: Vec<f64> = rows.iter().map(|r| r.vza).collect();
     let vaa: Vec<f64> = rows.iter().map(|r| r.raa).collect();
-    let text = experiment_text(tau, albedo, sza, integrator, &mdistant_toml("toa", &vza, &vaa, spp));
+    let text = experiment_text(
+        tau,
+        albedo,
+        sza,
+        integrator,
+        &mdistant_toml("toa", &vza, &vaa, spp),
+    );
     let out = run_rows(&experiment(&text));
     let cmps: Vec<Cmp> = rows
         .iter()
         .zip(&out)
         .map(|(r, o)| {
             let (v, e) = o.brf.unwrap();
-            Cmp { label: format!("vza {} raa {}", r.vza, r.raa), reference: r.value, value: v, stderr: e }
+            Cmp {
+                label: format!("vza {} raa {}", r.vza, r.raa),
+                reference: r.value,
+                value: v,
+                stderr: e,
+            }
         })
         .collect();
-    check_all(&format!("caseA tau={tau} albedo={albedo} sza={sza} [{integrator}]"), &cmps)
+    check_all(
+        &format!("caseA tau={tau} albedo={albedo} sza={sza} [{integrator}]"),
+        &cmps,
+    )
 }
 
 #[test]
 fn forward_matches_disort_case_a() {
     let all = load();
-    let errs: Vec<String> =
-        cases(&all).into_iter().filter_map(|c| run_case(&all, c, "forward", 1_500_000, 1).err()).collect();
+    let errs: Vec<String> = cases(&all)
+        .into_iter()
+        .filter_map(|c| run_case(&all, c, "forward", 1_500_000, 1).err())
+        .collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 
 #[test]
 fn backward_matches_disort_case_a() {
     let all = load();
-    let errs: Vec<String> =
-        cases(&all).into_iter().filter_map(|c| run_case(&all, c, "backward", 200_000, 6).err()).collect();
+    let errs: Vec<String> = cases(&all)
+        .into_iter()
+        .filter_map(|c| run_case(&all, c, "backward", 200_000, 6).err())
+        .collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 
@@ -116,7 +148,10 @@ fn collision_estimator_matches_disort_case_a() {
     let picks = [(0.5, 0.3, 30.0), (0.1, 0.0, 60.0)];
     let mut errs = Vec::new();
     for c in picks {
-        for (integrator, spp, every) in [("forward+collision", 300_000, 1), ("backward+collision", 60_000, 6)] {
+        for (integrator, spp, every) in [
+            ("forward+collision", 300_000, 1),
+            ("backward+collision", 60_000, 6),
+        ] {
             if let Err(e) = run_case(&all, c, integrator, spp, every) {
                 errs.push(e);
             }

@@ -31,7 +31,13 @@ fn load_rows() -> Vec<RefRow> {
         let text = std::fs::read_to_string(data_dir().join("disort").join(f)).unwrap();
         for l in text.lines().skip(1) {
             let c: Vec<&str> = l.split(',').collect();
-            let opt = |s: &str| if s.is_empty() { None } else { Some(s.parse::<f64>().unwrap()) };
+            let opt = |s: &str| {
+                if s.is_empty() {
+                    None
+                } else {
+                    Some(s.parse::<f64>().unwrap())
+                }
+            };
             out.push(RefRow {
                 case: c[0].to_string(),
                 raa: opt(c[6]),
@@ -47,7 +53,12 @@ fn load_rows() -> Vec<RefRow> {
 fn load_cases() -> Vec<Table> {
     let text = std::fs::read_to_string(data_dir().join("disort/cases.toml")).unwrap();
     let t: Table = text.parse().unwrap();
-    t["case"].as_array().unwrap().iter().map(|v| v.as_table().unwrap().clone()).collect()
+    t["case"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_table().unwrap().clone())
+        .collect()
 }
 
 /// The experiment for one case; `measures` are appended.
@@ -55,7 +66,10 @@ fn experiment_for(case: &Table, integrator: &str, measures: Vec<Value>) -> Strin
     let mut t = Table::new();
     t.insert("seed".into(), Value::Integer(99));
     let mut spectral = Table::new();
-    spectral.insert("wavelengths".into(), Value::Array(vec![Value::Float(550.0)]));
+    spectral.insert(
+        "wavelengths".into(),
+        Value::Array(vec![Value::Float(550.0)]),
+    );
     t.insert("spectral".into(), Value::Table(spectral));
     let mut layers = Vec::new();
     for l in case["layers"].as_array().unwrap() {
@@ -91,8 +105,14 @@ fn mdistant(vza: &[f64], vaa: &[f64], spp: u64) -> Value {
     m.insert("id".into(), Value::String("toa".into()));
     m.insert("type".into(), Value::String("mdistant".into()));
     m.insert("construct".into(), Value::String("directions".into()));
-    m.insert("zeniths".into(), Value::Array(vza.iter().map(|v| Value::Float(*v)).collect()));
-    m.insert("azimuths".into(), Value::Array(vaa.iter().map(|v| Value::Float(*v)).collect()));
+    m.insert(
+        "zeniths".into(),
+        Value::Array(vza.iter().map(|v| Value::Float(*v)).collect()),
+    );
+    m.insert(
+        "azimuths".into(),
+        Value::Array(vaa.iter().map(|v| Value::Float(*v)).collect()),
+    );
     m.insert("spp".into(), Value::Integer(spp as i64));
     Value::Table(m)
 }
@@ -105,10 +125,19 @@ fn flux(spp: u64) -> Value {
     Value::Table(m)
 }
 
-fn run_case(case: &Table, all: &[RefRow], integrator: &str, spp: u64, every: usize) -> Result<(), String> {
+fn run_case(
+    case: &Table,
+    all: &[RefRow],
+    integrator: &str,
+    spp: u64,
+    every: usize,
+) -> Result<(), String> {
     let id = case["id"].as_str().unwrap();
-    let brf: Vec<&RefRow> =
-        all.iter().filter(|r| r.case == id && r.quantity == "brf").step_by(every).collect();
+    let brf: Vec<&RefRow> = all
+        .iter()
+        .filter(|r| r.case == id && r.quantity == "brf")
+        .step_by(every)
+        .collect();
     let vza: Vec<f64> = brf.iter().map(|r| r.vza.unwrap()).collect();
     // Sun at azimuth 0: the view azimuth equals raa.
     let vaa: Vec<f64> = brf.iter().map(|r| r.raa.unwrap()).collect();
@@ -124,12 +153,22 @@ fn run_case(case: &Table, all: &[RefRow], integrator: &str, spp: u64, every: usi
         .zip(&rows)
         .map(|(r, o)| {
             let (v, e) = o.brf.unwrap();
-            Cmp { label: format!("vza {} raa {}", r.vza.unwrap(), r.raa.unwrap()), reference: r.value, value: v, stderr: e }
+            Cmp {
+                label: format!("vza {} raa {}", r.vza.unwrap(), r.raa.unwrap()),
+                reference: r.value,
+                value: v,
+                stderr: e,
+            }
         })
         .collect();
     if let Some(a) = albedo {
         let (v, e) = rows.last().unwrap().albedo.unwrap();
-        cmps.push(Cmp { label: "TOA albedo".into(), reference: a.value, value: v, stderr: e });
+        cmps.push(Cmp {
+            label: "TOA albedo".into(),
+            reference: a.value,
+            value: v,
+            stderr: e,
+        });
     }
     check_all(&format!("DISORT case {id} [{integrator}]"), &cmps)
 }
@@ -137,15 +176,19 @@ fn run_case(case: &Table, all: &[RefRow], integrator: &str, spp: u64, every: usi
 #[test]
 fn forward_matches_disort_cases_b_to_e() {
     let all = load_rows();
-    let errs: Vec<String> =
-        load_cases().iter().filter_map(|c| run_case(c, &all, "forward", 1_500_000, 1).err()).collect();
+    let errs: Vec<String> = load_cases()
+        .iter()
+        .filter_map(|c| run_case(c, &all, "forward", 1_500_000, 1).err())
+        .collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 
 #[test]
 fn backward_matches_disort_cases_b_to_e() {
     let all = load_rows();
-    let errs: Vec<String> =
-        load_cases().iter().filter_map(|c| run_case(c, &all, "backward", 150_000, 7).err()).collect();
+    let errs: Vec<String> = load_cases()
+        .iter()
+        .filter_map(|c| run_case(c, &all, "backward", 150_000, 7).err())
+        .collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }

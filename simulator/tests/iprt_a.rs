@@ -39,24 +39,64 @@ fn load(name: &str) -> Vec<Row> {
         .map(|l| {
             let f: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
             Row {
-                zout: f[1], depol: f[0], sza: f[2], saa: f[3], va: f[4], phi: f[5], iquv: [f[6], f[7], f[8]], std: [f[10], f[11], f[12]] }
+                zout: f[1],
+                depol: f[0],
+                sza: f[2],
+                saa: f[3],
+                va: f[4],
+                phi: f[5],
+                iquv: [f[6], f[7], f[8]],
+                std: [f[10], f[11], f[12]],
+            }
         })
         .collect()
 }
 
 fn run_case(case: &str, rows: &[&Row], tau: f64, albedo: f64, spp: u64) -> Result<(), String> {
-    let phase = format!("{{ type = \"rayleigh\", depolarization = {:?} }}", rows[0].depol);
-    run_case_with(case, rows, &format!("optical_thickness = {tau:?}\nphase = {phase}"), albedo, spp)
+    let phase = format!(
+        "{{ type = \"rayleigh\", depolarization = {:?} }}",
+        rows[0].depol
+    );
+    run_case_with(
+        case,
+        rows,
+        &format!("optical_thickness = {tau:?}\nphase = {phase}"),
+        albedo,
+        spp,
+    )
 }
 
-fn run_case_with(case: &str, rows: &[&Row], atmosphere: &str, albedo: f64, spp: u64) -> Result<(), String> {
-    run_case_full(case, rows, atmosphere, &format!("type = \"lambertian\"\nreflectance = {albedo:?}"), "forward", spp)
+fn run_case_with(
+    case: &str,
+    rows: &[&Row],
+    atmosphere: &str,
+    albedo: f64,
+    spp: u64,
+) -> Result<(), String> {
+    run_case_full(
+        case,
+        rows,
+        atmosphere,
+        &format!("type = \"lambertian\"\nreflectance = {albedo:?}"),
+        "forward",
+        spp,
+    )
 }
 
-fn run_case_full(case: &str, rows: &[&Row], atmosphere: &str, surface: &str, integrator: &str, spp: u64) -> Result<(), String> {
+fn run_case_full(
+    case: &str,
+    rows: &[&Row],
+    atmosphere: &str,
+    surface: &str,
+    integrator: &str,
+    spp: u64,
+) -> Result<(), String> {
     let r0 = rows[0];
     let vza: Vec<f64> = rows.iter().map(|r| 180.0 - r.va).collect();
-    let vaa: Vec<f64> = rows.iter().map(|r| (r.phi + 180.0).rem_euclid(360.0)).collect();
+    let vaa: Vec<f64> = rows
+        .iter()
+        .map(|r| (r.phi + 180.0).rem_euclid(360.0))
+        .collect();
     let text = format!(
         "seed = 5\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\n{atmosphere}\n\
          [surface]\n{surface}\n\
@@ -74,7 +114,12 @@ fn run_case_full(case: &str, rows: &[&Row], atmosphere: &str, surface: &str, int
         for (c, name) in ["I", "Q", "U"].iter().enumerate() {
             let (v, e) = ours[c];
             let se = (e * e + (k * r.std[c]).powi(2)).sqrt();
-            cmps.push(Cmp { label: format!("{name} va {} phi {}", r.va, r.phi), reference: k * r.iquv[c], value: v, stderr: se });
+            cmps.push(Cmp {
+                label: format!("{name} va {} phi {}", r.va, r.phi),
+                reference: k * r.iquv[c],
+                value: v,
+                stderr: se,
+            });
         }
     }
     check_all(case, &cmps)
@@ -90,7 +135,13 @@ fn iprt_a1_rayleigh_black_surface() {
             .filter(|r| r.sza == sza && r.saa == saa && r.depol == depol && (r.va as i64) % 10 == 0)
             .collect();
         assert!(!sub.is_empty());
-        if let Err(e) = run_case(&format!("IPRT A1 sza {sza} saa {saa} depol {depol}"), &sub, 0.5, 0.0, 200_000) {
+        if let Err(e) = run_case(
+            &format!("IPRT A1 sza {sza} saa {saa} depol {depol}"),
+            &sub,
+            0.5,
+            0.0,
+            200_000,
+        ) {
             errs.push(e);
         }
     }
@@ -107,7 +158,10 @@ fn iprt_a2_rayleigh_lambertian() {
 #[test]
 fn iprt_a3_a4_aerosol_phase_matrices() {
     let mut errs = Vec::new();
-    for (file, table, ssa) in [("a3_toa.dat", "waso.mie.cdf", 0.97568), ("a4_toa.dat", "sizedistr_spheroid.cdf", 0.787581)] {
+    for (file, table, ssa) in [
+        ("a3_toa.dat", "waso.mie.cdf", 0.97568),
+        ("a4_toa.dat", "sizedistr_spheroid.cdf", 0.787581),
+    ] {
         let rows = load(file);
         let sub: Vec<&Row> = rows.iter().collect();
         let atm = format!(
@@ -132,8 +186,19 @@ fn iprt_a6_ocean() {
     let surf = "type = \"ocean\"\nwind_speed = 2.0\nrefractive_index = 1.33";
     let mut errs = Vec::new();
     for (integrator, spp) in [("forward", 400_000), ("backward", 30_000)] {
-        let pick: Vec<&Row> = if integrator == "backward" { sub.iter().copied().step_by(9).collect() } else { sub.clone() };
-        if let Err(e) = run_case_full(&format!("IPRT A6 ocean [{integrator}]"), &pick, atm, surf, integrator, spp) {
+        let pick: Vec<&Row> = if integrator == "backward" {
+            sub.iter().copied().step_by(9).collect()
+        } else {
+            sub.clone()
+        };
+        if let Err(e) = run_case_full(
+            &format!("IPRT A6 ocean [{integrator}]"),
+            &pick,
+            atm,
+            surf,
+            integrator,
+            spp,
+        ) {
             errs.push(e);
         }
     }
@@ -147,7 +212,10 @@ fn iprt_a6_ocean() {
 #[test]
 fn iprt_a1_a2_bottom_of_layer() {
     let mut errs = Vec::new();
-    for (file, tau, albedo, spp) in [("a1_boa.dat", 0.5, 0.0, 80_000u64), ("a2_boa.dat", 0.1, 0.3, 80_000)] {
+    for (file, tau, albedo, spp) in [
+        ("a1_boa.dat", 0.5, 0.0, 80_000u64),
+        ("a2_boa.dat", 0.1, 0.3, 80_000),
+    ] {
         let rows = load(file);
         let mut groups: Vec<(f64, f64, f64)> = Vec::new();
         for r in &rows {
@@ -157,10 +225,14 @@ fn iprt_a1_a2_bottom_of_layer() {
             }
         }
         for (sza, saa, depol) in groups {
-            let sub: Vec<&Row> = rows.iter().filter(|r| (r.sza, r.saa, r.depol) == (sza, saa, depol)).collect();
+            let sub: Vec<&Row> = rows
+                .iter()
+                .filter(|r| (r.sza, r.saa, r.depol) == (sza, saa, depol))
+                .collect();
             let mut measures = String::new();
             for (k, r) in sub.iter().enumerate() {
-                let look = simulator::frame::direction_from_angles(r.va.to_radians(), r.phi.to_radians());
+                let look =
+                    simulator::frame::direction_from_angles(r.va.to_radians(), r.phi.to_radians());
                 measures += &format!(
                     "[[measures]]\nid = \"m{k}\"\ntype = \"radiancemeter\"\norigin = [0.0, 0.0, 0.0]\ndirection = [{:?}, {:?}, {:?}]\nframe_azimuth = {:?}\nspp = {spp}\n",
                     look.x,
@@ -185,10 +257,18 @@ fn iprt_a1_a2_bottom_of_layer() {
                 for (c, name) in ["I", "Q", "U"].iter().enumerate() {
                     let (v, e) = ours[c];
                     let se = (e * e + (k * r.std[c]).powi(2)).sqrt();
-                    cmps.push(Cmp { label: format!("{name} va {} phi {}", r.va, r.phi), reference: k * r.iquv[c], value: v, stderr: se });
+                    cmps.push(Cmp {
+                        label: format!("{name} va {} phi {}", r.va, r.phi),
+                        reference: k * r.iquv[c],
+                        value: v,
+                        stderr: se,
+                    });
                 }
             }
-            if let Err(e) = check_all(&format!("IPRT {file} sza {sza} saa {saa} depol {depol} (bottom)"), &cmps) {
+            if let Err(e) = check_all(
+                &format!("IPRT {file} sza {sza} saa {saa} depol {depol} (bottom)"),
+                &cmps,
+            ) {
                 errs.push(e);
             }
         }

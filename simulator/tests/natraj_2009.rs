@@ -31,12 +31,19 @@ fn table(component: &str, tau: &str, albedo: &str) -> Vec<(f64, f64, [f64; 7])> 
         if !inside {
             continue;
         }
-        let f: Vec<f64> = t.split_whitespace().filter_map(|x| x.parse().ok()).collect();
+        let f: Vec<f64> = t
+            .split_whitespace()
+            .filter_map(|x| x.parse().ok())
+            .collect();
         if f.len() == 9 {
             out.push((f[0], f[1], [f[2], f[3], f[4], f[5], f[6], f[7], f[8]]));
         }
     }
-    assert!(!out.is_empty(), "no block albedo = {albedo} in {}", path.display());
+    assert!(
+        !out.is_empty(),
+        "no block albedo = {albedo} in {}",
+        path.display()
+    );
     out
 }
 
@@ -47,13 +54,27 @@ fn run_case(tau: &str, albedo: &str, mu0: f64, spp: u64) -> Result<(), String> {
     run_case_with(tau, albedo, mu0, spp, "forward", 1)
 }
 
-fn run_case_with(tau: &str, albedo: &str, mu0: f64, spp: u64, integrator: &str, every: usize) -> Result<(), String> {
-    let (ti, tq, tu) = (table("I", tau, albedo), table("Q", tau, albedo), table("U", tau, albedo));
+fn run_case_with(
+    tau: &str,
+    albedo: &str,
+    mu0: f64,
+    spp: u64,
+    integrator: &str,
+    every: usize,
+) -> Result<(), String> {
+    let (ti, tq, tu) = (
+        table("I", tau, albedo),
+        table("Q", tau, albedo),
+        table("U", tau, albedo),
+    );
     let sza = mu0.acos().to_degrees();
     let (mut vza, mut vaa, mut refs) = (Vec::new(), Vec::new(), Vec::new());
     for &mu in &MU {
         let pick = |t: &Vec<(f64, f64, [f64; 7])>| {
-            t.iter().find(|r| (r.0 - mu0).abs() < 1e-9 && (r.1 - mu).abs() < 1e-9).unwrap().2
+            t.iter()
+                .find(|r| (r.0 - mu0).abs() < 1e-9 && (r.1 - mu).abs() < 1e-9)
+                .unwrap()
+                .2
         };
         let (i, q, u) = (pick(&ti), pick(&tq), pick(&tu));
         for k in 0..7 {
@@ -79,11 +100,29 @@ fn run_case_with(tau: &str, albedo: &str, mu0: f64, spp: u64, integrator: &str, 
         let (vi, ei) = r.brf.unwrap();
         let (vq, eq) = r.brf_q.unwrap();
         let (vu, eu) = r.brf_u.unwrap();
-        cmps.push(Cmp { label: label("I"), reference: *i, value: vi, stderr: ei });
-        cmps.push(Cmp { label: label("Q"), reference: *q, value: vq, stderr: eq });
-        cmps.push(Cmp { label: label("U"), reference: *u, value: vu, stderr: eu });
+        cmps.push(Cmp {
+            label: label("I"),
+            reference: *i,
+            value: vi,
+            stderr: ei,
+        });
+        cmps.push(Cmp {
+            label: label("Q"),
+            reference: *q,
+            value: vq,
+            stderr: eq,
+        });
+        cmps.push(Cmp {
+            label: label("U"),
+            reference: *u,
+            value: vu,
+            stderr: eu,
+        });
     }
-    check_all(&format!("Natraj 2009 tau={tau} A={albedo} mu0={mu0} [{integrator}]"), &cmps)
+    check_all(
+        &format!("Natraj 2009 tau={tau} A={albedo} mu0={mu0} [{integrator}]"),
+        &cmps,
+    )
 }
 
 /// The polarized backward walk (adjoint transport of Mueller-matrix products, the walk behind
@@ -91,7 +130,12 @@ fn run_case_with(tau: &str, albedo: &str, mu0: f64, spp: u64, integrator: &str, 
 #[test]
 fn polarized_backward_matches_natraj_2009() {
     let mut errs = Vec::new();
-    for (tau, albedo, mu0) in [("0.1", "0.25", 0.6), ("0.5", "0.00", 0.2), ("0.5", "0.80", 0.6), ("0.5", "0.25", 1.0)] {
+    for (tau, albedo, mu0) in [
+        ("0.1", "0.25", 0.6),
+        ("0.5", "0.00", 0.2),
+        ("0.5", "0.80", 0.6),
+        ("0.5", "0.25", 1.0),
+    ] {
         if let Err(e) = run_case_with(tau, albedo, mu0, 40_000, "backward", 5) {
             errs.push(e);
         }
@@ -132,7 +176,10 @@ fn scalar_vs_vector() {
         );
         run_rows(&experiment(&text))
     };
-    let (s, v) = (run(false, "{ type = \"rayleigh\" }"), run(true, "{ type = \"rayleigh\" }"));
+    let (s, v) = (
+        run(false, "{ type = \"rayleigh\" }"),
+        run(true, "{ type = \"rayleigh\" }"),
+    );
     let mut max_rel: f64 = 0.0;
     for (a, b) in s.iter().zip(&v) {
         let ((x, ex), (y, ey)) = (a.brf.unwrap(), b.brf.unwrap());
@@ -145,13 +192,21 @@ fn scalar_vs_vector() {
     }
     println!("Rayleigh: largest significant |scalar/vector − 1| = {max_rel:.3}");
     assert!(max_rel > 0.01, "polarization effect not seen: {max_rel}");
-    let (s, v) = (run(false, "{ type = \"isotropic\" }"), run(true, "{ type = \"isotropic\" }"));
+    let (s, v) = (
+        run(false, "{ type = \"isotropic\" }"),
+        run(true, "{ type = \"isotropic\" }"),
+    );
     let cmps: Vec<Cmp> = s
         .iter()
         .zip(&v)
         .map(|(a, b)| {
             let ((x, ex), (y, ey)) = (a.brf.unwrap(), b.brf.unwrap());
-            Cmp { label: format!("vza {:?} vaa {:?}", a.vza, a.vaa), reference: x, value: y, stderr: (ex * ex + ey * ey).sqrt() }
+            Cmp {
+                label: format!("vza {:?} vaa {:?}", a.vza, a.vaa),
+                reference: x,
+                value: y,
+                stderr: (ex * ex + ey * ey).sqrt(),
+            }
         })
         .collect();
     check_all("isotropic: vector I vs scalar", &cmps).unwrap();
@@ -181,9 +236,18 @@ fn polarized_radiancemeter_matches_mdistant() {
     let (a, b) = (&rows[0], &rows[1]);
     assert_eq!(b.method, "backward");
     let mut cmps = Vec::new();
-    for (name, x, y) in [("I", a.brf, b.brf), ("Q", a.brf_q, b.brf_q), ("U", a.brf_u, b.brf_u)] {
+    for (name, x, y) in [
+        ("I", a.brf, b.brf),
+        ("Q", a.brf_q, b.brf_q),
+        ("U", a.brf_u, b.brf_u),
+    ] {
         let ((va, ea), (vb, eb)) = (x.unwrap(), y.unwrap());
-        cmps.push(Cmp { label: name.into(), reference: va, value: vb, stderr: (ea * ea + eb * eb).sqrt() });
+        cmps.push(Cmp {
+            label: name.into(),
+            reference: va,
+            value: vb,
+            stderr: (ea * ea + eb * eb).sqrt(),
+        });
     }
     check_all("polarized radiancemeter vs mdistant", &cmps).unwrap();
 }

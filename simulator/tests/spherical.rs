@@ -4,7 +4,14 @@
 mod common;
 use common::*;
 
-fn experiment_text(geometry: &str, atmosphere: &str, surface: &str, sza: f64, extra: &str, measures: &str) -> String {
+fn experiment_text(
+    geometry: &str,
+    atmosphere: &str,
+    surface: &str,
+    sza: f64,
+    extra: &str,
+    measures: &str,
+) -> String {
     format!(
         "seed = 21\n[spectral]\nwavelengths = [550.0]\n[geometry]\n{geometry}\n[atmosphere]\n{atmosphere}\n[surface]\n{surface}\n\
          [illumination]\ntype = \"directional\"\nzenith = {sza:?}\nazimuth = 0.0\n[integrator]\n{extra}\n{measures}"
@@ -15,7 +22,8 @@ fn experiment_text(geometry: &str, atmosphere: &str, surface: &str, sza: f64, ex
 /// reproduce the DISORT plane-parallel case A (Rayleigh τ 0.5, Lambertian 0.3, SZA 30° and 60°).
 #[test]
 fn huge_planet_equals_plane_parallel_disort() {
-    let text = std::fs::read_to_string(data_dir().join("fixtures/caseA_disort_public.csv")).unwrap();
+    let text =
+        std::fs::read_to_string(data_dir().join("fixtures/caseA_disort_public.csv")).unwrap();
     let mut errs = Vec::new();
     for sza in [30.0, 60.0] {
         let rows: Vec<(f64, f64, f64)> = text
@@ -24,7 +32,11 @@ fn huge_planet_equals_plane_parallel_disort() {
             .filter_map(|l| {
                 let f: Vec<&str> = l.split(',').collect();
                 let p = |i: usize| f[i].parse::<f64>().unwrap();
-                (p(2) == 0.5 && p(3) == 0.3 && p(4) == sza && f[5] == "principal" && (p(7) as i64) % 20 == 0)
+                (p(2) == 0.5
+                    && p(3) == 0.3
+                    && p(4) == sza
+                    && f[5] == "principal"
+                    && (p(7) as i64) % 20 == 0)
                     .then(|| (p(8), p(6), p(10)))
             })
             .collect();
@@ -47,10 +59,18 @@ fn huge_planet_equals_plane_parallel_disort() {
                 .zip(&out)
                 .map(|(r, o)| {
                     let (v, e) = o.brf.unwrap();
-                    Cmp { label: format!("vza {} raa {}", r.0, r.1), reference: r.2, value: v, stderr: e }
+                    Cmp {
+                        label: format!("vza {} raa {}", r.0, r.1),
+                        reference: r.2,
+                        value: v,
+                        stderr: e,
+                    }
                 })
                 .collect();
-            if let Err(e) = check_all(&format!("spherical R=1e7 km vs DISORT sza {sza} [{estimator}]"), &cmps) {
+            if let Err(e) = check_all(
+                &format!("spherical R=1e7 km vs DISORT sza {sza} [{estimator}]"),
+                &cmps,
+            ) {
                 errs.push(e);
             }
         }
@@ -64,7 +84,14 @@ fn huge_planet_equals_plane_parallel_disort() {
 fn earth_small_angles_equal_plane_parallel() {
     let atm = "type = \"homogeneous\"\noptical_thickness = 0.5\nphase = { type = \"hg\", g = 0.5 }";
     let surf = "type = \"lambertian\"\nreflectance = 0.2";
-    let m = |spp| mdistant_toml("toa", &[0.0, 10.0, 20.0, 20.0], &[0.0, 0.0, 0.0, 180.0], spp);
+    let m = |spp| {
+        mdistant_toml(
+            "toa",
+            &[0.0, 10.0, 20.0, 20.0],
+            &[0.0, 0.0, 0.0, 180.0],
+            spp,
+        )
+    };
     let sph = run_rows(&experiment(&experiment_text(
         "type = \"spherical_shell\"\ntoa_altitude = 10.0",
         atm,
@@ -86,7 +113,12 @@ fn earth_small_angles_equal_plane_parallel() {
         .zip(&pp)
         .map(|(s, p)| {
             let ((a, ea), (b, eb)) = (s.brf.unwrap(), p.brf.unwrap());
-            Cmp { label: format!("vza {:?} vaa {:?}", s.vza, s.vaa), reference: b, value: a, stderr: (ea * ea + eb * eb).sqrt() }
+            Cmp {
+                label: format!("vza {:?} vaa {:?}", s.vza, s.vaa),
+                reference: b,
+                value: a,
+                stderr: (ea * ea + eb * eb).sqrt(),
+            }
         })
         .collect();
     check_all("spherical (Earth) vs plane-parallel, SZA 10", &cmps).unwrap();
@@ -144,7 +176,8 @@ fn single_scattering_by_quadrature() {
                 let t_sun = depth(mid, sun, 1_500_000.0).map_or(0.0, |t| (-t).exp());
                 let cos = sun.dot(look);
                 let p = 0.75 * (1.0 + cos * cos);
-                l += s * ds * (-(tau_view + 0.5 * s * ds)).exp() * p / (4.0 * std::f64::consts::PI) * t_sun;
+                l += s * ds * (-(tau_view + 0.5 * s * ds)).exp() * p / (4.0 * std::f64::consts::PI)
+                    * t_sun;
             }
             tau_view += s * ds;
             q += look * ds;
@@ -158,8 +191,18 @@ fn single_scattering_by_quadrature() {
         ("nadir sza 40", [0.0, 0.0, top], [0.0, 0.0, -1.0], 40.0),
         ("oblique sza 60", [0.0, -80.0, top], [0.0, 0.6, -0.8], 60.0),
         // Limb: start 2000 km before the tangent point, looking horizontally along +y.
-        ("limb h 15 km sza 70", [0.0, -2000.0, limb_h], [0.0, 1.0, 0.0], 70.0),
-        ("twilight nadir sza 95", [0.0, 0.0, top], [0.0, 0.0, -1.0], 95.0),
+        (
+            "limb h 15 km sza 70",
+            [0.0, -2000.0, limb_h],
+            [0.0, 1.0, 0.0],
+            70.0,
+        ),
+        (
+            "twilight nadir sza 95",
+            [0.0, 0.0, top],
+            [0.0, 0.0, -1.0],
+            95.0,
+        ),
     ];
     let mut cmps = Vec::new();
     for (label, o, d, sza) in &cases {
@@ -183,7 +226,12 @@ fn single_scattering_by_quadrature() {
         // The instrument may start outside the atmosphere: the quadrature simply finds σ = 0 there.
         let r = reference(origin, look, *sza);
         println!("{label}: simulate {v:.6e} ± {e:.1e}, quadrature {r:.6e}");
-        cmps.push(Cmp { label: label.to_string(), reference: r, value: v, stderr: e });
+        cmps.push(Cmp {
+            label: label.to_string(),
+            reference: r,
+            value: v,
+            stderr: e,
+        });
     }
     // The quadrature's own error (20 m steps) is below 1e-4 relative; the floor covers it.
     check_all("spherical single scattering vs quadrature", &cmps).unwrap();
@@ -208,7 +256,10 @@ fn earth_shadow() {
         let rows = run_rows(&experiment(&text));
         let (l, e) = rows[0].radiance.unwrap();
         println!("sza {sza}: radiance {l:.4e} ± {e:.1e}");
-        assert!(l < last, "radiance must decrease as the Sun sinks (sza {sza})");
+        assert!(
+            l < last,
+            "radiance must decrease as the Sun sinks (sza {sza})"
+        );
         if sza < 90.0 {
             assert!(rows[0].brf.is_some());
         } else {
@@ -230,7 +281,8 @@ fn earth_shadow() {
 #[test]
 fn polarized_huge_planet_equals_natraj() {
     let read = |c: &str| -> Vec<(f64, f64, Vec<f64>)> {
-        let text = std::fs::read_to_string(data_dir().join(format!("natraj_2009/{c}_UP_TAU_0.5"))).unwrap();
+        let text = std::fs::read_to_string(data_dir().join(format!("natraj_2009/{c}_UP_TAU_0.5")))
+            .unwrap();
         let mut inside = false;
         let mut out = Vec::new();
         for l in text.lines() {
@@ -239,7 +291,10 @@ fn polarized_huge_planet_equals_natraj() {
                 inside = a.trim() == "0.25";
                 continue;
             }
-            let f: Vec<f64> = t.split_whitespace().filter_map(|x| x.parse().ok()).collect();
+            let f: Vec<f64> = t
+                .split_whitespace()
+                .filter_map(|x| x.parse().ok())
+                .collect();
             if inside && f.len() == 9 {
                 out.push((f[0], f[1], f[2..].to_vec()));
             }
@@ -250,7 +305,13 @@ fn polarized_huge_planet_equals_natraj() {
     let mu0: f64 = 0.6;
     let (mut vza, mut vaa, mut refs) = (Vec::new(), Vec::new(), Vec::new());
     for mu in [0.4, 0.84] {
-        let pick = |t: &Vec<(f64, f64, Vec<f64>)>| t.iter().find(|r| r.0 == mu0 && r.1 == mu).unwrap().2.clone();
+        let pick = |t: &Vec<(f64, f64, Vec<f64>)>| {
+            t.iter()
+                .find(|r| r.0 == mu0 && r.1 == mu)
+                .unwrap()
+                .2
+                .clone()
+        };
         let (i, q, u) = (pick(&ti), pick(&tq), pick(&tu));
         for k in [0usize, 2, 4, 6] {
             let phi = 30.0 * k as f64;
@@ -269,9 +330,17 @@ fn polarized_huge_planet_equals_natraj() {
     let rows = run_rows(&experiment(&text));
     let mut cmps = Vec::new();
     for (r, (o, z)) in refs.iter().zip(rows.iter().zip(&vza)) {
-        for (k, (name, x)) in [("I", o.brf), ("Q", o.brf_q), ("U", o.brf_u)].into_iter().enumerate() {
+        for (k, (name, x)) in [("I", o.brf), ("Q", o.brf_q), ("U", o.brf_u)]
+            .into_iter()
+            .enumerate()
+        {
             let (v, e) = x.unwrap();
-            cmps.push(Cmp { label: format!("{name} vza {z:.1} vaa {:?}", o.vaa), reference: r[k], value: v, stderr: e });
+            cmps.push(Cmp {
+                label: format!("{name} vza {z:.1} vaa {:?}", o.vaa),
+                reference: r[k],
+                value: v,
+                stderr: e,
+            });
         }
     }
     check_all("polarized spherical R=1e7 km vs Natraj", &cmps).unwrap();

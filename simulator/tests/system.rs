@@ -5,7 +5,14 @@
 mod common;
 use common::*;
 
-fn base(atmosphere: &str, surface: &str, sza: f64, integrator: &str, extra: &str, measures: &str) -> String {
+fn base(
+    atmosphere: &str,
+    surface: &str,
+    sza: f64,
+    integrator: &str,
+    extra: &str,
+    measures: &str,
+) -> String {
     format!(
         r#"
 seed = 7
@@ -39,16 +46,20 @@ fn white_furnace() {
     let mut errs = Vec::new();
     for (integrator, spp) in [("forward", 40_000u64), ("backward", 20_000)] {
         for sza in [0.0, 35.0, 70.0] {
-            let measures = format!(
-                "[[measures]]\nid = \"toa\"\ntype = \"distant_flux\"\nspp = {spp}\n"
-            );
+            let measures =
+                format!("[[measures]]\nid = \"toa\"\ntype = \"distant_flux\"\nspp = {spp}\n");
             let exp = experiment(&base(atm, surf, sza, integrator, "", &measures));
             let rows = run_rows(&exp);
             let cmps: Vec<Cmp> = rows
                 .iter()
                 .map(|r| {
                     let (v, e) = r.albedo.unwrap();
-                    Cmp { label: r.measure.clone(), reference: 1.0, value: v, stderr: e }
+                    Cmp {
+                        label: r.measure.clone(),
+                        reference: 1.0,
+                        value: v,
+                        stderr: e,
+                    }
                 })
                 .collect();
             if let Err(e) = check_all(&format!("white furnace sza {sza} [{integrator}]"), &cmps) {
@@ -73,9 +84,19 @@ fn no_atmosphere_equals_bare_surface() {
         "type = \"hapke\"\nw = 0.5\nb = 0.3\nc = 0.4\ntheta = 15.0\nB_0 = 0.8\nh = 0.06",
     ];
     for surf in surfaces {
-        for atm in ["", "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0"] {
+        for atm in [
+            "",
+            "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0",
+        ] {
             for integrator in ["forward", "backward"] {
-                let exp = experiment(&base(atm, surf, 30.0, integrator, "", &mdistant_toml("toa", &VZA, &VAA, 100)));
+                let exp = experiment(&base(
+                    atm,
+                    surf,
+                    30.0,
+                    integrator,
+                    "",
+                    &mdistant_toml("toa", &VZA, &VAA, 100),
+                ));
                 let bsdf: &Bsdf = &exp.optics[0].surface;
                 let rows = run_rows(&exp);
                 for (r, (z, a)) in rows.iter().zip(VZA.iter().zip(VAA)) {
@@ -83,7 +104,8 @@ fn no_atmosphere_equals_bare_surface() {
                     let expect = std::f64::consts::PI * bsdf.eval(exp.sun_dir, v);
                     let (got, se) = r.brf.unwrap();
                     assert!(
-                        (got - expect).abs() <= 1e-12 * expect.max(1.0) && se <= 1e-7 * expect.max(1e-3),
+                        (got - expect).abs() <= 1e-12 * expect.max(1.0)
+                            && se <= 1e-7 * expect.max(1e-3),
                         "{surf} {atm} {integrator} vza {z}: {got} ± {se} vs {expect}"
                     );
                 }
@@ -133,14 +155,30 @@ fn single_scattering_closed_form() {
         ("backward", 40_000, "max_depth = 1"),
         ("forward", 200_000, ""),
     ] {
-        let exp = experiment(&base(&atm, &surf, sza, integrator, extra, &mdistant_toml("toa", &VZA, &VAA, spp)));
+        let exp = experiment(&base(
+            &atm,
+            &surf,
+            sza,
+            integrator,
+            extra,
+            &mdistant_toml("toa", &VZA, &VAA, spp),
+        ));
         let rows = run_rows(&exp);
         let cmps: Vec<Cmp> = rows
             .iter()
             .map(|r| {
-                let (v, e) = if extra.is_empty() { r.brf_single.unwrap() } else { r.brf.unwrap() };
+                let (v, e) = if extra.is_empty() {
+                    r.brf_single.unwrap()
+                } else {
+                    r.brf.unwrap()
+                };
                 let (z, a) = (r.vza.unwrap(), r.vaa.unwrap());
-                Cmp { label: format!("vza {z} vaa {a}"), reference: reference(z, a), value: v, stderr: e }
+                Cmp {
+                    label: format!("vza {z} vaa {a}"),
+                    reference: reference(z, a),
+                    value: v,
+                    stderr: e,
+                }
             })
             .collect();
         if let Err(e) = check_all(&format!("single scattering [{integrator} {extra}]"), &cmps) {
@@ -163,12 +201,18 @@ fn thread_count_independence() {
         );
         let exp = experiment(&base(atm, surf, 30.0, integrator, "", &measures));
         let run_with = |n: usize| {
-            let pool = rayon::ThreadPoolBuilder::new().num_threads(n).build().unwrap();
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap();
             pool.install(|| simulator::run::run(&exp, false))
         };
         let (a, b) = (run_with(1), run_with(2));
         for (x, y) in a.iter().zip(&b) {
-            assert_eq!(x.acc, y.acc, "{integrator}: results differ between 1 and 2 threads");
+            assert_eq!(
+                x.acc, y.acc,
+                "{integrator}: results differ between 1 and 2 threads"
+            );
         }
     }
 }
@@ -184,8 +228,15 @@ fn standard_errors_are_honest() {
         let mut means = Vec::new();
         let mut ses = Vec::new();
         for seed in 0..40u64 {
-            let text = base(atm, surf, 30.0, integrator, "", &mdistant_toml("toa", &[20.0], &[220.0], 4000))
-                .replace("seed = 7", &format!("seed = {seed}"));
+            let text = base(
+                atm,
+                surf,
+                30.0,
+                integrator,
+                "",
+                &mdistant_toml("toa", &[20.0], &[220.0], 4000),
+            )
+            .replace("seed = 7", &format!("seed = {seed}"));
             let rows = run_rows(&experiment(&text));
             let (v, e) = rows[0].brf.unwrap();
             means.push(v);
@@ -196,7 +247,9 @@ fn standard_errors_are_honest() {
         let sd = (means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
         let se = ses.iter().sum::<f64>() / n;
         let ratio = sd / se;
-        println!("{integrator}: empirical std {sd:.3e}, mean reported stderr {se:.3e}, ratio {ratio:.3}");
+        println!(
+            "{integrator}: empirical std {sd:.3e}, mean reported stderr {se:.3e}, ratio {ratio:.3}"
+        );
         assert!((0.7..1.35).contains(&ratio), "{integrator}: ratio {ratio}");
     }
 }
@@ -223,7 +276,9 @@ fn radiancemeter_matches_distant() {
     let (a, ae) = rows[0].brf.unwrap();
     let (b, be) = rows[1].brf.unwrap();
     assert_eq!(rows[1].method, "backward");
-    assert!((rows[1].vza.unwrap() - 30.0).abs() < 1e-9 && (rows[1].vaa.unwrap() - 220.0).abs() < 1e-9);
+    assert!(
+        (rows[1].vza.unwrap() - 30.0).abs() < 1e-9 && (rows[1].vaa.unwrap() - 220.0).abs() < 1e-9
+    );
     let z = (a - b).abs() / (ae * ae + be * be).sqrt();
     println!("mdistant {a} ± {ae}, radiancemeter {b} ± {be}, z = {z:.2}");
     assert!(z < 4.5, "z = {z}");
@@ -255,13 +310,32 @@ optical_thickness = 0.1
 single_scattering_albedo = 0.9
 "#;
     let surf = "type = \"rpv\"\nrho_0 = 0.15\nk = 0.7\ng = -0.15";
-    let m = |spp| format!("[[measures]]\nid = \"f\"\ntype = \"distant_flux\"\nspp = {spp}\n[[measures]]\nid = \"boa\"\ntype = \"distant_flux\"\naltitude = 1.0\nspp = {spp}\n");
-    let f = run_rows(&experiment(&base(atm, surf, 50.0, "forward", "", &m(400_000))));
-    let b = run_rows(&experiment(&base(atm, surf, 50.0, "backward", "", &m(100_000))));
+    let m = |spp| {
+        format!("[[measures]]\nid = \"f\"\ntype = \"distant_flux\"\nspp = {spp}\n[[measures]]\nid = \"boa\"\ntype = \"distant_flux\"\naltitude = 1.0\nspp = {spp}\n")
+    };
+    let f = run_rows(&experiment(&base(
+        atm,
+        surf,
+        50.0,
+        "forward",
+        "",
+        &m(400_000),
+    )));
+    let b = run_rows(&experiment(&base(
+        atm,
+        surf,
+        50.0,
+        "backward",
+        "",
+        &m(100_000),
+    )));
     for (x, y) in f.iter().zip(&b) {
         let ((a, ae), (c, ce)) = (x.albedo.unwrap(), y.albedo.unwrap());
         let z = (a - c).abs() / (ae * ae + ce * ce).sqrt();
-        println!("{}: forward {a:.5} ± {ae:.1e}, backward {c:.5} ± {ce:.1e}, z = {z:.2}", x.measure);
+        println!(
+            "{}: forward {a:.5} ± {ae:.1e}, backward {c:.5} ± {ce:.1e}, z = {z:.2}",
+            x.measure
+        );
         assert!(z < 4.5, "{}: z = {z}", x.measure);
     }
 }
@@ -298,7 +372,11 @@ fn molecular_equals_homogeneous() {
     )));
     for (x, y) in a.iter().zip(&b) {
         let (u, v) = (x.brf.unwrap().0, y.brf.unwrap().0);
-        assert!((u - v).abs() <= 1e-12 * v, "vza {:?}: layered {u} vs homogeneous {v}", x.vza);
+        assert!(
+            (u - v).abs() <= 1e-12 * v,
+            "vza {:?}: layered {u} vs homogeneous {v}",
+            x.vza
+        );
     }
 }
 
@@ -313,10 +391,13 @@ fn solar_spectrum_and_date() {
     let surf = "type = \"lambertian\"\nreflectance = 0.2";
     let m = mdistant_toml("toa", &[10.0, 50.0], &[0.0, 90.0], 2000);
     let a = run_rows(&experiment(&base(atm, surf, 30.0, "forward", "", &m)));
-    let text = base(atm, surf, 30.0, "forward", "", &m)
-        .replace("azimuth = 40.0\n", "azimuth = 40.0\nirradiance = \"tsis_1\"\ndate = \"2024-01-03\"\n");
+    let text = base(atm, surf, 30.0, "forward", "", &m).replace(
+        "azimuth = 40.0\n",
+        "azimuth = 40.0\nirradiance = \"tsis_1\"\ndate = \"2024-01-03\"\n",
+    );
     let b = run_rows(&experiment(&text));
-    let k = Spectrum::builtin("tsis_1").unwrap().at(550.0).unwrap() * earth_sun_factor(day_of_year("2024-01-03").unwrap());
+    let k = Spectrum::builtin("tsis_1").unwrap().at(550.0).unwrap()
+        * earth_sun_factor(day_of_year("2024-01-03").unwrap());
     for (x, y) in a.iter().zip(&b) {
         assert_eq!(x.brf, y.brf);
         let (ra, rb) = (x.radiance.unwrap().0, y.radiance.unwrap().0);
@@ -328,11 +409,20 @@ fn solar_spectrum_and_date() {
     )
     .unwrap_err()
     .to_string();
-    assert!(bad.contains("illumination.irradiance") && bad.contains("3000"), "{bad}");
-    let bad = simulator::config::Experiment::from_str(&text.replace("tsis_1", "no_such_sun"), std::path::Path::new("x.toml"))
-        .unwrap_err()
-        .to_string();
-    assert!(bad.contains("illumination.irradiance") && bad.contains("no_such_sun"), "{bad}");
+    assert!(
+        bad.contains("illumination.irradiance") && bad.contains("3000"),
+        "{bad}"
+    );
+    let bad = simulator::config::Experiment::from_str(
+        &text.replace("tsis_1", "no_such_sun"),
+        std::path::Path::new("x.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        bad.contains("illumination.irradiance") && bad.contains("no_such_sun"),
+        "{bad}"
+    );
 }
 
 /// Sensor bands: with `spectral.srf` the run samples the band and reports band-weighted values.
@@ -343,7 +433,11 @@ fn solar_spectrum_and_date() {
 fn band_weighted_outputs() {
     use simulator::solar::Spectrum;
     use simulator::srf::Srf;
-    let (wl, w) = Srf::builtin("sentinel_2a-msi-4").unwrap().unwrap().grid(2.0).unwrap();
+    let (wl, w) = Srf::builtin("sentinel_2a-msi-4")
+        .unwrap()
+        .unwrap()
+        .grid(2.0)
+        .unwrap();
     let rho: Vec<f64> = wl.iter().map(|l| 0.2 + 0.004 * (l - 650.0)).collect();
     let list: Vec<String> = rho.iter().map(|r| format!("{r:?}")).collect();
     let text = format!(
@@ -363,14 +457,21 @@ fn band_weighted_outputs() {
     let den: f64 = (0..wl.len()).map(|k| w[k] * e0[k]).sum();
     for b in &band {
         let (v, _) = b.brf.unwrap();
-        assert!((v / (num / den) - 1.0).abs() < 1e-12, "{v} vs {}", num / den);
+        assert!(
+            (v / (num / den) - 1.0).abs() < 1e-12,
+            "{v} vs {}",
+            num / den
+        );
         // Band radiance and band irradiance are consistent with the band BRF.
         let (l, _) = b.radiance.unwrap();
         let mu0 = 30f64.to_radians().cos();
         assert!((std::f64::consts::PI * l / (b.irradiance * mu0) / v - 1.0).abs() < 1e-12);
     }
-    let err = simulator::config::Experiment::from_str(&text.replace("sentinel_2a-msi-4", "sentinel_2a-msi-99"), std::path::Path::new("x.toml"))
-        .unwrap_err()
-        .to_string();
+    let err = simulator::config::Experiment::from_str(
+        &text.replace("sentinel_2a-msi-4", "sentinel_2a-msi-99"),
+        std::path::Path::new("x.toml"),
+    )
+    .unwrap_err()
+    .to_string();
     assert!(err.contains("spectral.srf") && err.contains("8a"), "{err}");
 }

@@ -63,7 +63,13 @@ impl PlaneParallel {
             phase.push(PhaseFunction::Hg(crate::phase::HenyeyGreenstein { g: 0.0 }));
         }
         let total_tau = *tau.last().unwrap();
-        Self { z, tau, albedo, phase, total_tau }
+        Self {
+            z,
+            tau,
+            albedo,
+            phase,
+            total_tau,
+        }
     }
 
     /// Vertical optical thickness of the whole atmosphere.
@@ -153,7 +159,11 @@ impl PlaneParallel {
             if self.total_tau > 0.0 && tau > 0.0 && tau < self.total_tau {
                 return FlightEnd::Collision(tau);
             }
-            return if dz >= 0.0 { FlightEnd::Escape } else { FlightEnd::Surface };
+            return if dz >= 0.0 {
+                FlightEnd::Escape
+            } else {
+                FlightEnd::Surface
+            };
         }
         let t = tau - s * dz;
         if t <= 0.0 {
@@ -244,9 +254,27 @@ mod tests {
     #[test]
     fn layering_and_lookup() {
         let layers = vec![
-            LayerOptics { bottom: 0.0, top: 2000.0, tau_sca: 0.3, tau_abs: 0.1, phase: ray() },
-            LayerOptics { bottom: 2000.0, top: 10_000.0, tau_sca: 0.0, tau_abs: 0.0, phase: ray() },
-            LayerOptics { bottom: 10_000.0, top: 100_000.0, tau_sca: 0.1, tau_abs: 0.0, phase: ray() },
+            LayerOptics {
+                bottom: 0.0,
+                top: 2000.0,
+                tau_sca: 0.3,
+                tau_abs: 0.1,
+                phase: ray(),
+            },
+            LayerOptics {
+                bottom: 2000.0,
+                top: 10_000.0,
+                tau_sca: 0.0,
+                tau_abs: 0.0,
+                phase: ray(),
+            },
+            LayerOptics {
+                bottom: 10_000.0,
+                top: 100_000.0,
+                tau_sca: 0.1,
+                tau_abs: 0.0,
+                phase: ray(),
+            },
         ];
         let a = PlaneParallel::new(layers, 0.0, 100_000.0);
         assert!((a.total_tau() - 0.5).abs() < 1e-15);
@@ -267,12 +295,36 @@ mod tests {
     #[test]
     fn flight_integrals_match_quadrature() {
         let layers = vec![
-            LayerOptics { bottom: 0.0, top: 2000.0, tau_sca: 0.3, tau_abs: 0.1, phase: ray() },
-            LayerOptics { bottom: 2000.0, top: 10_000.0, tau_sca: 0.0, tau_abs: 0.0, phase: ray() },
-            LayerOptics { bottom: 10_000.0, top: 100_000.0, tau_sca: 0.1, tau_abs: 0.0, phase: ray() },
+            LayerOptics {
+                bottom: 0.0,
+                top: 2000.0,
+                tau_sca: 0.3,
+                tau_abs: 0.1,
+                phase: ray(),
+            },
+            LayerOptics {
+                bottom: 2000.0,
+                top: 10_000.0,
+                tau_sca: 0.0,
+                tau_abs: 0.0,
+                phase: ray(),
+            },
+            LayerOptics {
+                bottom: 10_000.0,
+                top: 100_000.0,
+                tau_sca: 0.1,
+                tau_abs: 0.0,
+                phase: ray(),
+            },
         ];
         let atm = PlaneParallel::new(layers, 0.0, 100_000.0);
-        for &(tau_a, dz, b) in &[(0.0, -0.7, 2.0), (0.05, -0.3, 1.2), (0.5, 0.6, 1.0 / 0.6), (0.3, 0.2, 3.0), (0.45, 0.9, 1.1)] {
+        for &(tau_a, dz, b) in &[
+            (0.0, -0.7, 2.0),
+            (0.05, -0.3, 1.2),
+            (0.5, 0.6, 1.0 / 0.6),
+            (0.3, 0.2, 3.0),
+            (0.45, 0.9, 1.1),
+        ] {
             let mut got = [0.0; 3];
             atm.flight_integrals(tau_a, dz, b, |l, i| got[l] += i);
             let a = 1.0 / f64::abs(dz);
@@ -285,7 +337,12 @@ mod tests {
                 want[l] += a * (-a * (t - tau_a).abs() - b * t).exp() * (hi - lo) / n as f64;
             }
             for l in 0..3 {
-                assert!((got[l] - want[l]).abs() < 2e-5, "tau_a {tau_a} dz {dz} layer {l}: {} vs {}", got[l], want[l]);
+                assert!(
+                    (got[l] - want[l]).abs() < 2e-5,
+                    "tau_a {tau_a} dz {dz} layer {l}: {} vs {}",
+                    got[l],
+                    want[l]
+                );
             }
         }
     }

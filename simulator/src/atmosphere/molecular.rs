@@ -21,23 +21,71 @@
 
 /// The six AFGL 1986 profiles: (config name, CSV text).
 pub const PROFILES: [(&str, &str); 6] = [
-    ("afgl_1986-tropical", include_str!("../../data/afgl_1986/table_1a.csv")),
-    ("afgl_1986-midlatitude_summer", include_str!("../../data/afgl_1986/table_1b.csv")),
-    ("afgl_1986-midlatitude_winter", include_str!("../../data/afgl_1986/table_1c.csv")),
-    ("afgl_1986-subarctic_summer", include_str!("../../data/afgl_1986/table_1d.csv")),
-    ("afgl_1986-subarctic_winter", include_str!("../../data/afgl_1986/table_1e.csv")),
-    ("afgl_1986-us_standard", include_str!("../../data/afgl_1986/table_1f.csv")),
+    (
+        "afgl_1986-tropical",
+        include_str!("../../data/afgl_1986/table_1a.csv"),
+    ),
+    (
+        "afgl_1986-midlatitude_summer",
+        include_str!("../../data/afgl_1986/table_1b.csv"),
+    ),
+    (
+        "afgl_1986-midlatitude_winter",
+        include_str!("../../data/afgl_1986/table_1c.csv"),
+    ),
+    (
+        "afgl_1986-subarctic_summer",
+        include_str!("../../data/afgl_1986/table_1d.csv"),
+    ),
+    (
+        "afgl_1986-subarctic_winter",
+        include_str!("../../data/afgl_1986/table_1e.csv"),
+    ),
+    (
+        "afgl_1986-us_standard",
+        include_str!("../../data/afgl_1986/table_1f.csv"),
+    ),
 ];
 
 /// Air King correction factor of Bates (1984, eq. 15) at 200 nm … 1 µm (Eradiate's tabulation
 /// `bates_1984.nc`): (wavelength µm, F_K).
 const KING: [(f64, f64); 36] = [
-    (0.2, 1.08), (0.205, 1.077), (0.21, 1.074), (0.215, 1.072), (0.22, 1.07), (0.225, 1.068),
-    (0.23, 1.066), (0.24, 1.064), (0.25, 1.062), (0.26, 1.06), (0.27, 1.059), (0.28, 1.057),
-    (0.29, 1.056), (0.3, 1.055), (0.31, 1.055), (0.32, 1.054), (0.33, 1.053), (0.34, 1.053),
-    (0.35, 1.052), (0.36, 1.052), (0.37, 1.052), (0.38, 1.051), (0.39, 1.051), (0.4, 1.051),
-    (0.45, 1.05), (0.5, 1.049), (0.55, 1.049), (0.6, 1.048), (0.65, 1.048), (0.7, 1.048),
-    (0.75, 1.048), (0.8, 1.047), (0.85, 1.047), (0.9, 1.047), (0.95, 1.047), (1.0, 1.047),
+    (0.2, 1.08),
+    (0.205, 1.077),
+    (0.21, 1.074),
+    (0.215, 1.072),
+    (0.22, 1.07),
+    (0.225, 1.068),
+    (0.23, 1.066),
+    (0.24, 1.064),
+    (0.25, 1.062),
+    (0.26, 1.06),
+    (0.27, 1.059),
+    (0.28, 1.057),
+    (0.29, 1.056),
+    (0.3, 1.055),
+    (0.31, 1.055),
+    (0.32, 1.054),
+    (0.33, 1.053),
+    (0.34, 1.053),
+    (0.35, 1.052),
+    (0.36, 1.052),
+    (0.37, 1.052),
+    (0.38, 1.051),
+    (0.39, 1.051),
+    (0.4, 1.051),
+    (0.45, 1.05),
+    (0.5, 1.049),
+    (0.55, 1.049),
+    (0.6, 1.048),
+    (0.65, 1.048),
+    (0.7, 1.048),
+    (0.75, 1.048),
+    (0.8, 1.047),
+    (0.85, 1.047),
+    (0.9, 1.047),
+    (0.95, 1.047),
+    (1.0, 1.047),
 ];
 
 /// Loschmidt-like number density of standard air (288.15 K, 1013.25 hPa), m⁻³.
@@ -64,22 +112,43 @@ impl Profile {
     /// Parse AFGL-style CSV with columns `z` (km) and `n` (cm⁻³) among others.
     pub fn from_csv(name: &str, text: &str) -> Result<Profile, String> {
         let mut lines = text.lines().filter(|l| !l.trim().is_empty());
-        let header: Vec<&str> = lines.next().ok_or("empty profile")?.split(',').map(str::trim).collect();
-        let col = |c: &str| header.iter().position(|h| h.eq_ignore_ascii_case(c)).ok_or(format!("no column `{c}`"));
+        let header: Vec<&str> = lines
+            .next()
+            .ok_or("empty profile")?
+            .split(',')
+            .map(str::trim)
+            .collect();
+        let col = |c: &str| {
+            header
+                .iter()
+                .position(|h| h.eq_ignore_ascii_case(c))
+                .ok_or(format!("no column `{c}`"))
+        };
         let (iz, in_) = (col("z")?, col("n")?);
         let (mut z, mut n) = (Vec::new(), Vec::new());
         for (k, l) in lines.enumerate() {
             let f: Vec<&str> = l.split(',').collect();
             let parse = |i: usize| -> Result<f64, String> {
-                f.get(i).and_then(|v| v.trim().parse().ok()).ok_or(format!("row {}: bad number in column {}", k + 2, i + 1))
+                f.get(i).and_then(|v| v.trim().parse().ok()).ok_or(format!(
+                    "row {}: bad number in column {}",
+                    k + 2,
+                    i + 1
+                ))
             };
             z.push(parse(iz)? * 1e3);
             n.push(parse(in_)? * 1e6);
         }
-        if z.len() < 2 || z.windows(2).any(|w| w[1] <= w[0]) || n.iter().any(|v| !(*v > 0.0)) {
+        if z.len() < 2
+            || z.windows(2).any(|w| w[1] <= w[0])
+            || n.iter().any(|v| v.is_nan() || *v <= 0.0)
+        {
             return Err("altitudes must increase and number densities be positive".into());
         }
-        Ok(Profile { name: name.into(), z, n })
+        Ok(Profile {
+            name: name.into(),
+            z,
+            n,
+        })
     }
 
     /// Column number density `∫_a^b n dz` (m⁻²), exponential interpolation between levels.
@@ -94,7 +163,11 @@ impl Profile {
             let (n0, n1) = (self.n[i], self.n[i + 1]);
             let k = (n1 / n0).ln() / (z1 - z0); // n = n0 e^{k (z − z0)}
             let at = |z: f64| n0 * (k * (z - z0)).exp();
-            sum += if k.abs() < 1e-15 { n0 * (hi - lo) } else { (at(hi) - at(lo)) / k };
+            sum += if k.abs() < 1e-15 {
+                n0 * (hi - lo)
+            } else {
+                (at(hi) - at(lo)) / k
+            };
         }
         sum
     }
@@ -136,7 +209,8 @@ pub fn rayleigh_cross_section(wavelength_nm: f64) -> f64 {
     let n = refractive_index_standard_air(wavelength_nm);
     let lam = wavelength_nm * 1e-9;
     let r = (n * n - 1.0) / (n * n + 2.0);
-    24.0 * std::f64::consts::PI.powi(3) * r * r / (lam.powi(4) * N_STANDARD_AIR * N_STANDARD_AIR) * king_factor(wavelength_nm)
+    24.0 * std::f64::consts::PI.powi(3) * r * r / (lam.powi(4) * N_STANDARD_AIR * N_STANDARD_AIR)
+        * king_factor(wavelength_nm)
 }
 
 #[cfg(test)]
@@ -150,9 +224,13 @@ mod tests {
     fn cross_sections() {
         let s550 = rayleigh_cross_section(550.0);
         assert!((s550 / 4.513e-31 - 1.0).abs() < 5e-3, "{s550:e}");
-        let shape = |w: f64| (refractive_index_standard_air(w) - 1.0).powi(2) * king_factor(w) / w.powi(4);
+        let shape =
+            |w: f64| (refractive_index_standard_air(w) - 1.0).powi(2) * king_factor(w) / w.powi(4);
         let ratio = rayleigh_cross_section(400.0) / s550;
-        assert!((ratio / (shape(400.0) / shape(550.0)) - 1.0).abs() < 1e-3, "{ratio}");
+        assert!(
+            (ratio / (shape(400.0) / shape(550.0)) - 1.0).abs() < 1e-3,
+            "{ratio}"
+        );
     }
 
     /// The Rayleigh optical thickness of the US standard atmosphere at 550 nm is about 0.097
@@ -167,7 +245,9 @@ mod tests {
         println!("US standard Rayleigh tau(550 nm) = {tau:.5}");
         assert!((tau - 0.0973).abs() < 0.001, "tau = {tau}");
         // Splitting the column into layers changes nothing.
-        let layered: f64 = (0..120).map(|k| p.column(k as f64 * 1e3, (k + 1) as f64 * 1e3)).sum();
+        let layered: f64 = (0..120)
+            .map(|k| p.column(k as f64 * 1e3, (k + 1) as f64 * 1e3))
+            .sum();
         assert!((layered / col - 1.0).abs() < 1e-12);
     }
 
@@ -178,6 +258,8 @@ mod tests {
         let r = depolarization(550.0);
         assert!(((6.0 + 3.0 * r) / (6.0 - 7.0 * r) - king_factor(550.0)).abs() < 1e-12);
         assert!((r - 0.0284).abs() < 1e-4, "{r}");
-        assert!(Profile::builtin("nope").unwrap_err().contains("afgl_1986-us_standard"));
+        assert!(Profile::builtin("nope")
+            .unwrap_err()
+            .contains("afgl_1986-us_standard"));
     }
 }

@@ -58,12 +58,22 @@ impl SphericalShell {
             let (z_top, tau_top) = b[i];
             let (z_bot, tau_bot) = b[i + 1];
             let dz = z_top - z_bot;
-            sigma.push(if dz > 0.0 { (tau_bot - tau_top) / dz } else { 0.0 });
+            sigma.push(if dz > 0.0 {
+                (tau_bot - tau_top) / dz
+            } else {
+                0.0
+            });
             albedo.push(pp.albedo(i));
             phase.push(pp.phase(i).clone());
             radius.push(planet_radius + z_top);
         }
-        Self { radius, sigma, albedo, phase, planet_radius }
+        Self {
+            radius,
+            sigma,
+            albedo,
+            phase,
+            planet_radius,
+        }
     }
 
     pub fn ground_radius(&self) -> f64 {
@@ -174,7 +184,8 @@ impl SphericalShell {
     /// Transmittance from `p` to space along `d` (0 in the planet's shadow).
     #[inline]
     pub fn transmittance_to_space(&self, p: DVec3, l: usize, d: DVec3) -> f64 {
-        self.optical_depth_to_space(p, l, d).map_or(0.0, |t| (-t).exp())
+        self.optical_depth_to_space(p, l, d)
+            .map_or(0.0, |t| (-t).exp())
     }
 
     /// Where the ray from `p` along `d` enters the atmosphere from space, if it does (`p` outside
@@ -206,8 +217,20 @@ mod tests {
     fn shell(r: f64) -> SphericalShell {
         let ray = PhaseFunction::Rayleigh(Rayleigh::new(0.0).unwrap());
         let layers = vec![
-            LayerOptics { bottom: 0.0, top: 10_000.0, tau_sca: 0.3, tau_abs: 0.0, phase: ray.clone() },
-            LayerOptics { bottom: 10_000.0, top: 100_000.0, tau_sca: 0.2, tau_abs: 0.0, phase: ray },
+            LayerOptics {
+                bottom: 0.0,
+                top: 10_000.0,
+                tau_sca: 0.3,
+                tau_abs: 0.0,
+                phase: ray.clone(),
+            },
+            LayerOptics {
+                bottom: 10_000.0,
+                top: 100_000.0,
+                tau_sca: 0.2,
+                tau_abs: 0.0,
+                phase: ray,
+            },
         ];
         SphericalShell::new(&PlaneParallel::new(layers, 0.0, 100_000.0), r)
     }
@@ -221,7 +244,12 @@ mod tests {
         let up = s.optical_depth_to_space(g, 0, DVec3::Z).unwrap();
         assert!((up - 0.5).abs() < 1e-9, "{up}");
         let mid = DVec3::new(0.0, 0.0, s.ground_radius() + 10_000.0 + 1.0);
-        assert!((s.optical_depth_to_space(mid, 1, DVec3::Z).unwrap() - 0.2 * (90_000.0 - 1.0) / 90_000.0).abs() < 1e-9);
+        assert!(
+            (s.optical_depth_to_space(mid, 1, DVec3::Z).unwrap()
+                - 0.2 * (90_000.0 - 1.0) / 90_000.0)
+                .abs()
+                < 1e-9
+        );
         // A very large planet behaves like a plane-parallel slab at 60°.
         let big = shell(1e12);
         let g = DVec3::new(0.0, 0.0, big.ground_radius() + 1e-3);
@@ -231,7 +259,9 @@ mod tests {
         // Downwards: into the ground.
         assert!(s.optical_depth_to_space(mid, 1, -DVec3::Z).is_none());
         // Horizontal ray from the ground top: grazing path through the whole atmosphere.
-        let h = s.optical_depth_to_space(g.normalize() * (s.ground_radius() + 1.0), 0, DVec3::X).unwrap();
+        let h = s
+            .optical_depth_to_space(g.normalize() * (s.ground_radius() + 1.0), 0, DVec3::X)
+            .unwrap();
         assert!(h > 10.0, "{h}");
     }
 

@@ -15,7 +15,11 @@ use simulator::error::ConfigError;
 use simulator::products;
 
 #[derive(Parser)]
-#[command(name = "simulate", version, about = "Monte Carlo radiative transfer for Earth-observation scenes")]
+#[command(
+    name = "simulate",
+    version,
+    about = "Monte Carlo radiative transfer for Earth-observation scenes"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -41,9 +45,7 @@ enum Command {
         fresh: bool,
     },
     /// Validate an experiment file without running it.
-    Check {
-        experiment: PathBuf,
-    },
+    Check { experiment: PathBuf },
     /// Time-to-precision benchmark on the reference workload (see BENCHMARKS.md).
     Bench {
         /// Target relative standard error in every direction.
@@ -90,7 +92,10 @@ fn main() -> ExitCode {
 
 fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
     if let Some(n) = threads {
-        rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global().context("thread pool")?;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n.max(1))
+            .build_global()
+            .context("thread pool")?;
     }
     Ok(())
 }
@@ -107,7 +112,13 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Run { experiment, output, threads, quiet, fresh } => {
+        Command::Run {
+            experiment,
+            output,
+            threads,
+            quiet,
+            fresh,
+        } => {
             set_threads(threads)?;
             let exp = Experiment::load(&experiment)?;
             std::fs::create_dir_all(&output)
@@ -126,7 +137,10 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             }
             let (results, resumed) = simulator::run::run_resumable(&exp, !quiet, &ckpt)?;
             if resumed > 0 {
-                tracing::info!("resumed {resumed} completed task(s) from {}", ckpt.display());
+                tracing::info!(
+                    "resumed {resumed} completed task(s) from {}",
+                    ckpt.display()
+                );
             }
             let rows = products::rows(&exp, &results);
             let csv = output.join("results.csv");
@@ -139,17 +153,33 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 products::csv::write_band(&path, &band)?;
                 for b in &band {
                     if let Some((v, e)) = b.brf.or(b.albedo) {
-                        println!("{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}", b.measure, b.band, b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into()));
+                        println!(
+                            "{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}",
+                            b.measure,
+                            b.band,
+                            b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into())
+                        );
                     }
                 }
             }
             print_summary(&rows);
             // Products are complete: the checkpoints are no longer needed.
             let _ = std::fs::remove_dir_all(&ckpt);
-            tracing::info!("done in {:.2} s: wrote {} and {}", t0.elapsed().as_secs_f64(), csv.display(), nc.display());
+            tracing::info!(
+                "done in {:.2} s: wrote {} and {}",
+                t0.elapsed().as_secs_f64(),
+                csv.display(),
+                nc.display()
+            );
             Ok(())
         }
-        Command::Bench { target, method, polarized, spherical, threads } => {
+        Command::Bench {
+            target,
+            method,
+            polarized,
+            spherical,
+            threads,
+        } => {
             set_threads(threads)?;
             simulator::bench::run(target, &method, polarized, spherical)
         }
@@ -157,7 +187,10 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
 }
 
 fn print_summary(rows: &[products::Row]) {
-    println!("{:<16} {:>9} {:>8} {:>8} {:>12} {:>10}", "measure", "wl [nm]", "vza", "vaa", "value", "rel.err");
+    println!(
+        "{:<16} {:>9} {:>8} {:>8} {:>12} {:>10}",
+        "measure", "wl [nm]", "vza", "vaa", "value", "rel.err"
+    );
     for r in rows {
         let (name, (v, e)) = match (r.brf, r.albedo, r.radiance, r.flux) {
             (Some(b), _, _, _) => ("brf", b),
@@ -166,7 +199,10 @@ fn print_summary(rows: &[products::Row]) {
             (None, None, None, Some(f)) => ("flux", f),
             _ => continue,
         };
-        let ang = |x: Option<f64>| x.map(|a| format!("{a:8.2}")).unwrap_or_else(|| format!("{:>8}", "-"));
+        let ang = |x: Option<f64>| {
+            x.map(|a| format!("{a:8.2}"))
+                .unwrap_or_else(|| format!("{:>8}", "-"))
+        };
         println!(
             "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%",
             r.measure,

@@ -144,7 +144,10 @@ mod tests {
                 let u2 = ((k * 7) % 50) as f64 / 50.0 + 0.01;
                 let s = m.sample(wo, u1, u2);
                 let expect = m.eval(s.wi, wo) * s.wi.z / m.pdf(s.wi, wo);
-                assert!((s.weight - expect).abs() <= 1e-12 * expect.max(1.0), "{m:?}");
+                assert!(
+                    (s.weight - expect).abs() <= 1e-12 * expect.max(1.0),
+                    "{m:?}"
+                );
                 assert!((s.pdf - m.pdf(s.wi, wo)).abs() < 1e-12);
             }
         }

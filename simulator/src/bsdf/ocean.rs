@@ -49,7 +49,8 @@ pub fn erfc(x: f64) -> f64 {
                 + t * (0.096_784_18
                     + t * (-0.186_288_06
                         + t * (0.278_868_07
-                            + t * (-1.135_203_98 + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
+                            + t * (-1.135_203_98
+                                + t * (1.488_515_87 + t * (-0.822_152_23 + t * 0.170_872_77))))))));
     let r = t * poly.exp();
     if x >= 0.0 {
         r
@@ -61,12 +62,21 @@ pub fn erfc(x: f64) -> f64 {
 impl Ocean {
     pub fn new(wind_speed: f64, refractive_index: f64, shadowing: bool) -> Result<Self, String> {
         if !(0.0..=40.0).contains(&wind_speed) {
-            return Err(format!("`wind_speed` = {wind_speed} m/s must lie in [0, 40]"));
+            return Err(format!(
+                "`wind_speed` = {wind_speed} m/s must lie in [0, 40]"
+            ));
         }
         if !(1.0..=3.0).contains(&refractive_index) {
-            return Err(format!("`refractive_index` = {refractive_index} must lie in [1, 3]"));
+            return Err(format!(
+                "`refractive_index` = {refractive_index} must lie in [1, 3]"
+            ));
         }
-        Ok(Self { wind_speed, refractive_index, shadowing, sigma2: 0.003 + 0.00512 * wind_speed })
+        Ok(Self {
+            wind_speed,
+            refractive_index,
+            shadowing,
+            sigma2: 0.003 + 0.00512 * wind_speed,
+        })
     }
 
     /// Slope variance σ² (Cox–Munk, isotropic).
@@ -101,8 +111,15 @@ impl Ocean {
         let cb2 = cb * cb;
         let tan2 = (1.0 - cb2) / cb2;
         let p = (-tan2 / self.sigma2).exp() / (std::f64::consts::PI * self.sigma2);
-        let s = if self.shadowing { 1.0 / (1.0 + self.lambda(wi.z) + self.lambda(wo.z)) } else { 1.0 };
-        (p * s / (4.0 * wi.z * wo.z * cb2 * cb2), wi.dot(h).clamp(0.0, 1.0))
+        let s = if self.shadowing {
+            1.0 / (1.0 + self.lambda(wi.z) + self.lambda(wo.z))
+        } else {
+            1.0
+        };
+        (
+            p * s / (4.0 * wi.z * wo.z * cb2 * cb2),
+            wi.dot(h).clamp(0.0, 1.0),
+        )
     }
 
     #[inline]
@@ -125,7 +142,14 @@ impl Ocean {
         let a = g * 0.5 * (rp2 + rs2);
         let b = g * 0.5 * (rp2 - rs2);
         let c = g * rp * rs;
-        PhaseMatrix { a1: a, b1: b, a2: a, a3: c, b2: 0.0, a4: c }
+        PhaseMatrix {
+            a1: a,
+            b1: b,
+            a2: a,
+            a3: c,
+            b2: 0.0,
+            a4: c,
+        }
     }
 }
 
@@ -137,7 +161,13 @@ mod tests {
     /// erfc against reference values (Abramowitz & Stegun table 7.1).
     #[test]
     fn erfc_values() {
-        for (x, v) in [(0.0, 1.0), (0.5, 0.479_500_122), (1.0, 0.157_299_207), (2.0, 0.004_677_735), (-1.0, 1.842_700_793)] {
+        for (x, v) in [
+            (0.0, 1.0),
+            (0.5, 0.479_500_122),
+            (1.0, 0.157_299_207),
+            (2.0, 0.004_677_735),
+            (-1.0, 1.842_700_793),
+        ] {
             assert!((erfc(x) - v).abs() < 2e-7 * v.max(1e-3), "{x}: {}", erfc(x));
         }
     }
@@ -154,10 +184,18 @@ mod tests {
         let rs = ((th - tt).sin() / (th + tt).sin()).powi(2);
         let rp = ((th - tt).tan() / (th + tt).tan()).powi(2);
         let s = 1.0 / (1.0 + 2.0 * o.lambda(th.cos()));
-        let expect = 0.5 * (rs + rp) * s / (4.0 * th.cos().powi(2) * std::f64::consts::PI * o.sigma2());
-        assert!((o.eval(wi, wo) / expect - 1.0).abs() < 1e-12, "{} vs {expect}", o.eval(wi, wo));
+        let expect =
+            0.5 * (rs + rp) * s / (4.0 * th.cos().powi(2) * std::f64::consts::PI * o.sigma2());
+        assert!(
+            (o.eval(wi, wo) / expect - 1.0).abs() < 1e-12,
+            "{} vs {expect}",
+            o.eval(wi, wo)
+        );
         // Reciprocity and matrix consistency.
-        let (a, b) = (direction_from_angles(0.3, 1.0), direction_from_angles(1.1, 4.0));
+        let (a, b) = (
+            direction_from_angles(0.3, 1.0),
+            direction_from_angles(1.1, 4.0),
+        );
         assert!((o.eval(a, b) - o.eval(b, a)).abs() < 1e-14 * o.eval(a, b).max(1e-30));
         assert!((o.matrix(a, b).a1 - o.eval(a, b)).abs() < 1e-15);
     }
@@ -168,7 +206,10 @@ mod tests {
     fn brewster() {
         let o = Ocean::new(2.0, 1.33, false).unwrap();
         let th = 1.33f64.atan();
-        let m = o.matrix(direction_from_angles(th, 0.0), direction_from_angles(th, std::f64::consts::PI));
+        let m = o.matrix(
+            direction_from_angles(th, 0.0),
+            direction_from_angles(th, std::f64::consts::PI),
+        );
         assert!((m.b1 + m.a1).abs() < 1e-9 * m.a1, "{m:?}");
     }
 

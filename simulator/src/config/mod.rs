@@ -97,7 +97,10 @@ fn default_toa() -> f64 {
 
 impl Default for GeometryConfig {
     fn default() -> Self {
-        GeometryConfig::PlaneParallel { toa_altitude: default_toa(), ground_altitude: 0.0 }
+        GeometryConfig::PlaneParallel {
+            toa_altitude: default_toa(),
+            ground_altitude: 0.0,
+        }
     }
 }
 
@@ -195,7 +198,9 @@ pub enum PhaseConfig {
 
 impl Default for PhaseConfig {
     fn default() -> Self {
-        PhaseConfig::Rayleigh { depolarization: 0.0 }
+        PhaseConfig::Rayleigh {
+            depolarization: 0.0,
+        }
     }
 }
 

@@ -8,10 +8,10 @@ use std::sync::Arc;
 use glam::DVec3;
 
 use super::*;
-use crate::atmosphere::molecular::{depolarization as molecular_depolarization, rayleigh_cross_section, Profile};
+use crate::atmosphere::molecular::{
+    depolarization as molecular_depolarization, rayleigh_cross_section, Profile,
+};
 use crate::atmosphere::spherical::SphericalShell;
-use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
-use crate::srf::Srf;
 use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
 use crate::error::ConfigError;
@@ -19,6 +19,8 @@ use crate::frame::direction_from_angles;
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::phase::{HenyeyGreenstein, PhaseFunction, Rayleigh, Tabulated};
+use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
+use crate::srf::Srf;
 
 /// Which walk serves the measures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -95,14 +97,19 @@ impl Experiment {
 
     /// Read and resolve an experiment file; relative paths inside are taken from its folder.
     pub fn load(path: &Path) -> Result<Experiment, ConfigError> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|source| ConfigError::Read { path: path.to_path_buf(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         Self::from_str(&text, path)
     }
 
     /// Parse and resolve experiment text; `path` names it in errors and anchors relative paths.
     pub fn from_str(text: &str, path: &Path) -> Result<Experiment, ConfigError> {
-        let parse_err = |message: String| ConfigError::Parse { path: path.to_path_buf(), message };
+        let parse_err = |message: String| ConfigError::Parse {
+            path: path.to_path_buf(),
+            message,
+        };
         let de = toml::Deserializer::parse(text).map_err(|e| parse_err(e.to_string()))?;
         let cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
@@ -148,20 +155,28 @@ fn locate_offender(text: &str, message: &str) -> String {
     } else {
         return String::new();
     };
-    let Ok(root) = text.parse::<toml::Table>() else { return String::new() };
+    let Ok(root) = text.parse::<toml::Table>() else {
+        return String::new();
+    };
     let mut found = Vec::new();
     fn walk(v: &toml::Value, path: String, needle: &str, is_key: bool, found: &mut Vec<String>) {
         match v {
             toml::Value::Table(t) => {
                 for (k, x) in t {
-                    let p = if path.is_empty() { k.clone() } else { format!("{path}.{k}") };
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
                     let hit = if is_key {
                         k == needle
                     } else {
                         match x {
                             toml::Value::String(s) => s == needle,
                             toml::Value::Integer(i) => i.to_string() == needle,
-                            toml::Value::Float(f) => f.to_string() == needle || format!("{f:?}") == needle,
+                            toml::Value::Float(f) => {
+                                f.to_string() == needle || format!("{f:?}") == needle
+                            }
                             _ => false,
                         }
                     };
@@ -179,7 +194,13 @@ fn locate_offender(text: &str, message: &str) -> String {
             _ => {}
         }
     }
-    walk(&toml::Value::Table(root), String::new(), &needle, is_key, &mut found);
+    walk(
+        &toml::Value::Table(root),
+        String::new(),
+        &needle,
+        is_key,
+        &mut found,
+    );
     if found.is_empty() {
         String::new()
     } else {
@@ -194,7 +215,11 @@ struct Ctx<'a> {
 
 impl Ctx<'_> {
     fn err(&self, key: impl Into<String>, message: impl Into<String>) -> ConfigError {
-        ConfigError::Invalid { path: self.path.to_path_buf(), key: key.into(), message: message.into() }
+        ConfigError::Invalid {
+            path: self.path.to_path_buf(),
+            key: key.into(),
+            message: message.into(),
+        }
     }
 
     /// Expand a spectral value to one number per wavelength, each finite and within `range`.
@@ -211,7 +236,11 @@ impl Ctx<'_> {
                 if l.len() != self.nw {
                     return Err(self.err(
                         key,
-                        format!("has {} values but there are {} wavelengths", l.len(), self.nw),
+                        format!(
+                            "has {} values but there are {} wavelengths",
+                            l.len(),
+                            self.nw
+                        ),
                     ));
                 }
                 l.clone()
@@ -219,8 +248,15 @@ impl Ctx<'_> {
         };
         for (i, x) in vals.iter().enumerate() {
             if !x.is_finite() || *x < lo || *x > hi {
-                let at = if matches!(v, SpectralValue::List(_)) { format!("[{i}]") } else { String::new() };
-                return Err(self.err(format!("{key}{at}"), format!("{x} must lie in [{lo}, {hi}]")));
+                let at = if matches!(v, SpectralValue::List(_)) {
+                    format!("[{i}]")
+                } else {
+                    String::new()
+                };
+                return Err(self.err(
+                    format!("{key}{at}"),
+                    format!("{x} must lie in [{lo}, {hi}]"),
+                ));
             }
         }
         Ok(vals)
@@ -240,7 +276,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut ctx = Ctx { path, nw: 0 };
     if cfg.mode != "mono" {
-        return Err(ctx.err("mode", format!("\"{}\" is not supported (supported: \"mono\")", cfg.mode)));
+        return Err(ctx.err(
+            "mode",
+            format!("\"{}\" is not supported (supported: \"mono\")", cfg.mode),
+        ));
     }
     let (wavelengths, band) = match (&cfg.spectral.wavelengths, &cfg.spectral.srf) {
         (Some(w), None) => {
@@ -257,25 +296,42 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     let text = std::fs::read_to_string(&fpath).map_err(|e| {
                         ctx.err("spectral.srf", format!("\"{name}\" is neither an embedded SRF (e.g. \"sentinel_2a-msi-4\") nor a readable file ({}: {e})", fpath.display()))
                     })?;
-                    Srf::from_csv(name, &text).map_err(|m| ctx.err("spectral.srf", format!("{}: {m}", fpath.display())))?
+                    Srf::from_csv(name, &text)
+                        .map_err(|m| ctx.err("spectral.srf", format!("{}: {m}", fpath.display())))?
                 }
             };
             let step = cfg.spectral.wavelength_step.unwrap_or(5.0);
             if !(step > 0.0 && step.is_finite()) {
-                return Err(ctx.err("spectral.wavelength_step", format!("{step} nm must be positive")));
+                return Err(ctx.err(
+                    "spectral.wavelength_step",
+                    format!("{step} nm must be positive"),
+                ));
             }
             let (w, weights) = srf.grid(step).map_err(|m| ctx.err("spectral.srf", m))?;
-            (w, Some(Band { name: name.clone(), weights }))
+            (
+                w,
+                Some(Band {
+                    name: name.clone(),
+                    weights,
+                }),
+            )
         }
-        (Some(_), Some(_)) => return Err(ctx.err("spectral", "give either `wavelengths` or `srf`, not both")),
-        (None, None) => return Err(ctx.err("spectral", "give `wavelengths` (nm) or a sensor band `srf`")),
+        (Some(_), Some(_)) => {
+            return Err(ctx.err("spectral", "give either `wavelengths` or `srf`, not both"))
+        }
+        (None, None) => {
+            return Err(ctx.err("spectral", "give `wavelengths` (nm) or a sensor band `srf`"))
+        }
     };
     if wavelengths.is_empty() {
         return Err(ctx.err("spectral.wavelengths", "must list at least one wavelength"));
     }
     for (i, w) in wavelengths.iter().enumerate() {
         if !w.is_finite() || *w <= 0.0 {
-            return Err(ctx.err(format!("spectral.wavelengths[{i}]"), format!("{w} nm must be positive")));
+            return Err(ctx.err(
+                format!("spectral.wavelengths[{i}]"),
+                format!("{w} nm must be positive"),
+            ));
         }
     }
     ctx.nw = wavelengths.len();
@@ -283,8 +339,15 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
 
     // Geometry.
     let (toa_altitude, ground_altitude, planet_radius) = match cfg.geometry {
-        GeometryConfig::PlaneParallel { toa_altitude, ground_altitude } => (toa_altitude, ground_altitude, None),
-        GeometryConfig::SphericalShell { toa_altitude, ground_altitude, planet_radius } => {
+        GeometryConfig::PlaneParallel {
+            toa_altitude,
+            ground_altitude,
+        } => (toa_altitude, ground_altitude, None),
+        GeometryConfig::SphericalShell {
+            toa_altitude,
+            ground_altitude,
+            planet_radius,
+        } => {
             let r = ctx.finite("geometry.planet_radius", planet_radius)?;
             if r <= 0.0 {
                 return Err(ctx.err("geometry.planet_radius", format!("{r} km must be positive")));
@@ -307,39 +370,58 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     // Atmosphere: per wavelength, a list of layers.
     let mut layers_per_w: Vec<Vec<LayerOptics>> = vec![Vec::new(); nw];
     let mut phase_cache: Vec<(String, f64, usize, Arc<Tabulated>)> = Vec::new();
-    let mut make_phase = |key: &str, p: &PhaseConfig, iw: usize| -> Result<PhaseFunction, ConfigError> {
-        Ok(match p {
-            PhaseConfig::Rayleigh { depolarization } => PhaseFunction::Rayleigh(
-                Rayleigh::new(*depolarization).map_err(|m| ctx.err(format!("{key}.depolarization"), m))?,
-            ),
-            PhaseConfig::Hg { g } => {
-                PhaseFunction::Hg(HenyeyGreenstein::new(*g).map_err(|m| ctx.err(format!("{key}.g"), m))?)
-            }
-            PhaseConfig::Isotropic {} => PhaseFunction::Hg(HenyeyGreenstein { g: 0.0 }),
-            PhaseConfig::Tabulated { file, wavelength, size_index } => {
-                let wl = wavelength.unwrap_or(wavelengths[iw]);
-                if let Some((_, _, _, t)) =
-                    phase_cache.iter().find(|(f, w, s, _)| f == file && *w == wl && s == size_index)
-                {
-                    return Ok(PhaseFunction::Tabulated(t.clone()));
+    let mut make_phase =
+        |key: &str, p: &PhaseConfig, iw: usize| -> Result<PhaseFunction, ConfigError> {
+            Ok(match p {
+                PhaseConfig::Rayleigh { depolarization } => PhaseFunction::Rayleigh(
+                    Rayleigh::new(*depolarization)
+                        .map_err(|m| ctx.err(format!("{key}.depolarization"), m))?,
+                ),
+                PhaseConfig::Hg { g } => PhaseFunction::Hg(
+                    HenyeyGreenstein::new(*g).map_err(|m| ctx.err(format!("{key}.g"), m))?,
+                ),
+                PhaseConfig::Isotropic {} => PhaseFunction::Hg(HenyeyGreenstein { g: 0.0 }),
+                PhaseConfig::Tabulated {
+                    file,
+                    wavelength,
+                    size_index,
+                } => {
+                    let wl = wavelength.unwrap_or(wavelengths[iw]);
+                    if let Some((_, _, _, t)) = phase_cache
+                        .iter()
+                        .find(|(f, w, s, _)| f == file && *w == wl && s == size_index)
+                    {
+                        return Ok(PhaseFunction::Tabulated(t.clone()));
+                    }
+                    let fpath = base.join(file);
+                    if !fpath.exists() {
+                        return Err(ctx.err(
+                            format!("{key}.file"),
+                            format!("file {} not found", fpath.display()),
+                        ));
+                    }
+                    let t = Tabulated::load_libradtran(&fpath, wl, *size_index)
+                        .map_err(|e| ctx.err(format!("{key}.file"), e.to_string()))?;
+                    let t = Arc::new(t);
+                    phase_cache.push((file.clone(), wl, *size_index, t.clone()));
+                    PhaseFunction::Tabulated(t)
                 }
-                let fpath = base.join(file);
-                if !fpath.exists() {
-                    return Err(ctx.err(format!("{key}.file"), format!("file {} not found", fpath.display())));
-                }
-                let t = Tabulated::load_libradtran(&fpath, wl, *size_index)
-                    .map_err(|e| ctx.err(format!("{key}.file"), e.to_string()))?;
-                let t = Arc::new(t);
-                phase_cache.push((file.clone(), wl, *size_index, t.clone()));
-                PhaseFunction::Tabulated(t)
-            }
-        })
-    };
+            })
+        };
     match &cfg.atmosphere {
         None | Some(AtmosphereConfig::None {}) => {}
-        Some(AtmosphereConfig::Homogeneous { optical_thickness, single_scattering_albedo, phase }) => {
+        Some(AtmosphereConfig::Homogeneous {
+            optical_thickness,
+            single_scattering_albedo,
+            phase,
+        }) => {
             let tau = ctx.spectral("atmosphere.optical_thickness", optical_thickness, 0.0, 1e6)?;
-            let ssa = ctx.spectral("atmosphere.single_scattering_albedo", single_scattering_albedo, 0.0, 1.0)?;
+            let ssa = ctx.spectral(
+                "atmosphere.single_scattering_albedo",
+                single_scattering_albedo,
+                0.0,
+                1.0,
+            )?;
             for iw in 0..nw {
                 let phase = make_phase("atmosphere.phase", phase, iw)?;
                 layers_per_w[iw].push(LayerOptics {
@@ -351,11 +433,17 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 });
             }
         }
-        Some(AtmosphereConfig::Molecular { profile, layer_thickness }) => {
+        Some(AtmosphereConfig::Molecular {
+            profile,
+            layer_thickness,
+        }) => {
             let prof = Profile::builtin(profile).map_err(|m| ctx.err("atmosphere.profile", m))?;
             let dz = ctx.finite("atmosphere.layer_thickness", *layer_thickness)? * 1e3;
             if dz <= 0.0 {
-                return Err(ctx.err("atmosphere.layer_thickness", format!("{layer_thickness} km must be positive")));
+                return Err(ctx.err(
+                    "atmosphere.layer_thickness",
+                    format!("{layer_thickness} km must be positive"),
+                ));
             }
             if ground < prof.z[0] || toa > prof.top() + 1e-6 {
                 return Err(ctx.err(
@@ -380,7 +468,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                         top,
                         tau_sca: column * rayleigh_cross_section(wl),
                         tau_abs: 0.0,
-                        phase: PhaseFunction::Rayleigh(Rayleigh::new(molecular_depolarization(wl)).expect("air depolarization is in range")),
+                        phase: PhaseFunction::Rayleigh(
+                            Rayleigh::new(molecular_depolarization(wl))
+                                .expect("air depolarization is in range"),
+                        ),
                     });
                 }
                 z = top;
@@ -393,9 +484,15 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             let mut spans = Vec::new();
             for (il, l) in layers.iter().enumerate() {
                 let key = format!("atmosphere.layers[{il}]");
-                let (b, t) = (ctx.finite(&format!("{key}.bottom"), l.bottom)?, ctx.finite(&format!("{key}.top"), l.top)?);
+                let (b, t) = (
+                    ctx.finite(&format!("{key}.bottom"), l.bottom)?,
+                    ctx.finite(&format!("{key}.top"), l.top)?,
+                );
                 if t <= b {
-                    return Err(ctx.err(format!("{key}.top"), format!("{t} km must be above bottom = {b} km")));
+                    return Err(ctx.err(
+                        format!("{key}.top"),
+                        format!("{t} km must be above bottom = {b} km"),
+                    ));
                 }
                 spans.push((b * 1e3, t * 1e3, il));
                 let (tau_sca, tau_abs) = match (&l.tau_sca, &l.tau_abs, &l.optical_thickness, &l.single_scattering_albedo) {
@@ -443,7 +540,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             let mut z = ground;
             for &(b, t, il) in &spans {
                 if (b - z).abs() > 1e-6 {
-                    let what = if b > z { "leaves a gap below it" } else { "overlaps the layer below" };
+                    let what = if b > z {
+                        "leaves a gap below it"
+                    } else {
+                        "overlaps the layer below"
+                    };
                     return Err(ctx.err(
                         format!("atmosphere.layers[{il}].bottom"),
                         format!("{} km {what} (expected {} km; layers must tile ground_altitude..toa_altitude)", b / 1e3, z / 1e3),
@@ -454,7 +555,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             if (z - toa).abs() > 1e-6 {
                 return Err(ctx.err(
                     "atmosphere.layers",
-                    format!("the top layer ends at {} km but toa_altitude is {} km", z / 1e3, toa / 1e3),
+                    format!(
+                        "the top layer ends at {} km but toa_altitude is {} km",
+                        z / 1e3,
+                        toa / 1e3
+                    ),
                 ));
             }
         }
@@ -469,7 +574,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             SurfaceConfig::Lambertian { reflectance } => {
                 let r = ctx.spectral("surface.reflectance", reflectance, 0.0, 1.0)?;
                 for v in r {
-                    out.push(Bsdf::Lambertian(Lambertian::new(v).map_err(|m| ctx.err("surface.reflectance", m))?));
+                    out.push(Bsdf::Lambertian(
+                        Lambertian::new(v).map_err(|m| ctx.err("surface.reflectance", m))?,
+                    ));
                 }
             }
             SurfaceConfig::Rpv { rho_0, k, g, rho_c } => {
@@ -482,31 +589,53 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 };
                 for iw in 0..nw {
                     out.push(Bsdf::Rpv(
-                        Rpv::new(r0[iw], kk[iw], gg[iw], rc[iw]).map_err(|m| ctx.err("surface", m))?,
+                        Rpv::new(r0[iw], kk[iw], gg[iw], rc[iw])
+                            .map_err(|m| ctx.err("surface", m))?,
                     ));
                 }
             }
-            SurfaceConfig::Rtls { f_iso, f_vol, f_geo } => {
+            SurfaceConfig::Rtls {
+                f_iso,
+                f_vol,
+                f_geo,
+            } => {
                 let a = ctx.spectral("surface.f_iso", f_iso, -big, big)?;
                 let b = ctx.spectral("surface.f_vol", f_vol, -big, big)?;
                 let c = ctx.spectral("surface.f_geo", f_geo, -big, big)?;
                 for iw in 0..nw {
-                    out.push(Bsdf::Rtls(Rtls::new(a[iw], b[iw], c[iw]).map_err(|m| ctx.err("surface", m))?));
+                    out.push(Bsdf::Rtls(
+                        Rtls::new(a[iw], b[iw], c[iw]).map_err(|m| ctx.err("surface", m))?,
+                    ));
                 }
             }
-            SurfaceConfig::Ocean { wind_speed, refractive_index, shadowing } => {
+            SurfaceConfig::Ocean {
+                wind_speed,
+                refractive_index,
+                shadowing,
+            } => {
                 let ws = ctx.spectral("surface.wind_speed", wind_speed, 0.0, 40.0)?;
                 let n = ctx.spectral(
                     "surface.refractive_index",
-                    refractive_index.as_ref().unwrap_or(&SpectralValue::Scalar(1.33)),
+                    refractive_index
+                        .as_ref()
+                        .unwrap_or(&SpectralValue::Scalar(1.33)),
                     1.0,
                     3.0,
                 )?;
                 for iw in 0..nw {
-                    out.push(Bsdf::Ocean(Ocean::new(ws[iw], n[iw], *shadowing).map_err(|m| ctx.err("surface", m))?));
+                    out.push(Bsdf::Ocean(
+                        Ocean::new(ws[iw], n[iw], *shadowing).map_err(|m| ctx.err("surface", m))?,
+                    ));
                 }
             }
-            SurfaceConfig::Hapke { w, b, c, theta, b_0, h } => {
+            SurfaceConfig::Hapke {
+                w,
+                b,
+                c,
+                theta,
+                b_0,
+                h,
+            } => {
                 let w = ctx.spectral("surface.w", w, -big, big)?;
                 let b = ctx.spectral("surface.b", b, -big, big)?;
                 let c = ctx.spectral("surface.c", c, -big, big)?;
@@ -515,7 +644,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 let h = ctx.spectral("surface.h", h, -big, big)?;
                 for iw in 0..nw {
                     out.push(Bsdf::Hapke(
-                        Hapke::new(w[iw], b[iw], c[iw], th[iw], b0[iw], h[iw]).map_err(|m| ctx.err("surface", m))?,
+                        Hapke::new(w[iw], b[iw], c[iw], th[iw], b0[iw], h[iw])
+                            .map_err(|m| ctx.err("surface", m))?,
                     ));
                 }
             }
@@ -524,17 +654,28 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
 
     // Illumination.
-    let IlluminationConfig::Directional { zenith, azimuth, irradiance, date } = &cfg.illumination;
+    let IlluminationConfig::Directional {
+        zenith,
+        azimuth,
+        irradiance,
+        date,
+    } = &cfg.illumination;
     let zenith = ctx.finite("illumination.zenith", *zenith)?;
     if planet_radius.is_none() && !(0.0..90.0).contains(&zenith) {
         return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
     }
     if !(0.0..=180.0).contains(&zenith) {
-        return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 180]")));
+        return Err(ctx.err(
+            "illumination.zenith",
+            format!("{zenith} degrees must lie in [0, 180]"),
+        ));
     }
     let azimuth = ctx.finite("illumination.azimuth", *azimuth)?;
     if !(-360.0..=360.0).contains(&azimuth) {
-        return Err(ctx.err("illumination.azimuth", format!("{azimuth} degrees must lie in [-360, 360]")));
+        return Err(ctx.err(
+            "illumination.azimuth",
+            format!("{azimuth} degrees must lie in [-360, 360]"),
+        ));
     }
     let mut irradiance = match irradiance {
         IrradianceValue::Value(v) => ctx.spectral("illumination.irradiance", v, 0.0, 1e9)?,
@@ -546,7 +687,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     let text = std::fs::read_to_string(&fpath).map_err(|e| {
                         ctx.err("illumination.irradiance", format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
                     })?;
-                    Spectrum::from_csv(name, &text).map_err(|m| ctx.err("illumination.irradiance", format!("{}: {m}", fpath.display())))?
+                    Spectrum::from_csv(name, &text).map_err(|m| {
+                        ctx.err(
+                            "illumination.irradiance",
+                            format!("{}: {m}", fpath.display()),
+                        )
+                    })?
                 }
             };
             wavelengths
@@ -555,7 +701,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     spectrum.at(w).ok_or_else(|| {
                         ctx.err(
                             "illumination.irradiance",
-                            format!("wavelength {w} nm is outside the spectrum \"{name}\" ({}–{} nm)", spectrum.wavelength[0], spectrum.wavelength[spectrum.wavelength.len() - 1]),
+                            format!(
+                                "wavelength {w} nm is outside the spectrum \"{name}\" ({}–{} nm)",
+                                spectrum.wavelength[0],
+                                spectrum.wavelength[spectrum.wavelength.len() - 1]
+                            ),
                         )
                     })
                 })
@@ -579,28 +729,65 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     for (im, m) in cfg.measures.iter().enumerate() {
         let key = format!("measures[{im}]");
         let (id, spp, target) = match m {
-            MeasureConfig::Mdistant { id, spp, target_rel_stderr, .. }
-            | MeasureConfig::Radiancemeter { id, spp, target_rel_stderr, .. }
-            | MeasureConfig::DistantFlux { id, spp, target_rel_stderr, .. } => (id, *spp, *target_rel_stderr),
+            MeasureConfig::Mdistant {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::Radiancemeter {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::DistantFlux {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            } => (id, *spp, *target_rel_stderr),
         };
-        if id.is_empty() || !id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_') || id.starts_with(|c: char| c.is_ascii_digit()) {
+        if id.is_empty()
+            || !id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            || id.starts_with(|c: char| c.is_ascii_digit())
+        {
             return Err(ctx.err(format!("{key}.id"), format!("\"{id}\" must be a non-empty identifier of letters, digits and _ (not starting with a digit)")));
         }
         if measures.iter().any(|x: &Measure| &x.id == id) {
-            return Err(ctx.err(format!("{key}.id"), format!("\"{id}\" is used by another measure")));
+            return Err(ctx.err(
+                format!("{key}.id"),
+                format!("\"{id}\" is used by another measure"),
+            ));
         }
         if spp < 2 {
-            return Err(ctx.err(format!("{key}.spp"), format!("{spp} must be at least 2 (a standard error needs two samples)")));
+            return Err(ctx.err(
+                format!("{key}.spp"),
+                format!("{spp} must be at least 2 (a standard error needs two samples)"),
+            ));
         }
         if let Some(t) = target {
             if !(t > 0.0 && t < 1.0) {
-                return Err(ctx.err(format!("{key}.target_rel_stderr"), format!("{t} must lie in (0, 1)")));
+                return Err(ctx.err(
+                    format!("{key}.target_rel_stderr"),
+                    format!("{t} must lie in (0, 1)"),
+                ));
             }
         }
         let kind = match m {
-            MeasureConfig::Mdistant { construct, azimuth, zeniths, azimuths, .. } => {
+            MeasureConfig::Mdistant {
+                construct,
+                azimuth,
+                zeniths,
+                azimuths,
+                ..
+            } => {
                 let construct = construct.clone().unwrap_or_else(|| {
-                    if azimuths.is_some() { "directions".into() } else { "hplane".into() }
+                    if azimuths.is_some() {
+                        "directions".into()
+                    } else {
+                        "hplane".into()
+                    }
                 });
                 if zeniths.is_empty() {
                     return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
@@ -609,13 +796,24 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 match construct.as_str() {
                     "hplane" => {
                         if azimuths.is_some() {
-                            return Err(ctx.err(format!("{key}.azimuths"), "is not used by construct \"hplane\" (use `azimuth`)"));
+                            return Err(ctx.err(
+                                format!("{key}.azimuths"),
+                                "is not used by construct \"hplane\" (use `azimuth`)",
+                            ));
                         }
-                        let az = azimuth.ok_or_else(|| ctx.err(format!("{key}.azimuth"), "is required by construct \"hplane\""))?;
+                        let az = azimuth.ok_or_else(|| {
+                            ctx.err(
+                                format!("{key}.azimuth"),
+                                "is required by construct \"hplane\"",
+                            )
+                        })?;
                         let az = ctx.finite(&format!("{key}.azimuth"), az)?;
                         for (i, &z) in zeniths.iter().enumerate() {
                             if !z.is_finite() || z <= -90.0 || z >= 90.0 {
-                                return Err(ctx.err(format!("{key}.zeniths[{i}]"), format!("{z} degrees must lie in (-90, 90)")));
+                                return Err(ctx.err(
+                                    format!("{key}.zeniths[{i}]"),
+                                    format!("{z} degrees must lie in (-90, 90)"),
+                                ));
                             }
                             vza.push(z.abs());
                             vaa.push(if z >= 0.0 { az } else { az + 180.0 }.rem_euclid(360.0));
@@ -623,15 +821,33 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     }
                     "directions" => {
                         if azimuth.is_some() {
-                            return Err(ctx.err(format!("{key}.azimuth"), "is not used by construct \"directions\" (use `azimuths`)"));
+                            return Err(ctx.err(
+                                format!("{key}.azimuth"),
+                                "is not used by construct \"directions\" (use `azimuths`)",
+                            ));
                         }
-                        let azs = azimuths.as_ref().ok_or_else(|| ctx.err(format!("{key}.azimuths"), "is required by construct \"directions\""))?;
+                        let azs = azimuths.as_ref().ok_or_else(|| {
+                            ctx.err(
+                                format!("{key}.azimuths"),
+                                "is required by construct \"directions\"",
+                            )
+                        })?;
                         if azs.len() != zeniths.len() {
-                            return Err(ctx.err(format!("{key}.azimuths"), format!("has {} values but `zeniths` has {}", azs.len(), zeniths.len())));
+                            return Err(ctx.err(
+                                format!("{key}.azimuths"),
+                                format!(
+                                    "has {} values but `zeniths` has {}",
+                                    azs.len(),
+                                    zeniths.len()
+                                ),
+                            ));
                         }
                         for (i, (&z, &a)) in zeniths.iter().zip(azs).enumerate() {
                             if !z.is_finite() || !(0.0..90.0).contains(&z) {
-                                return Err(ctx.err(format!("{key}.zeniths[{i}]"), format!("{z} degrees must lie in [0, 90)")));
+                                return Err(ctx.err(
+                                    format!("{key}.zeniths[{i}]"),
+                                    format!("{z} degrees must lie in [0, 90)"),
+                                ));
                             }
                             let a = ctx.finite(&format!("{key}.azimuths[{i}]"), a)?;
                             vza.push(z);
@@ -639,17 +855,31 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                         }
                     }
                     other => {
-                        return Err(ctx.err(format!("{key}.construct"), format!("\"{other}\" is unknown (known: \"hplane\", \"directions\")")))
+                        return Err(ctx.err(
+                            format!("{key}.construct"),
+                            format!("\"{other}\" is unknown (known: \"hplane\", \"directions\")"),
+                        ))
                     }
                 }
                 let directions = vza
                     .iter()
                     .zip(&vaa)
-                    .map(|(z, a): (&f64, &f64)| direction_from_angles(z.to_radians(), a.to_radians()))
+                    .map(|(z, a): (&f64, &f64)| {
+                        direction_from_angles(z.to_radians(), a.to_radians())
+                    })
                     .collect();
-                MeasureKind::Distant { directions, vza, vaa }
+                MeasureKind::Distant {
+                    directions,
+                    vza,
+                    vaa,
+                }
             }
-            MeasureConfig::Radiancemeter { origin, direction, frame_azimuth, .. } => {
+            MeasureConfig::Radiancemeter {
+                origin,
+                direction,
+                frame_azimuth,
+                ..
+            } => {
                 for i in 0..3 {
                     ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
                     ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
@@ -660,23 +890,47 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     return Err(ctx.err(format!("{key}.direction"), "must not be the zero vector"));
                 }
                 if o.z < ground {
-                    return Err(ctx.err(format!("{key}.origin[2]"), format!("altitude {} km is below the ground ({} km)", origin[2], ground / 1e3)));
+                    return Err(ctx.err(
+                        format!("{key}.origin[2]"),
+                        format!(
+                            "altitude {} km is below the ground ({} km)",
+                            origin[2],
+                            ground / 1e3
+                        ),
+                    ));
                 }
                 let frame_azimuth = match frame_azimuth {
-                    Some(a) => ctx.finite(&format!("{key}.frame_azimuth"), *a)?.to_radians(),
+                    Some(a) => ctx
+                        .finite(&format!("{key}.frame_azimuth"), *a)?
+                        .to_radians(),
                     None => 0.0,
                 };
-                MeasureKind::Radiancemeter { origin: o, look: d.normalize(), frame_azimuth }
+                MeasureKind::Radiancemeter {
+                    origin: o,
+                    look: d.normalize(),
+                    frame_azimuth,
+                }
             }
             MeasureConfig::DistantFlux { altitude, .. } => {
                 let a = altitude.map(|a| a * 1e3).unwrap_or(toa);
                 if !a.is_finite() || a < ground || a > toa {
-                    return Err(ctx.err(format!("{key}.altitude"), format!("{} km must lie between the ground and the top of the atmosphere", a / 1e3)));
+                    return Err(ctx.err(
+                        format!("{key}.altitude"),
+                        format!(
+                            "{} km must lie between the ground and the top of the atmosphere",
+                            a / 1e3
+                        ),
+                    ));
                 }
                 MeasureKind::DistantFlux { altitude: a }
             }
         };
-        measures.push(Measure { id: id.clone(), spp, target_rel_stderr: target, kind });
+        measures.push(Measure {
+            id: id.clone(),
+            spp,
+            target_rel_stderr: target,
+            kind,
+        });
     }
 
     // Integrator.
@@ -685,14 +939,24 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         Some("forward") => IntegratorKind::Forward,
         Some("backward") => IntegratorKind::Backward,
         Some(other) => {
-            return Err(ctx.err("integrator.type", format!("\"{other}\" is unknown (known: \"auto\", \"forward\", \"backward\")")))
+            return Err(ctx.err(
+                "integrator.type",
+                format!("\"{other}\" is unknown (known: \"auto\", \"forward\", \"backward\")"),
+            ))
         }
     };
     if planet_radius.is_some() && kind == IntegratorKind::Forward {
-        return Err(ctx.err("integrator.type", "spherical-shell atmospheres use the backward walk (\"auto\" or \"backward\")"));
+        return Err(ctx.err(
+            "integrator.type",
+            "spherical-shell atmospheres use the backward walk (\"auto\" or \"backward\")",
+        ));
     }
     if kind == IntegratorKind::Forward {
-        if let Some((im, _)) = measures.iter().enumerate().find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. })) {
+        if let Some((im, _)) = measures
+            .iter()
+            .enumerate()
+            .find(|(_, m)| matches!(m.kind, MeasureKind::Radiancemeter { .. }))
+        {
             return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
         }
     }
@@ -705,11 +969,18 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         None | Some("expected") => true,
         Some("collision") => false,
         Some(other) => {
-            return Err(ctx.err("integrator.local_estimate", format!("\"{other}\" is unknown (known: \"expected\", \"collision\")")))
+            return Err(ctx.err(
+                "integrator.local_estimate",
+                format!("\"{other}\" is unknown (known: \"expected\", \"collision\")"),
+            ))
         }
     };
-    let integrator =
-        IntegratorSettings { kind, max_depth, rr_depth: cfg.integrator.rr_depth.unwrap_or(5), expected_local_estimate };
+    let integrator = IntegratorSettings {
+        kind,
+        max_depth,
+        rr_depth: cfg.integrator.rr_depth.unwrap_or(5),
+        expected_local_estimate,
+    };
 
     let optics = layers_per_w
         .into_iter()
@@ -718,7 +989,13 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         .map(|(iw, (layers, surface))| {
             let atmosphere = PlaneParallel::new(layers, ground, toa);
             let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
-            OpticalState { wavelength: wavelengths[iw], atmosphere, shell, surface, irradiance: irradiance[iw] }
+            OpticalState {
+                wavelength: wavelengths[iw],
+                atmosphere,
+                shell,
+                surface,
+                irradiance: irradiance[iw],
+            }
         })
         .collect();
 

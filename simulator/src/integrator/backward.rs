@@ -79,7 +79,10 @@ pub fn walk(
                 if !settings.expected_local_estimate {
                     score(
                         order,
-                        w * omega * phase.eval(sun_dir.dot(d)) * (0.25 * std::f64::consts::FRAC_1_PI) * (-tau / mu_s).exp(),
+                        w * omega
+                            * phase.eval(sun_dir.dot(d))
+                            * (0.25 * std::f64::consts::FRAC_1_PI)
+                            * (-tau / mu_s).exp(),
                     );
                 }
                 w *= omega;

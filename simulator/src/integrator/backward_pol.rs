@@ -20,12 +20,11 @@ use super::{sample_scattered, RR_THRESHOLD};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::atmosphere::FlightEnd;
 use crate::bsdf::Bsdf;
-use crate::frame::basis_around;
 use crate::config::resolve::IntegratorSettings;
+use crate::frame::basis_around;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::stokes::{any_perpendicular, PhaseMatrix};
-
 
 /// Mueller matrix of a phase matrix (row-major layout in the docs; glam is column-major).
 #[inline]
@@ -103,7 +102,14 @@ pub fn walk(
         // Expected next-event estimate of the next collision (exact along the flight).
         let w_out = -d;
         let cos = sun_dir.dot(d);
-        let mut m = PhaseMatrix { a1: 0.0, b1: 0.0, a2: 0.0, a3: 0.0, b2: 0.0, a4: 0.0 };
+        let mut m = PhaseMatrix {
+            a1: 0.0,
+            b1: 0.0,
+            a2: 0.0,
+            a3: 0.0,
+            b2: 0.0,
+            a4: 0.0,
+        };
         atm.flight_integrals(tau, d.z, inv_mu_s, |l, i| {
             m.add(&atm.phase(l).matrix(cos).scaled(atm.albedo(l) * i));
         });
@@ -119,7 +125,16 @@ pub fn walk(
                 tau = total;
                 let wo = -d;
                 let (w_sun_l, wo_l, sun_l) = (w_sun, wo, sun_dir);
-                (t, d, e1) = surface_event(&opt.surface, &mut t, d, e1, (w_sun_l, wo_l, sun_l), mu_s * t_sun_ground, rng, |s| score(order, s));
+                (t, d, e1) = surface_event(
+                    &opt.surface,
+                    &mut t,
+                    d,
+                    e1,
+                    (w_sun_l, wo_l, sun_l),
+                    mu_s * t_sun_ground,
+                    rng,
+                    |s| score(order, s),
+                );
             }
             FlightEnd::Collision(tc) => {
                 tau = tc;
@@ -198,9 +213,25 @@ pub fn walk_spherical(
                 let (a, b) = basis_around(n);
                 let local = |v: DVec3| DVec3::new(v.dot(a), v.dot(b), v.dot(n));
                 let cos_sun = sun_dir.dot(n);
-                let tr = if cos_sun > 0.0 { shell.transmittance_to_space(p, 0, sun_dir) } else { 0.0 };
+                let tr = if cos_sun > 0.0 {
+                    shell.transmittance_to_space(p, 0, sun_dir)
+                } else {
+                    0.0
+                };
                 let to_world = |v: DVec3| a * v.x + b * v.y + n * v.z;
-                (t, d, e1) = surface_event_local(surface, &mut t, d, e1, w_sun, sun_dir, cos_sun * tr, &local, &to_world, rng, |s| score(order, s));
+                (t, d, e1) = surface_event_local(
+                    surface,
+                    &mut t,
+                    d,
+                    e1,
+                    w_sun,
+                    sun_dir,
+                    cos_sun * tr,
+                    &local,
+                    &to_world,
+                    rng,
+                    |s| score(order, s),
+                );
             }
             ShellEnd::Collision(q, lq) => {
                 p = q;
@@ -213,7 +244,10 @@ pub fn walk_spherical(
                     let f = phase.matrix(sun_dir.dot(d));
                     let (_, _, l_out) = plane(w_sun, w_out, e1);
                     let sv = DVec4::new(f.a1, f.b1, 0.0, 0.0);
-                    score(order, t * (rotation(w_out, l_out, e1) * sv) * (omega * inv4pi * tr));
+                    score(
+                        order,
+                        t * (rotation(w_out, l_out, e1) * sv) * (omega * inv4pi * tr),
+                    );
                 }
                 let d2 = sample_scattered(phase, d, rng);
                 let f = phase.matrix(d.dot(d2));
@@ -253,7 +287,19 @@ fn surface_event(
     rng: &mut Stream,
     score: impl FnMut(DVec4),
 ) -> (DMat4, DVec3, DVec3) {
-    surface_event_local(surface, t, d, e1, w_sun, sun_dir, sun_factor, &|v| v, &|v| v, rng, score)
+    surface_event_local(
+        surface,
+        t,
+        d,
+        e1,
+        w_sun,
+        sun_dir,
+        sun_factor,
+        &|v| v,
+        &|v| v,
+        rng,
+        score,
+    )
 }
 
 /// A surface interaction: next-event estimate of the reflected sunlight (`sun_factor` =

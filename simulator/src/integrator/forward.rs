@@ -54,8 +54,16 @@ impl Scratch {
         let n = targets.directions.len().max(1);
         let inv_mu: Vec<f64> = targets.directions.iter().map(|v| 1.0 / v.z).collect();
         let tt = opt.atmosphere.total_tau();
-        let t_ground = inv_mu.iter().map(|im| (-tt * im).exp() * std::f64::consts::PI).collect();
-        Self { single: vec![0.0; n], multiple: vec![0.0; n], inv_mu, t_ground }
+        let t_ground = inv_mu
+            .iter()
+            .map(|im| (-tt * im).exp() * std::f64::consts::PI)
+            .collect();
+        Self {
+            single: vec![0.0; n],
+            multiple: vec![0.0; n],
+            inv_mu,
+            t_ground,
+        }
     }
 }
 
@@ -163,7 +171,12 @@ pub fn walk(
                     let c = w * omega * 0.25;
                     for (k, v) in dirs.iter().enumerate() {
                         let im = scratch.inv_mu[k];
-                        score(scratch, order, k, c * phase.eval(d.dot(*v)) * (-tau * im).exp() * im);
+                        score(
+                            scratch,
+                            order,
+                            k,
+                            c * phase.eval(d.dot(*v)) * (-tau * im).exp() * im,
+                        );
                     }
                 }
                 w *= omega;

@@ -39,14 +39,22 @@ impl Scratch {
         let n = targets.directions.len().max(1);
         let inv_mu: Vec<f64> = targets.directions.iter().map(|v| 1.0 / v.z).collect();
         let tt = opt.atmosphere.total_tau();
-        let t_ground = inv_mu.iter().map(|im| (-tt * im).exp() * std::f64::consts::PI).collect();
+        let t_ground = inv_mu
+            .iter()
+            .map(|im| (-tt * im).exp() * std::f64::consts::PI)
+            .collect();
         let e_theta = targets
             .directions
             .iter()
             .enumerate()
             .map(|(k, v)| meridian_axis(*v, targets.azimuth_hints.get(k).copied().unwrap_or(0.0)))
             .collect();
-        Self { score: vec![[0.0; 5]; n], inv_mu, t_ground, e_theta }
+        Self {
+            score: vec![[0.0; 5]; n],
+            inv_mu,
+            t_ground,
+            e_theta,
+        }
     }
 }
 
@@ -113,7 +121,12 @@ pub fn walk(
                         if m.a1 > 0.0 {
                             let (sv, lv) = scatter(st, d, e1, *v, &m);
                             let sm = rotate_to(sv, *v, lv, scratch.e_theta[k]);
-                            add(&mut scratch.score[k], order, sm, p_hit * scratch.t_ground[k]);
+                            add(
+                                &mut scratch.score[k],
+                                order,
+                                sm,
+                                p_hit * scratch.t_ground[k],
+                            );
                         }
                         continue;
                     }
@@ -128,7 +141,14 @@ pub fn walk(
             for (k, v) in dirs.iter().enumerate() {
                 let im = scratch.inv_mu[k];
                 let cos = d.dot(*v);
-                let mut m = PhaseMatrix { a1: 0.0, b1: 0.0, a2: 0.0, a3: 0.0, b2: 0.0, a4: 0.0 };
+                let mut m = PhaseMatrix {
+                    a1: 0.0,
+                    b1: 0.0,
+                    a2: 0.0,
+                    a3: 0.0,
+                    b2: 0.0,
+                    a4: 0.0,
+                };
                 atm.flight_integrals(tau, d.z, im, |l, i| {
                     m.add(&atm.phase(l).matrix(cos).scaled(atm.albedo(l) * i));
                 });

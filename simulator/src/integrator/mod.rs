@@ -52,7 +52,13 @@ pub struct Accum {
 
 impl Accum {
     pub fn new(cells: usize) -> Self {
-        Self { n: vec![0; cells], ncomp: 3, sum: vec![0.0; cells * 3], sum2: vec![0.0; cells * 3], cross: Vec::new() }
+        Self {
+            n: vec![0; cells],
+            ncomp: 3,
+            sum: vec![0.0; cells * 3],
+            sum2: vec![0.0; cells * 3],
+            cross: Vec::new(),
+        }
     }
 
     pub fn new_polarized(cells: usize) -> Self {
@@ -99,7 +105,10 @@ impl Accum {
 
     /// Add `other` (same layout) into self; exact merge of partial results.
     pub fn merge(&mut self, other: &Accum) {
-        assert_eq!(self.ncomp, other.ncomp, "merging accumulators of different kinds");
+        assert_eq!(
+            self.ncomp, other.ncomp,
+            "merging accumulators of different kinds"
+        );
         for (a, b) in self.n.iter_mut().zip(&other.n) {
             *a += b;
         }
@@ -161,7 +170,13 @@ impl Accum {
         (0..self.n.len())
             .map(|c| {
                 let (m, e) = self.mean_stderr(c, TOTAL);
-                if m.abs() > 0.0 { e / m.abs() } else if e > 0.0 { f64::INFINITY } else { 0.0 }
+                if m.abs() > 0.0 {
+                    e / m.abs()
+                } else if e > 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                }
             })
             .fold(0.0, f64::max)
     }
@@ -170,7 +185,11 @@ impl Accum {
 /// A new propagation direction after scattering along `d`: cos Θ from the phase function, a
 /// uniform azimuth about `d` (two random numbers).
 #[inline]
-pub(crate) fn sample_scattered(phase: &crate::phase::PhaseFunction, d: glam::DVec3, rng: &mut crate::rng::Stream) -> glam::DVec3 {
+pub(crate) fn sample_scattered(
+    phase: &crate::phase::PhaseFunction,
+    d: glam::DVec3,
+    rng: &mut crate::rng::Stream,
+) -> glam::DVec3 {
     let mu = phase.sample_cos(rng.next_f64());
     let phi = std::f64::consts::TAU * rng.next_f64();
     crate::frame::rotate_about(d, mu, phi)

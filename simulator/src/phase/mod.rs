@@ -78,7 +78,10 @@ pub(crate) mod test_support {
     /// ∫ P dω / 4π by the midpoint rule in cos Θ (fine grid).
     pub fn mean_over_sphere(p: &PhaseFunction) -> f64 {
         let n = 200_000;
-        (0..n).map(|i| p.eval(-1.0 + 2.0 * (i as f64 + 0.5) / n as f64)).sum::<f64>() / n as f64
+        (0..n)
+            .map(|i| p.eval(-1.0 + 2.0 * (i as f64 + 0.5) / n as f64))
+            .sum::<f64>()
+            / n as f64
     }
 
     /// χ² test of `sample_cos` against `eval`: `nbins` bins in cos Θ with expected counts from
@@ -97,7 +100,9 @@ pub(crate) mod test_support {
         for (i, e) in expect.iter_mut().enumerate() {
             let a = -1.0 + 2.0 * i as f64 / nbins as f64;
             let w = 2.0 / nbins as f64;
-            let s: f64 = (0..sub).map(|k| p.eval(a + w * (k as f64 + 0.5) / sub as f64)).sum();
+            let s: f64 = (0..sub)
+                .map(|k| p.eval(a + w * (k as f64 + 0.5) / sub as f64))
+                .sum();
             *e = s / sub as f64 * w * 0.5 * nsamples as f64;
         }
         let (mut chi2, mut dof) = (0.0, 0usize);

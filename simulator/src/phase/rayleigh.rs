@@ -20,11 +20,17 @@ pub struct Rayleigh {
 impl Rayleigh {
     pub fn new(depolarization: f64) -> Result<Self, String> {
         if !(0.0..0.5).contains(&depolarization) {
-            return Err(format!("`depolarization` = {depolarization} must lie in [0, 0.5)"));
+            return Err(format!(
+                "`depolarization` = {depolarization} must lie in [0, 0.5)"
+            ));
         }
         let gamma = depolarization / (2.0 - depolarization);
         let c = 3.0 / (4.0 * (1.0 + 2.0 * gamma));
-        Ok(Self { depolarization, a: c * (1.0 + 3.0 * gamma), b: c * (1.0 - gamma) })
+        Ok(Self {
+            depolarization,
+            a: c * (1.0 + 3.0 * gamma),
+            b: c * (1.0 - gamma),
+        })
     }
 
     #[inline]
@@ -109,7 +115,11 @@ mod tests {
             }
         }
         let m = Rayleigh::new(0.0).unwrap().matrix(0.5);
-        assert!((m.b1 + 0.75 * 0.75).abs() < 1e-15 && (m.a3 - 0.75).abs() < 1e-15 && (m.a4 - 0.75).abs() < 1e-15);
+        assert!(
+            (m.b1 + 0.75 * 0.75).abs() < 1e-15
+                && (m.a3 - 0.75).abs() < 1e-15
+                && (m.a4 - 0.75).abs() < 1e-15
+        );
     }
 
     #[test]

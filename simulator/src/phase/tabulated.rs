@@ -49,7 +49,11 @@ fn interp_sorted(pairs: &[(f64, f64)], x: f64) -> f64 {
         return pairs[pairs.len() - 1].1;
     }
     let ((x0, y0), (x1, y1)) = (pairs[i - 1], pairs[i]);
-    if x1 > x0 { y0 + (y1 - y0) * (x - x0) / (x1 - x0) } else { y0 }
+    if x1 > x0 {
+        y0 + (y1 - y0) * (x - x0) / (x1 - x0)
+    } else {
+        y0
+    }
 }
 
 #[derive(Debug, thiserror::Error)]
@@ -66,13 +70,19 @@ impl Tabulated {
         if theta_deg.len() != values.len() || theta_deg.len() < 2 {
             return Err("need at least two (theta, phase) pairs of equal length".into());
         }
-        let mut pairs: Vec<(f64, f64)> = theta_deg.iter().copied().zip(values.iter().copied()).collect();
+        let mut pairs: Vec<(f64, f64)> = theta_deg
+            .iter()
+            .copied()
+            .zip(values.iter().copied())
+            .collect();
         for &(t, v) in &pairs {
             if !t.is_finite() || !(0.0..=180.0).contains(&t) {
                 return Err(format!("scattering angle {t} outside [0, 180] degrees"));
             }
             if !v.is_finite() || v < 0.0 {
-                return Err(format!("phase value {v} at {t} degrees is negative or not finite"));
+                return Err(format!(
+                    "phase value {v} at {t} degrees is negative or not finite"
+                ));
             }
         }
         pairs.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
@@ -119,18 +129,23 @@ impl Tabulated {
         let mut out: [Vec<f64>; 5] = Default::default();
         for (k, (th, val)) in elems.iter().enumerate() {
             if th.len() != val.len() || th.len() < 2 {
-                return Err(format!("phase-matrix element {} needs at least two (theta, value) pairs", k + 2));
+                return Err(format!(
+                    "phase-matrix element {} needs at least two (theta, value) pairs",
+                    k + 2
+                ));
             }
             let mut pairs: Vec<(f64, f64)> = th.iter().copied().zip(val.iter().copied()).collect();
             if pairs.iter().any(|p| !p.0.is_finite() || !p.1.is_finite()) {
-                return Err(format!("phase-matrix element {} has non-finite values", k + 2));
+                return Err(format!(
+                    "phase-matrix element {} has non-finite values",
+                    k + 2
+                ));
             }
             pairs.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
-            out[k] = t
-                .mu
-                .iter()
-                .map(|&m| interp_sorted(&pairs, m.clamp(-1.0, 1.0).acos().to_degrees()) * scale)
-                .collect();
+            out[k] =
+                t.mu.iter()
+                    .map(|&m| interp_sorted(&pairs, m.clamp(-1.0, 1.0).acos().to_degrees()) * scale)
+                    .collect();
         }
         t.pol = Some(out);
         Ok(t)
@@ -152,7 +167,14 @@ impl Tabulated {
         let a1 = at(&self.p);
         match &self.pol {
             None => crate::stokes::PhaseMatrix::depolarizing(a1),
-            Some(e) => crate::stokes::PhaseMatrix { a1, b1: at(&e[0]), a2: at(&e[1]), a3: at(&e[2]), b2: at(&e[3]), a4: at(&e[4]) },
+            Some(e) => crate::stokes::PhaseMatrix {
+                a1,
+                b1: at(&e[0]),
+                a2: at(&e[1]),
+                a3: at(&e[2]),
+                b2: at(&e[3]),
+                a4: at(&e[4]),
+            },
         }
     }
 
@@ -169,7 +191,12 @@ impl Tabulated {
         let scale = 2.0 / total;
         p.iter_mut().for_each(|v| *v *= scale);
         cdf.iter_mut().for_each(|v| *v /= total);
-        Ok(Self { mu, p, cdf, pol: None })
+        Ok(Self {
+            mu,
+            p,
+            cdf,
+            pol: None,
+        })
     }
 
     /// Linear mixture `(1−t)·a + t·b` of two normalised tables, on the union of their grids.
@@ -177,15 +204,26 @@ impl Tabulated {
         let mut mu: Vec<f64> = a.mu.iter().chain(b.mu.iter()).copied().collect();
         mu.sort_by(|x, y| x.partial_cmp(y).unwrap());
         mu.dedup();
-        let p: Vec<f64> = mu.iter().map(|&m| (1.0 - t) * a.eval(m) + t * b.eval(m)).collect();
+        let p: Vec<f64> = mu
+            .iter()
+            .map(|&m| (1.0 - t) * a.eval(m) + t * b.eval(m))
+            .collect();
         let mut out = Self::from_mu(mu, p).expect("mixture of valid tables is valid");
         if a.is_polarized() && b.is_polarized() {
             // Both inputs are normalised, so the mixture needs no further scaling.
             let mats: Vec<_> = out.mu.iter().map(|&m| (a.matrix(m), b.matrix(m))).collect();
             let mix = |g: fn(&crate::stokes::PhaseMatrix) -> f64| -> Vec<f64> {
-                mats.iter().map(|(x, y)| (1.0 - t) * g(x) + t * g(y)).collect()
+                mats.iter()
+                    .map(|(x, y)| (1.0 - t) * g(x) + t * g(y))
+                    .collect()
             };
-            out.pol = Some([mix(|m| m.b1), mix(|m| m.a2), mix(|m| m.a3), mix(|m| m.b2), mix(|m| m.a4)]);
+            out.pol = Some([
+                mix(|m| m.b1),
+                mix(|m| m.a2),
+                mix(|m| m.a3),
+                mix(|m| m.b2),
+                mix(|m| m.a4),
+            ]);
         }
         out
     }
@@ -208,7 +246,11 @@ impl Tabulated {
 
     #[inline]
     pub fn sample_cos(&self, u: f64) -> f64 {
-        let i = self.cdf.partition_point(|&c| c <= u).clamp(1, self.cdf.len() - 1) - 1;
+        let i = self
+            .cdf
+            .partition_point(|&c| c <= u)
+            .clamp(1, self.cdf.len() - 1)
+            - 1;
         let (m0, m1) = (self.mu[i], self.mu[i + 1]);
         let h = m1 - m0;
         if h <= 0.0 {
@@ -251,39 +293,60 @@ impl Tabulated {
         size_index: usize,
     ) -> Result<Tabulated, PhaseTableError> {
         let ps = path.display().to_string();
-        let nc_err = |source| PhaseTableError::Netcdf { path: ps.clone(), source };
-        let content = |msg: String| PhaseTableError::Content { path: ps.clone(), msg };
+        let nc_err = |source| PhaseTableError::Netcdf {
+            path: ps.clone(),
+            source,
+        };
+        let content = |msg: String| PhaseTableError::Content {
+            path: ps.clone(),
+            msg,
+        };
         let file = netcdf::open(path).map_err(nc_err)?;
         let var = |name: &str| {
-            file.variable(name)
-                .ok_or_else(|| content(format!("has no variable `{name}` (not a libRadtran Mie file?)")))
+            file.variable(name).ok_or_else(|| {
+                content(format!(
+                    "has no variable `{name}` (not a libRadtran Mie file?)"
+                ))
+            })
         };
         let wl_um: Vec<f64> = var("wavelen")?.get_values::<f64, _>(..).map_err(nc_err)?;
         let theta_v = var("theta")?;
         let dims: Vec<usize> = theta_v.dimensions().iter().map(|d| d.len()).collect();
         if dims.len() != 4 {
-            return Err(content(format!("`theta` has {} dimensions, expected 4", dims.len())));
+            return Err(content(format!(
+                "`theta` has {} dimensions, expected 4",
+                dims.len()
+            )));
         }
         let (nlam, n2, nphamat, nthmax) = (dims[0], dims[1], dims[2], dims[3]);
         if size_index >= n2 {
-            return Err(content(format!("`size_index` = {size_index} but the file has {n2} size entries")));
+            return Err(content(format!(
+                "`size_index` = {size_index} but the file has {n2} size entries"
+            )));
         }
         let theta: Vec<f64> = theta_v.get_values::<f64, _>(..).map_err(nc_err)?;
         let phase: Vec<f64> = var("phase")?.get_values::<f64, _>(..).map_err(nc_err)?;
         let ntheta: Vec<i32> = var("ntheta")?.get_values::<i32, _>(..).map_err(nc_err)?;
         if wl_um.len() != nlam {
-            return Err(content("`wavelen` and `theta` disagree on the wavelength count".into()));
+            return Err(content(
+                "`wavelen` and `theta` disagree on the wavelength count".into(),
+            ));
         }
         let table_at = |il: usize| -> Result<Tabulated, PhaseTableError> {
             let nt = ntheta[(il * n2 + size_index) * nphamat] as usize;
             if nt < 2 || nt > nthmax {
-                return Err(content(format!("ntheta = {nt} out of range at wavelength index {il}")));
+                return Err(content(format!(
+                    "ntheta = {nt} out of range at wavelength index {il}"
+                )));
             }
             let off = ((il * n2 + size_index) * nphamat) * nthmax;
             let elem = |k: usize| -> Result<(&[f64], &[f64]), PhaseTableError> {
                 let n = ntheta[(il * n2 + size_index) * nphamat + k] as usize;
                 if n < 2 || n > nthmax {
-                    return Err(content(format!("ntheta = {n} out of range for element {} at wavelength index {il}", k + 1)));
+                    return Err(content(format!(
+                        "ntheta = {n} out of range for element {} at wavelength index {il}",
+                        k + 1
+                    )));
                 }
                 let o = off + k * nthmax;
                 Ok((&theta[o..o + n], &phase[o..o + n]))
@@ -294,15 +357,25 @@ impl Tabulated {
             match nphamat {
                 4 => {
                     let (e11, e12, e33, e34) = (elem(0)?, elem(1)?, elem(2)?, elem(3)?);
-                    Tabulated::from_matrix_table(&theta[off..off + nt], &phase[off..off + nt], [e12, e11, e33, e34, e33])
-                        .map_err(wl_err)
+                    Tabulated::from_matrix_table(
+                        &theta[off..off + nt],
+                        &phase[off..off + nt],
+                        [e12, e11, e33, e34, e33],
+                    )
+                    .map_err(wl_err)
                 }
                 6 => {
-                    let (e12, e33, e34, e22, e44) = (elem(1)?, elem(2)?, elem(3)?, elem(4)?, elem(5)?);
-                    Tabulated::from_matrix_table(&theta[off..off + nt], &phase[off..off + nt], [e12, e22, e33, e34, e44])
-                        .map_err(wl_err)
+                    let (e12, e33, e34, e22, e44) =
+                        (elem(1)?, elem(2)?, elem(3)?, elem(4)?, elem(5)?);
+                    Tabulated::from_matrix_table(
+                        &theta[off..off + nt],
+                        &phase[off..off + nt],
+                        [e12, e22, e33, e34, e44],
+                    )
+                    .map_err(wl_err)
                 }
-                _ => Tabulated::from_table(&theta[off..off + nt], &phase[off..off + nt]).map_err(wl_err),
+                _ => Tabulated::from_table(&theta[off..off + nt], &phase[off..off + nt])
+                    .map_err(wl_err),
             }
         };
         let wl_nm: Vec<f64> = wl_um.iter().map(|w| w * 1e3).collect();
@@ -371,7 +444,9 @@ mod tests {
         assert!((mean_over_sphere(&p) - 1.0).abs() < 1e-6);
         let g = t.asymmetry();
         assert!(g > 0.5 && g < 0.8, "g = {g}");
-        let err = Tabulated::load_libradtran(&path, 550.0, 0).unwrap_err().to_string();
+        let err = Tabulated::load_libradtran(&path, 550.0, 0)
+            .unwrap_err()
+            .to_string();
         assert!(err.contains("outside the tabulated range"), "{err}");
         let err = Tabulated::load_libradtran(Path::new("/nonexistent.cdf"), 550.0, 0).unwrap_err();
         assert!(err.to_string().contains("/nonexistent.cdf"));

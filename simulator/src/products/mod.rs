@@ -53,7 +53,7 @@ fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
     let (q, eq) = acc.mean_stderr(c, Q);
     let (u, eu) = acc.mean_stderr(c, U);
     let pl = (q * q + u * u).sqrt();
-    if !(i > 0.0) {
+    if i.is_nan() || i <= 0.0 {
         return (f64::NAN, f64::NAN);
     }
     let p = pl / i;
@@ -62,8 +62,13 @@ fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
     }
     // Gradient of √(Q²+U²)/I with respect to (I, Q, U).
     let (gi, gq, gu) = (-p / i, q / (pl * i), u / (pl * i));
-    let var = gi * gi * ei * ei + gq * gq * eq * eq + gu * gu * eu * eu
-        + 2.0 * (gi * gq * acc.cov_of_means(c, 0) + gi * gu * acc.cov_of_means(c, 1) + gq * gu * acc.cov_of_means(c, 2));
+    let var = gi * gi * ei * ei
+        + gq * gq * eq * eq
+        + gu * gu * eu * eu
+        + 2.0
+            * (gi * gq * acc.cov_of_means(c, 0)
+                + gi * gu * acc.cov_of_means(c, 1)
+                + gq * gu * acc.cov_of_means(c, 2));
     (p, var.max(0.0).sqrt())
 }
 
@@ -140,7 +145,10 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
 /// Write `bytes` to `path` atomically (temporary file in the same folder, then rename).
 pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     let tmp = tmp_path(path);
-    let io = |source| OutputError::Io { path: path.to_path_buf(), source };
+    let io = |source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    };
     std::fs::write(&tmp, bytes).map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
         io(e)
@@ -150,7 +158,10 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
 
 /// `dir/.name.partial`: where a product is written before the rename.
 pub fn tmp_path(path: &Path) -> std::path::PathBuf {
-    let name = path.file_name().map(|n| n.to_string_lossy().to_string()).unwrap_or_default();
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().to_string())
+        .unwrap_or_default();
     path.with_file_name(format!(".{name}.partial"))
 }
 
@@ -174,28 +185,42 @@ pub struct BandRow {
 
 /// Band-weighted rows from per-wavelength rows (empty unless `spectral.srf` was given).
 pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
-    let Some(band) = &exp.band else { return Vec::new() };
+    let Some(band) = &exp.band else {
+        return Vec::new();
+    };
     let wsum: f64 = band.weights.iter().sum();
     let e0: Vec<f64> = exp.optics.iter().map(|o| o.irradiance).collect();
-    let e0_b = band.weights.iter().zip(&e0).map(|(w, e)| w * e).sum::<f64>() / wsum;
+    let e0_b = band
+        .weights
+        .iter()
+        .zip(&e0)
+        .map(|(w, e)| w * e)
+        .sum::<f64>()
+        / wsum;
     let mut out = Vec::new();
     for m in &exp.measures {
         for c in 0..m.cell_count() {
             // Rows of this measure and cell, one per wavelength, in wavelength order.
-            let cells: Vec<&Row> = rows.iter().filter(|r| r.measure == m.id).skip(c).step_by(m.cell_count()).collect();
-            let combine = |get: &dyn Fn(&Row) -> Option<(f64, f64)>, by_e0: bool| -> Option<(f64, f64)> {
-                let mut num = 0.0;
-                let mut var = 0.0;
-                let mut den = 0.0;
-                for (k, r) in cells.iter().enumerate() {
-                    let (v, e) = get(r)?;
-                    let w = band.weights[k] * if by_e0 { e0[k] } else { 1.0 };
-                    num += w * v;
-                    var += (w * e).powi(2);
-                    den += w;
-                }
-                Some((num / den, var.sqrt() / den))
-            };
+            let cells: Vec<&Row> = rows
+                .iter()
+                .filter(|r| r.measure == m.id)
+                .skip(c)
+                .step_by(m.cell_count())
+                .collect();
+            let combine =
+                |get: &dyn Fn(&Row) -> Option<(f64, f64)>, by_e0: bool| -> Option<(f64, f64)> {
+                    let mut num = 0.0;
+                    let mut var = 0.0;
+                    let mut den = 0.0;
+                    for (k, r) in cells.iter().enumerate() {
+                        let (v, e) = get(r)?;
+                        let w = band.weights[k] * if by_e0 { e0[k] } else { 1.0 };
+                        num += w * v;
+                        var += (w * e).powi(2);
+                        den += w;
+                    }
+                    Some((num / den, var.sqrt() / den))
+                };
             out.push(BandRow {
                 measure: m.id.clone(),
                 kind: m.type_name(),

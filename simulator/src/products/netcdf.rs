@@ -25,22 +25,37 @@ pub fn write(path: &Path, exp: &Experiment, rows: &[Row]) -> Result<(), OutputEr
     let band = super::band_rows(exp, rows);
     let tmp = tmp_path(path);
     let _ = std::fs::remove_file(&tmp);
-    let nc = |source| OutputError::Netcdf { path: path.to_path_buf(), source };
+    let nc = |source| OutputError::Netcdf {
+        path: path.to_path_buf(),
+        source,
+    };
     {
         let mut f = netcdf::create(&tmp).map_err(nc)?;
-        write_into(&mut f, exp, rows).and_then(|_| write_band(&mut f, exp, &band)).map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            nc(e)
-        })?;
+        write_into(&mut f, exp, rows)
+            .and_then(|_| write_band(&mut f, exp, &band))
+            .map_err(|e| {
+                let _ = std::fs::remove_file(&tmp);
+                nc(e)
+            })?;
     }
-    std::fs::rename(&tmp, path).map_err(|source| OutputError::Io { path: path.to_path_buf(), source })
+    std::fs::rename(&tmp, path).map_err(|source| OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }
 
-fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result<(), netcdf::Error> {
+fn write_into(
+    f: &mut netcdf::FileMut,
+    exp: &Experiment,
+    rows: &[Row],
+) -> Result<(), netcdf::Error> {
     f.add_attribute("Conventions", "CF-1.10")?;
     f.add_attribute("title", "Monte Carlo radiative transfer simulation")?;
     f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
-    f.add_attribute("history", format!("created by `simulate run {}`", exp.source_path.display()))?;
+    f.add_attribute(
+        "history",
+        format!("created by `simulate run {}`", exp.source_path.display()),
+    )?;
     f.add_attribute("seed", exp.seed as i64)?;
     f.add_attribute("polarized", if exp.polarized { "true" } else { "false" })?;
     f.add_attribute("sun_zenith", exp.sun_zenith_deg)?;
@@ -60,15 +75,36 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
         let mrows: Vec<&Row> = rows.iter().filter(|r| &r.measure == id).collect();
         let nc = m.cell_count();
         // Rows are in (wavelength, direction) order.
-        let col = |get: &dyn Fn(&Row) -> f64| -> Vec<f64> { mrows.iter().map(|r| get(r)).collect() };
+        let col =
+            |get: &dyn Fn(&Row) -> f64| -> Vec<f64> { mrows.iter().map(|r| get(r)).collect() };
         let nan = f64::NAN;
         match m.kind {
             MeasureKind::DistantFlux { altitude } => {
                 let vars: [(&str, Vec<f64>, &str, &str); 4] = [
-                    ("albedo", col(&|r| r.albedo.map_or(nan, |p| p.0)), "1", "upwelling flux / (E0 cos SZA)"),
-                    ("albedo_stderr", col(&|r| r.albedo.map_or(nan, |p| p.1)), "1", "standard error of albedo"),
-                    ("flux", col(&|r| r.flux.map_or(nan, |p| p.0)), "W m-2 nm-1", "upwelling hemispherical flux"),
-                    ("flux_stderr", col(&|r| r.flux.map_or(nan, |p| p.1)), "W m-2 nm-1", "standard error of flux"),
+                    (
+                        "albedo",
+                        col(&|r| r.albedo.map_or(nan, |p| p.0)),
+                        "1",
+                        "upwelling flux / (E0 cos SZA)",
+                    ),
+                    (
+                        "albedo_stderr",
+                        col(&|r| r.albedo.map_or(nan, |p| p.1)),
+                        "1",
+                        "standard error of albedo",
+                    ),
+                    (
+                        "flux",
+                        col(&|r| r.flux.map_or(nan, |p| p.0)),
+                        "W m-2 nm-1",
+                        "upwelling hemispherical flux",
+                    ),
+                    (
+                        "flux_stderr",
+                        col(&|r| r.flux.map_or(nan, |p| p.1)),
+                        "W m-2 nm-1",
+                        "standard error of flux",
+                    ),
                 ];
                 for (name, data, units, long) in vars {
                     let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength"])?;
@@ -87,8 +123,16 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
                 f.add_dimension(&dim, nc)?;
                 let first: Vec<&&Row> = mrows.iter().take(nc).collect();
                 for (name, get, long) in [
-                    ("vza", (|r: &Row| r.vza.unwrap_or(f64::NAN)) as fn(&Row) -> f64, "viewing zenith angle (target to sensor)"),
-                    ("vaa", |r: &Row| r.vaa.unwrap_or(f64::NAN), "viewing azimuth angle, clockwise from North (target to sensor)"),
+                    (
+                        "vza",
+                        (|r: &Row| r.vza.unwrap_or(f64::NAN)) as fn(&Row) -> f64,
+                        "viewing zenith angle (target to sensor)",
+                    ),
+                    (
+                        "vaa",
+                        |r: &Row| r.vaa.unwrap_or(f64::NAN),
+                        "viewing azimuth angle, clockwise from North (target to sensor)",
+                    ),
                 ] {
                     let data: Vec<f64> = first.iter().map(|r| get(r)).collect();
                     let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &[&dim])?;
@@ -98,17 +142,58 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
                 }
                 let coords = format!("{id}_vza {id}_vaa");
                 let vars: [(&str, Vec<f64>, &str, &str); 8] = [
-                    ("brf", col(&|r| r.brf.map_or(nan, |p| p.0)), "1", "bidirectional reflectance factor pi L / (E0 cos SZA)"),
-                    ("brf_stderr", col(&|r| r.brf.map_or(nan, |p| p.1)), "1", "standard error of brf"),
-                    ("brf_single", col(&|r| r.brf_single.map_or(nan, |p| p.0)), "1", "single-scattering part of brf"),
-                    ("brf_single_stderr", col(&|r| r.brf_single.map_or(nan, |p| p.1)), "1", "standard error of brf_single"),
-                    ("brf_multiple", col(&|r| r.brf_multiple.map_or(nan, |p| p.0)), "1", "multiple-scattering part of brf"),
-                    ("brf_multiple_stderr", col(&|r| r.brf_multiple.map_or(nan, |p| p.1)), "1", "standard error of brf_multiple"),
-                    ("radiance", col(&|r| r.radiance.map_or(nan, |p| p.0)), "W m-2 sr-1 nm-1", "radiance"),
-                    ("radiance_stderr", col(&|r| r.radiance.map_or(nan, |p| p.1)), "W m-2 sr-1 nm-1", "standard error of radiance"),
+                    (
+                        "brf",
+                        col(&|r| r.brf.map_or(nan, |p| p.0)),
+                        "1",
+                        "bidirectional reflectance factor pi L / (E0 cos SZA)",
+                    ),
+                    (
+                        "brf_stderr",
+                        col(&|r| r.brf.map_or(nan, |p| p.1)),
+                        "1",
+                        "standard error of brf",
+                    ),
+                    (
+                        "brf_single",
+                        col(&|r| r.brf_single.map_or(nan, |p| p.0)),
+                        "1",
+                        "single-scattering part of brf",
+                    ),
+                    (
+                        "brf_single_stderr",
+                        col(&|r| r.brf_single.map_or(nan, |p| p.1)),
+                        "1",
+                        "standard error of brf_single",
+                    ),
+                    (
+                        "brf_multiple",
+                        col(&|r| r.brf_multiple.map_or(nan, |p| p.0)),
+                        "1",
+                        "multiple-scattering part of brf",
+                    ),
+                    (
+                        "brf_multiple_stderr",
+                        col(&|r| r.brf_multiple.map_or(nan, |p| p.1)),
+                        "1",
+                        "standard error of brf_multiple",
+                    ),
+                    (
+                        "radiance",
+                        col(&|r| r.radiance.map_or(nan, |p| p.0)),
+                        "W m-2 sr-1 nm-1",
+                        "radiance",
+                    ),
+                    (
+                        "radiance_stderr",
+                        col(&|r| r.radiance.map_or(nan, |p| p.1)),
+                        "W m-2 sr-1 nm-1",
+                        "standard error of radiance",
+                    ),
                 ];
                 for (name, data, units, long) in vars {
-                    let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dim])?;
+                    let mut v =
+                        f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dim])?;
                     v.put_attribute("units", units)?;
                     v.put_attribute("long_name", long)?;
                     v.put_attribute("coordinates", coords.as_str())?;
@@ -116,17 +201,58 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
                 }
                 if mrows.first().is_some_and(|r| r.brf_q.is_some()) {
                     let pol: [(&str, Vec<f64>, &str, &str); 8] = [
-                        ("brf_q", col(&|r| r.brf_q.map_or(nan, |p| p.0)), "1", "Stokes Q normalised like brf (meridian frame of the view direction)"),
-                        ("brf_q_stderr", col(&|r| r.brf_q.map_or(nan, |p| p.1)), "1", "standard error of brf_q"),
-                        ("brf_u", col(&|r| r.brf_u.map_or(nan, |p| p.0)), "1", "Stokes U normalised like brf (meridian frame of the view direction)"),
-                        ("brf_u_stderr", col(&|r| r.brf_u.map_or(nan, |p| p.1)), "1", "standard error of brf_u"),
-                        ("brf_v", col(&|r| r.brf_v.map_or(nan, |p| p.0)), "1", "Stokes V normalised like brf"),
-                        ("brf_v_stderr", col(&|r| r.brf_v.map_or(nan, |p| p.1)), "1", "standard error of brf_v"),
-                        ("dolp", col(&|r| r.dolp.map_or(nan, |p| p.0)), "1", "degree of linear polarization sqrt(Q^2+U^2)/I"),
-                        ("dolp_stderr", col(&|r| r.dolp.map_or(nan, |p| p.1)), "1", "standard error of dolp (delta method)"),
+                        (
+                            "brf_q",
+                            col(&|r| r.brf_q.map_or(nan, |p| p.0)),
+                            "1",
+                            "Stokes Q normalised like brf (meridian frame of the view direction)",
+                        ),
+                        (
+                            "brf_q_stderr",
+                            col(&|r| r.brf_q.map_or(nan, |p| p.1)),
+                            "1",
+                            "standard error of brf_q",
+                        ),
+                        (
+                            "brf_u",
+                            col(&|r| r.brf_u.map_or(nan, |p| p.0)),
+                            "1",
+                            "Stokes U normalised like brf (meridian frame of the view direction)",
+                        ),
+                        (
+                            "brf_u_stderr",
+                            col(&|r| r.brf_u.map_or(nan, |p| p.1)),
+                            "1",
+                            "standard error of brf_u",
+                        ),
+                        (
+                            "brf_v",
+                            col(&|r| r.brf_v.map_or(nan, |p| p.0)),
+                            "1",
+                            "Stokes V normalised like brf",
+                        ),
+                        (
+                            "brf_v_stderr",
+                            col(&|r| r.brf_v.map_or(nan, |p| p.1)),
+                            "1",
+                            "standard error of brf_v",
+                        ),
+                        (
+                            "dolp",
+                            col(&|r| r.dolp.map_or(nan, |p| p.0)),
+                            "1",
+                            "degree of linear polarization sqrt(Q^2+U^2)/I",
+                        ),
+                        (
+                            "dolp_stderr",
+                            col(&|r| r.dolp.map_or(nan, |p| p.1)),
+                            "1",
+                            "standard error of dolp (delta method)",
+                        ),
                     ];
                     for (name, data, units, long) in pol {
-                        let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dim])?;
+                        let mut v =
+                            f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dim])?;
                         v.put_attribute("units", units)?;
                         v.put_attribute("long_name", long)?;
                         v.put_attribute("coordinates", coords.as_str())?;
@@ -134,7 +260,8 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
                     }
                 }
                 let n: Vec<i64> = mrows.iter().map(|r| r.n_samples as i64).collect();
-                let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength", &dim])?;
+                let mut v =
+                    f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength", &dim])?;
                 v.put_attribute("long_name", "Monte Carlo samples")?;
                 v.put_values(&n, ..)?;
             }
@@ -146,7 +273,11 @@ fn write_into(f: &mut netcdf::FileMut, exp: &Experiment, rows: &[Row]) -> Result
 /// Band-weighted variables `ID_band_brf`, `ID_band_radiance` (and `_stderr`; `ID_band_albedo`,
 /// `ID_band_flux` for fluxes) on the measure's direction dimension, with the band's name and
 /// irradiance as attributes.
-fn write_band(f: &mut netcdf::FileMut, exp: &Experiment, band: &[super::BandRow]) -> Result<(), netcdf::Error> {
+fn write_band(
+    f: &mut netcdf::FileMut,
+    exp: &Experiment,
+    band: &[super::BandRow],
+) -> Result<(), netcdf::Error> {
     let Some(b) = &exp.band else { return Ok(()) };
     f.add_attribute("srf", b.name.as_str())?;
     for m in &exp.measures {
@@ -162,14 +293,50 @@ fn write_band(f: &mut netcdf::FileMut, exp: &Experiment, band: &[super::BandRow]
         };
         let nan = f64::NAN;
         let vars: [(&str, Vec<f64>, &str); 8] = [
-            ("band_brf", rows.iter().map(|r| r.brf.map_or(nan, |p| p.0)).collect(), "1"),
-            ("band_brf_stderr", rows.iter().map(|r| r.brf.map_or(nan, |p| p.1)).collect(), "1"),
-            ("band_radiance", rows.iter().map(|r| r.radiance.map_or(nan, |p| p.0)).collect(), "W m-2 sr-1 nm-1"),
-            ("band_radiance_stderr", rows.iter().map(|r| r.radiance.map_or(nan, |p| p.1)).collect(), "W m-2 sr-1 nm-1"),
-            ("band_albedo", rows.iter().map(|r| r.albedo.map_or(nan, |p| p.0)).collect(), "1"),
-            ("band_albedo_stderr", rows.iter().map(|r| r.albedo.map_or(nan, |p| p.1)).collect(), "1"),
-            ("band_flux", rows.iter().map(|r| r.flux.map_or(nan, |p| p.0)).collect(), "W m-2 nm-1"),
-            ("band_flux_stderr", rows.iter().map(|r| r.flux.map_or(nan, |p| p.1)).collect(), "W m-2 nm-1"),
+            (
+                "band_brf",
+                rows.iter().map(|r| r.brf.map_or(nan, |p| p.0)).collect(),
+                "1",
+            ),
+            (
+                "band_brf_stderr",
+                rows.iter().map(|r| r.brf.map_or(nan, |p| p.1)).collect(),
+                "1",
+            ),
+            (
+                "band_radiance",
+                rows.iter()
+                    .map(|r| r.radiance.map_or(nan, |p| p.0))
+                    .collect(),
+                "W m-2 sr-1 nm-1",
+            ),
+            (
+                "band_radiance_stderr",
+                rows.iter()
+                    .map(|r| r.radiance.map_or(nan, |p| p.1))
+                    .collect(),
+                "W m-2 sr-1 nm-1",
+            ),
+            (
+                "band_albedo",
+                rows.iter().map(|r| r.albedo.map_or(nan, |p| p.0)).collect(),
+                "1",
+            ),
+            (
+                "band_albedo_stderr",
+                rows.iter().map(|r| r.albedo.map_or(nan, |p| p.1)).collect(),
+                "1",
+            ),
+            (
+                "band_flux",
+                rows.iter().map(|r| r.flux.map_or(nan, |p| p.0)).collect(),
+                "W m-2 nm-1",
+            ),
+            (
+                "band_flux_stderr",
+                rows.iter().map(|r| r.flux.map_or(nan, |p| p.1)).collect(),
+                "W m-2 nm-1",
+            ),
         ];
         for (name, data, units) in vars {
             if data.iter().all(|v| v.is_nan()) {
@@ -177,8 +344,14 @@ fn write_band(f: &mut netcdf::FileMut, exp: &Experiment, band: &[super::BandRow]
             }
             let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &[&dim])?;
             v.put_attribute("units", units)?;
-            v.put_attribute("long_name", format!("{name} weighted by the spectral response {}", b.name).as_str())?;
-            v.put_attribute("band_irradiance", rows.first().map_or(nan, |r| r.irradiance))?;
+            v.put_attribute(
+                "long_name",
+                format!("{name} weighted by the spectral response {}", b.name).as_str(),
+            )?;
+            v.put_attribute(
+                "band_irradiance",
+                rows.first().map_or(nan, |r| r.irradiance),
+            )?;
             v.put_values(&data, ..)?;
         }
     }

@@ -12,7 +12,8 @@ pub fn data_dir() -> PathBuf {
 
 pub fn experiment(text: &str) -> Experiment {
     // Relative paths in test experiments are taken from tests/data.
-    Experiment::from_str(text, &data_dir().join("test.toml")).unwrap_or_else(|e| panic!("{e}\n{text}"))
+    Experiment::from_str(text, &data_dir().join("test.toml"))
+        .unwrap_or_else(|e| panic!("{e}\n{text}"))
 }
 
 pub fn run_rows(exp: &Experiment) -> Vec<Row> {
@@ -46,7 +47,11 @@ pub fn check_all(case: &str, cmps: &[Cmp]) -> Result<(), String> {
     for c in cmps {
         let diff = (c.value - c.reference).abs();
         let tol = K * c.stderr + ABS_FLOOR.max(REL_FLOOR * c.reference.abs());
-        let rel = if c.reference != 0.0 { diff / c.reference.abs() } else { diff };
+        let rel = if c.reference != 0.0 {
+            diff / c.reference.abs()
+        } else {
+            diff
+        };
         worst_rel = worst_rel.max(rel);
         if c.stderr > 0.0 {
             worst_z = worst_z.max(diff / c.stderr);
@@ -66,7 +71,10 @@ pub fn check_all(case: &str, cmps: &[Cmp]) -> Result<(), String> {
         }
     }
     let med_se = {
-        let mut v: Vec<f64> = cmps.iter().map(|c| c.stderr / c.reference.abs().max(1e-12)).collect();
+        let mut v: Vec<f64> = cmps
+            .iter()
+            .map(|c| c.stderr / c.reference.abs().max(1e-12))
+            .collect();
         v.sort_by(|a, b| a.partial_cmp(b).unwrap());
         v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
@@ -80,7 +88,12 @@ pub fn check_all(case: &str, cmps: &[Cmp]) -> Result<(), String> {
     if failures.is_empty() {
         Ok(())
     } else {
-        Err(format!("{case}: {} of {} comparisons failed:\n{}", failures.len(), cmps.len(), failures.join("\n")))
+        Err(format!(
+            "{case}: {} of {} comparisons failed:\n{}",
+            failures.len(),
+            cmps.len(),
+            failures.join("\n")
+        ))
     }
 }
 
