@@ -475,22 +475,44 @@ pub fn run_resumable(
     progress: bool,
     dir: &std::path::Path,
 ) -> Result<(Vec<MeasureResult>, usize), crate::error::OutputError> {
+    let (out, resumed) = run_shard(exp, progress, dir, 0, 1)?;
+    Ok((out.into_iter().map(|r| r.expect("every task runs in shard 0/1")).collect(), resumed))
+}
+
+/// Run only the tasks (wavelength, measure) whose index `iw·measures + im` is `shard` modulo
+/// `shards`, storing each in `dir`; tasks of other shards are loaded from `dir` when present
+/// (so collecting the checkpoint files of all shards in one folder and running shard 0/1 there
+/// writes the products without recomputing anything: runs split across machines merge exactly).
+/// Returns one entry per task (`None`: another shard's task not available) and the count loaded.
+pub fn run_shard(
+    exp: &Experiment,
+    progress: bool,
+    dir: &std::path::Path,
+    shard: usize,
+    shards: usize,
+) -> Result<(Vec<Option<MeasureResult>>, usize), crate::error::OutputError> {
     let bar = progress_bar(exp, progress);
     let mut out = Vec::new();
     let mut resumed = 0;
+    let nm = exp.measures.len();
     for iw in 0..exp.wavelengths.len() {
         for (im, m) in exp.measures.iter().enumerate() {
             let per = walks_per_sample(exp, m);
             if let Some(r) = checkpoint::load(dir, exp, iw, im) {
                 bar.inc(m.spp * per);
                 resumed += 1;
-                out.push(r);
+                out.push(Some(r));
+                continue;
+            }
+            if (iw * nm + im) % shards != shard {
+                bar.inc(m.spp * per);
+                out.push(None);
                 continue;
             }
             bar.set_message(format!("{} @ {} nm", m.id, exp.wavelengths[iw]));
             let r = run_measure(exp, iw, im, &bar);
             checkpoint::store(dir, exp, &r)?;
-            out.push(r);
+            out.push(Some(r));
         }
     }
     bar.finish_and_clear();

@@ -43,6 +43,11 @@ enum Command {
         /// Ignore checkpoints of an earlier, interrupted run in OUTDIR/checkpoints.
         #[arg(long)]
         fresh: bool,
+        /// Run only shard K of N (`K/N`, K from 0): its (wavelength, measure) tasks are written to
+        /// OUTDIR/checkpoints; copy the checkpoints of all shards into one OUTDIR/checkpoints and
+        /// run without --shard there to write the products (nothing is recomputed).
+        #[arg(long)]
+        shard: Option<String>,
     },
     /// Validate an experiment file without running it.
     Check { experiment: PathBuf },
@@ -112,13 +117,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Run {
-            experiment,
-            output,
-            threads,
-            quiet,
-            fresh,
-        } => {
+        Command::Run { experiment, output, threads, quiet, fresh, shard } => {
             set_threads(threads)?;
             let exp = Experiment::load(&experiment)?;
             std::fs::create_dir_all(&output)
@@ -135,13 +134,26 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             if fresh {
                 let _ = std::fs::remove_dir_all(&ckpt);
             }
-            let (results, resumed) = simulator::run::run_resumable(&exp, !quiet, &ckpt)?;
+            let (shard, shards) = match &shard {
+                None => (0, 1),
+                Some(s) => parse_shard(s).map_err(|m| {
+                    anyhow::Error::new(ConfigError::Invalid { path: experiment.clone(), key: "--shard".into(), message: m })
+                })?,
+            };
+            let (results, resumed) = simulator::run::run_shard(&exp, !quiet, &ckpt, shard, shards)?;
             if resumed > 0 {
+                tracing::info!("resumed {resumed} completed task(s) from {}", ckpt.display());
+            }
+            let missing = results.iter().filter(|r| r.is_none()).count();
+            if missing > 0 {
                 tracing::info!(
-                    "resumed {resumed} completed task(s) from {}",
+                    "shard {shard}/{shards} done: its tasks are in {}; {missing} task(s) of other shards are still missing, \
+                     so no products were written",
                     ckpt.display()
                 );
+                return Ok(());
             }
+            let results: Vec<_> = results.into_iter().flatten().collect();
             let rows = products::rows(&exp, &results);
             let csv = output.join("results.csv");
             let nc = output.join("results.nc");
@@ -184,6 +196,17 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             simulator::bench::run(target, &method, polarized, spherical)
         }
     }
+}
+
+/// `K/N` with 0 ≤ K < N.
+fn parse_shard(s: &str) -> Result<(usize, usize), String> {
+    let (k, n) = s.split_once('/').ok_or_else(|| format!("\"{s}\" must be K/N, e.g. 0/4"))?;
+    let k: usize = k.trim().parse().map_err(|_| format!("\"{s}\": K is not a number"))?;
+    let n: usize = n.trim().parse().map_err(|_| format!("\"{s}\": N is not a number"))?;
+    if n == 0 || k >= n {
+        return Err(format!("\"{s}\": need 0 <= K < N"));
+    }
+    Ok((k, n))
 }
 
 fn print_summary(rows: &[products::Row]) {

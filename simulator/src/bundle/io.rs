@@ -78,13 +78,26 @@ struct HashedFile {
 
 impl HashedFile {
     fn create(path: PathBuf) -> Result<Self, BundleError> {
-        let f = File::create(&path).map_err(|source| BundleError::Write { path: path.clone(), source })?;
-        Ok(HashedFile { path, out: BufWriter::with_capacity(1 << 20, f), hasher: Sha256::new(), len: 0 })
+        let f = File::create(&path).map_err(|source| BundleError::Write {
+            path: path.clone(),
+            source,
+        })?;
+        Ok(HashedFile {
+            path,
+            out: BufWriter::with_capacity(1 << 20, f),
+            hasher: Sha256::new(),
+            len: 0,
+        })
     }
     fn put(&mut self, bytes: &[u8]) -> Result<(), BundleError> {
         self.hasher.update(bytes);
         self.len += bytes.len() as u64;
-        self.out.write_all(bytes).map_err(|source| BundleError::Write { path: self.path.clone(), source })
+        self.out
+            .write_all(bytes)
+            .map_err(|source| BundleError::Write {
+                path: self.path.clone(),
+                source,
+            })
     }
     fn put_f32s(&mut self, v: impl IntoIterator<Item = f32>) -> Result<(), BundleError> {
         let mut buf = Vec::with_capacity(4096);
@@ -102,9 +115,17 @@ impl HashedFile {
     }
     fn finish(self, name: &str) -> Result<FileDigest, BundleError> {
         let path = self.path.clone();
-        let f = self.out.into_inner().map_err(|e| BundleError::Write { path: path.clone(), source: e.into_error() })?;
-        f.sync_all().map_err(|source| BundleError::Write { path, source })?;
-        Ok(FileDigest { file: name.into(), bytes: self.len, sha256: hex(&self.hasher.finalize()) })
+        let f = self.out.into_inner().map_err(|e| BundleError::Write {
+            path: path.clone(),
+            source: e.into_error(),
+        })?;
+        f.sync_all()
+            .map_err(|source| BundleError::Write { path, source })?;
+        Ok(FileDigest {
+            file: name.into(),
+            bytes: self.len,
+            sha256: hex(&self.hasher.finalize()),
+        })
     }
 }
 
@@ -132,19 +153,33 @@ impl Bundle {
     /// Returns the manifest as written (offsets, counts and digests filled in).
     pub fn write(&self, dir: &Path, force: bool) -> Result<Manifest, BundleError> {
         if dir.exists() && !force {
-            return Err(BundleError::Exists { path: dir.to_path_buf() });
+            return Err(BundleError::Exists {
+                path: dir.to_path_buf(),
+            });
         }
         self.check_consistency(dir)?;
         let parent = match dir.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
             _ => PathBuf::from("."),
         };
-        std::fs::create_dir_all(&parent).map_err(|source| BundleError::Write { path: parent.clone(), source })?;
-        let name = dir.file_name().map(|n| n.to_string_lossy().into_owned()).unwrap_or_else(|| "bundle".into());
+        std::fs::create_dir_all(&parent).map_err(|source| BundleError::Write {
+            path: parent.clone(),
+            source,
+        })?;
+        let name = dir
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|| "bundle".into());
         let tmp = parent.join(format!(".{name}.tmp-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&tmp);
-        std::fs::create_dir(&tmp).map_err(|source| BundleError::Write { path: tmp.clone(), source })?;
-        let mut guard = TmpDirGuard { path: tmp.clone(), done: false };
+        std::fs::create_dir(&tmp).map_err(|source| BundleError::Write {
+            path: tmp.clone(),
+            source,
+        })?;
+        let mut guard = TmpDirGuard {
+            path: tmp.clone(),
+            done: false,
+        };
 
         let mut m = self.manifest.clone();
         m.format = FORMAT_NAME.into();
@@ -205,7 +240,10 @@ impl Bundle {
             m.templates.push(Template {
                 id: id as u32,
                 name: t.name.clone(),
-                source: old.get(id).map(|o| o.source.clone()).unwrap_or_else(|| t.source.clone()),
+                source: old
+                    .get(id)
+                    .map(|o| o.source.clone())
+                    .unwrap_or_else(|| t.source.clone()),
                 positions_offset,
                 indices_offset,
                 materials_offset,
@@ -236,7 +274,11 @@ impl Bundle {
             }
         }
         f.put(&buf)?;
-        m.instances = Instances { file: INSTANCES_FILE.into(), count: self.instances.len() as u64, per_template };
+        m.instances = Instances {
+            file: INSTANCES_FILE.into(),
+            count: self.instances.len() as u64,
+            per_template,
+        };
         digests.push(f.finish(INSTANCES_FILE)?);
 
         // Material raster.
@@ -253,8 +295,10 @@ impl Bundle {
         digests.push(f.finish(MATERIALS_FILE)?);
 
         m.provenance.files = digests;
-        let text = toml::to_string(&m)
-            .map_err(|e| BundleError::Manifest { path: tmp.join(MANIFEST_FILE), message: e.to_string() })?;
+        let text = toml::to_string(&m).map_err(|e| BundleError::Manifest {
+            path: tmp.join(MANIFEST_FILE),
+            message: e.to_string(),
+        })?;
         let mut f = HashedFile::create(tmp.join(MANIFEST_FILE))?;
         f.put(text.as_bytes())?;
         f.finish(MANIFEST_FILE)?;
@@ -262,18 +306,30 @@ impl Bundle {
         // Commit: move an existing destination aside, rename, then delete the old one.
         if dir.exists() {
             let trash = parent.join(format!(".{name}.old-{}", std::process::id()));
-            std::fs::rename(dir, &trash).map_err(|source| BundleError::Write { path: dir.to_path_buf(), source })?;
-            std::fs::rename(&tmp, dir).map_err(|source| BundleError::Write { path: dir.to_path_buf(), source })?;
+            std::fs::rename(dir, &trash).map_err(|source| BundleError::Write {
+                path: dir.to_path_buf(),
+                source,
+            })?;
+            std::fs::rename(&tmp, dir).map_err(|source| BundleError::Write {
+                path: dir.to_path_buf(),
+                source,
+            })?;
             let _ = std::fs::remove_dir_all(&trash);
         } else {
-            std::fs::rename(&tmp, dir).map_err(|source| BundleError::Write { path: dir.to_path_buf(), source })?;
+            std::fs::rename(&tmp, dir).map_err(|source| BundleError::Write {
+                path: dir.to_path_buf(),
+                source,
+            })?;
         }
         guard.done = true;
         Ok(m)
     }
 
     fn check_consistency(&self, dir: &Path) -> Result<(), BundleError> {
-        let bad = |message: String| BundleError::Corrupt { path: dir.to_path_buf(), message };
+        let bad = |message: String| BundleError::Corrupt {
+            path: dir.to_path_buf(),
+            message,
+        };
         let r = &self.manifest.material_raster;
         if self.material_raster.len() != r.width as usize * r.height as usize {
             return Err(bad(format!(
@@ -292,7 +348,11 @@ impl Bundle {
                     t.positions.len()
                 )));
             }
-            if let Some(tri) = t.indices.iter().find(|tri| tri.iter().any(|&i| i as usize >= t.positions.len())) {
+            if let Some(tri) = t
+                .indices
+                .iter()
+                .find(|tri| tri.iter().any(|&i| i as usize >= t.positions.len()))
+            {
                 return Err(bad(format!(
                     "terrain tile {:?}: triangle {tri:?} indexes past {} vertices",
                     t.id,
@@ -308,11 +368,22 @@ impl Bundle {
                     t.indices.len()
                 )));
             }
-            if t.indices.iter().flatten().any(|&i| i as usize >= t.positions.len()) {
-                return Err(bad(format!("template {k}: an index points past {} vertices", t.positions.len())));
+            if t.indices
+                .iter()
+                .flatten()
+                .any(|&i| i as usize >= t.positions.len())
+            {
+                return Err(bad(format!(
+                    "template {k}: an index points past {} vertices",
+                    t.positions.len()
+                )));
             }
         }
-        if let Some(i) = self.instances.iter().find(|i| i.template as usize >= self.templates.len()) {
+        if let Some(i) = self
+            .instances
+            .iter()
+            .find(|i| i.template as usize >= self.templates.len())
+        {
             return Err(bad(format!(
                 "instance of template {} but only {} templates",
                 i.template,
@@ -325,24 +396,49 @@ impl Bundle {
     /// Read and validate `dir/manifest.toml` only (for summaries).
     pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
         let path = dir.join(MANIFEST_FILE);
-        let text = std::fs::read_to_string(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
+        let text = std::fs::read_to_string(&path).map_err(|source| BundleError::Read {
+            path: path.clone(),
+            source,
+        })?;
         // Check the version before the schema, so an old reader says "version" not "unknown key".
-        let table: toml::Table = text
-            .parse()
-            .map_err(|e: toml::de::Error| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
+        let table: toml::Table =
+            text.parse()
+                .map_err(|e: toml::de::Error| BundleError::Manifest {
+                    path: path.clone(),
+                    message: e.to_string(),
+                })?;
         if table.get("format").and_then(|v| v.as_str()) != Some(FORMAT_NAME) {
-            return Err(BundleError::Manifest { path, message: format!("`format` is not \"{FORMAT_NAME}\"") });
+            return Err(BundleError::Manifest {
+                path,
+                message: format!("`format` is not \"{FORMAT_NAME}\""),
+            });
         }
         match table.get("format_version").and_then(|v| v.as_integer()) {
             Some(v) if v == FORMAT_VERSION as i64 => {}
-            Some(v) => return Err(BundleError::Version { path, found: v as u32 }),
-            None => return Err(BundleError::Manifest { path, message: "missing `format_version`".into() }),
+            Some(v) => {
+                return Err(BundleError::Version {
+                    path,
+                    found: v as u32,
+                })
+            }
+            None => {
+                return Err(BundleError::Manifest {
+                    path,
+                    message: "missing `format_version`".into(),
+                })
+            }
         }
-        let de = toml::Deserializer::parse(&text)
-            .map_err(|e| BundleError::Manifest { path: path.clone(), message: e.to_string() })?;
+        let de = toml::Deserializer::parse(&text).map_err(|e| BundleError::Manifest {
+            path: path.clone(),
+            message: e.to_string(),
+        })?;
         serde_path_to_error::deserialize(de).map_err(|e| BundleError::Manifest {
             path: path.clone(),
-            message: format!("at key `{}`: {}", e.path(), e.inner().to_string().trim_end()),
+            message: format!(
+                "at key `{}`: {}",
+                e.path(),
+                e.inner().to_string().trim_end()
+            ),
         })
     }
 
@@ -351,7 +447,10 @@ impl Bundle {
         let manifest = Self::read_manifest(dir)?;
         let read = |name: &str| -> Result<(PathBuf, Vec<u8>), BundleError> {
             let path = dir.join(name);
-            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
+            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read {
+                path: path.clone(),
+                source,
+            })?;
             Ok((path, bytes))
         };
         let slice = |path: &Path,
@@ -360,8 +459,10 @@ impl Bundle {
                      len: u64,
                      what: &str|
          -> Result<std::ops::Range<usize>, BundleError> {
-            let end =
-                off.checked_add(len).filter(|&e| e <= bytes.len() as u64).ok_or_else(|| BundleError::Corrupt {
+            let end = off
+                .checked_add(len)
+                .filter(|&e| e <= bytes.len() as u64)
+                .ok_or_else(|| BundleError::Corrupt {
                     path: path.to_path_buf(),
                     message: format!(
                         "{what}: bytes {off}..{} beyond the file's {} bytes",
@@ -376,18 +477,46 @@ impl Bundle {
         let mut terrain = Vec::with_capacity(manifest.terrain.tiles.len());
         for t in &manifest.terrain.tiles {
             let what = format!("terrain tile {:?}", t.id);
-            let p = slice(&path, &bytes, t.positions_offset, t.vertex_count * 12, &what)?;
+            let p = slice(
+                &path,
+                &bytes,
+                t.positions_offset,
+                t.vertex_count * 12,
+                &what,
+            )?;
             let u = slice(&path, &bytes, t.uvs_offset, t.vertex_count * 8, &what)?;
-            let i = slice(&path, &bytes, t.indices_offset, t.triangle_count * 12, &what)?;
-            let indices: Vec<[u32; 3]> = u32s(&bytes[i]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            if indices.iter().flatten().any(|&k| k as u64 >= t.vertex_count) {
-                return Err(BundleError::Corrupt { path, message: format!("{what}: a vertex index is out of range") });
+            let i = slice(
+                &path,
+                &bytes,
+                t.indices_offset,
+                t.triangle_count * 12,
+                &what,
+            )?;
+            let indices: Vec<[u32; 3]> = u32s(&bytes[i])
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            if indices
+                .iter()
+                .flatten()
+                .any(|&k| k as u64 >= t.vertex_count)
+            {
+                return Err(BundleError::Corrupt {
+                    path,
+                    message: format!("{what}: a vertex index is out of range"),
+                });
             }
             terrain.push(TerrainTile {
                 id: t.id,
                 origin: t.origin,
-                positions: f32s(&bytes[p]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
-                uvs: f32s(&bytes[u]).chunks_exact(2).map(|c| [c[0], c[1]]).collect(),
+                positions: f32s(&bytes[p])
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]])
+                    .collect(),
+                uvs: f32s(&bytes[u])
+                    .chunks_exact(2)
+                    .map(|c| [c[0], c[1]])
+                    .collect(),
                 indices,
             });
         }
@@ -396,17 +525,42 @@ impl Bundle {
         let mut templates = Vec::with_capacity(manifest.templates.len());
         for t in &manifest.templates {
             let what = format!("template {} ({})", t.id, t.name);
-            let p = slice(&path, &bytes, t.positions_offset, t.vertex_count * 12, &what)?;
-            let i = slice(&path, &bytes, t.indices_offset, t.triangle_count * 12, &what)?;
+            let p = slice(
+                &path,
+                &bytes,
+                t.positions_offset,
+                t.vertex_count * 12,
+                &what,
+            )?;
+            let i = slice(
+                &path,
+                &bytes,
+                t.indices_offset,
+                t.triangle_count * 12,
+                &what,
+            )?;
             let mm = slice(&path, &bytes, t.materials_offset, t.triangle_count, &what)?;
-            let indices: Vec<[u32; 3]> = u32s(&bytes[i]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect();
-            if indices.iter().flatten().any(|&k| k as u64 >= t.vertex_count) {
-                return Err(BundleError::Corrupt { path, message: format!("{what}: a vertex index is out of range") });
+            let indices: Vec<[u32; 3]> = u32s(&bytes[i])
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            if indices
+                .iter()
+                .flatten()
+                .any(|&k| k as u64 >= t.vertex_count)
+            {
+                return Err(BundleError::Corrupt {
+                    path,
+                    message: format!("{what}: a vertex index is out of range"),
+                });
             }
             templates.push(TemplateMesh {
                 name: t.name.clone(),
                 source: t.source.clone(),
-                positions: f32s(&bytes[p]).chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect(),
+                positions: f32s(&bytes[p])
+                    .chunks_exact(3)
+                    .map(|c| [c[0], c[1], c[2]])
+                    .collect(),
                 indices,
                 materials: bytes[mm].to_vec(),
             });
@@ -435,10 +589,17 @@ impl Bundle {
             if template as usize >= templates.len() {
                 return Err(BundleError::Corrupt {
                     path,
-                    message: format!("an instance names template {template} of {}", templates.len()),
+                    message: format!(
+                        "an instance names template {template} of {}",
+                        templates.len()
+                    ),
                 });
             }
-            instances.push(Instance { translation: [f64at(0), f64at(8), f64at(16)], linear, template });
+            instances.push(Instance {
+                translation: [f64at(0), f64at(8), f64at(16)],
+                linear,
+                template,
+            });
         }
 
         let (path, material_raster) = read(&manifest.material_raster.file)?;
@@ -446,10 +607,21 @@ impl Bundle {
         if material_raster.len() != r.width as usize * r.height as usize {
             return Err(BundleError::Corrupt {
                 path,
-                message: format!("{} bytes for a {} × {} raster", material_raster.len(), r.width, r.height),
+                message: format!(
+                    "{} bytes for a {} × {} raster",
+                    material_raster.len(),
+                    r.width,
+                    r.height
+                ),
             });
         }
-        Ok(Bundle { manifest, terrain, templates, instances, material_raster })
+        Ok(Bundle {
+            manifest,
+            terrain,
+            templates,
+            instances,
+            material_raster,
+        })
     }
 
     /// Recompute the SHA-256 of every binary file and compare with the manifest.
@@ -457,7 +629,10 @@ impl Bundle {
         let m = Self::read_manifest(dir)?;
         for d in &m.provenance.files {
             let path = dir.join(&d.file);
-            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read { path: path.clone(), source })?;
+            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read {
+                path: path.clone(),
+                source,
+            })?;
             let got = hex(&Sha256::digest(&bytes));
             if got != d.sha256 {
                 return Err(BundleError::Corrupt {
@@ -471,11 +646,15 @@ impl Bundle {
 }
 
 fn f32s(b: &[u8]) -> Vec<f32> {
-    b.chunks_exact(4).map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+    b.chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }
 
 fn u32s(b: &[u8]) -> Vec<u32> {
-    b.chunks_exact(4).map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]])).collect()
+    b.chunks_exact(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
 }
 
 #[cfg(test)]
@@ -486,7 +665,11 @@ mod tests {
         let manifest = Manifest {
             format: FORMAT_NAME.into(),
             format_version: FORMAT_VERSION,
-            crs: Crs { wkt: "LOCAL_CS[\"test\"]".into(), epsg: None, proj: Some("+proj=aeqd".into()) },
+            crs: Crs {
+                wkt: "LOCAL_CS[\"test\"]".into(),
+                epsg: None,
+                proj: Some("+proj=aeqd".into()),
+            },
             frame: LocalFrame {
                 kind: "projected_enu".into(),
                 origin: [0.0; 3],
@@ -520,7 +703,9 @@ mod tests {
                 Material {
                     index: 0,
                     name: "grass".into(),
-                    brdf: BrdfSpec::Lambertian { reflectance: Spectrum::Constant(0.2) },
+                    brdf: BrdfSpec::Lambertian {
+                        reflectance: Spectrum::Constant(0.2),
+                    },
                     class_codes: vec![30],
                     source: "test".into(),
                 },
@@ -528,7 +713,10 @@ mod tests {
                     index: 1,
                     name: "leaf".into(),
                     brdf: BrdfSpec::BiLambertian {
-                        reflectance: Spectrum::Table { wavelengths_nm: vec![400.0, 800.0], values: vec![0.05, 0.45] },
+                        reflectance: Spectrum::Table {
+                            wavelengths_nm: vec![400.0, 800.0],
+                            values: vec![0.05, 0.45],
+                        },
                         transmittance: Spectrum::Constant(0.4),
                     },
                     class_codes: vec![],
@@ -536,13 +724,22 @@ mod tests {
                 },
             ],
             templates: vec![],
-            instances: Instances { file: String::new(), count: 0, per_template: vec![] },
+            instances: Instances {
+                file: String::new(),
+                count: 0,
+                per_template: vec![],
+            },
             provenance: Provenance {
                 generator: "test".into(),
                 generator_version: "0".into(),
                 seed: 7,
                 region_toml: "a = 1\n".into(),
-                inputs: vec![InputFile { role: "dem".into(), path: "x.tif".into(), bytes: 3, sha256: "00".into() }],
+                inputs: vec![InputFile {
+                    role: "dem".into(),
+                    path: "x.tif".into(),
+                    bytes: 3,
+                    sha256: "00".into(),
+                }],
                 files: vec![],
             },
         };
@@ -598,12 +795,18 @@ mod tests {
         assert_eq!(written.provenance.files.len(), 4);
         Bundle::verify(&dir).unwrap();
         // An existing directory is refused without force, replaced with it.
-        assert!(matches!(b.write(&dir, false), Err(BundleError::Exists { .. })));
+        assert!(matches!(
+            b.write(&dir, false),
+            Err(BundleError::Exists { .. })
+        ));
         b.write(&dir, true).unwrap();
         // A flipped byte is caught by verify.
         let p = dir.join("materials.u8");
         std::fs::write(&p, [0u8, 1, 255, 1]).unwrap();
-        assert!(matches!(Bundle::verify(&dir), Err(BundleError::Corrupt { .. })));
+        assert!(matches!(
+            Bundle::verify(&dir),
+            Err(BundleError::Corrupt { .. })
+        ));
         std::fs::remove_dir_all(&dir).unwrap();
     }
 
@@ -616,7 +819,11 @@ mod tests {
         sample().write(&dir, false).unwrap();
         let mpath = dir.join("manifest.toml");
         let text = std::fs::read_to_string(&mpath).unwrap();
-        std::fs::write(&mpath, text.replace("format_version = 1", "format_version = 99")).unwrap();
+        std::fs::write(
+            &mpath,
+            text.replace("format_version = 1", "format_version = 99"),
+        )
+        .unwrap();
         let e = Bundle::open(&dir).unwrap_err();
         assert!(matches!(e, BundleError::Version { found: 99, .. }), "{e}");
         std::fs::write(&mpath, &text).unwrap();
@@ -645,10 +852,18 @@ mod tests {
 
     #[test]
     fn spectrum_interpolates_and_clamps() {
-        let s = Spectrum::Table { wavelengths_nm: vec![400.0, 500.0], values: vec![0.1, 0.3] };
+        let s = Spectrum::Table {
+            wavelengths_nm: vec![400.0, 500.0],
+            values: vec![0.1, 0.3],
+        };
         assert!((s.at(450.0) - 0.2).abs() < 1e-12);
         assert_eq!(s.at(300.0), 0.1);
         assert_eq!(s.at(900.0), 0.3);
-        assert!(Spectrum::Table { wavelengths_nm: vec![500.0, 400.0], values: vec![0.1, 0.3] }.validate().is_err());
+        assert!(Spectrum::Table {
+            wavelengths_nm: vec![500.0, 400.0],
+            values: vec![0.1, 0.3]
+        }
+        .validate()
+        .is_err());
     }
 }

@@ -143,7 +143,10 @@ pub struct Material {
 #[serde(untagged)]
 pub enum Spectrum {
     Constant(f64),
-    Table { wavelengths_nm: Vec<f64>, values: Vec<f64> },
+    Table {
+        wavelengths_nm: Vec<f64>,
+        values: Vec<f64>,
+    },
 }
 
 impl Spectrum {
@@ -151,7 +154,10 @@ impl Spectrum {
     pub fn at(&self, wavelength_nm: f64) -> f64 {
         match self {
             Spectrum::Constant(v) => *v,
-            Spectrum::Table { wavelengths_nm: w, values: v } => {
+            Spectrum::Table {
+                wavelengths_nm: w,
+                values: v,
+            } => {
                 if w.is_empty() {
                     return f64::NAN;
                 }
@@ -173,7 +179,10 @@ impl Spectrum {
         match self {
             Spectrum::Constant(v) if !v.is_finite() => Err(format!("value {v} is not finite")),
             Spectrum::Constant(_) => Ok(()),
-            Spectrum::Table { wavelengths_nm: w, values: v } => {
+            Spectrum::Table {
+                wavelengths_nm: w,
+                values: v,
+            } => {
                 if w.is_empty() || w.len() != v.len() {
                     return Err(format!(
                         "wavelengths_nm ({}) and values ({}) must be non-empty and of equal length",
@@ -200,7 +209,10 @@ pub enum BrdfSpec {
     /// Lambertian, hemispherical reflectance in [0, 1].
     Lambertian { reflectance: Spectrum },
     /// Two-sided leaf: Lambertian reflection and transmission (reflectance + transmittance ≤ 1).
-    BiLambertian { reflectance: Spectrum, transmittance: Spectrum },
+    BiLambertian {
+        reflectance: Spectrum,
+        transmittance: Spectrum,
+    },
     /// Rahman–Pinty–Verstraete.
     Rpv {
         rho_0: Spectrum,
@@ -210,7 +222,11 @@ pub enum BrdfSpec {
         rho_c: Option<Spectrum>,
     },
     /// Ross-Thick Li-Sparse (MODIS kernels).
-    Rtls { f_iso: Spectrum, f_vol: Spectrum, f_geo: Spectrum },
+    Rtls {
+        f_iso: Spectrum,
+        f_vol: Spectrum,
+        f_geo: Spectrum,
+    },
 }
 
 /// A template mesh stored once in `templates.bin`.

@@ -38,9 +38,15 @@ pub const NO_MATERIAL: u8 = 255;
 #[derive(Debug, thiserror::Error)]
 pub enum BundleError {
     #[error("cannot read {}: {source}", path.display())]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("cannot write {}: {source}", path.display())]
-    Write { path: PathBuf, source: std::io::Error },
+    Write {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: invalid manifest: {message}", path.display())]
     Manifest { path: PathBuf, message: String },
     #[error("{}: bundle format version {found} is not supported (this build reads version {FORMAT_VERSION})", path.display())]
