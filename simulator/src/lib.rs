@@ -33,3 +33,4 @@ pub mod run;
 pub mod solar;
 pub mod srf;
 pub mod stokes;
+pub mod sun_position;

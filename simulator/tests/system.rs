@@ -475,3 +475,32 @@ fn band_weighted_outputs() {
     .to_string();
     assert!(err.contains("spectral.srf") && err.contains("8a"), "{err}");
 }
+
+/// Illumination from a time and a place (NREL SPA): the experiment's solar angles are those of
+/// `sun_position` for that instant (checked against the SPA paper in its unit test), and the
+/// 1 AU irradiance is scaled by 1/r²; conflicting keys are errors naming them.
+#[test]
+fn illumination_from_time_and_place() {
+    use simulator::sun_position::sun_position;
+    let ill = "type = \"directional\"\ntime = \"2024-06-21T10:30:00Z\"\nlatitude = 28.55\nlongitude = 23.39\nelevation = 118.0\nirradiance = 1.5";
+    let text = format!(
+        "[spectral]\nwavelengths = [550.0]\n[surface]\ntype = \"lambertian\"\nreflectance = 0.4\n[illumination]\n{ill}\n{}",
+        mdistant_toml("toa", &[0.0], &[0.0], 100)
+    );
+    let exp = experiment(&text);
+    let p = sun_position("2024-06-21T10:30:00Z", 28.55, 23.39, 118.0, None).unwrap();
+    assert!((exp.sun_zenith_deg - p.zenith).abs() < 1e-12 && (exp.sun_azimuth_deg - p.azimuth).abs() < 1e-12);
+    // Libya-4 near local noon at the June solstice: the Sun is high, in the south-east to south.
+    assert!(p.zenith > 4.0 && p.zenith < 15.0 && p.azimuth > 90.0 && p.azimuth < 200.0, "{p:?}");
+    assert!((exp.optics[0].irradiance - 1.5 / (p.distance_au * p.distance_au)).abs() < 1e-12);
+    assert!((p.distance_au - 1.0163).abs() < 2e-4, "aphelion season: {}", p.distance_au);
+    for (bad, key) in [
+        (text.replace("irradiance = 1.5", "irradiance = 1.5\nzenith = 30.0"), "illumination.zenith"),
+        (text.replace("irradiance = 1.5", "irradiance = 1.5\ndate = \"2024-06-21\""), "illumination.date"),
+        (text.replace("latitude = 28.55\n", ""), "illumination.latitude"),
+        (text.replace("10:30:00Z", "10:30:00"), "illumination.time"),
+    ] {
+        let e = simulator::config::Experiment::from_str(&bad, std::path::Path::new("x.toml")).unwrap_err().to_string();
+        assert!(e.contains(key), "{key}: {e}");
+    }
+}

@@ -251,11 +251,24 @@ fn yes() -> bool {
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum IlluminationConfig {
     Directional {
-        /// degrees, [0, 90).
-        zenith: f64,
+        /// degrees, [0, 90) (or from `time` and the place).
+        #[serde(default)]
+        zenith: Option<f64>,
         /// degrees, clockwise from North.
         #[serde(default)]
-        azimuth: f64,
+        azimuth: Option<f64>,
+        /// UTC "YYYY-MM-DDTHH:MM:SSZ": the Sun's position (NREL SPA) at `latitude`/`longitude`.
+        #[serde(default)]
+        time: Option<String>,
+        /// degrees north.
+        #[serde(default)]
+        latitude: Option<f64>,
+        /// degrees east.
+        #[serde(default)]
+        longitude: Option<f64>,
+        /// m above sea level.
+        #[serde(default)]
+        elevation: Option<f64>,
         /// W m⁻² nm⁻¹, normal to the beam: a number, a list, or a spectrum name / file.
         #[serde(default = "one_irradiance")]
         irradiance: IrradianceValue,

@@ -21,6 +21,7 @@ use crate::optics::OpticalState;
 use crate::phase::{HenyeyGreenstein, PhaseFunction, Rayleigh, Tabulated};
 use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
 use crate::srf::Srf;
+use crate::sun_position::sun_position;
 
 /// Which walk serves the measures.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -654,13 +655,35 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
 
     // Illumination.
-    let IlluminationConfig::Directional {
-        zenith,
-        azimuth,
-        irradiance,
-        date,
-    } = &cfg.illumination;
-    let zenith = ctx.finite("illumination.zenith", *zenith)?;
+    let IlluminationConfig::Directional { zenith, azimuth, irradiance, date, time, latitude, longitude, elevation } =
+        &cfg.illumination;
+    let mut sun_distance_factor = None;
+    let (zenith, azimuth) = match (time, zenith) {
+        (Some(t), None) => {
+            if azimuth.is_some() {
+                return Err(ctx.err("illumination.azimuth", "is computed from `time`; give one or the other"));
+            }
+            if date.is_some() {
+                return Err(ctx.err("illumination.date", "is implied by `time`; give one or the other"));
+            }
+            let lat = latitude.ok_or_else(|| ctx.err("illumination.latitude", "is required with `time`"))?;
+            let lon = longitude.ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
+            let p = sun_position(t, ctx.finite("illumination.latitude", lat)?, ctx.finite("illumination.longitude", lon)?, elevation.unwrap_or(0.0), None)
+                .map_err(|m| ctx.err("illumination.time", m))?;
+            tracing::info!("Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU", p.zenith, p.azimuth, p.distance_au);
+            sun_distance_factor = Some(1.0 / (p.distance_au * p.distance_au));
+            (p.zenith, p.azimuth)
+        }
+        (None, Some(z)) => {
+            if latitude.is_some() || longitude.is_some() || elevation.is_some() {
+                return Err(ctx.err("illumination", "`latitude`/`longitude`/`elevation` are used only with `time`"));
+            }
+            (*z, azimuth.unwrap_or(0.0))
+        }
+        (Some(_), Some(_)) => return Err(ctx.err("illumination.zenith", "give either `zenith` (and `azimuth`) or `time` with a place, not both")),
+        (None, None) => return Err(ctx.err("illumination", "give `zenith` (and `azimuth`), or `time` with `latitude` and `longitude`")),
+    };
+    let zenith = ctx.finite("illumination.zenith", zenith)?;
     if planet_radius.is_none() && !(0.0..90.0).contains(&zenith) {
         return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
     }
@@ -670,7 +693,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             format!("{zenith} degrees must lie in [0, 180]"),
         ));
     }
-    let azimuth = ctx.finite("illumination.azimuth", *azimuth)?;
+    let azimuth = ctx.finite("illumination.azimuth", azimuth)?;
     if !(-360.0..=360.0).contains(&azimuth) {
         return Err(ctx.err(
             "illumination.azimuth",
@@ -714,7 +737,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
     if let Some(d) = date {
         let doy = day_of_year(d).map_err(|m| ctx.err("illumination.date", m))?;
-        let k = earth_sun_factor(doy);
+        sun_distance_factor = Some(earth_sun_factor(doy));
+    }
+    if let Some(k) = sun_distance_factor {
         irradiance.iter_mut().for_each(|e| *e *= k);
     }
     let sun_zenith = zenith.to_radians();
