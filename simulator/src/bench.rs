@@ -65,10 +65,6 @@ pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyho
             println!("{m:<9} (spherical shells use the backward walk)");
             continue;
         }
-        if polarized && m == "backward" {
-            println!("{m:<9} (no polarized backward walk yet)");
-            continue;
-        }
         let mut text = WORKLOAD
             .replace("{integrator}", m)
             .replace("{target}", &format!("{target:e}"));
