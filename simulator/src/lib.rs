@@ -27,6 +27,7 @@ pub mod integrator;
 pub mod measure;
 pub mod optics;
 pub mod phase;
+pub mod pics;
 pub mod products;
 pub mod rng;
 pub mod run;

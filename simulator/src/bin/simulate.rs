@@ -49,6 +49,21 @@ enum Command {
         #[arg(long)]
         shard: Option<String>,
     },
+    /// Simulated TOA reflectance of a calibration site for a list of acquisitions
+    /// (time_utc,vza,vaa,srf); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
+    Pics {
+        /// Acquisitions CSV.
+        acquisitions: PathBuf,
+        /// Site file (TOML; see the `pics` module docs / docs/pics.md).
+        #[arg(long)]
+        site: PathBuf,
+        #[arg(short, long, default_value = "out")]
+        output: PathBuf,
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+        #[arg(short, long)]
+        quiet: bool,
+    },
     /// Validate an experiment file without running it.
     Check { experiment: PathBuf },
     /// Time-to-precision benchmark on the reference workload (see BENCHMARKS.md).
@@ -183,6 +198,25 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 csv.display(),
                 nc.display()
             );
+            Ok(())
+        }
+        Command::Pics { acquisitions, site, output, threads, quiet } => {
+            set_threads(threads)?;
+            let acqs = simulator::pics::read_acquisitions(&acquisitions)?;
+            std::fs::create_dir_all(&output).with_context(|| format!("cannot create output folder {}", output.display()))?;
+            let bar = if quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(acqs.len() as u64) };
+            let rows = simulator::pics::run(&site, &acqs, |k| bar.set_position(k as u64))?;
+            bar.finish_and_clear();
+            let csv = output.join("pics.csv");
+            products::write_atomic(&csv, simulator::pics::to_csv(&rows).as_bytes())?;
+            simulator::pics::write_netcdf(&output.join("pics.nc"), &site, &rows)?;
+            for r in &rows {
+                println!(
+                    "{}  {:<20} sza {:6.2} vza {:5.1}  reflectance {:.5} ± {:.1e}",
+                    r.acquisition.time_utc, r.acquisition.srf, r.sza, r.acquisition.vza, r.reflectance.0, r.reflectance.1
+                );
+            }
+            tracing::info!("wrote {} and {}", csv.display(), output.join("pics.nc").display());
             Ok(())
         }
         Command::Bench {

@@ -68,6 +68,8 @@ pub struct Experiment {
     /// The solar angles as given, degrees (azimuth normalised to [0, 360)).
     pub sun_zenith_deg: f64,
     pub sun_azimuth_deg: f64,
+    /// Earth–Sun distance (AU) when the Sun comes from `illumination.time` (or `date`).
+    pub sun_distance_au: Option<f64>,
     pub measures: Vec<Measure>,
     pub integrator: IntegratorSettings,
     pub seed: u64,
@@ -658,6 +660,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let IlluminationConfig::Directional { zenith, azimuth, irradiance, date, time, latitude, longitude, elevation } =
         &cfg.illumination;
     let mut sun_distance_factor = None;
+    let mut sun_distance_au = None;
     let (zenith, azimuth) = match (time, zenith) {
         (Some(t), None) => {
             if azimuth.is_some() {
@@ -672,6 +675,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 .map_err(|m| ctx.err("illumination.time", m))?;
             tracing::info!("Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU", p.zenith, p.azimuth, p.distance_au);
             sun_distance_factor = Some(1.0 / (p.distance_au * p.distance_au));
+            sun_distance_au = Some(p.distance_au);
             (p.zenith, p.azimuth)
         }
         (None, Some(z)) => {
@@ -738,6 +742,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if let Some(d) = date {
         let doy = day_of_year(d).map_err(|m| ctx.err("illumination.date", m))?;
         sun_distance_factor = Some(earth_sun_factor(doy));
+        sun_distance_au = Some(1.0 / earth_sun_factor(doy).sqrt());
     }
     if let Some(k) = sun_distance_factor {
         irradiance.iter_mut().for_each(|e| *e *= k);
@@ -1033,6 +1038,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         sun_dir,
         sun_zenith_deg: zenith,
         sun_azimuth_deg: azimuth.rem_euclid(360.0),
+        sun_distance_au,
         measures,
         integrator,
         seed: cfg.seed,

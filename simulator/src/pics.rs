@@ -1,0 +1,237 @@
+//! Pseudo-invariant calibration sites (PICS): simulated TOA reflectance of a site for a list of
+//! acquisitions (UTC time, view geometry, sensor band).
+//!
+//! A **site file** (TOML) describes the place and the physics shared by all acquisitions:
+//!
+//! ```toml
+//! name = "libya4"
+//! latitude = 28.55        # deg N
+//! longitude = 23.39       # deg E
+//! elevation = 118.0       # m
+//! spp = 200000            # samples per acquisition and wavelength (maximum)
+//! target_rel_stderr = 0.002
+//! wavelength_step = 5.0   # nm, sampling of each band
+//! irradiance = "tsis_1"   # solar spectrum (see docs/experiment.md)
+//! [geometry]              # any experiment [geometry] table (default: plane-parallel 0–100 km)
+//! [atmosphere]            # any experiment [atmosphere] table (e.g. type = "molecular")
+//! [surface]               # any experiment [surface] table (the site's BRDF, with its source)
+//! ```
+//!
+//! An **acquisitions file** (CSV) has the columns `time_utc,vza,vaa,srf` (UTC
+//! `YYYY-MM-DDTHH:MM:SSZ`; view zenith and azimuth in degrees, azimuth clockwise from North, of
+//! the direction from the site to the sensor; an SRF name or file). Each acquisition becomes one
+//! experiment — the Sun from NREL SPA at the site and time, E0 scaled by 1/r², the band sampled
+//! and weighted (`srf.rs`) — validated and run by the same code as `simulate run`, so every key
+//! error names the site file and key. The result per acquisition: band TOA radiance and
+//! reflectance with standard errors, the solar geometry and the Earth–Sun distance.
+
+use std::path::Path;
+
+use crate::config::Experiment;
+use crate::error::ConfigError;
+use crate::products::{band_rows, rows};
+
+/// One acquisition.
+#[derive(Clone, Debug)]
+pub struct Acquisition {
+    pub time_utc: String,
+    pub vza: f64,
+    pub vaa: f64,
+    pub srf: String,
+}
+
+/// The simulated result of one acquisition.
+#[derive(Clone, Debug)]
+pub struct PicsRow {
+    pub acquisition: Acquisition,
+    pub sza: f64,
+    pub saa: f64,
+    pub earth_sun_distance_au: f64,
+    /// Band TOA reflectance π L/(E0 cos SZA) and its standard error.
+    pub reflectance: (f64, f64),
+    /// Band TOA radiance (W m⁻² sr⁻¹ nm⁻¹) and its standard error.
+    pub radiance: (f64, f64),
+    pub band_irradiance: f64,
+}
+
+/// Parse the acquisitions CSV; errors name the file and line.
+pub fn read_acquisitions(path: &Path) -> Result<Vec<Acquisition>, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.into(), source })?;
+    let err = |line: usize, message: String| ConfigError::Invalid { path: path.into(), key: format!("line {line}"), message };
+    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+    let (_, header) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
+    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
+    let idx = |c: &str| cols.iter().position(|h| *h == c).ok_or_else(|| err(1, format!("missing column `{c}` (need time_utc,vza,vaa,srf)")));
+    let (it, iz, ia, is) = (idx("time_utc")?, idx("vza")?, idx("vaa")?, idx("srf")?);
+    let mut out = Vec::new();
+    for (n, l) in lines {
+        let f: Vec<&str> = l.split(',').map(str::trim).collect();
+        let get = |i: usize| f.get(i).copied().ok_or_else(|| err(n + 1, format!("expected {} columns", cols.len())));
+        let num = |i: usize, what: &str| -> Result<f64, ConfigError> {
+            let v: f64 = get(i)?.parse().map_err(|_| err(n + 1, format!("`{what}` is not a number")))?;
+            if !v.is_finite() {
+                return Err(err(n + 1, format!("`{what}` is not finite")));
+            }
+            Ok(v)
+        };
+        out.push(Acquisition { time_utc: get(it)?.to_string(), vza: num(iz, "vza")?, vaa: num(ia, "vaa")?, srf: get(is)?.to_string() });
+    }
+    if out.is_empty() {
+        return Err(err(2, "no acquisitions".into()));
+    }
+    Ok(out)
+}
+
+/// The experiment text of one acquisition at a site (the site file's tables are kept verbatim).
+pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Result<String, String> {
+    let get_f = |k: &str| site.get(k).and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)));
+    let lat = get_f("latitude").ok_or("`latitude` (deg) is required")?;
+    let lon = get_f("longitude").ok_or("`longitude` (deg) is required")?;
+    let elev = get_f("elevation").unwrap_or(0.0);
+    let spp = site.get("spp").and_then(|v| v.as_integer()).unwrap_or(200_000);
+    let step = get_f("wavelength_step").unwrap_or(5.0);
+    let known = ["name", "latitude", "longitude", "elevation", "spp", "target_rel_stderr", "wavelength_step", "irradiance", "geometry", "atmosphere", "surface", "polarized"];
+    if let Some(k) = site.keys().find(|k| !known.contains(&k.as_str())) {
+        return Err(format!("unknown key `{k}` (known: {})", known.join(", ")));
+    }
+    let mut t = toml::Table::new();
+    t.insert("seed".into(), toml::Value::Integer(seed as i64));
+    if let Some(p) = site.get("polarized") {
+        t.insert("polarized".into(), p.clone());
+    }
+    let mut spectral = toml::Table::new();
+    spectral.insert("srf".into(), toml::Value::String(acq.srf.clone()));
+    spectral.insert("wavelength_step".into(), toml::Value::Float(step));
+    t.insert("spectral".into(), toml::Value::Table(spectral));
+    for k in ["geometry", "atmosphere", "surface"] {
+        if let Some(v) = site.get(k) {
+            t.insert(k.into(), v.clone());
+        }
+    }
+    let mut ill = toml::Table::new();
+    ill.insert("type".into(), toml::Value::String("directional".into()));
+    ill.insert("time".into(), toml::Value::String(acq.time_utc.clone()));
+    ill.insert("latitude".into(), toml::Value::Float(lat));
+    ill.insert("longitude".into(), toml::Value::Float(lon));
+    ill.insert("elevation".into(), toml::Value::Float(elev));
+    if let Some(i) = site.get("irradiance") {
+        ill.insert("irradiance".into(), i.clone());
+    }
+    t.insert("illumination".into(), toml::Value::Table(ill));
+    let mut m = toml::Table::new();
+    m.insert("id".into(), toml::Value::String("toa".into()));
+    m.insert("type".into(), toml::Value::String("mdistant".into()));
+    m.insert("construct".into(), toml::Value::String("directions".into()));
+    m.insert("zeniths".into(), toml::Value::Array(vec![toml::Value::Float(acq.vza)]));
+    m.insert("azimuths".into(), toml::Value::Array(vec![toml::Value::Float(acq.vaa)]));
+    m.insert("spp".into(), toml::Value::Integer(spp));
+    if let Some(x) = site.get("target_rel_stderr") {
+        m.insert("target_rel_stderr".into(), x.clone());
+    }
+    t.insert("measures".into(), toml::Value::Array(vec![toml::Value::Table(m)]));
+    toml::to_string(&t).map_err(|e| e.to_string())
+}
+
+/// Run every acquisition; `site_path` names the site file in errors. Acquisition `k` uses seed
+/// `k`, so results do not depend on the order of other acquisitions or on threads.
+pub fn run(site_path: &Path, acquisitions: &[Acquisition], progress: impl Fn(usize)) -> Result<Vec<PicsRow>, ConfigError> {
+    let text = std::fs::read_to_string(site_path).map_err(|source| ConfigError::Read { path: site_path.into(), source })?;
+    let site: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::Parse { path: site_path.into(), message: e.to_string() })?;
+    let mut out = Vec::with_capacity(acquisitions.len());
+    for (k, acq) in acquisitions.iter().enumerate() {
+        let exp_text = experiment_text(&site, acq, k as u64)
+            .map_err(|message| ConfigError::Invalid { path: site_path.into(), key: "site".into(), message })?;
+        let exp = Experiment::from_str(&exp_text, site_path).map_err(|e| ConfigError::Invalid {
+            path: site_path.into(),
+            key: format!("acquisition {} ({})", k + 1, acq.time_utc),
+            message: e.to_string(),
+        })?;
+        let res = crate::run::run(&exp, false);
+        let r = rows(&exp, &res);
+        let b = band_rows(&exp, &r);
+        let band = b.first().expect("one band row per acquisition");
+        let d = exp.sun_distance_au.unwrap_or(f64::NAN);
+        out.push(PicsRow {
+            acquisition: acq.clone(),
+            sza: exp.sun_zenith_deg,
+            saa: exp.sun_azimuth_deg,
+            earth_sun_distance_au: d,
+            reflectance: band.brf.unwrap_or((f64::NAN, f64::NAN)),
+            radiance: band.radiance.unwrap_or((f64::NAN, f64::NAN)),
+            band_irradiance: band.irradiance,
+        });
+        progress(k + 1);
+    }
+    Ok(out)
+}
+
+/// `pics.csv`: one row per acquisition.
+pub fn to_csv(rows: &[PicsRow]) -> String {
+    use std::fmt::Write;
+    let mut s = String::from(
+        "time_utc,srf,vza,vaa,sza,saa,earth_sun_distance_au,reflectance,reflectance_stderr,radiance,radiance_stderr,band_irradiance\n",
+    );
+    for r in rows {
+        let a = &r.acquisition;
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{:.6},{:.6},{:.9},{:.8e},{:.3e},{:.8e},{:.3e},{:.8e}",
+            a.time_utc, a.srf, a.vza, a.vaa, r.sza, r.saa, r.earth_sun_distance_au, r.reflectance.0, r.reflectance.1, r.radiance.0, r.radiance.1, r.band_irradiance
+        );
+    }
+    s
+}
+
+/// `pics.nc`: the same table as CF netCDF on the dimension `acquisition`.
+pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(), crate::error::OutputError> {
+    let tmp = crate::products::tmp_path(path);
+    let _ = std::fs::remove_file(&tmp);
+    let nc = |source| crate::error::OutputError::Netcdf { path: path.to_path_buf(), source };
+    {
+        let mut f = netcdf::create(&tmp).map_err(nc)?;
+        let mut inner = || -> Result<(), netcdf::Error> {
+            f.add_attribute("Conventions", "CF-1.10")?;
+            f.add_attribute("title", "Simulated TOA reflectance of a calibration site")?;
+            f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
+            f.add_attribute("site_file", site_path.display().to_string())?;
+            f.add_dimension("acquisition", rows.len())?;
+            {
+                let mut v = f.add_string_variable("time_utc", &["acquisition"])?;
+                for (i, r) in rows.iter().enumerate() {
+                    v.put_string(&r.acquisition.time_utc, [i])?;
+                }
+            }
+            {
+                let mut v = f.add_string_variable("srf", &["acquisition"])?;
+                for (i, r) in rows.iter().enumerate() {
+                    v.put_string(&r.acquisition.srf, [i])?;
+                }
+            }
+            let cols: [(&str, &str, &str, fn(&PicsRow) -> f64); 10] = [
+                ("vza", "degree", "view zenith angle", |r| r.acquisition.vza),
+                ("vaa", "degree", "view azimuth angle, clockwise from North (site to sensor)", |r| r.acquisition.vaa),
+                ("sza", "degree", "solar zenith angle (NREL SPA, geometric)", |r| r.sza),
+                ("saa", "degree", "solar azimuth angle, clockwise from North", |r| r.saa),
+                ("earth_sun_distance", "au", "Earth-Sun distance", |r| r.earth_sun_distance_au),
+                ("reflectance", "1", "band TOA reflectance pi L / (E0 cos SZA)", |r| r.reflectance.0),
+                ("reflectance_stderr", "1", "standard error of reflectance", |r| r.reflectance.1),
+                ("radiance", "W m-2 sr-1 nm-1", "band TOA radiance", |r| r.radiance.0),
+                ("radiance_stderr", "W m-2 sr-1 nm-1", "standard error of radiance", |r| r.radiance.1),
+                ("band_irradiance", "W m-2 nm-1", "band solar irradiance at the Earth-Sun distance", |r| r.band_irradiance),
+            ];
+            for (name, units, long, get) in cols {
+                let data: Vec<f64> = rows.iter().map(get).collect();
+                let mut v = f.add_variable::<f64>(name, &["acquisition"])?;
+                v.put_attribute("units", units)?;
+                v.put_attribute("long_name", long)?;
+                v.put_values(&data, ..)?;
+            }
+            Ok(())
+        };
+        inner().map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            nc(e)
+        })?;
+    }
+    std::fs::rename(&tmp, path).map_err(|source| crate::error::OutputError::Io { path: path.to_path_buf(), source })
+}
