@@ -673,7 +673,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             let lon = longitude.ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
             let p = sun_position(t, ctx.finite("illumination.latitude", lat)?, ctx.finite("illumination.longitude", lon)?, elevation.unwrap_or(0.0), None)
                 .map_err(|m| ctx.err("illumination.time", m))?;
-            tracing::info!("Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU", p.zenith, p.azimuth, p.distance_au);
+            tracing::debug!("Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU", p.zenith, p.azimuth, p.distance_au);
             sun_distance_factor = Some(1.0 / (p.distance_au * p.distance_au));
             sun_distance_au = Some(p.distance_au);
             (p.zenith, p.azimuth)
