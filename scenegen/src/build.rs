@@ -1,0 +1,374 @@
+//! The `build` pipeline: region file → scene bundle.
+//!
+//! Stages (each with a progress bar on a terminal): working frame; scheme, materials and
+//! templates (cheap checks first, so that a typo fails before any raster is read); DEM onto the
+//! node grid; land cover onto the material grid and through the scheme; error-bounded TIN;
+//! terrain tiles; instances per land-cover tile; checksums; atomic bundle write.
+//!
+//! The local frame's origin is the DEM node nearest to the centre of the area, at height 0:
+//! local = working CRS − origin (metres).
+
+use std::collections::BTreeMap;
+use std::io::Read;
+use std::path::{Path, PathBuf};
+use std::time::{Duration, Instant};
+
+use indicatif::{ProgressBar, ProgressStyle};
+use landcover::{MaterialDef, MaterialMap, Scheme};
+use rayon::prelude::*;
+use sha2::{Digest, Sha256};
+use simulator::bundle::{self, Bundle, Manifest, TemplateMesh};
+use tiles::{Catalogue, PlacedInstance, PlacementRule};
+
+use crate::error::{input, ScenegenError};
+use crate::raster::{self, Grid, WorkingFrame};
+use crate::region::Region;
+use crate::tin::{self, HeightField, SurfaceHeight};
+
+/// Options of a build.
+#[derive(Clone, Debug, Default)]
+pub struct BuildOptions {
+    /// Replace an existing output directory.
+    pub force: bool,
+    /// Show progress bars (on a terminal).
+    pub progress: bool,
+}
+
+/// What a build did, for the CLI and the benchmark.
+#[derive(Clone, Debug)]
+pub struct BuildReport {
+    pub manifest: Manifest,
+    pub dem_width: usize,
+    pub dem_height: usize,
+    pub filled_pixels: u64,
+    pub stages: Vec<(&'static str, Duration)>,
+}
+
+fn bar(opts: &BuildOptions, msg: &str) -> ProgressBar {
+    let pb = if opts.progress && std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        ProgressBar::new_spinner()
+    } else {
+        ProgressBar::hidden()
+    };
+    pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}").expect("static template"));
+    pb.set_message(msg.to_string());
+    pb.enable_steady_tick(Duration::from_millis(200));
+    pb
+}
+
+fn sha256_file(path: &Path) -> Result<(u64, String), ScenegenError> {
+    let mut f = std::fs::File::open(path).map_err(|e| input(path, format!("cannot read: {e}")))?;
+    let mut h = Sha256::new();
+    let mut buf = vec![0u8; 1 << 20];
+    let mut n = 0u64;
+    loop {
+        let k = f.read(&mut buf).map_err(|e| input(path, format!("cannot read: {e}")))?;
+        if k == 0 {
+            break;
+        }
+        n += k as u64;
+        h.update(&buf[..k]);
+    }
+    Ok((n, h.finalize().iter().map(|b| format!("{b:02x}")).collect()))
+}
+
+/// Templates and placement rules resolved against the catalogue and the material table.
+struct Population {
+    templates: Vec<TemplateMesh>,
+    template_files: Vec<PathBuf>,
+    /// Class code → rules.
+    rules: BTreeMap<i64, Vec<PlacementRule>>,
+}
+
+fn resolve_population(
+    region: &Region,
+    scheme: &Scheme,
+    materials: &mut MaterialMap,
+) -> Result<Population, ScenegenError> {
+    let mut catalogue = Catalogue::builtin();
+    catalogue.extend(&region.templates, &region.base_dir());
+    let (rules_src, key_root, rules_file): (&[landcover::PopulationRule], &str, PathBuf) = match &region.population {
+        Some(r) => (r, "population", region.path.clone()),
+        None => (&scheme.population, "population (scheme default)", scheme.origin.clone()),
+    };
+    let mut library: BTreeMap<String, MaterialDef> = scheme.materials.clone();
+    library.extend(region.materials.clone());
+    let mut names: Vec<String> = Vec::new();
+    let mut templates = Vec::new();
+    let mut template_files = Vec::new();
+    let mut rules: BTreeMap<i64, Vec<PlacementRule>> = BTreeMap::new();
+    for (i, r) in rules_src.iter().enumerate() {
+        let id = match names.iter().position(|n| *n == r.template) {
+            Some(id) => id as u32,
+            None => {
+                let (spec, dir) = catalogue.get(&r.template).ok_or_else(|| ScenegenError::Region {
+                    path: rules_file.clone(),
+                    key: format!("{key_root}[{i}].template"),
+                    message: format!("unknown template `{}` (known: {})", r.template, catalogue.names().join(", ")),
+                })?;
+                let t = spec.build(dir)?;
+                let mut mats = Vec::with_capacity(t.material_names.len());
+                for m in &t.material_names {
+                    let lib_name = spec.library_material(m).ok_or_else(|| ScenegenError::Region {
+                        path: region.path.clone(),
+                        key: format!("templates.{}.materials", spec.name),
+                        message: format!("template material `{m}` maps to no library material (add it to `materials` or set `default_material`)"),
+                    })?;
+                    let def = library.get(lib_name).ok_or_else(|| ScenegenError::Region {
+                        path: region.path.clone(),
+                        key: format!("templates.{}.materials.{m}", spec.name),
+                        message: format!("unknown library material `{lib_name}`"),
+                    })?;
+                    mats.push(materials.add_material(lib_name, def)?);
+                }
+                if let Some(f) = &spec.file {
+                    template_files.push(dir.join(f));
+                    template_files.extend(spec.parts.iter().map(|p| dir.join(p)));
+                }
+                templates.push(TemplateMesh {
+                    name: spec.name.clone(),
+                    source: t.source.clone(),
+                    materials: t.triangle_materials.iter().map(|&m| mats[m as usize]).collect(),
+                    positions: t.positions,
+                    indices: t.indices,
+                });
+                names.push(r.template.clone());
+                (names.len() - 1) as u32
+            }
+        };
+        for &c in &r.classes {
+            rules.entry(c).or_default().push(PlacementRule {
+                template: id,
+                density_per_ha: r.density_per_ha,
+                scale: r.scale,
+                random_rotation: r.random_rotation,
+            });
+        }
+    }
+    Ok(Population { templates, template_files, rules })
+}
+
+/// Build the bundle of `region` into `out`.
+pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildReport, ScenegenError> {
+    if out.exists() && !opts.force {
+        return Err(bundle::BundleError::Exists { path: out.into() }.into());
+    }
+    let mut stages = Vec::new();
+    let mut t = Instant::now();
+    let mut stage = |name: &'static str, t: &mut Instant| {
+        stages.push((name, t.elapsed()));
+        tracing::info!("{name}: {:.2} s", t.elapsed().as_secs_f64());
+        *t = Instant::now();
+    };
+
+    // Cheap checks first.
+    let frame = WorkingFrame::new(region)?;
+    let scheme = Scheme::load(&region.scheme).map_err(|e| match e {
+        landcover::SchemeError::UnknownScheme { .. } => {
+            ScenegenError::Region { path: region.path.clone(), key: "landcover.scheme".into(), message: e.to_string() }
+        }
+        other => other.into(),
+    })?;
+    let mut materials =
+        MaterialMap::new(&scheme, &region.class_materials, &region.materials, region.fallback_material.as_deref())
+            .map_err(|e| match e {
+                landcover::SchemeError::Invalid { key, message, .. } => {
+                    ScenegenError::Region { path: region.path.clone(), key, message }
+                }
+                other => other.into(),
+            })?;
+    let pb = bar(opts, "templates");
+    let population = resolve_population(region, &scheme, &mut materials)?;
+    pb.finish_and_clear();
+    stage("templates", &mut t);
+
+    let pb = bar(opts, "DEM: reading and warping");
+    let dem = raster::load_dem(region, &frame)?;
+    pb.finish_and_clear();
+    let grid = dem.grid;
+    stage("dem", &mut t);
+
+    let pb = bar(opts, "land cover: reading, warping, mapping");
+    let mgrid = Grid::cells_over(&grid, region.lc_tile_m);
+    let (codes, resampling) = raster::load_landcover(region, &frame, &mgrid, scheme.nodata)?;
+    let material_raster = materials.map_raster(&codes, &region.landcover_file, &scheme.name)?;
+    pb.finish_and_clear();
+    stage("landcover", &mut t);
+
+    let pb = bar(opts, "terrain: triangulating");
+    let field = HeightField { width: grid.width, height: grid.height, h: &dem.heights };
+    let tin = tin::build_tin(&field, region.tolerance_m, |round, n| {
+        pb.set_message(format!("terrain: round {round}, {n} vertices"))
+    });
+    pb.finish_and_clear();
+    stage("tin", &mut t);
+
+    let cx = 0.5 * (frame.extent[0] + frame.extent[2]);
+    let cy = 0.5 * (frame.extent[1] + frame.extent[3]);
+    let origin = [(cx / grid.dx).round() * grid.dx, (cy / grid.dx).round() * grid.dx, 0.0];
+    let tile_nodes = ((region.terrain_tile_m / grid.dx).round() as u32).max(1);
+    let mgt = mgrid.geotransform();
+    let (mw, mh) = (mgrid.width as f64 * mgrid.dx, mgrid.height as f64 * mgrid.dx);
+    let pb = bar(opts, "terrain: tiles");
+    let tiles_mesh = tin::split_tiles(&tin, &grid, tile_nodes, origin, |x, y| {
+        [((x - mgt[0]) / mw) as f32, ((mgt[3] - y) / mh) as f32]
+    });
+    pb.finish_and_clear();
+    stage("tiles", &mut t);
+
+    let pb = bar(opts, "instances");
+    let instances = place_all(&tin, &grid, &mgrid, &codes, &population.rules, region.seed, origin);
+    pb.finish_and_clear();
+    stage("instances", &mut t);
+
+    // Provenance.
+    let mut inputs = Vec::new();
+    let mut add_input = |role: &str, p: &Path| -> Result<(), ScenegenError> {
+        let (bytes, sha256) = sha256_file(p)?;
+        inputs.push(bundle::InputFile { role: role.into(), path: p.display().to_string(), bytes, sha256 });
+        Ok(())
+    };
+    for p in &region.dem_files {
+        add_input("dem", p)?;
+    }
+    add_input("landcover", &region.landcover_file)?;
+    if region.scheme.ends_with(".toml") {
+        add_input("scheme", Path::new(&region.scheme))?;
+    }
+    for p in &population.template_files {
+        add_input("template", p)?;
+    }
+
+    let hmin = dem.heights.iter().copied().fold(f32::INFINITY, f32::min) as f64;
+    let hmax = dem.heights.iter().copied().fold(f32::NEG_INFINITY, f32::max) as f64;
+    let manifest = Manifest {
+        format: bundle::FORMAT_NAME.into(),
+        format_version: bundle::FORMAT_VERSION,
+        crs: bundle::Crs { wkt: frame.wkt.clone(), epsg: frame.epsg, proj: frame.proj.clone() },
+        frame: bundle::LocalFrame {
+            kind: "projected_enu".into(),
+            origin,
+            centre_lon_lat: frame.centre_lon_lat,
+            vertical_datum: "as the DEM (not converted)".into(),
+        },
+        extent: bundle::Extent {
+            min: [grid.x0, grid.y(grid.height - 1)],
+            max: [grid.x(grid.width - 1), grid.y0],
+            height_range: [hmin, hmax],
+            lon_lat_bbox: frame.lon_lat_bbox,
+        },
+        terrain: bundle::Terrain {
+            file: String::new(),
+            tolerance_m: region.tolerance_m,
+            dem_spacing_m: grid.dx,
+            dem_samples: (grid.width * grid.height) as u64,
+            vertex_count: 0,
+            triangle_count: 0,
+            tiles: vec![],
+        },
+        material_raster: bundle::MaterialRaster {
+            file: String::new(),
+            width: mgrid.width as u32,
+            height: mgrid.height as u32,
+            geotransform: mgt,
+            resampling: resampling.into(),
+            histogram: vec![],
+        },
+        materials: materials.materials.clone(),
+        templates: vec![],
+        instances: bundle::Instances { file: String::new(), count: 0, per_template: vec![] },
+        provenance: bundle::Provenance {
+            generator: "scenegen".into(),
+            generator_version: env!("CARGO_PKG_VERSION").into(),
+            seed: region.seed,
+            region_toml: region.text.clone(),
+            inputs,
+            files: vec![],
+        },
+    };
+    let b = Bundle {
+        manifest,
+        terrain: tiles_mesh
+            .into_iter()
+            .map(|m| bundle::TerrainTile {
+                id: m.id,
+                origin: m.origin,
+                positions: m.positions,
+                uvs: m.uvs,
+                indices: m.indices,
+            })
+            .collect(),
+        templates: population.templates,
+        instances,
+        material_raster,
+    };
+    drop(tin);
+    let pb = bar(opts, "writing the bundle");
+    let manifest = b.write(out, opts.force)?;
+    pb.finish_and_clear();
+    stage("write", &mut t);
+    Ok(BuildReport { manifest, dem_width: grid.width, dem_height: grid.height, filled_pixels: dem.filled, stages })
+}
+
+/// Place instances on every land-cover tile (rows in parallel, each with its own surface
+/// interpolator; the order of the result does not depend on the thread count).
+fn place_all(
+    tin: &tin::Tin,
+    grid: &Grid,
+    mgrid: &Grid,
+    codes: &[Option<i64>],
+    rules: &BTreeMap<i64, Vec<PlacementRule>>,
+    seed: u64,
+    origin: [f64; 3],
+) -> Vec<bundle::Instance> {
+    if rules.is_empty() {
+        return Vec::new();
+    }
+    // Land-cover tiles may reach past the DEM's last node by less than a cell: clamp heights
+    // to the DEM's extent, and positions to it as well.
+    let (xmin, xmax) = (grid.x0, grid.x(grid.width - 1));
+    let (ymin, ymax) = (grid.y(grid.height - 1), grid.y0);
+    let rows: Vec<Vec<bundle::Instance>> = (0..mgrid.height)
+        .into_par_iter()
+        .map(|row| {
+            let surf = SurfaceHeight::new(tin, grid);
+            let mut placed: Vec<PlacedInstance> = Vec::new();
+            let mut out = Vec::new();
+            for col in 0..mgrid.width {
+                let Some(code) = codes[row * mgrid.width + col] else { continue };
+                let Some(rs) = rules.get(&code) else { continue };
+                let x0 = (mgrid.x(col) - 0.5 * mgrid.dx).max(xmin);
+                let y0 = (mgrid.y(row) - 0.5 * mgrid.dx).max(ymin);
+                let x1 = (mgrid.x(col) + 0.5 * mgrid.dx).min(xmax);
+                let y1 = (mgrid.y(row) + 0.5 * mgrid.dx).min(ymax);
+                if x1 <= x0 || y1 <= y0 {
+                    continue;
+                }
+                let refs: Vec<&PlacementRule> = rs.iter().collect();
+                placed.clear();
+                let tile_index = (row * mgrid.width + col) as u64;
+                tiles::place_instances(
+                    tile_index,
+                    [x0, y0],
+                    [x1 - x0, y1 - y0],
+                    &refs,
+                    seed,
+                    |x, y| surf.at(x, y).unwrap_or(f64::NAN),
+                    &mut placed,
+                );
+                for p in &placed {
+                    if !p.position[2].is_finite() {
+                        continue; // outside the TIN's hull by rounding; never expected
+                    }
+                    out.push(bundle::Instance {
+                        translation: [p.position[0] - origin[0], p.position[1] - origin[1], p.position[2] - origin[2]],
+                        linear: p.linear(),
+                        template: p.template,
+                    });
+                }
+            }
+            out
+        })
+        .collect();
+    rows.into_iter().flatten().collect()
+}

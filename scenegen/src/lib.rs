@@ -1,0 +1,23 @@
+//! `scenegen`: from a DEM and a land-cover raster (any GDAL-readable raster, any CRS) to a scene
+//! bundle (`simulator::bundle`, documented in `docs/bundle.md`) with an error-bounded terrain
+//! TIN split into tiles, an 8-bit material-index raster, and instanced 3D tile templates.
+//!
+//! Modules: [`region`] (the region file, `docs/region.md`), [`raster`] (GDAL: working frame,
+//! warping, coverage and no-data checks), [`tin`] (greedy error-bounded triangulation with
+//! spade, tiling), [`build`] (the pipeline), [`gltf_export`] (a GLB for a standard 3D viewer),
+//! [`info`] (bundle summaries), [`bench`] (the scale benchmark).
+//! Units: metres, degrees for longitudes and latitudes.
+
+pub mod bench;
+pub mod build;
+pub mod error;
+pub mod gltf_export;
+pub mod info;
+pub mod raster;
+pub mod region;
+pub mod synth;
+pub mod tin;
+
+pub use build::{build, BuildOptions, BuildReport};
+pub use error::ScenegenError;
+pub use region::Region;

@@ -1,0 +1,185 @@
+//! `scenegen`: build scene bundles from a region file, summarise them, export them to glTF.
+//!
+//! Exit codes: 0 success; 2 bad input (region file, input rasters or meshes, an existing output
+//! without `--force`); 1 any other failure (disk full, internal error).
+
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use anyhow::Context;
+use clap::{Parser, Subcommand};
+
+use scenegen::{BuildOptions, Region, ScenegenError};
+
+#[derive(Parser)]
+#[command(name = "scenegen", version, about = "Scene generator: DEM and land cover to a scene bundle")]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Build a bundle from a region file (keys in docs/region.md).
+    Build {
+        region: PathBuf,
+        /// Output bundle directory (must not exist unless --force).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Replace an existing output directory (after the new bundle is complete).
+        #[arg(long)]
+        force: bool,
+        /// Worker threads (default: all cores). The bundle does not depend on it.
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+        /// No progress bars.
+        #[arg(short, long)]
+        quiet: bool,
+        /// Override `terrain.tolerance_m` of the region file (metres).
+        #[arg(long)]
+        tolerance_m: Option<f64>,
+        /// Print one JSON line of statistics (counts, stage times, peak memory) on stdout.
+        #[arg(long, hide = true)]
+        stats_json: bool,
+    },
+    /// Validate a region file without reading any raster.
+    Check { region: PathBuf },
+    /// Summarise a bundle: extent, CRS, counts, materials and their pixel shares, memory.
+    Info {
+        bundle: PathBuf,
+        /// Also recompute and compare the SHA-256 of every bundle file.
+        #[arg(long)]
+        verify: bool,
+    },
+    /// Export a bundle to a GLB file for a standard 3D viewer.
+    ExportGltf {
+        bundle: PathBuf,
+        output: PathBuf,
+        /// At most this many instances (evenly thinned); 0 exports none.
+        #[arg(long, default_value_t = 50_000)]
+        max_instances: usize,
+    },
+    /// Scale benchmark: synthetic DEM and land cover of SIZE km at SPACING m (see BENCHMARKS.md).
+    Bench {
+        #[arg(long, default_value_t = 100.0)]
+        size_km: f64,
+        #[arg(long, default_value_t = 30.0)]
+        spacing_m: f64,
+        /// Terrain tolerances to build with, metres.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![5.0, 1.0])]
+        tolerance: Vec<f64>,
+        /// Work directory (inputs and bundles; removed at the end unless --keep).
+        #[arg(long, default_value = "target/scenegen-bench")]
+        workdir: PathBuf,
+        /// Also build this region file (e.g. examples/grenoble/region.toml).
+        #[arg(long)]
+        region: Option<PathBuf>,
+        #[arg(long)]
+        keep: bool,
+    },
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .with_writer(std::io::stderr)
+        .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
+        .init();
+    let cli = Cli::parse();
+    match dispatch(cli) {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e}");
+            for cause in e.chain().skip(1) {
+                eprintln!("  caused by: {cause}");
+            }
+            if e.chain().any(|c| c.downcast_ref::<ScenegenError>().is_some_and(|s| s.is_bad_input())) {
+                ExitCode::from(2)
+            } else {
+                ExitCode::from(1)
+            }
+        }
+    }
+}
+
+fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Check { region } => {
+            let r = Region::load(&region)?;
+            println!(
+                "{}: valid ({} DEM file(s), land cover {}, scheme {})",
+                region.display(),
+                r.dem_files.len(),
+                r.landcover_file.display(),
+                r.scheme
+            );
+            Ok(())
+        }
+        Command::Build { region, output, force, threads, quiet, stats_json, tolerance_m } => {
+            if let Some(n) = threads {
+                rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global().context("thread pool")?;
+            }
+            let mut r = Region::load(&region)?;
+            if let Some(t) = tolerance_m {
+                r.set_tolerance(t)?;
+            }
+            let t0 = std::time::Instant::now();
+            let rep = scenegen::build(&r, &output, &BuildOptions { force, progress: !quiet })?;
+            let m = &rep.manifest;
+            println!(
+                "{}: {} × {} DEM nodes → {} terrain triangles in {} tiles; {} materials; {} templates, {} instances; {:.1} s",
+                output.display(),
+                rep.dem_width,
+                rep.dem_height,
+                m.terrain.triangle_count,
+                m.terrain.tiles.len(),
+                m.materials.len(),
+                m.templates.len(),
+                m.instances.count,
+                t0.elapsed().as_secs_f64()
+            );
+            if stats_json {
+                let stages: serde_json::Map<String, serde_json::Value> =
+                    rep.stages.iter().map(|(k, d)| (k.to_string(), serde_json::json!(d.as_secs_f64()))).collect();
+                println!(
+                    "{}",
+                    serde_json::json!({
+                        "wall_s": t0.elapsed().as_secs_f64(),
+                        "peak_rss_bytes": scenegen::bench::peak_rss_bytes(),
+                        "dem_samples": m.terrain.dem_samples,
+                        "triangles": m.terrain.triangle_count,
+                        "vertices": m.terrain.vertex_count,
+                        "instances": m.instances.count,
+                        "stages": stages,
+                    })
+                );
+            }
+            Ok(())
+        }
+        Command::Info { bundle, verify } => {
+            print!("{}", scenegen::info::summary(&bundle)?);
+            if verify {
+                simulator::bundle::Bundle::verify(&bundle).map_err(ScenegenError::from)?;
+                println!("verify: every file matches its SHA-256");
+            }
+            Ok(())
+        }
+        Command::ExportGltf { bundle, output, max_instances } => {
+            let r = scenegen::gltf_export::export(&bundle, &output, max_instances)?;
+            println!(
+                "{}: {} terrain tiles, {} templates, {} of {} instances, {}",
+                output.display(),
+                r.tiles,
+                r.templates,
+                r.instances_exported,
+                r.instances_total,
+                scenegen::info::human_bytes(r.bytes)
+            );
+            Ok(())
+        }
+        Command::Bench { size_km, spacing_m, tolerance, workdir, region, keep } => {
+            scenegen::bench::run(size_km, spacing_m, &tolerance, &workdir, region.as_deref(), keep)?;
+            Ok(())
+        }
+    }
+}

@@ -1,0 +1,364 @@
+//! The region file (`region.toml`): raw serde types (`deny_unknown_fields`) and their
+//! validation into a [`Region`] whose values are in range and whose paths are resolved against
+//! the region file's folder. Every key, its unit and default: `docs/region.md`.
+//! Errors name the region file and the key path (e.g. `terrain.tolerance_m`).
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use landcover::{MaterialDef, PopulationRule};
+use serde::Deserialize;
+use tiles::TemplateSpec;
+
+use crate::error::ScenegenError;
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RegionFile {
+    #[serde(default)]
+    seed: u64,
+    #[serde(default = "local")]
+    crs: String,
+    area: AreaConfig,
+    dem: DemConfig,
+    #[serde(default)]
+    terrain: TerrainConfig,
+    landcover: LandcoverConfig,
+    #[serde(default)]
+    materials: BTreeMap<String, MaterialDef>,
+    #[serde(default)]
+    templates: Vec<TemplateSpec>,
+    #[serde(default)]
+    population: Option<Vec<PopulationRule>>,
+}
+
+fn local() -> String {
+    "local".into()
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct AreaConfig {
+    /// [west, south, east, north], degrees.
+    #[serde(default)]
+    bbox: Option<[f64; 4]>,
+    /// [lon, lat], degrees.
+    #[serde(default)]
+    centre: Option<[f64; 2]>,
+    /// Side (square) or [east-west, north-south], km.
+    #[serde(default)]
+    size_km: Option<SizeKm>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(untagged)]
+enum SizeKm {
+    Square(f64),
+    Rect([f64; 2]),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DemConfig {
+    files: Vec<PathBuf>,
+    #[serde(default)]
+    spacing_m: Option<f64>,
+    #[serde(default = "default_fill")]
+    max_fill_pixels: u64,
+}
+
+fn default_fill() -> u64 {
+    64
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TerrainConfig {
+    #[serde(default = "default_tol")]
+    tolerance_m: f64,
+    #[serde(default = "default_terrain_tile")]
+    tile_size_m: f64,
+}
+
+impl Default for TerrainConfig {
+    fn default() -> Self {
+        TerrainConfig { tolerance_m: default_tol(), tile_size_m: default_terrain_tile() }
+    }
+}
+
+fn default_tol() -> f64 {
+    1.0
+}
+fn default_terrain_tile() -> f64 {
+    5000.0
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LandcoverConfig {
+    file: PathBuf,
+    scheme: String,
+    #[serde(default = "default_lc_tile")]
+    tile_size_m: f64,
+    #[serde(default)]
+    resampling: Resampling,
+    #[serde(default)]
+    fallback_material: Option<String>,
+    #[serde(default)]
+    class_materials: BTreeMap<String, String>,
+}
+
+fn default_lc_tile() -> f64 {
+    100.0
+}
+
+/// Resampling of the land cover onto the material grid.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum Resampling {
+    /// `mode` when a material cell covers more than one source pixel, else `nearest`.
+    #[default]
+    Auto,
+    /// Most frequent class among the source pixels in the cell.
+    Mode,
+    /// The source pixel at the cell centre.
+    Nearest,
+}
+
+/// The area of interest.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Area {
+    /// West, south, east, north, degrees.
+    BBox([f64; 4]),
+    /// Centre lon, lat (degrees) and size east-west, north-south (metres).
+    Centre { lon_lat: [f64; 2], size_m: [f64; 2] },
+}
+
+impl Area {
+    pub fn centre(&self) -> [f64; 2] {
+        match self {
+            Area::BBox(b) => [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])],
+            Area::Centre { lon_lat, .. } => *lon_lat,
+        }
+    }
+}
+
+/// A validated region.
+#[derive(Clone, Debug)]
+pub struct Region {
+    pub path: PathBuf,
+    pub text: String,
+    pub seed: u64,
+    /// "local" or a CRS definition for GDAL (EPSG:n, WKT, PROJ).
+    pub crs: String,
+    pub area: Area,
+    pub dem_files: Vec<PathBuf>,
+    pub dem_spacing_m: Option<f64>,
+    pub max_fill_pixels: u64,
+    pub tolerance_m: f64,
+    pub terrain_tile_m: f64,
+    pub landcover_file: PathBuf,
+    pub scheme: String,
+    pub lc_tile_m: f64,
+    pub resampling: Resampling,
+    pub fallback_material: Option<String>,
+    pub class_materials: BTreeMap<i64, String>,
+    pub materials: BTreeMap<String, MaterialDef>,
+    pub templates: Vec<TemplateSpec>,
+    pub population: Option<Vec<PopulationRule>>,
+}
+
+impl Region {
+    pub fn load(path: &Path) -> Result<Region, ScenegenError> {
+        let text =
+            std::fs::read_to_string(path).map_err(|source| ScenegenError::ReadRegion { path: path.into(), source })?;
+        Self::from_str(&text, path)
+    }
+
+    pub fn from_str(text: &str, path: &Path) -> Result<Region, ScenegenError> {
+        let parse = |message: String| ScenegenError::Region { path: path.into(), key: String::new(), message };
+        let de = toml::Deserializer::parse(text).map_err(|e| parse(e.to_string().trim_end().to_string()))?;
+        let raw: RegionFile = serde_path_to_error::deserialize(de).map_err(|e| ScenegenError::Region {
+            path: path.into(),
+            key: e.path().to_string(),
+            message: e.inner().to_string().trim_end().to_string(),
+        })?;
+        let inv = |key: &str, message: String| ScenegenError::Region { path: path.into(), key: key.into(), message };
+        let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+
+        let area = match (raw.area.bbox, raw.area.centre, raw.area.size_km) {
+            (Some(b), None, None) => {
+                if !(b.iter().all(|v| v.is_finite())
+                    && b[0] < b[2]
+                    && b[1] < b[3]
+                    && b[0] >= -180.0
+                    && b[2] <= 180.0
+                    && b[1] >= -90.0
+                    && b[3] <= 90.0)
+                {
+                    return Err(inv(
+                        "area.bbox",
+                        format!("{b:?} must be [west, south, east, north] in degrees with west < east, south < north"),
+                    ));
+                }
+                Area::BBox(b)
+            }
+            (None, Some(c), Some(s)) => {
+                if !(c[0].abs() <= 180.0 && c[1].abs() < 89.0) {
+                    return Err(inv("area.centre", format!("{c:?} must be [lon, lat] in degrees (|lat| < 89)")));
+                }
+                let s = match s {
+                    SizeKm::Square(v) => [v, v],
+                    SizeKm::Rect(v) => v,
+                };
+                if !(s.iter().all(|v| v.is_finite() && *v > 0.0 && *v <= 1000.0)) {
+                    return Err(inv("area.size_km", format!("{s:?} must be in (0, 1000] km")));
+                }
+                Area::Centre { lon_lat: c, size_m: [s[0] * 1e3, s[1] * 1e3] }
+            }
+            _ => return Err(inv("area", "give either `bbox` or both `centre` and `size_km`".into())),
+        };
+        if raw.dem.files.is_empty() {
+            return Err(inv("dem.files", "at least one DEM file is needed".into()));
+        }
+        if let Some(s) = raw.dem.spacing_m {
+            if !(s.is_finite() && (0.1..=10_000.0).contains(&s)) {
+                return Err(inv("dem.spacing_m", format!("{s} must be in [0.1, 10000] m")));
+            }
+        }
+        let t = &raw.terrain;
+        if !(t.tolerance_m.is_finite() && t.tolerance_m >= 0.01 && t.tolerance_m <= 1000.0) {
+            return Err(inv("terrain.tolerance_m", format!("{} must be in [0.01, 1000] m", t.tolerance_m)));
+        }
+        if !(t.tile_size_m.is_finite() && (100.0..=100_000.0).contains(&t.tile_size_m)) {
+            return Err(inv("terrain.tile_size_m", format!("{} must be in [100, 100000] m", t.tile_size_m)));
+        }
+        let lc = &raw.landcover;
+        if !(lc.tile_size_m.is_finite() && (1.0..=10_000.0).contains(&lc.tile_size_m)) {
+            return Err(inv("landcover.tile_size_m", format!("{} must be in [1, 10000] m", lc.tile_size_m)));
+        }
+        let mut class_materials = BTreeMap::new();
+        for (k, v) in &lc.class_materials {
+            let code: i64 = k.parse().map_err(|_| {
+                inv(&format!("landcover.class_materials.{k}"), "keys must be integer class codes".into())
+            })?;
+            class_materials.insert(code, v.clone());
+        }
+        for (name, m) in &raw.materials {
+            landcover::validate_brdf(&m.brdf).map_err(|(k, msg)| inv(&format!("materials.{name}.brdf.{k}"), msg))?;
+        }
+        for (i, s) in raw.templates.iter().enumerate() {
+            s.validate(path, &format!("templates[{i}]")).map_err(|e| match e {
+                tiles::TileError::Invalid { key, message, .. } => inv(&key, message),
+                other => inv(&format!("templates[{i}]"), other.to_string()),
+            })?;
+        }
+        if let Some(rules) = &raw.population {
+            for (i, r) in rules.iter().enumerate() {
+                landcover::validate_rule(r).map_err(|(k, m)| inv(&format!("population[{i}].{k}"), m))?;
+            }
+        }
+        Ok(Region {
+            path: path.into(),
+            text: text.into(),
+            seed: raw.seed,
+            crs: raw.crs,
+            area,
+            dem_files: raw.dem.files.iter().map(|f| base.join(f)).collect(),
+            dem_spacing_m: raw.dem.spacing_m,
+            max_fill_pixels: raw.dem.max_fill_pixels,
+            tolerance_m: t.tolerance_m,
+            terrain_tile_m: t.tile_size_m,
+            landcover_file: base.join(&lc.file),
+            scheme: if lc.scheme.ends_with(".toml") {
+                base.join(&lc.scheme).display().to_string()
+            } else {
+                lc.scheme.clone()
+            },
+            lc_tile_m: lc.tile_size_m,
+            resampling: lc.resampling,
+            fallback_material: lc.fallback_material.clone(),
+            class_materials,
+            materials: raw.materials,
+            templates: raw.templates,
+            population: raw.population,
+        })
+    }
+
+    /// Override the terrain tolerance (metres), with the same range check as the file's key.
+    pub fn set_tolerance(&mut self, t: f64) -> Result<(), ScenegenError> {
+        if !(t.is_finite() && (0.01..=1000.0).contains(&t)) {
+            return Err(ScenegenError::Region {
+                path: self.path.clone(),
+                key: "terrain.tolerance_m (--tolerance-m)".into(),
+                message: format!("{t} must be in [0.01, 1000] m"),
+            });
+        }
+        self.tolerance_m = t;
+        Ok(())
+    }
+
+    /// Folder that relative paths of the region file start from.
+    pub fn base_dir(&self) -> PathBuf {
+        self.path.parent().map(Path::to_path_buf).unwrap_or_default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OK: &str = r#"
+seed = 3
+[area]
+centre = [5.7, 45.2]
+size_km = 10
+[dem]
+files = ["dem.tif"]
+[landcover]
+file = "lc.tif"
+scheme = "corine"
+"#;
+
+    /// Rationale: defaults documented in docs/region.md must be the ones applied.
+    #[test]
+    fn defaults_are_applied() {
+        let r = Region::from_str(OK, Path::new("/x/region.toml")).unwrap();
+        assert_eq!(r.tolerance_m, 1.0);
+        assert_eq!(r.lc_tile_m, 100.0);
+        assert_eq!(r.terrain_tile_m, 5000.0);
+        assert_eq!(r.max_fill_pixels, 64);
+        assert_eq!(r.crs, "local");
+        assert_eq!(r.dem_files, vec![PathBuf::from("/x/dem.tif")]);
+        assert_eq!(r.area, Area::Centre { lon_lat: [5.7, 45.2], size_m: [10_000.0, 10_000.0] });
+    }
+
+    /// Rationale: misspelt and out-of-range keys must be errors naming the file and key path.
+    #[test]
+    fn bad_keys_name_the_key_path() {
+        let p = Path::new("region.toml");
+        let e = Region::from_str(&OK.replace("[dem]", "[terrain]\ntolerance_metres = 2\n[dem]"), p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("region.toml") && e.contains("tolerance_metres"), "{e}");
+        let e =
+            Region::from_str(&OK.replace("[dem]", "[terrain]\ntolerance_m = -1\n[dem]"), p).unwrap_err().to_string();
+        assert!(e.contains("terrain.tolerance_m"), "{e}");
+        let e = Region::from_str(&OK.replace("size_km = 10", "size_km = 0"), p).unwrap_err().to_string();
+        assert!(e.contains("area.size_km"), "{e}");
+        let e = Region::from_str(&OK.replace("scheme = \"corine\"", "scheme = \"corine\"\ntile_size_m = \"big\""), p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("landcover.tile_size_m"), "{e}");
+        let e = Region::from_str(
+            &format!("{OK}\n[[population]]\nclasses = [1]\ntemplate = \"tree\"\ndensity_per_ha = -3\n"),
+            p,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("population[0].density_per_ha"), "{e}");
+        let e =
+            Region::from_str(&format!("{OK}\n[[templates]]\nname = \"t\"\nunit_m = 1\n"), p).unwrap_err().to_string();
+        assert!(e.contains("templates[0].file"), "{e}");
+    }
+}
