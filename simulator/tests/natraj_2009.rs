@@ -18,7 +18,11 @@ use common::*;
 
 /// (μ0, μ, [value at φ = 0, 30, …, 180]) rows of one table block.
 fn table(component: &str, tau: &str, albedo: &str) -> Vec<(f64, f64, [f64; 7])> {
-    let path = data_dir().join(format!("natraj_2009/{component}_UP_TAU_{tau}"));
+    table_dir(component, "UP", tau, albedo)
+}
+
+fn table_dir(component: &str, dir: &str, tau: &str, albedo: &str) -> Vec<(f64, f64, [f64; 7])> {
+    let path = data_dir().join(format!("natraj_2009/{component}_{dir}_TAU_{tau}"));
     let text = std::fs::read_to_string(&path).unwrap();
     let mut inside = false;
     let mut out = Vec::new();
@@ -250,4 +254,51 @@ fn polarized_radiancemeter_matches_mdistant() {
         });
     }
     check_all("polarized radiancemeter vs mdistant", &cmps).unwrap();
+}
+
+/// Diffuse radiation emerging at the bottom (the tables' DN): radiancemeters on the ground look
+/// up at sky zenith acos μ; the table's φ = 0 is the forward-scattering side, i.e. looking
+/// towards the Sun (our look azimuth = φ with the Sun at azimuth 0). Same Stokes mapping as at
+/// the top ((Q, U) of opposite sign to the tables'). Tests downward polarized transport.
+#[test]
+fn polarized_downward_matches_natraj_2009() {
+    let mut errs = Vec::new();
+    for (tau, albedo, mu0) in [("0.5", "0.25", 0.6), ("0.1", "0.80", 0.2)] {
+        let (ti, tq, tu) = (table_dir("I", "DN", tau, albedo), table_dir("Q", "DN", tau, albedo), table_dir("U", "DN", tau, albedo));
+        let mut measures = String::new();
+        let mut refs = Vec::new();
+        for mu in [0.2, 0.4, 0.84] {
+            let pick = |t: &Vec<(f64, f64, [f64; 7])>| t.iter().find(|r| (r.0 - mu0).abs() < 1e-9 && (r.1 - mu).abs() < 1e-9).unwrap().2;
+            let (i, q, u) = (pick(&ti), pick(&tq), pick(&tu));
+            for k in [0usize, 2, 4, 6] {
+                let phi = 30.0 * k as f64;
+                let look = simulator::frame::direction_from_angles(f64::acos(mu), phi.to_radians());
+                measures += &format!(
+                    "[[measures]]\nid = \"m{}\"\ntype = \"radiancemeter\"\norigin = [0.0, 0.0, 0.0]\ndirection = [{:?}, {:?}, {:?}]\nspp = 160000\n",
+                    refs.len(),
+                    look.x,
+                    look.y,
+                    look.z
+                );
+                refs.push((mu, phi, i[k] / mu0, -q[k] / mu0, -u[k] / mu0));
+            }
+        }
+        let text = format!(
+            "seed = 12\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = {tau}\n\
+             [surface]\ntype = \"lambertian\"\nreflectance = {albedo}\n[illumination]\ntype = \"directional\"\nzenith = {:?}\nazimuth = 0.0\n{measures}",
+            f64::acos(mu0).to_degrees()
+        );
+        let rows = run_rows(&experiment(&text));
+        let mut cmps = Vec::new();
+        for (r, (mu, phi, i, q, u)) in rows.iter().zip(&refs) {
+            for (name, x, reference) in [("I", r.brf, i), ("Q", r.brf_q, q), ("U", r.brf_u, u)] {
+                let (v, e) = x.unwrap();
+                cmps.push(Cmp { label: format!("{name} mu {mu} phi {phi}"), reference: *reference, value: v, stderr: e });
+            }
+        }
+        if let Err(e) = check_all(&format!("Natraj 2009 DN tau={tau} A={albedo} mu0={mu0}"), &cmps) {
+            errs.push(e);
+        }
+    }
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
