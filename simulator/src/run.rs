@@ -330,7 +330,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
         None => m.spp,
-        Some(_) => (16 * BLOCK).min(m.spp),
+        Some(_) => (4 * BLOCK).min(m.spp),
     };
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
