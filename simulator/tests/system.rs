@@ -504,3 +504,22 @@ fn illumination_from_time_and_place() {
         assert!(e.contains(key), "{key}: {e}");
     }
 }
+
+/// With a sensor band, `target_rel_stderr` is the target of the band-weighted value: each
+/// wavelength's target is relaxed by √N_eff (N_eff = (Σa)²/Σa², a = SRF weight × E0), since N
+/// independent wavelengths with equal relative errors average down that way.
+#[test]
+fn band_precision_target() {
+    use simulator::srf::Srf;
+    let (_, w) = Srf::builtin("sentinel_2a-msi-4").unwrap().unwrap().grid(5.0).unwrap();
+    let text = format!(
+        "[spectral]\nsrf = \"sentinel_2a-msi-4\"\n[surface]\ntype = \"lambertian\"\nreflectance = 0.3\n\
+         [illumination]\ntype = \"directional\"\nzenith = 30.0\n{}target_rel_stderr = 0.002\n",
+        mdistant_toml("toa", &[0.0], &[0.0], 1_000_000)
+    );
+    let exp = experiment(&text);
+    // Constant E0 = 1 here, so a = w.
+    let n_eff = w.iter().sum::<f64>().powi(2) / w.iter().map(|x| x * x).sum::<f64>();
+    let t = exp.measures[0].target_rel_stderr.unwrap();
+    assert!((t - 0.002 * n_eff.sqrt()).abs() < 1e-12 && n_eff > 3.0, "{t} {n_eff}");
+}

@@ -1029,6 +1029,21 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         })
         .collect();
 
+    // With a sensor band, `target_rel_stderr` is the target of the band-weighted result: each of
+    // the N independent wavelengths may then be √N_eff times noisier, with
+    // N_eff = (Σ a_k)² / Σ a_k² and a_k = w_k·E0_k (equal relative errors combine this way).
+    if let Some(b) = &band {
+        let a: Vec<f64> = b.weights.iter().zip(&irradiance).map(|(w, e)| w * e).collect();
+        let (s1, s2) = (a.iter().sum::<f64>(), a.iter().map(|x| x * x).sum::<f64>());
+        if s2 > 0.0 {
+            let n_eff = s1 * s1 / s2;
+            for m in &mut measures {
+                if let Some(t) = m.target_rel_stderr {
+                    m.target_rel_stderr = Some((t * n_eff.sqrt()).min(0.5));
+                }
+            }
+        }
+    }
     Ok(Experiment {
         wavelengths,
         band,
