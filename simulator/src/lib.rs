@@ -31,6 +31,7 @@ pub mod pics;
 pub mod products;
 pub mod rng;
 pub mod run;
+pub mod scene;
 pub mod solar;
 pub mod srf;
 pub mod stokes;
