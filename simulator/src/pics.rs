@@ -182,6 +182,9 @@ pub fn to_csv(rows: &[PicsRow]) -> String {
     s
 }
 
+/// A netCDF column: name, units, long name, accessor.
+type Column = (&'static str, &'static str, &'static str, fn(&PicsRow) -> f64);
+
 /// `pics.nc`: the same table as CF netCDF on the dimension `acquisition`.
 pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(), crate::error::OutputError> {
     let tmp = crate::products::tmp_path(path);
@@ -207,7 +210,7 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
                     v.put_string(&r.acquisition.srf, [i])?;
                 }
             }
-            let cols: [(&str, &str, &str, fn(&PicsRow) -> f64); 10] = [
+            let cols: [Column; 10] = [
                 ("vza", "degree", "view zenith angle", |r| r.acquisition.vza),
                 ("vaa", "degree", "view azimuth angle, clockwise from North (site to sensor)", |r| r.acquisition.vaa),
                 ("sza", "degree", "solar zenith angle (NREL SPA, geometric)", |r| r.sza),
