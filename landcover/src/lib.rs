@@ -17,8 +17,13 @@ use serde::Deserialize;
 use simulator::bundle::{BrdfSpec, Material, Spectrum, NO_MATERIAL};
 
 const MATERIALS_TOML: &str = include_str!("../data/materials.toml");
-const BUILTIN: &[(&str, &str)] =
-    &[("esa_worldcover", include_str!("../data/esa_worldcover.toml")), ("corine", include_str!("../data/corine.toml"))];
+const BUILTIN: &[(&str, &str)] = &[
+    (
+        "esa_worldcover",
+        include_str!("../data/esa_worldcover.toml"),
+    ),
+    ("corine", include_str!("../data/corine.toml")),
+];
 
 /// Errors naming the scheme file (or built-in name) and the key.
 #[derive(Debug, thiserror::Error)]
@@ -26,15 +31,26 @@ pub enum SchemeError {
     #[error("unknown land-cover scheme `{name}` (built-in: {known}); give a path to a scheme TOML file instead")]
     UnknownScheme { name: String, known: String },
     #[error("cannot read scheme file {}: {source}", path.display())]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: {message}", path.display())]
     Parse { path: PathBuf, message: String },
     #[error("{}: `{key}`: {message}", path.display())]
-    Invalid { path: PathBuf, key: String, message: String },
+    Invalid {
+        path: PathBuf,
+        key: String,
+        message: String,
+    },
     /// Class codes present in the raster without a material; pixel counts per code.
     #[error("{}: {} class code(s) have no material in scheme `{scheme}`: {}; add them to the scheme or set `landcover.fallback_material`",
         path.display(), codes.len(), format_counts(codes))]
-    UnknownCodes { path: PathBuf, scheme: String, codes: Vec<(i64, u64)> },
+    UnknownCodes {
+        path: PathBuf,
+        scheme: String,
+        codes: Vec<(i64, u64)>,
+    },
     #[error("too many materials ({count}); the material raster holds at most 255")]
     TooManyMaterials { count: usize },
 }
@@ -43,7 +59,13 @@ fn format_counts(codes: &[(i64, u64)]) -> String {
     let mut s: Vec<String> = codes
         .iter()
         .take(20)
-        .map(|(c, n)| if *c == NODATA_CODE { format!("no data ({n} px)") } else { format!("{c} ({n} px)") })
+        .map(|(c, n)| {
+            if *c == NODATA_CODE {
+                format!("no data ({n} px)")
+            } else {
+                format!("{c} ({n} px)")
+            }
+        })
         .collect();
     if codes.len() > 20 {
         s.push(format!("… and {} more", codes.len() - 20));
@@ -137,11 +159,17 @@ pub struct Scheme {
 }
 
 fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, path: &Path) -> Result<T, SchemeError> {
-    let de = toml::Deserializer::parse(text)
-        .map_err(|e| SchemeError::Parse { path: path.into(), message: e.to_string() })?;
+    let de = toml::Deserializer::parse(text).map_err(|e| SchemeError::Parse {
+        path: path.into(),
+        message: e.to_string(),
+    })?;
     serde_path_to_error::deserialize(de).map_err(|e| SchemeError::Parse {
         path: path.into(),
-        message: format!("at key `{}`: {}", e.path(), e.inner().to_string().trim_end()),
+        message: format!(
+            "at key `{}`: {}",
+            e.path(),
+            e.inner().to_string().trim_end()
+        ),
     })
 }
 
@@ -162,15 +190,23 @@ impl Scheme {
     pub fn load(name_or_path: &str) -> Result<Scheme, SchemeError> {
         if name_or_path.ends_with(".toml") {
             let path = PathBuf::from(name_or_path);
-            let text =
-                std::fs::read_to_string(&path).map_err(|source| SchemeError::Read { path: path.clone(), source })?;
+            let text = std::fs::read_to_string(&path).map_err(|source| SchemeError::Read {
+                path: path.clone(),
+                source,
+            })?;
             return Self::from_str(&text, &path);
         }
-        let (_, text) = BUILTIN.iter().find(|(n, _)| *n == name_or_path).ok_or_else(|| SchemeError::UnknownScheme {
-            name: name_or_path.into(),
-            known: Self::builtin_names().join(", "),
-        })?;
-        Self::from_str(text, &PathBuf::from(format!("landcover/data/{name_or_path}.toml")))
+        let (_, text) = BUILTIN
+            .iter()
+            .find(|(n, _)| *n == name_or_path)
+            .ok_or_else(|| SchemeError::UnknownScheme {
+                name: name_or_path.into(),
+                known: Self::builtin_names().join(", "),
+            })?;
+        Self::from_str(
+            text,
+            &PathBuf::from(format!("landcover/data/{name_or_path}.toml")),
+        )
     }
 
     /// Parse and validate scheme text; `path` names it in errors.
@@ -193,7 +229,11 @@ impl Scheme {
     }
 
     fn validate(&self) -> Result<(), SchemeError> {
-        let inv = |key: String, message: String| SchemeError::Invalid { path: self.origin.clone(), key, message };
+        let inv = |key: String, message: String| SchemeError::Invalid {
+            path: self.origin.clone(),
+            key,
+            message,
+        };
         let mut seen = BTreeMap::new();
         for (i, c) in self.classes.iter().enumerate() {
             if let Some(j) = seen.insert(c.code, i) {
@@ -203,11 +243,15 @@ impl Scheme {
                 ));
             }
             if !self.materials.contains_key(&c.material) {
-                return Err(inv(format!("classes[{i}].material"), format!("unknown material `{}`", c.material)));
+                return Err(inv(
+                    format!("classes[{i}].material"),
+                    format!("unknown material `{}`", c.material),
+                ));
             }
         }
         for (name, m) in &self.materials {
-            validate_brdf(&m.brdf).map_err(|e| inv(format!("materials.{name}.brdf.{}", e.0), e.1))?;
+            validate_brdf(&m.brdf)
+                .map_err(|e| inv(format!("materials.{name}.brdf.{}", e.0), e.1))?;
         }
         for (i, r) in self.population.iter().enumerate() {
             validate_rule(r).map_err(|(k, m)| inv(format!("population[{i}].{k}"), m))?;
@@ -219,10 +263,16 @@ impl Scheme {
 /// Checks a population rule; returns (key, message).
 pub fn validate_rule(r: &PopulationRule) -> Result<(), (String, String)> {
     if !(r.density_per_ha.is_finite() && r.density_per_ha >= 0.0 && r.density_per_ha <= 1.0e5) {
-        return Err(("density_per_ha".into(), format!("{} is outside [0, 100000] per hectare", r.density_per_ha)));
+        return Err((
+            "density_per_ha".into(),
+            format!("{} is outside [0, 100000] per hectare", r.density_per_ha),
+        ));
     }
     if !(r.scale[0] > 0.0 && r.scale[1] >= r.scale[0] && r.scale[1].is_finite()) {
-        return Err(("scale".into(), format!("{:?} must be [min, max] with 0 < min ≤ max", r.scale)));
+        return Err((
+            "scale".into(),
+            format!("{:?} must be [min, max] with 0 < min ≤ max", r.scale),
+        ));
     }
     Ok(())
 }
@@ -242,7 +292,10 @@ pub fn validate_brdf(b: &BrdfSpec) -> Result<(), (String, String)> {
     };
     match b {
         BrdfSpec::Lambertian { reflectance } => check("reflectance", reflectance, 0.0, 1.0),
-        BrdfSpec::BiLambertian { reflectance, transmittance } => {
+        BrdfSpec::BiLambertian {
+            reflectance,
+            transmittance,
+        } => {
             check("reflectance", reflectance, 0.0, 1.0)?;
             check("transmittance", transmittance, 0.0, 1.0)
         }
@@ -255,7 +308,11 @@ pub fn validate_brdf(b: &BrdfSpec) -> Result<(), (String, String)> {
             }
             Ok(())
         }
-        BrdfSpec::Rtls { f_iso, f_vol, f_geo } => {
+        BrdfSpec::Rtls {
+            f_iso,
+            f_vol,
+            f_geo,
+        } => {
             check("f_iso", f_iso, -10.0, 10.0)?;
             check("f_vol", f_vol, -10.0, 10.0)?;
             check("f_geo", f_geo, -10.0, 10.0)
@@ -304,7 +361,9 @@ impl MaterialMap {
                 ),
             })?;
             if materials.len() >= NO_MATERIAL as usize {
-                return Err(SchemeError::TooManyMaterials { count: materials.len() + 1 });
+                return Err(SchemeError::TooManyMaterials {
+                    count: materials.len() + 1,
+                });
             }
             let index = materials.len() as u8;
             materials.push(Material {
@@ -318,12 +377,20 @@ impl MaterialMap {
         };
         for c in &scheme.classes {
             let name = class_materials.get(&c.code).unwrap_or(&c.material);
-            let i = add(name, Some(c.code), &format!("landcover.class_materials.{}", c.code))?;
+            let i = add(
+                name,
+                Some(c.code),
+                &format!("landcover.class_materials.{}", c.code),
+            )?;
             code_to_index.insert(c.code, i);
         }
         for (code, name) in class_materials {
             if !code_to_index.contains_key(code) {
-                let i = add(name, Some(*code), &format!("landcover.class_materials.{code}"))?;
+                let i = add(
+                    name,
+                    Some(*code),
+                    &format!("landcover.class_materials.{code}"),
+                )?;
                 code_to_index.insert(*code, i);
             }
         }
@@ -331,7 +398,11 @@ impl MaterialMap {
             Some(name) => Some(add(name, None, "landcover.fallback_material")?),
             None => None,
         };
-        Ok(MaterialMap { materials, code_to_index, fallback })
+        Ok(MaterialMap {
+            materials,
+            code_to_index,
+            fallback,
+        })
     }
 
     /// Add a material not tied to a class (template materials); returns its index.
@@ -340,7 +411,9 @@ impl MaterialMap {
             return Ok(m.index);
         }
         if self.materials.len() >= NO_MATERIAL as usize {
-            return Err(SchemeError::TooManyMaterials { count: self.materials.len() + 1 });
+            return Err(SchemeError::TooManyMaterials {
+                count: self.materials.len() + 1,
+            });
         }
         let index = self.materials.len() as u8;
         self.materials.push(Material {
@@ -356,7 +429,12 @@ impl MaterialMap {
     /// Map a class-code raster (`None` = no data) to material indices. Unknown codes and no
     /// data go to the fallback, or make an error listing every such code with its pixel count.
     /// `path` and `scheme` name the input in the error.
-    pub fn map_raster(&self, codes: &[Option<i64>], path: &Path, scheme: &str) -> Result<Vec<u8>, SchemeError> {
+    pub fn map_raster(
+        &self,
+        codes: &[Option<i64>],
+        path: &Path,
+        scheme: &str,
+    ) -> Result<Vec<u8>, SchemeError> {
         // A dense lookup for the common small codes keeps this a table lookup per pixel.
         let mut lut = [u16::MAX; 256];
         for (&c, &i) in &self.code_to_index {
@@ -368,7 +446,9 @@ impl MaterialMap {
         let mut out = Vec::with_capacity(codes.len());
         for c in codes {
             let idx = match c {
-                Some(c) if (0..256).contains(c) && lut[*c as usize] != u16::MAX => Some(lut[*c as usize] as u8),
+                Some(c) if (0..256).contains(c) && lut[*c as usize] != u16::MAX => {
+                    Some(lut[*c as usize] as u8)
+                }
                 Some(c) => self.code_to_index.get(c).copied(),
                 None => None,
             };
@@ -421,11 +501,26 @@ mod tests {
         let remap = BTreeMap::from([(40, "grass".to_string())]);
         let m = MaterialMap::new(&s, &remap, &BTreeMap::new(), None).unwrap();
         let codes = [Some(10), Some(30), Some(40), Some(80), Some(10), Some(50)];
-        let out = m.map_raster(&codes, Path::new("lc.tif"), "esa_worldcover").unwrap();
+        let out = m
+            .map_raster(&codes, Path::new("lc.tif"), "esa_worldcover")
+            .unwrap();
         let name = |i: u8| m.materials[i as usize].name.as_str();
         let names: Vec<&str> = out.iter().map(|&i| name(i)).collect();
-        assert_eq!(names, ["forest_floor", "grass", "grass", "water", "forest_floor", "urban"]);
-        assert_eq!(out[1], out[2], "remapped cropland shares grassland's material");
+        assert_eq!(
+            names,
+            [
+                "forest_floor",
+                "grass",
+                "grass",
+                "water",
+                "forest_floor",
+                "urban"
+            ]
+        );
+        assert_eq!(
+            out[1], out[2],
+            "remapped cropland shares grassland's material"
+        );
     }
 
     /// Rationale: unknown codes must be listed with their pixel counts, and a fallback must
@@ -435,9 +530,14 @@ mod tests {
         let s = Scheme::load("corine").unwrap();
         let m = MaterialMap::new(&s, &BTreeMap::new(), &BTreeMap::new(), None).unwrap();
         let codes = [Some(12), Some(99), Some(99), None, Some(7)];
-        let e = m.map_raster(&codes, Path::new("lc.tif"), "corine").unwrap_err();
+        let e = m
+            .map_raster(&codes, Path::new("lc.tif"), "corine")
+            .unwrap_err();
         let msg = e.to_string();
-        assert!(msg.contains("lc.tif") && msg.contains("99 (2 px)") && msg.contains("no data (1 px)"), "{msg}");
+        assert!(
+            msg.contains("lc.tif") && msg.contains("99 (2 px)") && msg.contains("no data (1 px)"),
+            "{msg}"
+        );
         let m = MaterialMap::new(&s, &BTreeMap::new(), &BTreeMap::new(), Some("soil")).unwrap();
         let out = m.map_raster(&codes, Path::new("lc.tif"), "corine").unwrap();
         assert_eq!(m.materials[out[1] as usize].name, "soil");
@@ -448,9 +548,16 @@ mod tests {
     #[test]
     fn bad_scheme_files_name_the_key() {
         let p = Path::new("my_scheme.toml");
-        let e = Scheme::from_str("name = \"x\"\nclasses = [{ code = 1, name = \"a\", material = \"nope\" }]\n", p)
-            .unwrap_err();
-        assert!(e.to_string().contains("my_scheme.toml") && e.to_string().contains("classes[0].material"), "{e}");
+        let e = Scheme::from_str(
+            "name = \"x\"\nclasses = [{ code = 1, name = \"a\", material = \"nope\" }]\n",
+            p,
+        )
+        .unwrap_err();
+        assert!(
+            e.to_string().contains("my_scheme.toml")
+                && e.to_string().contains("classes[0].material"),
+            "{e}"
+        );
         let e = Scheme::from_str("name = \"x\"\nclasess = []\n", p).unwrap_err();
         assert!(e.to_string().contains("clasess"), "{e}");
         let e = Scheme::from_str(
@@ -458,7 +565,13 @@ mod tests {
             p,
         )
         .unwrap_err();
-        assert!(e.to_string().contains("materials.m.brdf.reflectance"), "{e}");
-        assert!(matches!(Scheme::load("worldcover"), Err(SchemeError::UnknownScheme { .. })));
+        assert!(
+            e.to_string().contains("materials.m.brdf.reflectance"),
+            "{e}"
+        );
+        assert!(matches!(
+            Scheme::load("worldcover"),
+            Err(SchemeError::UnknownScheme { .. })
+        ));
     }
 }

@@ -24,7 +24,12 @@ pub fn peak_rss_bytes() -> Option<u64> {
 
 fn dir_size(p: &Path) -> u64 {
     std::fs::read_dir(p)
-        .map(|rd| rd.filter_map(|e| e.ok()).filter_map(|e| e.metadata().ok()).map(|m| m.len()).sum())
+        .map(|rd| {
+            rd.filter_map(|e| e.ok())
+                .filter_map(|e| e.metadata().ok())
+                .map(|m| m.len())
+                .sum()
+        })
         .unwrap_or(0)
 }
 
@@ -37,15 +42,25 @@ struct Row {
     load_s: f64,
 }
 
-fn run_build(region: &Path, out: &Path, case: String, tolerance: Option<f64>) -> Result<Row, ScenegenError> {
-    let exe = std::env::current_exe().map_err(|e| ScenegenError::Internal(format!("current exe: {e}")))?;
+fn run_build(
+    region: &Path,
+    out: &Path,
+    case: String,
+    tolerance: Option<f64>,
+) -> Result<Row, ScenegenError> {
+    let exe = std::env::current_exe()
+        .map_err(|e| ScenegenError::Internal(format!("current exe: {e}")))?;
     let t0 = Instant::now();
     let mut cmd = Command::new(exe);
-    cmd.args(["build", "--quiet", "--stats-json", "--force", "-o"]).arg(out).arg(region);
+    cmd.args(["build", "--quiet", "--stats-json", "--force", "-o"])
+        .arg(out)
+        .arg(region);
     if let Some(t) = tolerance {
         cmd.arg("--tolerance-m").arg(t.to_string());
     }
-    let o = cmd.output().map_err(|e| ScenegenError::Internal(format!("cannot run the build: {e}")))?;
+    let o = cmd
+        .output()
+        .map_err(|e| ScenegenError::Internal(format!("cannot run the build: {e}")))?;
     let wall_s = t0.elapsed().as_secs_f64();
     if !o.status.success() {
         return Err(ScenegenError::Internal(format!(
@@ -55,14 +70,24 @@ fn run_build(region: &Path, out: &Path, case: String, tolerance: Option<f64>) ->
         )));
     }
     let stdout = String::from_utf8_lossy(&o.stdout);
-    let line =
-        stdout.lines().find(|l| l.starts_with('{')).ok_or_else(|| ScenegenError::Internal("no stats line".into()))?;
-    let stats: serde_json::Value = serde_json::from_str(line).map_err(|e| ScenegenError::Internal(e.to_string()))?;
+    let line = stdout
+        .lines()
+        .find(|l| l.starts_with('{'))
+        .ok_or_else(|| ScenegenError::Internal("no stats line".into()))?;
+    let stats: serde_json::Value =
+        serde_json::from_str(line).map_err(|e| ScenegenError::Internal(e.to_string()))?;
     let peak = stats["peak_rss_bytes"].as_u64().unwrap_or(0);
     let t1 = Instant::now();
     simulator::bundle::Bundle::open(out)?;
     let load_s = t1.elapsed().as_secs_f64();
-    Ok(Row { case, wall_s, peak, size: dir_size(out), stats, load_s })
+    Ok(Row {
+        case,
+        wall_s,
+        peak,
+        size: dir_size(out),
+        stats,
+        load_s,
+    })
 }
 
 /// Run the benchmark and print its table.
@@ -74,10 +99,14 @@ pub fn run(
     region: Option<&Path>,
     keep: bool,
 ) -> Result<(), ScenegenError> {
-    std::fs::create_dir_all(workdir).map_err(|e| ScenegenError::Internal(format!("{}: {e}", workdir.display())))?;
+    std::fs::create_dir_all(workdir)
+        .map_err(|e| ScenegenError::Internal(format!("{}: {e}", workdir.display())))?;
     let n = (size_km * 1000.0 / spacing_m).round() as usize + 1;
     // UTM 31N around 3° E, 45° N; the region asks for the centre and size, so it reprojects.
-    let (e0, n0) = (500_000.0 - 0.5 * size_km * 1000.0 - 2000.0, 4_983_000.0 - 0.5 * size_km * 1000.0 - 2000.0);
+    let (e0, n0) = (
+        500_000.0 - 0.5 * size_km * 1000.0 - 2000.0,
+        4_983_000.0 - 0.5 * size_km * 1000.0 - 2000.0,
+    );
     let margin_px = (4000.0 / spacing_m).ceil() as usize;
     let w = n + margin_px;
     let t0 = Instant::now();
@@ -95,7 +124,14 @@ pub fn run(
         &dem,
         w,
         w,
-        Some([e0, spacing_m, 0.0, n0 + w as f64 * spacing_m, 0.0, -spacing_m]),
+        Some([
+            e0,
+            spacing_m,
+            0.0,
+            n0 + w as f64 * spacing_m,
+            0.0,
+            -spacing_m,
+        ]),
         Some("EPSG:32631"),
         Some(-9999.0),
         h,
@@ -148,7 +184,12 @@ pub fn run(
         for &tol in tolerances {
             let out = workdir.join(format!("bundle_region_tol{tol}"));
             eprintln!("bench: building {} at tolerance {tol} m …", r.display());
-            rows.push(run_build(r, &out, format!("{}, tolerance {tol} m", r.display()), Some(tol))?);
+            rows.push(run_build(
+                r,
+                &out,
+                format!("{}, tolerance {tol} m", r.display()),
+                Some(tol),
+            )?);
         }
     }
     println!("| case | wall [s] | peak RSS | DEM samples | triangles | vertices | instances | bundle size | load [s] | stages [s] |");
@@ -158,7 +199,10 @@ pub fn run(
         let stages = s["stages"]
             .as_object()
             .map(|m| {
-                m.iter().map(|(k, v)| format!("{k} {:.1}", v.as_f64().unwrap_or(0.0))).collect::<Vec<_>>().join(", ")
+                m.iter()
+                    .map(|(k, v)| format!("{k} {:.1}", v.as_f64().unwrap_or(0.0)))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             })
             .unwrap_or_default();
         println!(

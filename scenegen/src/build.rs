@@ -50,7 +50,10 @@ fn bar(opts: &BuildOptions, msg: &str) -> ProgressBar {
     } else {
         ProgressBar::hidden()
     };
-    pb.set_style(ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}").expect("static template"));
+    pb.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {msg}")
+            .expect("static template"),
+    );
     pb.set_message(msg.to_string());
     pb.enable_steady_tick(Duration::from_millis(200));
     pb
@@ -62,7 +65,9 @@ fn sha256_file(path: &Path) -> Result<(u64, String), ScenegenError> {
     let mut buf = vec![0u8; 1 << 20];
     let mut n = 0u64;
     loop {
-        let k = f.read(&mut buf).map_err(|e| input(path, format!("cannot read: {e}")))?;
+        let k = f
+            .read(&mut buf)
+            .map_err(|e| input(path, format!("cannot read: {e}")))?;
         if k == 0 {
             break;
         }
@@ -87,10 +92,15 @@ fn resolve_population(
 ) -> Result<Population, ScenegenError> {
     let mut catalogue = Catalogue::builtin();
     catalogue.extend(&region.templates, &region.base_dir());
-    let (rules_src, key_root, rules_file): (&[landcover::PopulationRule], &str, PathBuf) = match &region.population {
-        Some(r) => (r, "population", region.path.clone()),
-        None => (&scheme.population, "population (scheme default)", scheme.origin.clone()),
-    };
+    let (rules_src, key_root, rules_file): (&[landcover::PopulationRule], &str, PathBuf) =
+        match &region.population {
+            Some(r) => (r, "population", region.path.clone()),
+            None => (
+                &scheme.population,
+                "population (scheme default)",
+                scheme.origin.clone(),
+            ),
+        };
     let mut library: BTreeMap<String, MaterialDef> = scheme.materials.clone();
     library.extend(region.materials.clone());
     let mut names: Vec<String> = Vec::new();
@@ -101,11 +111,18 @@ fn resolve_population(
         let id = match names.iter().position(|n| *n == r.template) {
             Some(id) => id as u32,
             None => {
-                let (spec, dir) = catalogue.get(&r.template).ok_or_else(|| ScenegenError::Region {
-                    path: rules_file.clone(),
-                    key: format!("{key_root}[{i}].template"),
-                    message: format!("unknown template `{}` (known: {})", r.template, catalogue.names().join(", ")),
-                })?;
+                let (spec, dir) =
+                    catalogue
+                        .get(&r.template)
+                        .ok_or_else(|| ScenegenError::Region {
+                            path: rules_file.clone(),
+                            key: format!("{key_root}[{i}].template"),
+                            message: format!(
+                                "unknown template `{}` (known: {})",
+                                r.template,
+                                catalogue.names().join(", ")
+                            ),
+                        })?;
                 let t = spec.build(dir)?;
                 let mut mats = Vec::with_capacity(t.material_names.len());
                 for m in &t.material_names {
@@ -128,7 +145,11 @@ fn resolve_population(
                 templates.push(TemplateMesh {
                     name: spec.name.clone(),
                     source: t.source.clone(),
-                    materials: t.triangle_materials.iter().map(|&m| mats[m as usize]).collect(),
+                    materials: t
+                        .triangle_materials
+                        .iter()
+                        .map(|&m| mats[m as usize])
+                        .collect(),
                     positions: t.positions,
                     indices: t.indices,
                 });
@@ -145,11 +166,19 @@ fn resolve_population(
             });
         }
     }
-    Ok(Population { templates, template_files, rules })
+    Ok(Population {
+        templates,
+        template_files,
+        rules,
+    })
 }
 
 /// Build the bundle of `region` into `out`.
-pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildReport, ScenegenError> {
+pub fn build(
+    region: &Region,
+    out: &Path,
+    opts: &BuildOptions,
+) -> Result<BuildReport, ScenegenError> {
     if out.exists() && !opts.force {
         return Err(bundle::BundleError::Exists { path: out.into() }.into());
     }
@@ -164,19 +193,27 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
     // Cheap checks first.
     let frame = WorkingFrame::new(region)?;
     let scheme = Scheme::load(&region.scheme).map_err(|e| match e {
-        landcover::SchemeError::UnknownScheme { .. } => {
-            ScenegenError::Region { path: region.path.clone(), key: "landcover.scheme".into(), message: e.to_string() }
-        }
+        landcover::SchemeError::UnknownScheme { .. } => ScenegenError::Region {
+            path: region.path.clone(),
+            key: "landcover.scheme".into(),
+            message: e.to_string(),
+        },
         other => other.into(),
     })?;
-    let mut materials =
-        MaterialMap::new(&scheme, &region.class_materials, &region.materials, region.fallback_material.as_deref())
-            .map_err(|e| match e {
-                landcover::SchemeError::Invalid { key, message, .. } => {
-                    ScenegenError::Region { path: region.path.clone(), key, message }
-                }
-                other => other.into(),
-            })?;
+    let mut materials = MaterialMap::new(
+        &scheme,
+        &region.class_materials,
+        &region.materials,
+        region.fallback_material.as_deref(),
+    )
+    .map_err(|e| match e {
+        landcover::SchemeError::Invalid { key, message, .. } => ScenegenError::Region {
+            path: region.path.clone(),
+            key,
+            message,
+        },
+        other => other.into(),
+    })?;
     let pb = bar(opts, "templates");
     let population = resolve_population(region, &scheme, &mut materials)?;
     pb.finish_and_clear();
@@ -196,7 +233,11 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
     stage("landcover", &mut t);
 
     let pb = bar(opts, "terrain: triangulating");
-    let field = HeightField { width: grid.width, height: grid.height, h: &dem.heights };
+    let field = HeightField {
+        width: grid.width,
+        height: grid.height,
+        h: &dem.heights,
+    };
     let tin = tin::build_tin(&field, region.tolerance_m, |round, n| {
         pb.set_message(format!("terrain: round {round}, {n} vertices"))
     });
@@ -205,10 +246,17 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
 
     let cx = 0.5 * (frame.extent[0] + frame.extent[2]);
     let cy = 0.5 * (frame.extent[1] + frame.extent[3]);
-    let origin = [(cx / grid.dx).round() * grid.dx, (cy / grid.dx).round() * grid.dx, 0.0];
+    let origin = [
+        (cx / grid.dx).round() * grid.dx,
+        (cy / grid.dx).round() * grid.dx,
+        0.0,
+    ];
     let tile_nodes = ((region.terrain_tile_m / grid.dx).round() as u32).max(1);
     let mgt = mgrid.geotransform();
-    let (mw, mh) = (mgrid.width as f64 * mgrid.dx, mgrid.height as f64 * mgrid.dx);
+    let (mw, mh) = (
+        mgrid.width as f64 * mgrid.dx,
+        mgrid.height as f64 * mgrid.dx,
+    );
     let pb = bar(opts, "terrain: tiles");
     let tiles_mesh = tin::split_tiles(&tin, &grid, tile_nodes, origin, |x, y| {
         [((x - mgt[0]) / mw) as f32, ((mgt[3] - y) / mh) as f32]
@@ -217,7 +265,15 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
     stage("tiles", &mut t);
 
     let pb = bar(opts, "instances");
-    let instances = place_all(&tin, &grid, &mgrid, &codes, &population.rules, region.seed, origin);
+    let instances = place_all(
+        &tin,
+        &grid,
+        &mgrid,
+        &codes,
+        &population.rules,
+        region.seed,
+        origin,
+    );
     pb.finish_and_clear();
     stage("instances", &mut t);
 
@@ -225,7 +281,12 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
     let mut inputs = Vec::new();
     let mut add_input = |role: &str, p: &Path| -> Result<(), ScenegenError> {
         let (bytes, sha256) = sha256_file(p)?;
-        inputs.push(bundle::InputFile { role: role.into(), path: p.display().to_string(), bytes, sha256 });
+        inputs.push(bundle::InputFile {
+            role: role.into(),
+            path: p.display().to_string(),
+            bytes,
+            sha256,
+        });
         Ok(())
     };
     for p in &region.dem_files {
@@ -240,11 +301,19 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
     }
 
     let hmin = dem.heights.iter().copied().fold(f32::INFINITY, f32::min) as f64;
-    let hmax = dem.heights.iter().copied().fold(f32::NEG_INFINITY, f32::max) as f64;
+    let hmax = dem
+        .heights
+        .iter()
+        .copied()
+        .fold(f32::NEG_INFINITY, f32::max) as f64;
     let manifest = Manifest {
         format: bundle::FORMAT_NAME.into(),
         format_version: bundle::FORMAT_VERSION,
-        crs: bundle::Crs { wkt: frame.wkt.clone(), epsg: frame.epsg, proj: frame.proj.clone() },
+        crs: bundle::Crs {
+            wkt: frame.wkt.clone(),
+            epsg: frame.epsg,
+            proj: frame.proj.clone(),
+        },
         frame: bundle::LocalFrame {
             kind: "projected_enu".into(),
             origin,
@@ -276,7 +345,11 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
         },
         materials: materials.materials.clone(),
         templates: vec![],
-        instances: bundle::Instances { file: String::new(), count: 0, per_template: vec![] },
+        instances: bundle::Instances {
+            file: String::new(),
+            count: 0,
+            per_template: vec![],
+        },
         provenance: bundle::Provenance {
             generator: "scenegen".into(),
             generator_version: env!("CARGO_PKG_VERSION").into(),
@@ -307,7 +380,13 @@ pub fn build(region: &Region, out: &Path, opts: &BuildOptions) -> Result<BuildRe
     let manifest = b.write(out, opts.force)?;
     pb.finish_and_clear();
     stage("write", &mut t);
-    Ok(BuildReport { manifest, dem_width: grid.width, dem_height: grid.height, filled_pixels: dem.filled, stages })
+    Ok(BuildReport {
+        manifest,
+        dem_width: grid.width,
+        dem_height: grid.height,
+        filled_pixels: dem.filled,
+        stages,
+    })
 }
 
 /// Place instances on every land-cover tile (rows in parallel, each with its own surface
@@ -335,7 +414,9 @@ fn place_all(
             let mut placed: Vec<PlacedInstance> = Vec::new();
             let mut out = Vec::new();
             for col in 0..mgrid.width {
-                let Some(code) = codes[row * mgrid.width + col] else { continue };
+                let Some(code) = codes[row * mgrid.width + col] else {
+                    continue;
+                };
                 let Some(rs) = rules.get(&code) else { continue };
                 let x0 = (mgrid.x(col) - 0.5 * mgrid.dx).max(xmin);
                 let y0 = (mgrid.y(row) - 0.5 * mgrid.dx).max(ymin);
@@ -361,7 +442,11 @@ fn place_all(
                         continue; // outside the TIN's hull by rounding; never expected
                     }
                     out.push(bundle::Instance {
-                        translation: [p.position[0] - origin[0], p.position[1] - origin[1], p.position[2] - origin[2]],
+                        translation: [
+                            p.position[0] - origin[0],
+                            p.position[1] - origin[1],
+                            p.position[2] - origin[2],
+                        ],
                         linear: p.linear(),
                         template: p.template,
                     });

@@ -7,10 +7,17 @@ use std::path::PathBuf;
 #[derive(Debug, thiserror::Error)]
 pub enum ScenegenError {
     #[error("cannot read region file {}: {source}", path.display())]
-    ReadRegion { path: PathBuf, source: std::io::Error },
+    ReadRegion {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     /// Syntax, unknown key, wrong type or value out of range; `key` is the key path.
     #[error("{}: {}{message}", path.display(), if key.is_empty() { String::new() } else { format!("at key `{key}`: ") })]
-    Region { path: PathBuf, key: String, message: String },
+    Region {
+        path: PathBuf,
+        key: String,
+        message: String,
+    },
     /// An input raster or mesh that is missing, unreadable or unusable.
     #[error("{}: {message}", path.display())]
     Input { path: PathBuf, message: String },
@@ -22,7 +29,10 @@ pub enum ScenegenError {
     Bundle(#[from] simulator::bundle::BundleError),
     /// A GDAL call that failed on something this program made (not a user's file).
     #[error("GDAL: {what}: {source}")]
-    Gdal { what: String, source: gdal::errors::GdalError },
+    Gdal {
+        what: String,
+        source: gdal::errors::GdalError,
+    },
     #[error("{0}")]
     Internal(String),
 }
@@ -39,7 +49,11 @@ impl ScenegenError {
             | ScenegenError::Tile(_) => true,
             ScenegenError::Bundle(b) => matches!(
                 b,
-                B::Exists { .. } | B::Read { .. } | B::Manifest { .. } | B::Version { .. } | B::Corrupt { .. }
+                B::Exists { .. }
+                    | B::Read { .. }
+                    | B::Manifest { .. }
+                    | B::Version { .. }
+                    | B::Corrupt { .. }
             ),
             ScenegenError::Gdal { .. } | ScenegenError::Internal(_) => false,
         }
@@ -47,10 +61,15 @@ impl ScenegenError {
 }
 
 pub(crate) fn input(path: impl Into<PathBuf>, message: impl Into<String>) -> ScenegenError {
-    ScenegenError::Input { path: path.into(), message: message.into() }
+    ScenegenError::Input {
+        path: path.into(),
+        message: message.into(),
+    }
 }
 
-pub(crate) fn gdal_err(what: impl Into<String>) -> impl FnOnce(gdal::errors::GdalError) -> ScenegenError {
+pub(crate) fn gdal_err(
+    what: impl Into<String>,
+) -> impl FnOnce(gdal::errors::GdalError) -> ScenegenError {
     let what = what.into();
     move |source| ScenegenError::Gdal { what, source }
 }

@@ -23,7 +23,9 @@ use crate::ScenegenError;
 
 fn material_rgb(b: &BrdfSpec) -> [f64; 3] {
     let s = match b {
-        BrdfSpec::Lambertian { reflectance } | BrdfSpec::BiLambertian { reflectance, .. } => reflectance,
+        BrdfSpec::Lambertian { reflectance } | BrdfSpec::BiLambertian { reflectance, .. } => {
+            reflectance
+        }
         BrdfSpec::Rpv { rho_0, .. } => rho_0,
         BrdfSpec::Rtls { f_iso, .. } => f_iso,
     };
@@ -77,13 +79,17 @@ impl Bin {
     fn vec2(&mut self, p: &[[f32; 2]]) -> usize {
         let bytes: Vec<u8> = p.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
         let v = self.view(&bytes, Some(34962));
-        self.accessors.push(json!({"bufferView": v, "componentType": 5126, "count": p.len(), "type": "VEC2"}));
+        self.accessors.push(
+            json!({"bufferView": v, "componentType": 5126, "count": p.len(), "type": "VEC2"}),
+        );
         self.accessors.len() - 1
     }
     fn indices(&mut self, t: &[[u32; 3]]) -> usize {
         let bytes: Vec<u8> = t.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
         let v = self.view(&bytes, Some(34963));
-        self.accessors.push(json!({"bufferView": v, "componentType": 5125, "count": t.len() * 3, "type": "SCALAR"}));
+        self.accessors.push(
+            json!({"bufferView": v, "componentType": 5125, "count": t.len() * 3, "type": "SCALAR"}),
+        );
         self.accessors.len() - 1
     }
 }
@@ -98,9 +104,17 @@ pub struct ExportReport {
 }
 
 /// Write `bundle_dir` as a GLB at `out`.
-pub fn export(bundle_dir: &Path, out: &Path, max_instances: usize) -> Result<ExportReport, ScenegenError> {
+pub fn export(
+    bundle_dir: &Path,
+    out: &Path,
+    max_instances: usize,
+) -> Result<ExportReport, ScenegenError> {
     let b = Bundle::open(bundle_dir)?;
-    let mut bin = Bin { data: Vec::new(), views: Vec::new(), accessors: Vec::new() };
+    let mut bin = Bin {
+        data: Vec::new(),
+        views: Vec::new(),
+        accessors: Vec::new(),
+    };
     let mut materials: Vec<Value> = Vec::new();
     let mut meshes: Vec<Value> = Vec::new();
     let mut nodes: Vec<Value> = vec![
@@ -115,11 +129,17 @@ pub fn export(bundle_dir: &Path, out: &Path, max_instances: usize) -> Result<Exp
         palette[m.index as usize] = material_rgb(&m.brdf).map(srgb);
     }
     palette[NO_MATERIAL as usize] = [0, 0, 0];
-    let rgb: Vec<u8> = b.material_raster.iter().flat_map(|&i| palette[i as usize]).collect();
+    let rgb: Vec<u8> = b
+        .material_raster
+        .iter()
+        .flat_map(|&i| palette[i as usize])
+        .collect();
     let mut png = Vec::new();
     image::codecs::png::PngEncoder::new(&mut png)
         .write_image(&rgb, r.width, r.height, image::ExtendedColorType::Rgb8)
-        .map_err(|e| ScenegenError::Internal(format!("PNG encoding of the material raster: {e}")))?;
+        .map_err(|e| {
+            ScenegenError::Internal(format!("PNG encoding of the material raster: {e}"))
+        })?;
     let png_view = bin.view(&png, None);
     materials.push(json!({"name": "terrain", "pbrMetallicRoughness": {"baseColorTexture": {"index": 0}, "metallicFactor": 0.0, "roughnessFactor": 1.0}}));
 
@@ -142,8 +162,13 @@ pub fn export(bundle_dir: &Path, out: &Path, max_instances: usize) -> Result<Exp
         used.sort_unstable();
         used.dedup();
         for m in used {
-            let tris: Vec<[u32; 3]> =
-                t.indices.iter().zip(&t.materials).filter(|(_, &mm)| mm == m).map(|(tri, _)| *tri).collect();
+            let tris: Vec<[u32; 3]> = t
+                .indices
+                .iter()
+                .zip(&t.materials)
+                .filter(|(_, &mm)| mm == m)
+                .map(|(tri, _)| *tri)
+                .collect();
             let idx = bin.indices(&tris);
             let gm = *gl_mat.entry(m).or_insert_with(|| {
                 let mat = b.manifest.materials.iter().find(|x| x.index == m);
@@ -159,7 +184,11 @@ pub fn export(bundle_dir: &Path, out: &Path, max_instances: usize) -> Result<Exp
     }
 
     let n = b.instances.len();
-    let step = if max_instances == 0 { usize::MAX } else { n.div_ceil(max_instances).max(1) };
+    let step = if max_instances == 0 {
+        usize::MAX
+    } else {
+        n.div_ceil(max_instances).max(1)
+    };
     let mut exported = 0;
     for inst in b.instances.iter().step_by(step.min(n.max(1))) {
         if max_instances == 0 {
@@ -209,7 +238,8 @@ pub fn export(bundle_dir: &Path, out: &Path, max_instances: usize) -> Result<Exp
         "bufferViews": bin.views,
         "buffers": [{"byteLength": bin.data.len()}],
     });
-    let mut json_bytes = serde_json::to_vec(&doc).map_err(|e| ScenegenError::Internal(e.to_string()))?;
+    let mut json_bytes =
+        serde_json::to_vec(&doc).map_err(|e| ScenegenError::Internal(e.to_string()))?;
     while json_bytes.len() % 4 != 0 {
         json_bytes.push(b' ');
     }
@@ -236,7 +266,10 @@ pub fn export(bundle_dir: &Path, out: &Path, max_instances: usize) -> Result<Exp
     }
     write().map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        ScenegenError::Bundle(simulator::bundle::BundleError::Write { path: out.into(), source: e })
+        ScenegenError::Bundle(simulator::bundle::BundleError::Write {
+            path: out.into(),
+            source: e,
+        })
     })?;
     Ok(ExportReport {
         tiles: b.terrain.len(),

@@ -31,7 +31,13 @@ pub fn summary(dir: &Path) -> Result<String, ScenegenError> {
     let mut s = String::new();
     let w = &mut s;
     let e = &m.extent;
-    let _ = writeln!(w, "bundle {} (format {} v{})", dir.display(), m.format, m.format_version);
+    let _ = writeln!(
+        w,
+        "bundle {} (format {} v{})",
+        dir.display(),
+        m.format,
+        m.format_version
+    );
     let _ = writeln!(
         w,
         "generator: {} {}, seed {}",
@@ -101,9 +107,19 @@ pub fn summary(dir: &Path) -> Result<String, ScenegenError> {
             let _ = writeln!(w, "  (no material: {n} pixels)");
         }
     }
-    let _ = writeln!(w, "templates ({}), instances {}:", m.templates.len(), m.instances.count);
+    let _ = writeln!(
+        w,
+        "templates ({}), instances {}:",
+        m.templates.len(),
+        m.instances.count
+    );
     for tpl in &m.templates {
-        let n = m.instances.per_template.get(tpl.id as usize).copied().unwrap_or(0);
+        let n = m
+            .instances
+            .per_template
+            .get(tpl.id as usize)
+            .copied()
+            .unwrap_or(0);
         let _ = writeln!(
             w,
             "  {:>3} {:<12} {:>8} triangles  {:>10} instances  ({})",

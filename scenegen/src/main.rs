@@ -12,7 +12,11 @@ use clap::{Parser, Subcommand};
 use scenegen::{BuildOptions, Region, ScenegenError};
 
 #[derive(Parser)]
-#[command(name = "scenegen", version, about = "Scene generator: DEM and land cover to a scene bundle")]
+#[command(
+    name = "scenegen",
+    version,
+    about = "Scene generator: DEM and land cover to a scene bundle"
+)]
 struct Cli {
     #[command(subcommand)]
     command: Command,
@@ -81,7 +85,9 @@ enum Command {
 
 fn main() -> ExitCode {
     tracing_subscriber::fmt()
-        .with_env_filter(tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()))
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
@@ -93,7 +99,10 @@ fn main() -> ExitCode {
             for cause in e.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
             }
-            if e.chain().any(|c| c.downcast_ref::<ScenegenError>().is_some_and(|s| s.is_bad_input())) {
+            if e.chain().any(|c| {
+                c.downcast_ref::<ScenegenError>()
+                    .is_some_and(|s| s.is_bad_input())
+            }) {
                 ExitCode::from(2)
             } else {
                 ExitCode::from(1)
@@ -115,16 +124,34 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Build { region, output, force, threads, quiet, stats_json, tolerance_m } => {
+        Command::Build {
+            region,
+            output,
+            force,
+            threads,
+            quiet,
+            stats_json,
+            tolerance_m,
+        } => {
             if let Some(n) = threads {
-                rayon::ThreadPoolBuilder::new().num_threads(n.max(1)).build_global().context("thread pool")?;
+                rayon::ThreadPoolBuilder::new()
+                    .num_threads(n.max(1))
+                    .build_global()
+                    .context("thread pool")?;
             }
             let mut r = Region::load(&region)?;
             if let Some(t) = tolerance_m {
                 r.set_tolerance(t)?;
             }
             let t0 = std::time::Instant::now();
-            let rep = scenegen::build(&r, &output, &BuildOptions { force, progress: !quiet })?;
+            let rep = scenegen::build(
+                &r,
+                &output,
+                &BuildOptions {
+                    force,
+                    progress: !quiet,
+                },
+            )?;
             let m = &rep.manifest;
             println!(
                 "{}: {} × {} DEM nodes → {} terrain triangles in {} tiles; {} materials; {} templates, {} instances; {:.1} s",
@@ -139,8 +166,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 t0.elapsed().as_secs_f64()
             );
             if stats_json {
-                let stages: serde_json::Map<String, serde_json::Value> =
-                    rep.stages.iter().map(|(k, d)| (k.to_string(), serde_json::json!(d.as_secs_f64()))).collect();
+                let stages: serde_json::Map<String, serde_json::Value> = rep
+                    .stages
+                    .iter()
+                    .map(|(k, d)| (k.to_string(), serde_json::json!(d.as_secs_f64())))
+                    .collect();
                 println!(
                     "{}",
                     serde_json::json!({
@@ -164,7 +194,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             }
             Ok(())
         }
-        Command::ExportGltf { bundle, output, max_instances } => {
+        Command::ExportGltf {
+            bundle,
+            output,
+            max_instances,
+        } => {
             let r = scenegen::gltf_export::export(&bundle, &output, max_instances)?;
             println!(
                 "{}: {} terrain tiles, {} templates, {} of {} instances, {}",
@@ -177,8 +211,22 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Bench { size_km, spacing_m, tolerance, workdir, region, keep } => {
-            scenegen::bench::run(size_km, spacing_m, &tolerance, &workdir, region.as_deref(), keep)?;
+        Command::Bench {
+            size_km,
+            spacing_m,
+            tolerance,
+            workdir,
+            region,
+            keep,
+        } => {
+            scenegen::bench::run(
+                size_km,
+                spacing_m,
+                &tolerance,
+                &workdir,
+                region.as_deref(),
+                keep,
+            )?;
             Ok(())
         }
     }

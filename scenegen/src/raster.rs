@@ -67,7 +67,10 @@ fn ring(b: [f64; 4], n: usize) -> (Vec<f64>, Vec<f64>) {
 
 fn bounds(xs: &[f64], ys: &[f64]) -> [f64; 4] {
     let f = |v: &[f64], max: bool| {
-        v.iter().copied().fold(if max { f64::MIN } else { f64::MAX }, if max { f64::max } else { f64::min })
+        v.iter().copied().fold(
+            if max { f64::MIN } else { f64::MAX },
+            if max { f64::max } else { f64::min },
+        )
     };
     [f(xs, false), f(ys, false), f(xs, true), f(ys, true)]
 }
@@ -77,13 +80,17 @@ impl WorkingFrame {
         let [lon, lat] = region.area.centre();
         let (mut srs, proj) = if region.crs == "local" {
             let p = format!("+proj=tmerc +lat_0={lat} +lon_0={lon} +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs");
-            (SpatialRef::from_proj4(&p).map_err(gdal_err("local transverse Mercator"))?, Some(p))
+            (
+                SpatialRef::from_proj4(&p).map_err(gdal_err("local transverse Mercator"))?,
+                Some(p),
+            )
         } else {
-            let s = SpatialRef::from_definition(&region.crs).map_err(|e| ScenegenError::Region {
-                path: region.path.clone(),
-                key: "crs".into(),
-                message: format!("GDAL cannot read CRS `{}`: {e}", region.crs),
-            })?;
+            let s =
+                SpatialRef::from_definition(&region.crs).map_err(|e| ScenegenError::Region {
+                    path: region.path.clone(),
+                    key: "crs".into(),
+                    message: format!("GDAL cannot read CRS `{}`: {e}", region.crs),
+                })?;
             (s, None)
         };
         if !srs.is_projected() || (srs.linear_units() - 1.0).abs() > 1e-12 {
@@ -99,27 +106,45 @@ impl WorkingFrame {
         let (extent, lon_lat_bbox) = match &region.area {
             Area::BBox(b) => {
                 let (mut xs, mut ys) = ring(*b, 32);
-                to_work.transform_coords(&mut xs, &mut ys, &mut []).map_err(gdal_err("area bbox → working CRS"))?;
+                to_work
+                    .transform_coords(&mut xs, &mut ys, &mut [])
+                    .map_err(gdal_err("area bbox → working CRS"))?;
                 (bounds(&xs, &ys), *b)
             }
             Area::Centre { lon_lat, size_m } => {
                 let (mut xs, mut ys) = (vec![lon_lat[0]], vec![lon_lat[1]]);
-                to_work.transform_coords(&mut xs, &mut ys, &mut []).map_err(gdal_err("area centre → working CRS"))?;
+                to_work
+                    .transform_coords(&mut xs, &mut ys, &mut [])
+                    .map_err(gdal_err("area centre → working CRS"))?;
                 let e = [
                     xs[0] - 0.5 * size_m[0],
                     ys[0] - 0.5 * size_m[1],
                     xs[0] + 0.5 * size_m[0],
                     ys[0] + 0.5 * size_m[1],
                 ];
-                let back = CoordTransform::new(&srs, &geo).map_err(gdal_err("working CRS → WGS 84"))?;
+                let back =
+                    CoordTransform::new(&srs, &geo).map_err(gdal_err("working CRS → WGS 84"))?;
                 let (mut xs, mut ys) = ring(e, 32);
-                back.transform_coords(&mut xs, &mut ys, &mut []).map_err(gdal_err("area → WGS 84"))?;
+                back.transform_coords(&mut xs, &mut ys, &mut [])
+                    .map_err(gdal_err("area → WGS 84"))?;
                 (e, bounds(&xs, &ys))
             }
         };
         let wkt = srs.to_wkt().map_err(gdal_err("working CRS to WKT"))?;
-        let epsg = if proj.is_none() { srs.auth_code().ok().map(|c| c as u32) } else { None };
-        Ok(WorkingFrame { srs, wkt, epsg, proj, centre_lon_lat: [lon, lat], extent, lon_lat_bbox })
+        let epsg = if proj.is_none() {
+            srs.auth_code().ok().map(|c| c as u32)
+        } else {
+            None
+        };
+        Ok(WorkingFrame {
+            srs,
+            wkt,
+            epsg,
+            proj,
+            centre_lon_lat: [lon, lat],
+            extent,
+            lon_lat_bbox,
+        })
     }
 }
 
@@ -138,7 +163,14 @@ pub struct Grid {
 impl Grid {
     /// GDAL geotransform (pixel corners).
     pub fn geotransform(&self) -> [f64; 6] {
-        [self.x0 - 0.5 * self.dx, self.dx, 0.0, self.y0 + 0.5 * self.dx, 0.0, -self.dx]
+        [
+            self.x0 - 0.5 * self.dx,
+            self.dx,
+            0.0,
+            self.y0 + 0.5 * self.dx,
+            0.0,
+            -self.dx,
+        ]
     }
     pub fn x(&self, col: usize) -> f64 {
         self.x0 + col as f64 * self.dx
@@ -154,7 +186,13 @@ impl Grid {
         let i1 = (extent[2] / dx).ceil();
         let jb = (extent[1] / dx).floor();
         let jt = (extent[3] / dx).ceil();
-        Grid { x0: i0 * dx, y0: jt * dx, dx, width: (i1 - i0) as usize + 1, height: (jt - jb) as usize + 1 }
+        Grid {
+            x0: i0 * dx,
+            y0: jt * dx,
+            dx,
+            width: (i1 - i0) as usize + 1,
+            height: (jt - jb) as usize + 1,
+        }
     }
 
     /// Cells of size `cell` covering the same area as the node grid `nodes` (its outer nodes on
@@ -164,7 +202,13 @@ impl Grid {
         let h = (nodes.height - 1) as f64 * nodes.dx;
         let width = ((w / cell).ceil() as usize).max(1);
         let height = ((h / cell).ceil() as usize).max(1);
-        Grid { x0: nodes.x0 + 0.5 * cell, y0: nodes.y0 - 0.5 * cell, dx: cell, width, height }
+        Grid {
+            x0: nodes.x0 + 0.5 * cell,
+            y0: nodes.y0 - 0.5 * cell,
+            dx: cell,
+            width,
+            height,
+        }
     }
 }
 
@@ -173,12 +217,16 @@ pub fn open_georeferenced(path: &Path, role: &str) -> Result<Dataset, ScenegenEr
     if !path.exists() {
         return Err(input(path, format!("{role} file not found")));
     }
-    let ds = Dataset::open(path).map_err(|e| input(path, format!("GDAL cannot open the {role}: {e}")))?;
+    let ds = Dataset::open(path)
+        .map_err(|e| input(path, format!("GDAL cannot open the {role}: {e}")))?;
     if ds.raster_count() == 0 {
         return Err(input(path, format!("the {role} has no raster band")));
     }
     if ds.geo_transform().is_err() {
-        return Err(input(path, format!("the {role} has no georeferencing (no geotransform)")));
+        return Err(input(
+            path,
+            format!("the {role} has no georeferencing (no geotransform)"),
+        ));
     }
     if ds.projection().trim().is_empty() {
         return Err(input(
@@ -190,7 +238,9 @@ pub fn open_georeferenced(path: &Path, role: &str) -> Result<Dataset, ScenegenEr
 }
 
 fn source_srs(ds: &Dataset, path: &Path) -> Result<SpatialRef, ScenegenError> {
-    let mut s = ds.spatial_ref().map_err(|e| input(path, format!("unreadable CRS: {e}")))?;
+    let mut s = ds
+        .spatial_ref()
+        .map_err(|e| input(path, format!("unreadable CRS: {e}")))?;
     s.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
     Ok(s)
 }
@@ -201,7 +251,10 @@ pub fn pixel_size_m(ds: &Dataset, path: &Path, frame: &WorkingFrame) -> Result<f
     let src = source_srs(ds, path)?;
     let to_src = CoordTransform::new(&frame.srs, &src)
         .map_err(|e| input(path, format!("no transformation from the working CRS: {e}")))?;
-    let c = [0.5 * (frame.extent[0] + frame.extent[2]), 0.5 * (frame.extent[1] + frame.extent[3])];
+    let c = [
+        0.5 * (frame.extent[0] + frame.extent[2]),
+        0.5 * (frame.extent[1] + frame.extent[3]),
+    ];
     let (mut x, mut y) = (vec![c[0]], vec![c[1]]);
     to_src
         .transform_coords(&mut x, &mut y, &mut [])
@@ -209,7 +262,9 @@ pub fn pixel_size_m(ds: &Dataset, path: &Path, frame: &WorkingFrame) -> Result<f
     let to_work = CoordTransform::new(&src, &frame.srs).map_err(|e| input(path, e.to_string()))?;
     let mut xs = vec![x[0], x[0] + gt[1], x[0] + gt[2]];
     let mut ys = vec![y[0], y[0] + gt[4], y[0] + gt[5]];
-    to_work.transform_coords(&mut xs, &mut ys, &mut []).map_err(|e| input(path, e.to_string()))?;
+    to_work
+        .transform_coords(&mut xs, &mut ys, &mut [])
+        .map_err(|e| input(path, e.to_string()))?;
     let d = |k: usize| ((xs[k] - xs[0]).powi(2) + (ys[k] - ys[0]).powi(2)).sqrt();
     Ok(0.5 * (d(1) + d(2)))
 }
@@ -225,10 +280,15 @@ pub fn check_coverage(
 ) -> Result<(), ScenegenError> {
     let gt = ds.geo_transform().map_err(|e| input(path, e.to_string()))?;
     let (w, h) = ds.raster_size();
-    let (cx, cy): (Vec<f64>, Vec<f64>) = [(0.0, 0.0), (w as f64, 0.0), (0.0, h as f64), (w as f64, h as f64)]
-        .iter()
-        .map(|(c, r)| (gt[0] + c * gt[1] + r * gt[2], gt[3] + c * gt[4] + r * gt[5]))
-        .unzip();
+    let (cx, cy): (Vec<f64>, Vec<f64>) = [
+        (0.0, 0.0),
+        (w as f64, 0.0),
+        (0.0, h as f64),
+        (w as f64, h as f64),
+    ]
+    .iter()
+    .map(|(c, r)| (gt[0] + c * gt[1] + r * gt[2], gt[3] + c * gt[4] + r * gt[5]))
+    .unzip();
     let have = bounds(&cx, &cy);
     let src = source_srs(ds, path)?;
     let to_src = CoordTransform::new(&frame.srs, &src)
@@ -236,10 +296,20 @@ pub fn check_coverage(
     let (mut xs, mut ys) = ring(extent, 32);
     to_src
         .transform_coords(&mut xs, &mut ys, &mut [])
-        .map_err(|e| input(path, format!("cannot transform the area into the {role}'s CRS: {e}")))?;
+        .map_err(|e| {
+            input(
+                path,
+                format!("cannot transform the area into the {role}'s CRS: {e}"),
+            )
+        })?;
     let need = bounds(&xs, &ys);
     let px = gt[1].abs().max(gt[5].abs());
-    let miss = [have[0] - need[0], have[1] - need[1], need[2] - have[2], need[3] - have[3]];
+    let miss = [
+        have[0] - need[0],
+        have[1] - need[1],
+        need[2] - have[2],
+        need[3] - have[3],
+    ];
     if miss.iter().all(|&m| m <= px) {
         return Ok(());
     }
@@ -254,8 +324,10 @@ pub fn check_coverage(
         }
     };
     let sides = ["west", "south", "east", "north"];
-    let parts: Vec<String> =
-        (0..4).filter(|&k| miss[k] > px).map(|k| format!("{} on the {}", describe(miss[k], k), sides[k])).collect();
+    let parts: Vec<String> = (0..4)
+        .filter(|&k| miss[k] > px)
+        .map(|k| format!("{} on the {}", describe(miss[k], k), sides[k]))
+        .collect();
     Err(input(
         path,
         format!(
@@ -279,12 +351,18 @@ pub fn warp<T: GdalType + Copy + Default>(
     let driver = DriverManager::get_driver_by_name("MEM").map_err(gdal_err("MEM driver"))?;
     let mut dst = driver
         .create_with_band_type::<T, _>("", grid.width, grid.height, 1)
-        .map_err(gdal_err(format!("in-memory raster {} × {}", grid.width, grid.height)))?;
-    dst.set_geo_transform(&grid.geotransform()).map_err(gdal_err("set geotransform"))?;
-    dst.set_projection(&frame.wkt).map_err(gdal_err("set projection"))?;
+        .map_err(gdal_err(format!(
+            "in-memory raster {} × {}",
+            grid.width, grid.height
+        )))?;
+    dst.set_geo_transform(&grid.geotransform())
+        .map_err(gdal_err("set geotransform"))?;
+    dst.set_projection(&frame.wkt)
+        .map_err(gdal_err("set projection"))?;
     {
         let mut band = dst.rasterband(1).map_err(gdal_err("band"))?;
-        band.set_no_data_value(Some(nodata)).map_err(gdal_err("set nodata"))?;
+        band.set_no_data_value(Some(nodata))
+            .map_err(gdal_err("set nodata"))?;
         band.fill(nodata, None).map_err(gdal_err("fill"))?;
     }
     // GDALReprojectImage takes the source's and destination's no-data values from their bands.
@@ -303,11 +381,18 @@ pub fn warp<T: GdalType + Copy + Default>(
         )
     };
     if rv != gdal_sys::CPLErr::CE_None {
-        let msg = unsafe { std::ffi::CStr::from_ptr(gdal_sys::CPLGetLastErrorMsg()) }.to_string_lossy().into_owned();
-        return Err(input(path, format!("GDAL cannot warp it into the working CRS: {msg}")));
+        let msg = unsafe { std::ffi::CStr::from_ptr(gdal_sys::CPLGetLastErrorMsg()) }
+            .to_string_lossy()
+            .into_owned();
+        return Err(input(
+            path,
+            format!("GDAL cannot warp it into the working CRS: {msg}"),
+        ));
     }
     let band = dst.rasterband(1).map_err(gdal_err("band"))?;
-    let buf = band.read_band_as::<T>().map_err(gdal_err("read warped band"))?;
+    let buf = band
+        .read_band_as::<T>()
+        .map_err(gdal_err("read warped band"))?;
     Ok(buf.into_shape_and_vec().1)
 }
 
@@ -329,7 +414,10 @@ fn unit_factor(unit: &str, path: &Path) -> Result<f64, ScenegenError> {
         "ft" | "foot" | "feet" | "international foot" => Ok(0.3048),
         "us-ft" | "us survey foot" | "ftus" => Ok(1200.0 / 3937.0),
         "km" => Ok(1000.0),
-        other => Err(input(path, format!("DEM height unit `{other}` is not supported (metres, feet or km)"))),
+        other => Err(input(
+            path,
+            format!("DEM height unit `{other}` is not supported (metres, feet or km)"),
+        )),
     }
 }
 
@@ -370,7 +458,14 @@ pub fn load_dem(region: &Region, frame: &WorkingFrame) -> Result<DemData, Sceneg
         let scale = band.scale().unwrap_or(1.0);
         let offset = band.offset().unwrap_or(0.0);
 
-        let mut h: Vec<f32> = warp(&ds, path, frame, &g, GDALResampleAlg::GRA_Bilinear, DEM_NODATA)?;
+        let mut h: Vec<f32> = warp(
+            &ds,
+            path,
+            frame,
+            &g,
+            GDALResampleAlg::GRA_Bilinear,
+            DEM_NODATA,
+        )?;
         for v in &mut h {
             if (*v as f64) > DEM_NODATA * 0.5 {
                 *v = ((*v as f64 * scale + offset) * factor) as f32;
@@ -387,16 +482,31 @@ pub fn load_dem(region: &Region, frame: &WorkingFrame) -> Result<DemData, Sceneg
                 }
             }
         }
-        tracing::info!("DEM {}: {} × {} nodes at {} m", path.display(), g.width, g.height, g.dx);
+        tracing::info!(
+            "DEM {}: {} × {} nodes at {} m",
+            path.display(),
+            g.width,
+            g.height,
+            g.dx
+        );
     }
     let grid = grid.expect("at least one DEM (checked by the region)");
     let filled = fill_holes(&mut heights, &grid, region, frame)?;
-    Ok(DemData { grid, heights, filled })
+    Ok(DemData {
+        grid,
+        heights,
+        filled,
+    })
 }
 
 /// Fill 4-connected no-data components of at most `max_fill_pixels`; refuse larger ones with
 /// the largest hole's size and location.
-fn fill_holes(h: &mut [f32], g: &Grid, region: &Region, frame: &WorkingFrame) -> Result<u64, ScenegenError> {
+fn fill_holes(
+    h: &mut [f32],
+    g: &Grid,
+    region: &Region,
+    frame: &WorkingFrame,
+) -> Result<u64, ScenegenError> {
     let (w, ht) = (g.width, g.height);
     let mut seen = vec![false; h.len()];
     let mut filled = 0u64;
@@ -447,7 +557,12 @@ fn fill_holes(h: &mut [f32], g: &Grid, region: &Region, frame: &WorkingFrame) ->
                 for dr in -1..=1 {
                     for dc in -1..=1 {
                         let (cc, rr) = (c + dc, r + dr);
-                        if (dc != 0 || dr != 0) && cc >= 0 && rr >= 0 && (cc as usize) < w && (rr as usize) < ht {
+                        if (dc != 0 || dr != 0)
+                            && cc >= 0
+                            && rr >= 0
+                            && (cc as usize) < w
+                            && (rr as usize) < ht
+                        {
                             let v = h[rr as usize * w + cc as usize];
                             if !v.is_nan() {
                                 s += v as f64;
@@ -473,7 +588,10 @@ fn fill_holes(h: &mut [f32], g: &Grid, region: &Region, frame: &WorkingFrame) ->
         }
     }
     if h.iter().any(|v| v.is_nan()) && big.is_empty() {
-        big.push((h.iter().filter(|v| v.is_nan()).count(), h.iter().position(|v| v.is_nan()).unwrap()));
+        big.push((
+            h.iter().filter(|v| v.is_nan()).count(),
+            h.iter().position(|v| v.is_nan()).unwrap(),
+        ));
     }
     if !big.is_empty() {
         big.sort_by_key(|b| std::cmp::Reverse(b.0));
@@ -481,8 +599,14 @@ fn fill_holes(h: &mut [f32], g: &Grid, region: &Region, frame: &WorkingFrame) ->
         let (n, p) = big[0];
         let (c, r) = (p % w, p / w);
         let (x, y) = (g.x(c), g.y(r));
-        let ll = to_lon_lat(frame, x, y).map(|(lo, la)| format!(" (lon {lo:.5}°, lat {la:.5}°)")).unwrap_or_default();
-        let files: Vec<String> = region.dem_files.iter().map(|p| p.display().to_string()).collect();
+        let ll = to_lon_lat(frame, x, y)
+            .map(|(lo, la)| format!(" (lon {lo:.5}°, lat {la:.5}°)"))
+            .unwrap_or_default();
+        let files: Vec<String> = region
+            .dem_files
+            .iter()
+            .map(|p| p.display().to_string())
+            .collect();
         return Err(input(
             PathBuf::from(files.join(", ")),
             format!(
@@ -532,7 +656,11 @@ pub fn load_landcover(
     let band_nodata = band.no_data_value();
 
     const NODATA: i32 = i32::MIN;
-    let alg = if mode { GDALResampleAlg::GRA_Mode } else { GDALResampleAlg::GRA_NearestNeighbour };
+    let alg = if mode {
+        GDALResampleAlg::GRA_Mode
+    } else {
+        GDALResampleAlg::GRA_NearestNeighbour
+    };
     let v: Vec<i32> = warp(&ds, path, frame, grid, alg, NODATA as f64)?;
     let codes = v
         .into_iter()

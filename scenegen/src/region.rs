@@ -82,7 +82,10 @@ struct TerrainConfig {
 
 impl Default for TerrainConfig {
     fn default() -> Self {
-        TerrainConfig { tolerance_m: default_tol(), tile_size_m: default_terrain_tile() }
+        TerrainConfig {
+            tolerance_m: default_tol(),
+            tile_size_m: default_terrain_tile(),
+        }
     }
 }
 
@@ -170,20 +173,32 @@ pub struct Region {
 
 impl Region {
     pub fn load(path: &Path) -> Result<Region, ScenegenError> {
-        let text =
-            std::fs::read_to_string(path).map_err(|source| ScenegenError::ReadRegion { path: path.into(), source })?;
+        let text = std::fs::read_to_string(path).map_err(|source| ScenegenError::ReadRegion {
+            path: path.into(),
+            source,
+        })?;
         Self::from_str(&text, path)
     }
 
     pub fn from_str(text: &str, path: &Path) -> Result<Region, ScenegenError> {
-        let parse = |message: String| ScenegenError::Region { path: path.into(), key: String::new(), message };
-        let de = toml::Deserializer::parse(text).map_err(|e| parse(e.to_string().trim_end().to_string()))?;
-        let raw: RegionFile = serde_path_to_error::deserialize(de).map_err(|e| ScenegenError::Region {
+        let parse = |message: String| ScenegenError::Region {
             path: path.into(),
-            key: e.path().to_string(),
-            message: e.inner().to_string().trim_end().to_string(),
-        })?;
-        let inv = |key: &str, message: String| ScenegenError::Region { path: path.into(), key: key.into(), message };
+            key: String::new(),
+            message,
+        };
+        let de = toml::Deserializer::parse(text)
+            .map_err(|e| parse(e.to_string().trim_end().to_string()))?;
+        let raw: RegionFile =
+            serde_path_to_error::deserialize(de).map_err(|e| ScenegenError::Region {
+                path: path.into(),
+                key: e.path().to_string(),
+                message: e.inner().to_string().trim_end().to_string(),
+            })?;
+        let inv = |key: &str, message: String| ScenegenError::Region {
+            path: path.into(),
+            key: key.into(),
+            message,
+        };
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
         let area = match (raw.area.bbox, raw.area.centre, raw.area.size_km) {
@@ -205,57 +220,89 @@ impl Region {
             }
             (None, Some(c), Some(s)) => {
                 if !(c[0].abs() <= 180.0 && c[1].abs() < 89.0) {
-                    return Err(inv("area.centre", format!("{c:?} must be [lon, lat] in degrees (|lat| < 89)")));
+                    return Err(inv(
+                        "area.centre",
+                        format!("{c:?} must be [lon, lat] in degrees (|lat| < 89)"),
+                    ));
                 }
                 let s = match s {
                     SizeKm::Square(v) => [v, v],
                     SizeKm::Rect(v) => v,
                 };
                 if !(s.iter().all(|v| v.is_finite() && *v > 0.0 && *v <= 1000.0)) {
-                    return Err(inv("area.size_km", format!("{s:?} must be in (0, 1000] km")));
+                    return Err(inv(
+                        "area.size_km",
+                        format!("{s:?} must be in (0, 1000] km"),
+                    ));
                 }
-                Area::Centre { lon_lat: c, size_m: [s[0] * 1e3, s[1] * 1e3] }
+                Area::Centre {
+                    lon_lat: c,
+                    size_m: [s[0] * 1e3, s[1] * 1e3],
+                }
             }
-            _ => return Err(inv("area", "give either `bbox` or both `centre` and `size_km`".into())),
+            _ => {
+                return Err(inv(
+                    "area",
+                    "give either `bbox` or both `centre` and `size_km`".into(),
+                ))
+            }
         };
         if raw.dem.files.is_empty() {
             return Err(inv("dem.files", "at least one DEM file is needed".into()));
         }
         if let Some(s) = raw.dem.spacing_m {
             if !(s.is_finite() && (0.1..=10_000.0).contains(&s)) {
-                return Err(inv("dem.spacing_m", format!("{s} must be in [0.1, 10000] m")));
+                return Err(inv(
+                    "dem.spacing_m",
+                    format!("{s} must be in [0.1, 10000] m"),
+                ));
             }
         }
         let t = &raw.terrain;
         if !(t.tolerance_m.is_finite() && t.tolerance_m >= 0.01 && t.tolerance_m <= 1000.0) {
-            return Err(inv("terrain.tolerance_m", format!("{} must be in [0.01, 1000] m", t.tolerance_m)));
+            return Err(inv(
+                "terrain.tolerance_m",
+                format!("{} must be in [0.01, 1000] m", t.tolerance_m),
+            ));
         }
         if !(t.tile_size_m.is_finite() && (100.0..=100_000.0).contains(&t.tile_size_m)) {
-            return Err(inv("terrain.tile_size_m", format!("{} must be in [100, 100000] m", t.tile_size_m)));
+            return Err(inv(
+                "terrain.tile_size_m",
+                format!("{} must be in [100, 100000] m", t.tile_size_m),
+            ));
         }
         let lc = &raw.landcover;
         if !(lc.tile_size_m.is_finite() && (1.0..=10_000.0).contains(&lc.tile_size_m)) {
-            return Err(inv("landcover.tile_size_m", format!("{} must be in [1, 10000] m", lc.tile_size_m)));
+            return Err(inv(
+                "landcover.tile_size_m",
+                format!("{} must be in [1, 10000] m", lc.tile_size_m),
+            ));
         }
         let mut class_materials = BTreeMap::new();
         for (k, v) in &lc.class_materials {
             let code: i64 = k.parse().map_err(|_| {
-                inv(&format!("landcover.class_materials.{k}"), "keys must be integer class codes".into())
+                inv(
+                    &format!("landcover.class_materials.{k}"),
+                    "keys must be integer class codes".into(),
+                )
             })?;
             class_materials.insert(code, v.clone());
         }
         for (name, m) in &raw.materials {
-            landcover::validate_brdf(&m.brdf).map_err(|(k, msg)| inv(&format!("materials.{name}.brdf.{k}"), msg))?;
+            landcover::validate_brdf(&m.brdf)
+                .map_err(|(k, msg)| inv(&format!("materials.{name}.brdf.{k}"), msg))?;
         }
         for (i, s) in raw.templates.iter().enumerate() {
-            s.validate(path, &format!("templates[{i}]")).map_err(|e| match e {
-                tiles::TileError::Invalid { key, message, .. } => inv(&key, message),
-                other => inv(&format!("templates[{i}]"), other.to_string()),
-            })?;
+            s.validate(path, &format!("templates[{i}]"))
+                .map_err(|e| match e {
+                    tiles::TileError::Invalid { key, message, .. } => inv(&key, message),
+                    other => inv(&format!("templates[{i}]"), other.to_string()),
+                })?;
         }
         if let Some(rules) = &raw.population {
             for (i, r) in rules.iter().enumerate() {
-                landcover::validate_rule(r).map_err(|(k, m)| inv(&format!("population[{i}].{k}"), m))?;
+                landcover::validate_rule(r)
+                    .map_err(|(k, m)| inv(&format!("population[{i}].{k}"), m))?;
             }
         }
         Ok(Region {
@@ -300,7 +347,10 @@ impl Region {
 
     /// Folder that relative paths of the region file start from.
     pub fn base_dir(&self) -> PathBuf {
-        self.path.parent().map(Path::to_path_buf).unwrap_or_default()
+        self.path
+            .parent()
+            .map(Path::to_path_buf)
+            .unwrap_or_default()
     }
 }
 
@@ -330,35 +380,65 @@ scheme = "corine"
         assert_eq!(r.max_fill_pixels, 64);
         assert_eq!(r.crs, "local");
         assert_eq!(r.dem_files, vec![PathBuf::from("/x/dem.tif")]);
-        assert_eq!(r.area, Area::Centre { lon_lat: [5.7, 45.2], size_m: [10_000.0, 10_000.0] });
+        assert_eq!(
+            r.area,
+            Area::Centre {
+                lon_lat: [5.7, 45.2],
+                size_m: [10_000.0, 10_000.0]
+            }
+        );
     }
 
     /// Rationale: misspelt and out-of-range keys must be errors naming the file and key path.
     #[test]
     fn bad_keys_name_the_key_path() {
         let p = Path::new("region.toml");
-        let e = Region::from_str(&OK.replace("[dem]", "[terrain]\ntolerance_metres = 2\n[dem]"), p)
-            .unwrap_err()
-            .to_string();
-        assert!(e.contains("region.toml") && e.contains("tolerance_metres"), "{e}");
-        let e =
-            Region::from_str(&OK.replace("[dem]", "[terrain]\ntolerance_m = -1\n[dem]"), p).unwrap_err().to_string();
+        let e = Region::from_str(
+            &OK.replace("[dem]", "[terrain]\ntolerance_metres = 2\n[dem]"),
+            p,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            e.contains("region.toml") && e.contains("tolerance_metres"),
+            "{e}"
+        );
+        let e = Region::from_str(
+            &OK.replace("[dem]", "[terrain]\ntolerance_m = -1\n[dem]"),
+            p,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("terrain.tolerance_m"), "{e}");
-        let e = Region::from_str(&OK.replace("size_km = 10", "size_km = 0"), p).unwrap_err().to_string();
-        assert!(e.contains("area.size_km"), "{e}");
-        let e = Region::from_str(&OK.replace("scheme = \"corine\"", "scheme = \"corine\"\ntile_size_m = \"big\""), p)
+        let e = Region::from_str(&OK.replace("size_km = 10", "size_km = 0"), p)
             .unwrap_err()
             .to_string();
+        assert!(e.contains("area.size_km"), "{e}");
+        let e = Region::from_str(
+            &OK.replace(
+                "scheme = \"corine\"",
+                "scheme = \"corine\"\ntile_size_m = \"big\"",
+            ),
+            p,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("landcover.tile_size_m"), "{e}");
         let e = Region::from_str(
-            &format!("{OK}\n[[population]]\nclasses = [1]\ntemplate = \"tree\"\ndensity_per_ha = -3\n"),
+            &format!(
+                "{OK}\n[[population]]\nclasses = [1]\ntemplate = \"tree\"\ndensity_per_ha = -3\n"
+            ),
             p,
         )
         .unwrap_err()
         .to_string();
         assert!(e.contains("population[0].density_per_ha"), "{e}");
-        let e =
-            Region::from_str(&format!("{OK}\n[[templates]]\nname = \"t\"\nunit_m = 1\n"), p).unwrap_err().to_string();
+        let e = Region::from_str(
+            &format!("{OK}\n[[templates]]\nname = \"t\"\nunit_m = 1\n"),
+            p,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("templates[0].file"), "{e}");
     }
 }

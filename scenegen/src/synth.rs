@@ -70,13 +70,16 @@ pub fn write_geotiff<T: GdalType + Copy>(
 ) -> Result<(), ScenegenError> {
     let drv = DriverManager::get_driver_by_name("GTiff").map_err(gdal_err("GTiff driver"))?;
     let mut opts = gdal::raster::RasterCreationOptions::new();
-    opts.add_name_value("COMPRESS", "DEFLATE").map_err(gdal_err("options"))?;
-    opts.add_name_value("TILED", "YES").map_err(gdal_err("options"))?;
+    opts.add_name_value("COMPRESS", "DEFLATE")
+        .map_err(gdal_err("options"))?;
+    opts.add_name_value("TILED", "YES")
+        .map_err(gdal_err("options"))?;
     let mut ds = drv
         .create_with_band_type_with_options::<T, _>(path, width, height, 1, &opts)
         .map_err(gdal_err(format!("create {}", path.display())))?;
     if let Some(gt) = gt {
-        ds.set_geo_transform(&gt).map_err(gdal_err("geotransform"))?;
+        ds.set_geo_transform(&gt)
+            .map_err(gdal_err("geotransform"))?;
     }
     if let Some(s) = srs {
         let s = SpatialRef::from_definition(s).map_err(gdal_err(format!("CRS {s}")))?;
@@ -84,11 +87,14 @@ pub fn write_geotiff<T: GdalType + Copy>(
     }
     let mut band = ds.rasterband(1).map_err(gdal_err("band"))?;
     if let Some(nd) = nodata {
-        band.set_no_data_value(Some(nd)).map_err(gdal_err("nodata"))?;
+        band.set_no_data_value(Some(nd))
+            .map_err(gdal_err("nodata"))?;
     }
     let mut buf = Buffer::new((width, height), data);
-    band.write((0, 0), (width, height), &mut buf).map_err(gdal_err(format!("write {}", path.display())))?;
+    band.write((0, 0), (width, height), &mut buf)
+        .map_err(gdal_err(format!("write {}", path.display())))?;
 
-    ds.close().map_err(gdal_err(format!("close {}", path.display())))?;
+    ds.close()
+        .map_err(gdal_err(format!("close {}", path.display())))?;
     Ok(())
 }

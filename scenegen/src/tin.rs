@@ -115,8 +115,11 @@ pub fn build_tin(f: &HeightField, tolerance: f64, mut progress: impl FnMut(usize
     let mut tin = Tin::new();
     let (w, h) = (f.width as u32 - 1, f.height as u32 - 1);
     for (i, j) in [(0, 0), (w, 0), (w, h), (0, h)] {
-        tin.insert(Node { pos: Point2::new(i as f64, j as f64), h: f.at(i as usize, j as usize) })
-            .expect("finite corner");
+        tin.insert(Node {
+            pos: Point2::new(i as f64, j as f64),
+            h: f.at(i as usize, j as usize),
+        })
+        .expect("finite corner");
     }
     // Faces to scan: at first all; then only faces incident to a vertex inserted in the last
     // round. Incremental Delaunay insertion only creates faces around the new vertex, and an
@@ -128,14 +131,15 @@ pub fn build_tin(f: &HeightField, tolerance: f64, mut progress: impl FnMut(usize
         round += 1;
         let mut keys: HashSet<[u32; 3]> = HashSet::new();
         let mut faces: Vec<[[f64; 3]; 3]> = Vec::new();
-        let mut take = |face: spade::handles::FaceHandle<'_, spade::handles::InnerTag, Node, (), (), ()>| {
-            let v = face.vertices();
-            let mut key = v.map(|v| v.fix().index() as u32);
-            key.sort_unstable();
-            if keys.insert(key) {
-                faces.push(v.map(|v| [v.position().x, v.position().y, v.data().h]));
-            }
-        };
+        let mut take =
+            |face: spade::handles::FaceHandle<'_, spade::handles::InnerTag, Node, (), (), ()>| {
+                let v = face.vertices();
+                let mut key = v.map(|v| v.fix().index() as u32);
+                key.sort_unstable();
+                if keys.insert(key) {
+                    faces.push(v.map(|v| [v.position().x, v.position().y, v.data().h]));
+                }
+            };
         if round == 1 {
             tin.inner_faces().for_each(&mut take);
         } else {
@@ -147,9 +151,14 @@ pub fn build_tin(f: &HeightField, tolerance: f64, mut progress: impl FnMut(usize
                 }
             }
         }
-        let results: Vec<Option<(f64, u32, u32)>> = faces.par_iter().map(|p| worst_in_triangle(f, *p)).collect();
-        let mut inserts: Vec<(u32, u32)> =
-            results.into_iter().flatten().filter(|(e, _, _)| *e > tolerance).map(|(_, i, j)| (i, j)).collect();
+        let results: Vec<Option<(f64, u32, u32)>> =
+            faces.par_iter().map(|p| worst_in_triangle(f, *p)).collect();
+        let mut inserts: Vec<(u32, u32)> = results
+            .into_iter()
+            .flatten()
+            .filter(|(e, _, _)| *e > tolerance)
+            .map(|(_, i, j)| (i, j))
+            .collect();
         if inserts.is_empty() {
             break;
         }
@@ -158,8 +167,11 @@ pub fn build_tin(f: &HeightField, tolerance: f64, mut progress: impl FnMut(usize
         fresh.clear();
         for (i, j) in inserts {
             fresh.push(
-                tin.insert(Node { pos: Point2::new(i as f64, j as f64), h: f.at(i as usize, j as usize) })
-                    .expect("finite vertex"),
+                tin.insert(Node {
+                    pos: Point2::new(i as f64, j as f64),
+                    h: f.at(i as usize, j as usize),
+                })
+                .expect("finite vertex"),
             );
         }
         progress(round, tin.num_vertices());
@@ -237,7 +249,11 @@ pub fn split_tiles(
             debug_assert!(positions.len() <= nverts);
             TileMesh {
                 id: [tx, ty],
-                origin: [ox - frame_origin[0], oy - frame_origin[1], 0.0 - frame_origin[2]],
+                origin: [
+                    ox - frame_origin[0],
+                    oy - frame_origin[1],
+                    0.0 - frame_origin[2],
+                ],
                 positions,
                 uvs,
                 indices,
@@ -256,10 +272,17 @@ pub struct SurfaceHeight<'a> {
 
 impl<'a> SurfaceHeight<'a> {
     pub fn new(tin: &'a Tin, grid: &Grid) -> Self {
-        SurfaceHeight { interp: tin.barycentric(), grid: *grid, ybottom: grid.y(grid.height - 1) }
+        SurfaceHeight {
+            interp: tin.barycentric(),
+            grid: *grid,
+            ybottom: grid.y(grid.height - 1),
+        }
     }
     pub fn at(&self, x: f64, y: f64) -> Option<f64> {
-        let p = Point2::new((x - self.grid.x0) / self.grid.dx, (y - self.ybottom) / self.grid.dx);
+        let p = Point2::new(
+            (x - self.grid.x0) / self.grid.dx,
+            (y - self.ybottom) / self.grid.dx,
+        );
         self.interp.interpolate(|v| v.data().h, p)
     }
 }
@@ -284,16 +307,24 @@ mod tests {
     fn every_sample_is_within_tolerance() {
         let (w, h) = (97, 81);
         let hv = field(w, h, |x, y| {
-            50.0 * (x / 9.0).sin() * (y / 13.0).cos() + 0.02 * x * y + if x > 60.0 { 30.0 } else { 0.0 }
+            50.0 * (x / 9.0).sin() * (y / 13.0).cos()
+                + 0.02 * x * y
+                + if x > 60.0 { 30.0 } else { 0.0 }
         });
-        let f = HeightField { width: w, height: h, h: &hv };
+        let f = HeightField {
+            width: w,
+            height: h,
+            h: &hv,
+        };
         for tol in [0.5, 2.0] {
             let tin = build_tin(&f, tol, |_, _| {});
             let interp = tin.barycentric();
             let mut worst = 0.0f64;
             for j in 0..h {
                 for i in 0..w {
-                    let z = interp.interpolate(|v| v.data().h, Point2::new(i as f64, j as f64)).unwrap();
+                    let z = interp
+                        .interpolate(|v| v.data().h, Point2::new(i as f64, j as f64))
+                        .unwrap();
                     worst = worst.max((z - f.at(i, j)).abs());
                 }
             }
@@ -308,7 +339,15 @@ mod tests {
     fn flat_terrain_gets_two_triangles() {
         let (w, h) = (64, 64);
         let hv = field(w, h, |x, y| 100.0 + 0.5 * x - 0.25 * y);
-        let tin = build_tin(&HeightField { width: w, height: h, h: &hv }, 0.1, |_, _| {});
+        let tin = build_tin(
+            &HeightField {
+                width: w,
+                height: h,
+                h: &hv,
+            },
+            0.1,
+            |_, _| {},
+        );
         assert_eq!(tin.num_inner_faces(), 2);
     }
 }

@@ -14,7 +14,8 @@ use simulator::bundle::{Bundle, NO_MATERIAL};
 
 const LON: f64 = 5.7;
 const LAT: f64 = 45.2;
-const LOCAL: &str = "+proj=tmerc +lat_0=45.2 +lon_0=5.7 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs";
+const LOCAL: &str =
+    "+proj=tmerc +lat_0=45.2 +lon_0=5.7 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs";
 
 fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("scenegen-test-{}-{name}", std::process::id()));
@@ -44,7 +45,8 @@ fn write_dem_cols(
         for c in 0..w {
             let x = (c as f64 + 0.5) * px * 78_700.0;
             let y = (h - r) as f64 * px * 111_200.0;
-            v[r * w + c] = (500.0 + 150.0 * (x / 1500.0).sin() * (y / 2100.0).cos() + 0.01 * x) as f32;
+            v[r * w + c] =
+                (500.0 + 150.0 * (x / 1500.0).sin() * (y / 2100.0).cos() + 0.01 * x) as f32;
         }
     }
     if let Some((r0, c0, n)) = hole {
@@ -56,9 +58,20 @@ fn write_dem_cols(
     }
     let p = dir.join(name);
     let cw = cols.len();
-    let sub: Vec<f32> = (0..h).flat_map(|r| v[r * w + cols.start..r * w + cols.end].to_vec()).collect();
+    let sub: Vec<f32> = (0..h)
+        .flat_map(|r| v[r * w + cols.start..r * w + cols.end].to_vec())
+        .collect();
     let west = lon0 + cols.start as f64 * px;
-    write_geotiff(&p, cw, h, Some([west, px, 0.0, lat1, 0.0, -px]), Some("EPSG:4326"), Some(-32768.0), sub).unwrap();
+    write_geotiff(
+        &p,
+        cw,
+        h,
+        Some([west, px, 0.0, lat1, 0.0, -px]),
+        Some("EPSG:4326"),
+        Some(-32768.0),
+        sub,
+    )
+    .unwrap();
     p
 }
 
@@ -66,13 +79,23 @@ fn write_dem_cols(
 /// x, y ∈ [−3000, 3000] m), so that nearest resampling reads each cell's own code.
 fn landcover_codes() -> Vec<u8> {
     let codes = [12u8, 18, 23, 24, 41, 2];
-    (0..60 * 60).map(|k| codes[(k / 60 / 10 + k % 60 / 7) % codes.len()]).collect()
+    (0..60 * 60)
+        .map(|k| codes[(k / 60 / 10 + k % 60 / 7) % codes.len()])
+        .collect()
 }
 
 fn write_landcover(dir: &Path, codes: Vec<u8>) -> PathBuf {
     let p = dir.join("lc.tif");
-    write_geotiff(&p, 60, 60, Some([-3000.0, 100.0, 0.0, 3000.0, 0.0, -100.0]), Some(LOCAL), Some(255.0), codes)
-        .unwrap();
+    write_geotiff(
+        &p,
+        60,
+        60,
+        Some([-3000.0, 100.0, 0.0, 3000.0, 0.0, -100.0]),
+        Some(LOCAL),
+        Some(255.0),
+        codes,
+    )
+    .unwrap();
     p
 }
 
@@ -106,7 +129,10 @@ fn setup(name: &str, extra: &str) -> (PathBuf, PathBuf) {
 }
 
 fn scenegen(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_scenegen")).args(args).output().unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_scenegen"))
+        .args(args)
+        .output()
+        .unwrap();
     (
         o.status.code().unwrap_or(-1),
         String::from_utf8_lossy(&o.stdout).into_owned(),
@@ -115,7 +141,13 @@ fn scenegen(args: &[&str]) -> (i32, String, String) {
 }
 
 fn build(region: &Path, out: &Path) -> Bundle {
-    let (code, stdout, stderr) = scenegen(&["build", "--quiet", "-o", out.to_str().unwrap(), region.to_str().unwrap()]);
+    let (code, stdout, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
     assert_eq!(code, 0, "stdout {stdout}\nstderr {stderr}");
     Bundle::open(out).unwrap()
 }
@@ -127,11 +159,18 @@ fn terrain_height(b: &Bundle, x: f64, y: f64) -> Option<f64> {
         for tri in &t.indices {
             let p = tri.map(|i| {
                 let q = t.positions[i as usize];
-                [t.origin[0] + q[0] as f64, t.origin[1] + q[1] as f64, t.origin[2] + q[2] as f64]
+                [
+                    t.origin[0] + q[0] as f64,
+                    t.origin[1] + q[1] as f64,
+                    t.origin[2] + q[2] as f64,
+                ]
             });
-            let det = (p[1][1] - p[2][1]) * (p[0][0] - p[2][0]) + (p[2][0] - p[1][0]) * (p[0][1] - p[2][1]);
-            let l1 = ((p[1][1] - p[2][1]) * (x - p[2][0]) + (p[2][0] - p[1][0]) * (y - p[2][1])) / det;
-            let l2 = ((p[2][1] - p[0][1]) * (x - p[2][0]) + (p[0][0] - p[2][0]) * (y - p[2][1])) / det;
+            let det = (p[1][1] - p[2][1]) * (p[0][0] - p[2][0])
+                + (p[2][0] - p[1][0]) * (p[0][1] - p[2][1]);
+            let l1 =
+                ((p[1][1] - p[2][1]) * (x - p[2][0]) + (p[2][0] - p[1][0]) * (y - p[2][1])) / det;
+            let l2 =
+                ((p[2][1] - p[0][1]) * (x - p[2][0]) + (p[0][0] - p[2][0]) * (y - p[2][1])) / det;
             let l3 = 1.0 - l1 - l2;
             if l1 >= -1e-9 && l2 >= -1e-9 && l3 >= -1e-9 {
                 return Some(l1 * p[0][2] + l2 * p[1][2] + l3 * p[2][2]);
@@ -154,7 +193,11 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
     let out = dir.join("bundle");
     let b = build(&region, &out);
     let m = &b.manifest;
-    assert!(m.terrain.tiles.len() >= 9, "6 km / 2 km tiles: {}", m.terrain.tiles.len());
+    assert!(
+        m.terrain.tiles.len() >= 9,
+        "6 km / 2 km tiles: {}",
+        m.terrain.tiles.len()
+    );
     let origin = m.frame.origin;
 
     // (1) Tolerance at every DEM node (the same warped grid the build used).
@@ -166,30 +209,47 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
     for row in (0..g.height).step_by(3) {
         for col in 0..g.width {
             let (x, y) = (g.x(col) - origin[0], g.y(row) - origin[1]);
-            let z = terrain_height(&b, x, y).unwrap_or_else(|| panic!("node ({col}, {row}) not covered"));
+            let z = terrain_height(&b, x, y)
+                .unwrap_or_else(|| panic!("node ({col}, {row}) not covered"));
             worst = worst.max((z - dem.heights[row * g.width + col] as f64).abs());
         }
     }
-    assert!(worst <= 2.0 + 1e-3, "worst vertical error {worst} m > tolerance 2 m");
-    assert!((m.terrain.vertex_count as usize) < g.width * g.height / 2, "the TIN must be sparser than the grid");
+    assert!(
+        worst <= 2.0 + 1e-3,
+        "worst vertical error {worst} m > tolerance 2 m"
+    );
+    assert!(
+        (m.terrain.vertex_count as usize) < g.width * g.height / 2,
+        "the TIN must be sparser than the grid"
+    );
 
     // (2) Watertight.
     let key = |t: &simulator::bundle::TerrainTile, i: u32| {
         let q = t.positions[i as usize];
-        [(t.origin[0] + q[0] as f64).to_bits(), (t.origin[1] + q[1] as f64).to_bits()]
+        [
+            (t.origin[0] + q[0] as f64).to_bits(),
+            (t.origin[1] + q[1] as f64).to_bits(),
+        ]
     };
     let mut directed: HashMap<([u64; 2], [u64; 2]), u32> = HashMap::new();
     for t in &b.terrain {
         for tri in &t.indices {
             for k in 0..3 {
-                *directed.entry((key(t, tri[k]), key(t, tri[(k + 1) % 3]))).or_default() += 1;
+                *directed
+                    .entry((key(t, tri[k]), key(t, tri[(k + 1) % 3])))
+                    .or_default() += 1;
             }
         }
     }
     let (xmin, xmax) = (m.extent.min[0] - origin[0], m.extent.max[0] - origin[0]);
     let (ymin, ymax) = (m.extent.min[1] - origin[1], m.extent.max[1] - origin[1]);
     let on_boundary = |a: [u64; 2], b: [u64; 2]| {
-        let (ax, ay, bx, by) = (f64::from_bits(a[0]), f64::from_bits(a[1]), f64::from_bits(b[0]), f64::from_bits(b[1]));
+        let (ax, ay, bx, by) = (
+            f64::from_bits(a[0]),
+            f64::from_bits(a[1]),
+            f64::from_bits(b[0]),
+            f64::from_bits(b[1]),
+        );
         (ax == xmin && bx == xmin)
             || (ax == xmax && bx == xmax)
             || (ay == ymin && by == ymin)
@@ -206,19 +266,35 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
 
     // (3) Material raster = scheme mapping of the hand-made raster.
     let scheme = landcover::Scheme::load("corine").unwrap();
-    let map = landcover::MaterialMap::new(&scheme, &Default::default(), &Default::default(), None).unwrap();
-    assert_eq!((m.material_raster.width, m.material_raster.height), (60, 60));
-    for (k, (&got, &code)) in b.material_raster.iter().zip(landcover_codes().iter()).enumerate() {
+    let map = landcover::MaterialMap::new(&scheme, &Default::default(), &Default::default(), None)
+        .unwrap();
+    assert_eq!(
+        (m.material_raster.width, m.material_raster.height),
+        (60, 60)
+    );
+    for (k, (&got, &code)) in b
+        .material_raster
+        .iter()
+        .zip(landcover_codes().iter())
+        .enumerate()
+    {
         let want = map.code_to_index[&(code as i64)];
         assert_eq!(got, want, "cell {k}: code {code}");
-        assert_eq!(m.materials[got as usize].name, map.materials[want as usize].name);
+        assert_eq!(
+            m.materials[got as usize].name,
+            map.materials[want as usize].name
+        );
     }
 
     // (4) Instances on the terrain, in a populated tile.
     assert!(!b.instances.is_empty());
     let gt = m.material_raster.geotransform;
     let codes = landcover_codes();
-    let populated: Vec<i64> = scheme.population.iter().flat_map(|r| r.classes.clone()).collect();
+    let populated: Vec<i64> = scheme
+        .population
+        .iter()
+        .flat_map(|r| r.classes.clone())
+        .collect();
     for inst in b.instances.iter().step_by(7) {
         let [x, y, z] = inst.translation;
         let zt = terrain_height(&b, x, y).expect("instance over the terrain");
@@ -236,9 +312,13 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
     // info and glTF export run on it.
     let (code, info, _) = scenegen(&["info", out.to_str().unwrap(), "--verify"]);
     assert_eq!(code, 0);
-    assert!(info.contains("triangles") && info.contains("forest_floor") && info.contains("verify"), "{info}");
+    assert!(
+        info.contains("triangles") && info.contains("forest_floor") && info.contains("verify"),
+        "{info}"
+    );
     let glb = dir.join("scene.glb");
-    let (code, _, stderr) = scenegen(&["export-gltf", out.to_str().unwrap(), glb.to_str().unwrap()]);
+    let (code, _, stderr) =
+        scenegen(&["export-gltf", out.to_str().unwrap(), glb.to_str().unwrap()]);
     assert_eq!(code, 0, "{stderr}");
     let g = gltf::Gltf::open(&glb).unwrap();
     assert_eq!(g.meshes().count(), b.terrain.len() + b.templates.len());
@@ -251,8 +331,15 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
 fn instances_are_deterministic_for_a_seed() {
     let (dir, region) = setup("seed", "");
     let a = build(&region, &dir.join("a"));
-    let (code, _, _) =
-        scenegen(&["build", "--quiet", "-j", "1", "-o", dir.join("b").to_str().unwrap(), region.to_str().unwrap()]);
+    let (code, _, _) = scenegen(&[
+        "build",
+        "--quiet",
+        "-j",
+        "1",
+        "-o",
+        dir.join("b").to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
     assert_eq!(code, 0);
     let b = Bundle::open(&dir.join("b")).unwrap();
     assert_eq!(a.instances, b.instances);
@@ -264,7 +351,13 @@ fn instances_are_deterministic_for_a_seed() {
 }
 
 fn expect_error(region: &Path, out: &Path, code: i32, needles: &[&str]) {
-    let (c, _, stderr) = scenegen(&["build", "--quiet", "-o", out.to_str().unwrap(), region.to_str().unwrap()]);
+    let (c, _, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
     assert_eq!(c, code, "{stderr}");
     for n in needles {
         assert!(stderr.contains(n), "stderr lacks `{n}`: {stderr}");
@@ -272,7 +365,11 @@ fn expect_error(region: &Path, out: &Path, code: i32, needles: &[&str]) {
     assert!(!out.exists(), "no half bundle after an error");
     let parent = out.parent().unwrap();
     assert!(
-        std::fs::read_dir(parent).unwrap().all(|e| !e.unwrap().file_name().to_string_lossy().contains(".tmp-")),
+        std::fs::read_dir(parent).unwrap().all(|e| !e
+            .unwrap()
+            .file_name()
+            .to_string_lossy()
+            .contains(".tmp-")),
         "no temporary directory left"
     );
 }
@@ -289,25 +386,61 @@ fn bad_inputs_are_named() {
     expect_error(&region, &out, 2, &["missing.tif", "not found"]);
 
     // DEM that does not cover the area (a 10 km area needs ±0.064° in longitude).
-    std::fs::write(&region, region_text("").replace("size_km = 6", "size_km = 12")).unwrap();
-    expect_error(&region, &out, 2, &["dem.tif", "does not cover the area of interest", "km) on the west"]);
+    std::fs::write(
+        &region,
+        region_text("").replace("size_km = 6", "size_km = 12"),
+    )
+    .unwrap();
+    expect_error(
+        &region,
+        &out,
+        2,
+        &[
+            "dem.tif",
+            "does not cover the area of interest",
+            "km) on the west",
+        ],
+    );
 
     // DEM without georeferencing.
     let nogeo = dir.join("nogeo.tif");
     write_geotiff(&nogeo, 10, 10, None, None, None, vec![1f32; 100]).unwrap();
-    std::fs::write(&region, region_text("").replace("\"dem.tif\"", "\"nogeo.tif\"")).unwrap();
+    std::fs::write(
+        &region,
+        region_text("").replace("\"dem.tif\"", "\"nogeo.tif\""),
+    )
+    .unwrap();
     expect_error(&region, &out, 2, &["nogeo.tif", "no georeferencing"]);
 
     // A no-data hole too large to fill, with its size and location.
     let holes = tmp("holes");
     write_dem(&holes, Some((140, 140, 20)));
     std::fs::rename(holes.join("dem.tif"), dir.join("holes.tif")).unwrap();
-    std::fs::write(&region, region_text("").replace("\"dem.tif\"", "\"holes.tif\"")).unwrap();
-    expect_error(&region, &out, 2, &["holes.tif", "no-data holes too large", "pixels", "lon ", "max_fill_pixels"]);
+    std::fs::write(
+        &region,
+        region_text("").replace("\"dem.tif\"", "\"holes.tif\""),
+    )
+    .unwrap();
+    expect_error(
+        &region,
+        &out,
+        2,
+        &[
+            "holes.tif",
+            "no-data holes too large",
+            "pixels",
+            "lon ",
+            "max_fill_pixels",
+        ],
+    );
     // … and a small one is filled.
     write_dem(&holes, Some((140, 140, 2)));
     std::fs::rename(holes.join("dem.tif"), dir.join("small_hole.tif")).unwrap();
-    std::fs::write(&region, region_text("").replace("\"dem.tif\"", "\"small_hole.tif\"")).unwrap();
+    std::fs::write(
+        &region,
+        region_text("").replace("\"dem.tif\"", "\"small_hole.tif\""),
+    )
+    .unwrap();
     build(&region, &dir.join("filled"));
 
     // Unknown class codes, with pixel counts; a fallback accepts them.
@@ -317,7 +450,12 @@ fn bad_inputs_are_named() {
     codes[2] = 77;
     write_landcover(&dir, codes);
     std::fs::write(&region, region_text("")).unwrap();
-    expect_error(&region, &out, 2, &["lc.tif", "99 (2 px)", "77 (1 px)", "fallback_material"]);
+    expect_error(
+        &region,
+        &out,
+        2,
+        &["lc.tif", "99 (2 px)", "77 (1 px)", "fallback_material"],
+    );
     std::fs::write(&region, region_text("fallback_material = \"soil\"")).unwrap();
     build(&region, &dir.join("fallback"));
     write_landcover(&dir, landcover_codes());
@@ -326,24 +464,56 @@ fn bad_inputs_are_named() {
     std::fs::write(dir.join("broken.glb"), b"not a glb").unwrap();
     let extra = "\n[[templates]]\nname = \"broken\"\nfile = \"broken.glb\"\n\n[[population]]\nclasses = [12]\ntemplate = \"broken\"\ndensity_per_ha = 1\n";
     std::fs::write(&region, region_text(extra)).unwrap();
-    expect_error(&region, &out, 2, &["broken.glb", "cannot load template mesh"]);
+    expect_error(
+        &region,
+        &out,
+        2,
+        &["broken.glb", "cannot load template mesh"],
+    );
 
     // Misspelt and out-of-range keys.
-    std::fs::write(&region, region_text("").replace("tolerance_m = 2.0", "tolerence_m = 2.0")).unwrap();
+    std::fs::write(
+        &region,
+        region_text("").replace("tolerance_m = 2.0", "tolerence_m = 2.0"),
+    )
+    .unwrap();
     expect_error(&region, &out, 2, &["region.toml", "tolerence_m"]);
-    std::fs::write(&region, region_text("").replace("tile_size_m = 2000", "tile_size_m = 5")).unwrap();
+    std::fs::write(
+        &region,
+        region_text("").replace("tile_size_m = 2000", "tile_size_m = 5"),
+    )
+    .unwrap();
     expect_error(&region, &out, 2, &["region.toml", "terrain.tile_size_m"]);
-    std::fs::write(&region, region_text("").replace("scheme = \"corine\"", "scheme = \"corrine\"")).unwrap();
+    std::fs::write(
+        &region,
+        region_text("").replace("scheme = \"corine\"", "scheme = \"corrine\""),
+    )
+    .unwrap();
     expect_error(&region, &out, 2, &["landcover.scheme", "corrine"]);
 
     // Existing output directory: refused without --force, replaced with it.
     std::fs::write(&region, region_text("")).unwrap();
     std::fs::create_dir_all(&out).unwrap();
-    let (c, _, stderr) = scenegen(&["build", "--quiet", "-o", out.to_str().unwrap(), region.to_str().unwrap()]);
+    let (c, _, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
     assert_eq!(c, 2, "{stderr}");
-    assert!(stderr.contains("already exists") && stderr.contains("--force"), "{stderr}");
-    let (c, _, stderr) =
-        scenegen(&["build", "--quiet", "--force", "-o", out.to_str().unwrap(), region.to_str().unwrap()]);
+    assert!(
+        stderr.contains("already exists") && stderr.contains("--force"),
+        "{stderr}"
+    );
+    let (c, _, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "--force",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
     assert_eq!(c, 0, "{stderr}");
     Bundle::open(&out).unwrap();
 
@@ -351,10 +521,18 @@ fn bad_inputs_are_named() {
     // a write): exit code 1, the path named, no temporary directory left.
     let blocker = dir.join("file");
     std::fs::write(&blocker, b"x").unwrap();
-    let (c, _, stderr) =
-        scenegen(&["build", "--quiet", "-o", blocker.join("out").to_str().unwrap(), region.to_str().unwrap()]);
+    let (c, _, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "-o",
+        blocker.join("out").to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
     assert_eq!(c, 1, "{stderr}");
-    assert!(stderr.contains("cannot write") && stderr.contains("file"), "{stderr}");
+    assert!(
+        stderr.contains("cannot write") && stderr.contains("file"),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
     std::fs::remove_dir_all(&holes).unwrap();
 }
@@ -368,12 +546,27 @@ fn several_dems_are_merged() {
     let whole = build(&region, &dir.join("whole"));
     write_dem_cols(&dir, "west.tif", None, 0..160);
     write_dem_cols(&dir, "east.tif", None, 140..300);
-    std::fs::write(&region, region_text("").replace("files = [\"dem.tif\"]", "files = [\"west.tif\", \"east.tif\"]"))
-        .unwrap();
+    std::fs::write(
+        &region,
+        region_text("").replace(
+            "files = [\"dem.tif\"]",
+            "files = [\"west.tif\", \"east.tif\"]",
+        ),
+    )
+    .unwrap();
     let merged = build(&region, &dir.join("merged"));
     assert_eq!(whole.terrain, merged.terrain);
-    std::fs::write(&region, region_text("").replace("files = [\"dem.tif\"]", "files = [\"west.tif\"]")).unwrap();
-    expect_error(&region, &dir.join("out"), 2, &["west.tif", "does not cover", "on the east"]);
+    std::fs::write(
+        &region,
+        region_text("").replace("files = [\"dem.tif\"]", "files = [\"west.tif\"]"),
+    )
+    .unwrap();
+    expect_error(
+        &region,
+        &dir.join("out"),
+        2,
+        &["west.tif", "does not cover", "on the east"],
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
@@ -383,7 +576,10 @@ fn shared_data() -> Option<PathBuf> {
     if p.is_dir() {
         Some(p)
     } else {
-        eprintln!("shared data not found at {}; real-data test skipped", p.display());
+        eprintln!(
+            "shared data not found at {}; real-data test skipped",
+            p.display()
+        );
         None
     }
 }
@@ -403,9 +599,19 @@ fn srtm_with_worldcover_in_a_named_crs() {
     let px = 20.0;
     let (w, h) = (((e1 - e0) / px) as usize, ((n1 - n0) / px) as usize);
     let classes = [10u8, 30, 80];
-    let lc: Vec<u8> = (0..w * h).map(|k| classes[((k % w) as f64 * px / 1000.0) as usize % 3]).collect();
-    write_geotiff(&dir.join("wc.tif"), w, h, Some([e0, px, 0.0, n1, 0.0, -px]), Some("EPSG:32637"), Some(0.0), lc)
-        .unwrap();
+    let lc: Vec<u8> = (0..w * h)
+        .map(|k| classes[((k % w) as f64 * px / 1000.0) as usize % 3])
+        .collect();
+    write_geotiff(
+        &dir.join("wc.tif"),
+        w,
+        h,
+        Some([e0, px, 0.0, n1, 0.0, -px]),
+        Some("EPSG:32637"),
+        Some(0.0),
+        lc,
+    )
+    .unwrap();
     let dem = shared.join("terrain/srtm_sample/srtm_ref.tif");
     let region = dir.join("region.toml");
     std::fs::write(
@@ -420,7 +626,11 @@ fn srtm_with_worldcover_in_a_named_crs() {
     let m = &b.manifest;
     assert_eq!(m.crs.epsg, Some(32637));
     assert_eq!(m.material_raster.resampling, "mode");
-    assert!(m.extent.height_range[0] > 1000.0 && m.extent.height_range[1] < 3300.0, "{:?}", m.extent.height_range);
+    assert!(
+        m.extent.height_range[0] > 1000.0 && m.extent.height_range[1] < 3300.0,
+        "{:?}",
+        m.extent.height_range
+    );
     let total = b.material_raster.len() as f64;
     for name in ["forest_floor", "grass", "water"] {
         let idx = m.materials.iter().find(|x| x.name == name).unwrap().index;
@@ -445,9 +655,21 @@ fn grenoble_example_builds() {
     assert_eq!(m.terrain.dem_samples, 201 * 225);
     assert_eq!(m.templates.len(), 5);
     let citrus = m.templates.iter().find(|t| t.name == "citrus").unwrap();
-    assert_eq!(citrus.triangle_count, 22044 + 17206, "foliage and trunk merged");
+    assert_eq!(
+        citrus.triangle_count,
+        22044 + 17206,
+        "foliage and trunk merged"
+    );
     assert_eq!(m.materials.len(), 15);
-    assert!(m.instances.per_template.iter().all(|&n| n > 0), "{:?}", m.instances.per_template);
-    assert_eq!(m.provenance.inputs.len(), 5, "DEM, land cover, GLB, two PLY parts");
+    assert!(
+        m.instances.per_template.iter().all(|&n| n > 0),
+        "{:?}",
+        m.instances.per_template
+    );
+    assert_eq!(
+        m.provenance.inputs.len(),
+        5,
+        "DEM, land cover, GLB, two PLY parts"
+    );
     std::fs::remove_dir_all(&dir).unwrap();
 }

@@ -56,25 +56,53 @@ pub struct PicsRow {
 
 /// Parse the acquisitions CSV; errors name the file and line.
 pub fn read_acquisitions(path: &Path) -> Result<Vec<Acquisition>, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read { path: path.into(), source })?;
-    let err = |line: usize, message: String| ConfigError::Invalid { path: path.into(), key: format!("line {line}"), message };
-    let mut lines = text.lines().enumerate().filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+        path: path.into(),
+        source,
+    })?;
+    let err = |line: usize, message: String| ConfigError::Invalid {
+        path: path.into(),
+        key: format!("line {line}"),
+        message,
+    };
+    let mut lines = text
+        .lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
     let (_, header) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
     let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    let idx = |c: &str| cols.iter().position(|h| *h == c).ok_or_else(|| err(1, format!("missing column `{c}` (need time_utc,vza,vaa,srf)")));
+    let idx = |c: &str| {
+        cols.iter().position(|h| *h == c).ok_or_else(|| {
+            err(
+                1,
+                format!("missing column `{c}` (need time_utc,vza,vaa,srf)"),
+            )
+        })
+    };
     let (it, iz, ia, is) = (idx("time_utc")?, idx("vza")?, idx("vaa")?, idx("srf")?);
     let mut out = Vec::new();
     for (n, l) in lines {
         let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        let get = |i: usize| f.get(i).copied().ok_or_else(|| err(n + 1, format!("expected {} columns", cols.len())));
+        let get = |i: usize| {
+            f.get(i)
+                .copied()
+                .ok_or_else(|| err(n + 1, format!("expected {} columns", cols.len())))
+        };
         let num = |i: usize, what: &str| -> Result<f64, ConfigError> {
-            let v: f64 = get(i)?.parse().map_err(|_| err(n + 1, format!("`{what}` is not a number")))?;
+            let v: f64 = get(i)?
+                .parse()
+                .map_err(|_| err(n + 1, format!("`{what}` is not a number")))?;
             if !v.is_finite() {
                 return Err(err(n + 1, format!("`{what}` is not finite")));
             }
             Ok(v)
         };
-        out.push(Acquisition { time_utc: get(it)?.to_string(), vza: num(iz, "vza")?, vaa: num(ia, "vaa")?, srf: get(is)?.to_string() });
+        out.push(Acquisition {
+            time_utc: get(it)?.to_string(),
+            vza: num(iz, "vza")?,
+            vaa: num(ia, "vaa")?,
+            srf: get(is)?.to_string(),
+        });
     }
     if out.is_empty() {
         return Err(err(2, "no acquisitions".into()));
@@ -84,13 +112,32 @@ pub fn read_acquisitions(path: &Path) -> Result<Vec<Acquisition>, ConfigError> {
 
 /// The experiment text of one acquisition at a site (the site file's tables are kept verbatim).
 pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Result<String, String> {
-    let get_f = |k: &str| site.get(k).and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)));
+    let get_f = |k: &str| {
+        site.get(k)
+            .and_then(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+    };
     let lat = get_f("latitude").ok_or("`latitude` (deg) is required")?;
     let lon = get_f("longitude").ok_or("`longitude` (deg) is required")?;
     let elev = get_f("elevation").unwrap_or(0.0);
-    let spp = site.get("spp").and_then(|v| v.as_integer()).unwrap_or(200_000);
+    let spp = site
+        .get("spp")
+        .and_then(|v| v.as_integer())
+        .unwrap_or(200_000);
     let step = get_f("wavelength_step").unwrap_or(5.0);
-    let known = ["name", "latitude", "longitude", "elevation", "spp", "target_rel_stderr", "wavelength_step", "irradiance", "geometry", "atmosphere", "surface", "polarized"];
+    let known = [
+        "name",
+        "latitude",
+        "longitude",
+        "elevation",
+        "spp",
+        "target_rel_stderr",
+        "wavelength_step",
+        "irradiance",
+        "geometry",
+        "atmosphere",
+        "surface",
+        "polarized",
+    ];
     if let Some(k) = site.keys().find(|k| !known.contains(&k.as_str())) {
         return Err(format!("unknown key `{k}` (known: {})", known.join(", ")));
     }
@@ -122,25 +169,50 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
     m.insert("id".into(), toml::Value::String("toa".into()));
     m.insert("type".into(), toml::Value::String("mdistant".into()));
     m.insert("construct".into(), toml::Value::String("directions".into()));
-    m.insert("zeniths".into(), toml::Value::Array(vec![toml::Value::Float(acq.vza)]));
-    m.insert("azimuths".into(), toml::Value::Array(vec![toml::Value::Float(acq.vaa)]));
+    m.insert(
+        "zeniths".into(),
+        toml::Value::Array(vec![toml::Value::Float(acq.vza)]),
+    );
+    m.insert(
+        "azimuths".into(),
+        toml::Value::Array(vec![toml::Value::Float(acq.vaa)]),
+    );
     m.insert("spp".into(), toml::Value::Integer(spp));
     if let Some(x) = site.get("target_rel_stderr") {
         m.insert("target_rel_stderr".into(), x.clone());
     }
-    t.insert("measures".into(), toml::Value::Array(vec![toml::Value::Table(m)]));
+    t.insert(
+        "measures".into(),
+        toml::Value::Array(vec![toml::Value::Table(m)]),
+    );
     toml::to_string(&t).map_err(|e| e.to_string())
 }
 
 /// Run every acquisition; `site_path` names the site file in errors. Acquisition `k` uses seed
 /// `k`, so results do not depend on the order of other acquisitions or on threads.
-pub fn run(site_path: &Path, acquisitions: &[Acquisition], progress: impl Fn(usize)) -> Result<Vec<PicsRow>, ConfigError> {
-    let text = std::fs::read_to_string(site_path).map_err(|source| ConfigError::Read { path: site_path.into(), source })?;
-    let site: toml::Table = text.parse().map_err(|e: toml::de::Error| ConfigError::Parse { path: site_path.into(), message: e.to_string() })?;
+pub fn run(
+    site_path: &Path,
+    acquisitions: &[Acquisition],
+    progress: impl Fn(usize),
+) -> Result<Vec<PicsRow>, ConfigError> {
+    let text = std::fs::read_to_string(site_path).map_err(|source| ConfigError::Read {
+        path: site_path.into(),
+        source,
+    })?;
+    let site: toml::Table = text
+        .parse()
+        .map_err(|e: toml::de::Error| ConfigError::Parse {
+            path: site_path.into(),
+            message: e.to_string(),
+        })?;
     let mut out = Vec::with_capacity(acquisitions.len());
     for (k, acq) in acquisitions.iter().enumerate() {
-        let exp_text = experiment_text(&site, acq, k as u64)
-            .map_err(|message| ConfigError::Invalid { path: site_path.into(), key: "site".into(), message })?;
+        let exp_text =
+            experiment_text(&site, acq, k as u64).map_err(|message| ConfigError::Invalid {
+                path: site_path.into(),
+                key: "site".into(),
+                message,
+            })?;
         let exp = Experiment::from_str(&exp_text, site_path).map_err(|e| ConfigError::Invalid {
             path: site_path.into(),
             key: format!("acquisition {} ({})", k + 1, acq.time_utc),
@@ -176,20 +248,43 @@ pub fn to_csv(rows: &[PicsRow]) -> String {
         let _ = writeln!(
             s,
             "{},{},{},{},{:.6},{:.6},{:.9},{:.8e},{:.3e},{:.8e},{:.3e},{:.8e}",
-            a.time_utc, a.srf, a.vza, a.vaa, r.sza, r.saa, r.earth_sun_distance_au, r.reflectance.0, r.reflectance.1, r.radiance.0, r.radiance.1, r.band_irradiance
+            a.time_utc,
+            a.srf,
+            a.vza,
+            a.vaa,
+            r.sza,
+            r.saa,
+            r.earth_sun_distance_au,
+            r.reflectance.0,
+            r.reflectance.1,
+            r.radiance.0,
+            r.radiance.1,
+            r.band_irradiance
         );
     }
     s
 }
 
 /// A netCDF column: name, units, long name, accessor.
-type Column = (&'static str, &'static str, &'static str, fn(&PicsRow) -> f64);
+type Column = (
+    &'static str,
+    &'static str,
+    &'static str,
+    fn(&PicsRow) -> f64,
+);
 
 /// `pics.nc`: the same table as CF netCDF on the dimension `acquisition`.
-pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(), crate::error::OutputError> {
+pub fn write_netcdf(
+    path: &Path,
+    site_path: &Path,
+    rows: &[PicsRow],
+) -> Result<(), crate::error::OutputError> {
     let tmp = crate::products::tmp_path(path);
     let _ = std::fs::remove_file(&tmp);
-    let nc = |source| crate::error::OutputError::Netcdf { path: path.to_path_buf(), source };
+    let nc = |source| crate::error::OutputError::Netcdf {
+        path: path.to_path_buf(),
+        source,
+    };
     {
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         let mut inner = || -> Result<(), netcdf::Error> {
@@ -212,15 +307,54 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
             }
             let cols: [Column; 10] = [
                 ("vza", "degree", "view zenith angle", |r| r.acquisition.vza),
-                ("vaa", "degree", "view azimuth angle, clockwise from North (site to sensor)", |r| r.acquisition.vaa),
-                ("sza", "degree", "solar zenith angle (NREL SPA, geometric)", |r| r.sza),
-                ("saa", "degree", "solar azimuth angle, clockwise from North", |r| r.saa),
-                ("earth_sun_distance", "au", "Earth-Sun distance", |r| r.earth_sun_distance_au),
-                ("reflectance", "1", "band TOA reflectance pi L / (E0 cos SZA)", |r| r.reflectance.0),
-                ("reflectance_stderr", "1", "standard error of reflectance", |r| r.reflectance.1),
-                ("radiance", "W m-2 sr-1 nm-1", "band TOA radiance", |r| r.radiance.0),
-                ("radiance_stderr", "W m-2 sr-1 nm-1", "standard error of radiance", |r| r.radiance.1),
-                ("band_irradiance", "W m-2 nm-1", "band solar irradiance at the Earth-Sun distance", |r| r.band_irradiance),
+                (
+                    "vaa",
+                    "degree",
+                    "view azimuth angle, clockwise from North (site to sensor)",
+                    |r| r.acquisition.vaa,
+                ),
+                (
+                    "sza",
+                    "degree",
+                    "solar zenith angle (NREL SPA, geometric)",
+                    |r| r.sza,
+                ),
+                (
+                    "saa",
+                    "degree",
+                    "solar azimuth angle, clockwise from North",
+                    |r| r.saa,
+                ),
+                ("earth_sun_distance", "au", "Earth-Sun distance", |r| {
+                    r.earth_sun_distance_au
+                }),
+                (
+                    "reflectance",
+                    "1",
+                    "band TOA reflectance pi L / (E0 cos SZA)",
+                    |r| r.reflectance.0,
+                ),
+                (
+                    "reflectance_stderr",
+                    "1",
+                    "standard error of reflectance",
+                    |r| r.reflectance.1,
+                ),
+                ("radiance", "W m-2 sr-1 nm-1", "band TOA radiance", |r| {
+                    r.radiance.0
+                }),
+                (
+                    "radiance_stderr",
+                    "W m-2 sr-1 nm-1",
+                    "standard error of radiance",
+                    |r| r.radiance.1,
+                ),
+                (
+                    "band_irradiance",
+                    "W m-2 nm-1",
+                    "band solar irradiance at the Earth-Sun distance",
+                    |r| r.band_irradiance,
+                ),
             ];
             for (name, units, long, get) in cols {
                 let data: Vec<f64> = rows.iter().map(get).collect();
@@ -236,5 +370,8 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
             nc(e)
         })?;
     }
-    std::fs::rename(&tmp, path).map_err(|source| crate::error::OutputError::Io { path: path.to_path_buf(), source })
+    std::fs::rename(&tmp, path).map_err(|source| crate::error::OutputError::Io {
+        path: path.to_path_buf(),
+        source,
+    })
 }

@@ -476,7 +476,12 @@ pub fn run_resumable(
     dir: &std::path::Path,
 ) -> Result<(Vec<MeasureResult>, usize), crate::error::OutputError> {
     let (out, resumed) = run_shard(exp, progress, dir, 0, 1)?;
-    Ok((out.into_iter().map(|r| r.expect("every task runs in shard 0/1")).collect(), resumed))
+    Ok((
+        out.into_iter()
+            .map(|r| r.expect("every task runs in shard 0/1"))
+            .collect(),
+        resumed,
+    ))
 }
 
 /// Run only the tasks (wavelength, measure) whose index `iw·measures + im` is `shard` modulo

@@ -46,20 +46,47 @@ fn parse_utc(t: &str) -> Result<(i32, u32, u32, u32, u32, f64), String> {
 }
 
 /// Sun position for a UTC time and a place; `delta_t` (s) overrides the estimate when given.
-pub fn sun_position(time: &str, latitude: f64, longitude: f64, elevation: f64, delta_t: Option<f64>) -> Result<SunPosition, String> {
+pub fn sun_position(
+    time: &str,
+    latitude: f64,
+    longitude: f64,
+    elevation: f64,
+    delta_t: Option<f64>,
+) -> Result<SunPosition, String> {
     let (y, mo, d, h, mi, s) = parse_utc(time)?;
     if !(-90.0..=90.0).contains(&latitude) || !(-180.0..=180.0).contains(&longitude) {
-        return Err(format!("latitude {latitude} / longitude {longitude} out of range"));
+        return Err(format!(
+            "latitude {latitude} / longitude {longitude} out of range"
+        ));
     }
     let dt = match delta_t {
         Some(v) => v,
-        None => solar_positioning::delta_t::estimate(y as f64 + (mo as f64 - 0.5) / 12.0).map_err(|e| e.to_string())?,
+        None => solar_positioning::delta_t::estimate(y as f64 + (mo as f64 - 0.5) / 12.0)
+            .map_err(|e| e.to_string())?,
     };
-    let jd = JulianDate::from_utc(y, mo, d, h, mi, s, dt).map_err(|e| format!("\"{time}\": {e}"))?;
-    let prepared = SolarPositions::new().for_time_from_julian(jd).map_err(|e| format!("\"{time}\": {e}"))?;
-    let p = prepared.at(Location { latitude, longitude }, elevation, None).map_err(|e| e.to_string())?;
-    let r = prepared.earth_radius_vector().ok_or("the SPA model gives no Earth–Sun distance")?;
-    Ok(SunPosition { zenith: p.zenith_angle(), azimuth: p.azimuth(), distance_au: r })
+    let jd =
+        JulianDate::from_utc(y, mo, d, h, mi, s, dt).map_err(|e| format!("\"{time}\": {e}"))?;
+    let prepared = SolarPositions::new()
+        .for_time_from_julian(jd)
+        .map_err(|e| format!("\"{time}\": {e}"))?;
+    let p = prepared
+        .at(
+            Location {
+                latitude,
+                longitude,
+            },
+            elevation,
+            None,
+        )
+        .map_err(|e| e.to_string())?;
+    let r = prepared
+        .earth_radius_vector()
+        .ok_or("the SPA model gives no Earth–Sun distance")?;
+    Ok(SunPosition {
+        zenith: p.zenith_angle(),
+        azimuth: p.azimuth(),
+        distance_au: r,
+    })
 }
 
 #[cfg(test)]
@@ -73,10 +100,25 @@ mod tests {
     /// (0.016332°, from its e − e0 at that elevation): 50.12795°. Tolerance 0.0005°.
     #[test]
     fn spa_reference_case() {
-        let p = sun_position("2003-10-17T19:30:30Z", 39.742476, -105.1786, 1830.14, Some(67.0)).unwrap();
-        assert!((p.azimuth - 194.34024).abs() < 5e-4, "azimuth {}", p.azimuth);
+        let p = sun_position(
+            "2003-10-17T19:30:30Z",
+            39.742476,
+            -105.1786,
+            1830.14,
+            Some(67.0),
+        )
+        .unwrap();
+        assert!(
+            (p.azimuth - 194.34024).abs() < 5e-4,
+            "azimuth {}",
+            p.azimuth
+        );
         assert!((p.zenith - 50.12795).abs() < 5e-4, "zenith {}", p.zenith);
-        assert!((p.distance_au - 0.9965422974).abs() < 1e-9, "r {}", p.distance_au);
+        assert!(
+            (p.distance_au - 0.9965422974).abs() < 1e-9,
+            "r {}",
+            p.distance_au
+        );
         assert!(sun_position("2003-10-17 19:30:30", 0.0, 0.0, 0.0, None).is_err());
         assert!(sun_position("2003-10-17T19:30:30Z", 95.0, 0.0, 0.0, None).is_err());
     }

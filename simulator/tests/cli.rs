@@ -244,16 +244,30 @@ fn sharded_runs_merge_exactly() {
     let exp = dir.join("exp.toml");
     std::fs::write(&exp, text).unwrap();
     let run = |out: &Path, extra: &[&str]| {
-        let mut args = vec!["run", exp.to_str().unwrap(), "-o", out.to_str().unwrap(), "--quiet"];
+        let mut args = vec![
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ];
         args.extend_from_slice(extra);
         let o = bin().args(&args).output().unwrap();
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     };
-    let (full, a, b, merged) = (dir.join("full"), dir.join("a"), dir.join("b"), dir.join("merged"));
+    let (full, a, b, merged) = (
+        dir.join("full"),
+        dir.join("a"),
+        dir.join("b"),
+        dir.join("merged"),
+    );
     run(&full, &[]);
     run(&a, &["--shard", "0/2"]);
     run(&b, &["--shard", "1/2"]);
-    assert!(!a.join("results.csv").exists(), "a shard must not write products");
+    assert!(
+        !a.join("results.csv").exists(),
+        "a shard must not write products"
+    );
     std::fs::create_dir_all(merged.join("checkpoints")).unwrap();
     for d in [&a, &b] {
         for e in std::fs::read_dir(d.join("checkpoints")).unwrap() {
@@ -261,13 +275,28 @@ fn sharded_runs_merge_exactly() {
             std::fs::copy(e.path(), merged.join("checkpoints").join(e.file_name())).unwrap();
         }
     }
-    assert_eq!(std::fs::read_dir(merged.join("checkpoints")).unwrap().count(), 4);
+    assert_eq!(
+        std::fs::read_dir(merged.join("checkpoints"))
+            .unwrap()
+            .count(),
+        4
+    );
     run(&merged, &[]);
     assert_eq!(
         std::fs::read_to_string(full.join("results.csv")).unwrap(),
         std::fs::read_to_string(merged.join("results.csv")).unwrap()
     );
-    let o = bin().args(["run", exp.to_str().unwrap(), "-o", dir.join("x").to_str().unwrap(), "--shard", "2/2"]).output().unwrap();
+    let o = bin()
+        .args([
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            dir.join("x").to_str().unwrap(),
+            "--shard",
+            "2/2",
+        ])
+        .output()
+        .unwrap();
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--shard"));
 }

@@ -289,11 +289,31 @@ fn iprt_a5_water_cloud() {
         .filter(|l| !l.starts_with('#') && !l.trim().is_empty())
         .map(|l| {
             let f: Vec<f64> = l.split_whitespace().map(|x| x.parse().unwrap()).collect();
-            Row { zout: f[0], depol: 0.0, sza: f[1], saa: f[2], va: f[3], phi: f[4], iquv: [f[5], f[6], f[7]], std: [f[9], f[10], f[11]] }
+            Row {
+                zout: f[0],
+                depol: 0.0,
+                sza: f[1],
+                saa: f[2],
+                va: f[3],
+                phi: f[4],
+                iquv: [f[5], f[6], f[7]],
+                std: [f[9], f[10], f[11]],
+            }
         })
         .collect();
-    let sub: Vec<&Row> = rows.iter().filter(|r| r.va < 179.5 || r.phi == 0.0).collect();
+    let sub: Vec<&Row> = rows
+        .iter()
+        .filter(|r| r.va < 179.5 || r.phi == 0.0)
+        .collect();
     let atm = "optical_thickness = 5.0\nsingle_scattering_albedo = 0.999978830724981\n\
                phase = { type = \"tabulated\", file = \"fixtures/watercloud.mie.cdf\", wavelength = 800.0 }";
-    run_case_full("IPRT A5 water cloud", &sub, atm, "type = \"lambertian\"\nreflectance = 0.0", "forward", 600_000).unwrap();
+    run_case_full(
+        "IPRT A5 water cloud",
+        &sub,
+        atm,
+        "type = \"lambertian\"\nreflectance = 0.0",
+        "forward",
+        600_000,
+    )
+    .unwrap();
 }

@@ -264,11 +264,20 @@ fn polarized_radiancemeter_matches_mdistant() {
 fn polarized_downward_matches_natraj_2009() {
     let mut errs = Vec::new();
     for (tau, albedo, mu0) in [("0.5", "0.25", 0.6), ("0.1", "0.80", 0.2)] {
-        let (ti, tq, tu) = (table_dir("I", "DN", tau, albedo), table_dir("Q", "DN", tau, albedo), table_dir("U", "DN", tau, albedo));
+        let (ti, tq, tu) = (
+            table_dir("I", "DN", tau, albedo),
+            table_dir("Q", "DN", tau, albedo),
+            table_dir("U", "DN", tau, albedo),
+        );
         let mut measures = String::new();
         let mut refs = Vec::new();
         for mu in [0.2, 0.4, 0.84] {
-            let pick = |t: &Vec<(f64, f64, [f64; 7])>| t.iter().find(|r| (r.0 - mu0).abs() < 1e-9 && (r.1 - mu).abs() < 1e-9).unwrap().2;
+            let pick = |t: &Vec<(f64, f64, [f64; 7])>| {
+                t.iter()
+                    .find(|r| (r.0 - mu0).abs() < 1e-9 && (r.1 - mu).abs() < 1e-9)
+                    .unwrap()
+                    .2
+            };
             let (i, q, u) = (pick(&ti), pick(&tq), pick(&tu));
             for k in [0usize, 2, 4, 6] {
                 let phi = 30.0 * k as f64;
@@ -293,10 +302,18 @@ fn polarized_downward_matches_natraj_2009() {
         for (r, (mu, phi, i, q, u)) in rows.iter().zip(&refs) {
             for (name, x, reference) in [("I", r.brf, i), ("Q", r.brf_q, q), ("U", r.brf_u, u)] {
                 let (v, e) = x.unwrap();
-                cmps.push(Cmp { label: format!("{name} mu {mu} phi {phi}"), reference: *reference, value: v, stderr: e });
+                cmps.push(Cmp {
+                    label: format!("{name} mu {mu} phi {phi}"),
+                    reference: *reference,
+                    value: v,
+                    stderr: e,
+                });
             }
         }
-        if let Err(e) = check_all(&format!("Natraj 2009 DN tau={tau} A={albedo} mu0={mu0}"), &cmps) {
+        if let Err(e) = check_all(
+            &format!("Natraj 2009 DN tau={tau} A={albedo} mu0={mu0}"),
+            &cmps,
+        ) {
             errs.push(e);
         }
     }

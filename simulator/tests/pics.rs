@@ -1,6 +1,5 @@
 //! The PICS workflow (`simulator::pics`, `simulate pics`).
 
-
 use simulator::pics::{read_acquisitions, run, Acquisition};
 
 fn tmp(name: &str) -> std::path::PathBuf {
@@ -25,25 +24,56 @@ fn seasonal_cycle_of_a_lambertian_site() {
     )
     .unwrap();
     let acqs: Vec<Acquisition> = (1..=12)
-        .map(|m| Acquisition { time_utc: format!("2026-{m:02}-15T10:00:00Z"), vza: 3.0, vaa: 100.0, srf: "sentinel_2a-msi-4".into() })
+        .map(|m| Acquisition {
+            time_utc: format!("2026-{m:02}-15T10:00:00Z"),
+            vza: 3.0,
+            vaa: 100.0,
+            srf: "sentinel_2a-msi-4".into(),
+        })
         .collect();
     let rows = run(&site, &acqs, |_| {}).unwrap();
     let e1au = rows[0].band_irradiance * rows[0].earth_sun_distance_au.powi(2);
     let mut szas = Vec::new();
     for r in &rows {
-        let p = simulator::sun_position::sun_position(&r.acquisition.time_utc, 28.55, 23.39, 118.0, None).unwrap();
-        assert!((r.sza - p.zenith).abs() < 1e-9 && (r.earth_sun_distance_au - p.distance_au).abs() < 1e-12);
+        let p = simulator::sun_position::sun_position(
+            &r.acquisition.time_utc,
+            28.55,
+            23.39,
+            118.0,
+            None,
+        )
+        .unwrap();
+        assert!(
+            (r.sza - p.zenith).abs() < 1e-9
+                && (r.earth_sun_distance_au - p.distance_au).abs() < 1e-12
+        );
         assert!((r.reflectance.0 - 0.4).abs() < 1e-12, "{:?}", r.reflectance);
-        let want = 0.4 * e1au / p.distance_au.powi(2) * p.zenith.to_radians().cos() / std::f64::consts::PI;
-        assert!((r.radiance.0 / want - 1.0).abs() < 1e-12, "{} vs {want}", r.radiance.0);
+        let want =
+            0.4 * e1au / p.distance_au.powi(2) * p.zenith.to_radians().cos() / std::f64::consts::PI;
+        assert!(
+            (r.radiance.0 / want - 1.0).abs() < 1e-12,
+            "{} vs {want}",
+            r.radiance.0
+        );
         szas.push(r.sza);
     }
     // The Sun is highest in June and lowest in December at this northern site.
     let (imin, imax) = (
-        szas.iter().enumerate().min_by(|a, b| a.1.partial_cmp(b.1).unwrap()).unwrap().0,
-        szas.iter().enumerate().max_by(|a, b| a.1.partial_cmp(b.1).unwrap()).unwrap().0,
+        szas.iter()
+            .enumerate()
+            .min_by(|a, b| a.1.partial_cmp(b.1).unwrap())
+            .unwrap()
+            .0,
+        szas.iter()
+            .enumerate()
+            .max_by(|a, b| a.1.partial_cmp(b.1).unwrap())
+            .unwrap()
+            .0,
     );
-    assert!((5..=6).contains(&imin) && (imax == 11 || imax == 0), "{szas:?}");
+    assert!(
+        (5..=6).contains(&imin) && (imax == 11 || imax == 0),
+        "{szas:?}"
+    );
 }
 
 /// The command end to end on the shipped example (fewer samples), and bad acquisitions files
@@ -52,11 +82,19 @@ fn seasonal_cycle_of_a_lambertian_site() {
 fn cli_pics() {
     let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
     let dir = tmp("cli");
-    let site = std::fs::read_to_string(root.join("examples/pics/libya4_site.toml")).unwrap().replace("spp = 100000", "spp = 3000");
+    let site = std::fs::read_to_string(root.join("examples/pics/libya4_site.toml"))
+        .unwrap()
+        .replace("spp = 100000", "spp = 3000");
     std::fs::write(dir.join("site.toml"), site).unwrap();
     let out = dir.join("out");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
-        .args(["pics", root.join("examples/pics/acquisitions.csv").to_str().unwrap(), "--site"])
+        .args([
+            "pics",
+            root.join("examples/pics/acquisitions.csv")
+                .to_str()
+                .unwrap(),
+            "--site",
+        ])
         .arg(dir.join("site.toml"))
         .args(["-o", out.to_str().unwrap(), "--quiet"])
         .output()
@@ -65,15 +103,33 @@ fn cli_pics() {
     let csv = std::fs::read_to_string(out.join("pics.csv")).unwrap();
     assert_eq!(csv.lines().count(), 7);
     let f = netcdf::open(out.join("pics.nc")).unwrap();
-    let refl: Vec<f64> = f.variable("reflectance").unwrap().get_values::<f64, _>(..).unwrap();
+    let refl: Vec<f64> = f
+        .variable("reflectance")
+        .unwrap()
+        .get_values::<f64, _>(..)
+        .unwrap();
     assert_eq!(refl.len(), 6);
     assert!(refl.iter().all(|r| *r > 0.3 && *r < 0.8), "{refl:?}");
     let bad = dir.join("bad.csv");
-    std::fs::write(&bad, "time_utc,vza,vaa,srf\n2026-01-15T09:45:00Z,abc,103.0,sentinel_2a-msi-4\n").unwrap();
+    std::fs::write(
+        &bad,
+        "time_utc,vza,vaa,srf\n2026-01-15T09:45:00Z,abc,103.0,sentinel_2a-msi-4\n",
+    )
+    .unwrap();
     let e = read_acquisitions(&bad).unwrap_err().to_string();
-    assert!(e.contains("bad.csv") && e.contains("line 2") && e.contains("vza"), "{e}");
+    assert!(
+        e.contains("bad.csv") && e.contains("line 2") && e.contains("vza"),
+        "{e}"
+    );
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
-        .args(["pics", bad.to_str().unwrap(), "--site", dir.join("site.toml").to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .args([
+            "pics",
+            bad.to_str().unwrap(),
+            "--site",
+            dir.join("site.toml").to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ])
         .output()
         .unwrap();
     assert_eq!(o.status.code(), Some(2));

@@ -489,18 +489,42 @@ fn illumination_from_time_and_place() {
     );
     let exp = experiment(&text);
     let p = sun_position("2024-06-21T10:30:00Z", 28.55, 23.39, 118.0, None).unwrap();
-    assert!((exp.sun_zenith_deg - p.zenith).abs() < 1e-12 && (exp.sun_azimuth_deg - p.azimuth).abs() < 1e-12);
+    assert!(
+        (exp.sun_zenith_deg - p.zenith).abs() < 1e-12
+            && (exp.sun_azimuth_deg - p.azimuth).abs() < 1e-12
+    );
     // Libya-4 near local noon at the June solstice: the Sun is high, in the south-east to south.
-    assert!(p.zenith > 4.0 && p.zenith < 15.0 && p.azimuth > 90.0 && p.azimuth < 200.0, "{p:?}");
+    assert!(
+        p.zenith > 4.0 && p.zenith < 15.0 && p.azimuth > 90.0 && p.azimuth < 200.0,
+        "{p:?}"
+    );
     assert!((exp.optics[0].irradiance - 1.5 / (p.distance_au * p.distance_au)).abs() < 1e-12);
-    assert!((p.distance_au - 1.0163).abs() < 2e-4, "aphelion season: {}", p.distance_au);
+    assert!(
+        (p.distance_au - 1.0163).abs() < 2e-4,
+        "aphelion season: {}",
+        p.distance_au
+    );
     for (bad, key) in [
-        (text.replace("irradiance = 1.5", "irradiance = 1.5\nzenith = 30.0"), "illumination.zenith"),
-        (text.replace("irradiance = 1.5", "irradiance = 1.5\ndate = \"2024-06-21\""), "illumination.date"),
-        (text.replace("latitude = 28.55\n", ""), "illumination.latitude"),
+        (
+            text.replace("irradiance = 1.5", "irradiance = 1.5\nzenith = 30.0"),
+            "illumination.zenith",
+        ),
+        (
+            text.replace(
+                "irradiance = 1.5",
+                "irradiance = 1.5\ndate = \"2024-06-21\"",
+            ),
+            "illumination.date",
+        ),
+        (
+            text.replace("latitude = 28.55\n", ""),
+            "illumination.latitude",
+        ),
         (text.replace("10:30:00Z", "10:30:00"), "illumination.time"),
     ] {
-        let e = simulator::config::Experiment::from_str(&bad, std::path::Path::new("x.toml")).unwrap_err().to_string();
+        let e = simulator::config::Experiment::from_str(&bad, std::path::Path::new("x.toml"))
+            .unwrap_err()
+            .to_string();
         assert!(e.contains(key), "{key}: {e}");
     }
 }
@@ -511,7 +535,11 @@ fn illumination_from_time_and_place() {
 #[test]
 fn band_precision_target() {
     use simulator::srf::Srf;
-    let (_, w) = Srf::builtin("sentinel_2a-msi-4").unwrap().unwrap().grid(5.0).unwrap();
+    let (_, w) = Srf::builtin("sentinel_2a-msi-4")
+        .unwrap()
+        .unwrap()
+        .grid(5.0)
+        .unwrap();
     let text = format!(
         "[spectral]\nsrf = \"sentinel_2a-msi-4\"\n[surface]\ntype = \"lambertian\"\nreflectance = 0.3\n\
          [illumination]\ntype = \"directional\"\nzenith = 30.0\n{}target_rel_stderr = 0.002\n",
@@ -521,5 +549,8 @@ fn band_precision_target() {
     // Constant E0 = 1 here, so a = w.
     let n_eff = w.iter().sum::<f64>().powi(2) / w.iter().map(|x| x * x).sum::<f64>();
     let t = exp.measures[0].target_rel_stderr.unwrap();
-    assert!((t - 0.002 * n_eff.sqrt()).abs() < 1e-12 && n_eff > 3.0, "{t} {n_eff}");
+    assert!(
+        (t - 0.002 * n_eff.sqrt()).abs() < 1e-12 && n_eff > 3.0,
+        "{t} {n_eff}"
+    );
 }

@@ -144,7 +144,10 @@ impl Case {
 fn layers_toml(wavelength: f64, ozone: bool) -> (String, f64, f64) {
     let prof = table("air_ozone_numden_profiles.txt");
     let xs = table("xsection_rayleigh_ozone.txt");
-    let x = xs.iter().find(|r| r[0] == wavelength).expect("wavelength in the cross-section table");
+    let x = xs
+        .iter()
+        .find(|r| r[0] == wavelength)
+        .expect("wavelength in the cross-section table");
     let (sig_r, sig_o3) = (x[1], x[2]);
     let cm_per_km = 1e5;
     let mut out = String::new();
@@ -156,7 +159,11 @@ fn layers_toml(wavelength: f64, ozone: bool) -> (String, f64, f64) {
         for k in 0..SUB {
             let (a, b) = (k as f64 / SUB as f64, (k + 1) as f64 / SUB as f64);
             let ts = 0.5 * (lin(1, a) + lin(1, b)) * sig_r * cm_per_km * dz;
-            let ta = if ozone { 0.5 * (lin(2, a) + lin(2, b)) * sig_o3 * cm_per_km * dz } else { 0.0 };
+            let ta = if ozone {
+                0.5 * (lin(2, a) + lin(2, b)) * sig_o3 * cm_per_km * dz
+            } else {
+                0.0
+            };
             tau_r += ts;
             tau_o3 += ta;
             out += &format!(
@@ -205,16 +212,28 @@ fn run_case(c: &Case, seed: u64) -> Result<(), String> {
     for (h, row) in HEIGHTS.iter().zip(&rows) {
         assert_eq!(row.measure, measure_id(*h));
         let (v, e) = row.radiance.expect("radiance");
-        let reference = bench.iter().find(|b| (b.0 - h).abs() < 1e-6).expect("tangent height in the benchmark").1;
+        let reference = bench
+            .iter()
+            .find(|b| (b.0 - h).abs() < 1e-6)
+            .expect("tangent height in the benchmark")
+            .1;
         println!(
             "  h_t {h:4.1} km: simulate {v:.5e} ± {e:.1e}, Zawada {reference:.5e}, diff {:+.3} % (z = {:+.2})",
             100.0 * (v / reference - 1.0),
             (v - reference) / e
         );
-        cmps.push(Cmp { label: format!("h_t {h} km"), reference, value: v, stderr: e });
+        cmps.push(Cmp {
+            label: format!("h_t {h} km"),
+            reference,
+            value: v,
+            stderr: e,
+        });
     }
     println!("  ({:.1} s)", t0.elapsed().as_secs_f64());
-    check(&format!("Zawada 2021 limb single scattering, {}", c.label), &cmps)
+    check(
+        &format!("Zawada 2021 limb single scattering, {}", c.label),
+        &cmps,
+    )
 }
 
 /// `common::check_all`'s test with the benchmark's accuracy as the floor:
@@ -241,11 +260,19 @@ fn check(case: &str, cmps: &[Cmp]) -> Result<(), String> {
             ));
         }
     }
-    println!("{case}: {} comparisons, max |rel diff| = {worst_rel:.3e}, max z = {worst_z:.2}", cmps.len());
+    println!(
+        "{case}: {} comparisons, max |rel diff| = {worst_rel:.3e}, max z = {worst_z:.2}",
+        cmps.len()
+    );
     if failures.is_empty() {
         Ok(())
     } else {
-        Err(format!("{case}: {} of {} comparisons failed:\n{}", failures.len(), cmps.len(), failures.join("\n")))
+        Err(format!(
+            "{case}: {} of {} comparisons failed:\n{}",
+            failures.len(),
+            cmps.len(),
+            failures.join("\n")
+        ))
     }
 }
 
@@ -282,6 +309,10 @@ fn zawada2021_single_scatter_limb() {
         },
     ];
     // One seed per case, so the four comparisons are statistically independent.
-    let errs: Vec<String> = cases.iter().zip(1u64..).filter_map(|(c, i)| run_case(c, 2021 + i).err()).collect();
+    let errs: Vec<String> = cases
+        .iter()
+        .zip(1u64..)
+        .filter_map(|(c, i)| run_case(c, 2021 + i).err())
+        .collect();
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }

@@ -72,8 +72,15 @@ pub struct Catalogue {
 impl Catalogue {
     /// The built-in catalogue (procedural templates only).
     pub fn builtin() -> Catalogue {
-        let f: CatalogueFile = toml::from_str(BUILTIN).expect("built-in catalogue is valid (checked by a unit test)");
-        Catalogue { entries: f.templates.into_iter().map(|t| (t, PathBuf::from("."))).collect() }
+        let f: CatalogueFile =
+            toml::from_str(BUILTIN).expect("built-in catalogue is valid (checked by a unit test)");
+        Catalogue {
+            entries: f
+                .templates
+                .into_iter()
+                .map(|t| (t, PathBuf::from(".")))
+                .collect(),
+        }
     }
 
     /// Add (or replace, by name) entries whose relative paths start at `base_dir`.
@@ -96,19 +103,37 @@ impl Catalogue {
 impl TemplateSpec {
     /// Check the entry; `origin` (the file naming it) and `key` (its key path) go into errors.
     pub fn validate(&self, origin: &Path, key: &str) -> Result<(), TileError> {
-        let inv =
-            |k: &str, message: String| TileError::Invalid { path: origin.into(), key: format!("{key}.{k}"), message };
+        let inv = |k: &str, message: String| TileError::Invalid {
+            path: origin.into(),
+            key: format!("{key}.{k}"),
+            message,
+        };
         match (&self.procedural, &self.file) {
-            (Some(_), Some(_)) => return Err(inv("file", "give either `file` or `procedural`, not both".into())),
-            (None, None) => return Err(inv("file", "give `file` (OBJ, PLY, glTF, GLB) or `procedural`".into())),
-            (Some(p), None) => p.validate().map_err(|(k, m)| inv(&format!("procedural.{k}"), m))?,
+            (Some(_), Some(_)) => {
+                return Err(inv(
+                    "file",
+                    "give either `file` or `procedural`, not both".into(),
+                ))
+            }
+            (None, None) => {
+                return Err(inv(
+                    "file",
+                    "give `file` (OBJ, PLY, glTF, GLB) or `procedural`".into(),
+                ))
+            }
+            (Some(p), None) => p
+                .validate()
+                .map_err(|(k, m)| inv(&format!("procedural.{k}"), m))?,
             (None, Some(_)) => {}
         }
         if !self.parts.is_empty() && self.file.is_none() {
             return Err(inv("parts", "`parts` needs `file`".into()));
         }
         if !(self.unit_m.is_finite() && self.unit_m > 0.0) {
-            return Err(inv("unit_m", format!("{} must be > 0 (metres per file unit)", self.unit_m)));
+            return Err(inv(
+                "unit_m",
+                format!("{} must be > 0 (metres per file unit)", self.unit_m),
+            ));
         }
         Ok(())
     }
@@ -140,7 +165,10 @@ impl TemplateSpec {
 
     /// Library material for a template material name.
     pub fn library_material<'a>(&'a self, template_material: &'a str) -> Option<&'a str> {
-        self.materials.get(template_material).map(|s| s.as_str()).or(self.default_material.as_deref())
+        self.materials
+            .get(template_material)
+            .map(|s| s.as_str())
+            .or(self.default_material.as_deref())
     }
 }
 

@@ -78,14 +78,19 @@ impl Template {
             })
             .collect();
         self.positions.extend(other.positions);
-        self.indices.extend(other.indices.iter().map(|t| t.map(|i| i + base)));
-        self.triangle_materials.extend(other.triangle_materials.iter().map(|&m| remap[m as usize]));
+        self.indices
+            .extend(other.indices.iter().map(|t| t.map(|i| i + base)));
+        self.triangle_materials
+            .extend(other.triangle_materials.iter().map(|&m| remap[m as usize]));
         self.source = format!("{} + {}", self.source, other.source);
     }
 
     /// Radius of the footprint (max horizontal distance from the origin), metres.
     pub fn footprint_radius(&self) -> f32 {
-        self.positions.iter().map(|p| (p[0] * p[0] + p[1] * p[1]).sqrt()).fold(0.0, f32::max)
+        self.positions
+            .iter()
+            .map(|p| (p[0] * p[0] + p[1] * p[1]).sqrt())
+            .fold(0.0, f32::max)
     }
 }
 
@@ -93,11 +98,18 @@ impl Template {
 #[derive(Debug, thiserror::Error)]
 pub enum TileError {
     #[error("cannot read {}: {source}", path.display())]
-    Read { path: PathBuf, source: std::io::Error },
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("{}: {message}", path.display())]
     Parse { path: PathBuf, message: String },
     #[error("{}: `{key}`: {message}", path.display())]
-    Invalid { path: PathBuf, key: String, message: String },
+    Invalid {
+        path: PathBuf,
+        key: String,
+        message: String,
+    },
     #[error("cannot load template mesh {}: {message}", path.display())]
     Mesh { path: PathBuf, message: String },
 }

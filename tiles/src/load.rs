@@ -18,9 +18,16 @@ use crate::{Template, TileError};
 /// Load `path` by its extension (obj, gltf, glb) and normalise it.
 pub fn load_mesh(path: &Path, unit_m: f64, up: UpAxis) -> Result<Template, TileError> {
     if !path.exists() {
-        return Err(TileError::Mesh { path: path.into(), message: "file not found".into() });
+        return Err(TileError::Mesh {
+            path: path.into(),
+            message: "file not found".into(),
+        });
     }
-    let ext = path.extension().and_then(|e| e.to_str()).unwrap_or("").to_ascii_lowercase();
+    let ext = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
     let mut t = match ext.as_str() {
         "obj" => load_obj(path)?,
         "gltf" | "glb" => load_gltf(path)?,
@@ -28,15 +35,27 @@ pub fn load_mesh(path: &Path, unit_m: f64, up: UpAxis) -> Result<Template, TileE
         _ => {
             return Err(TileError::Mesh {
                 path: path.into(),
-                message: format!("unknown mesh format `.{ext}` (expected .obj, .ply, .gltf or .glb)"),
+                message: format!(
+                    "unknown mesh format `.{ext}` (expected .obj, .ply, .gltf or .glb)"
+                ),
             })
         }
     };
     if t.indices.is_empty() {
-        return Err(TileError::Mesh { path: path.into(), message: "no triangles".into() });
+        return Err(TileError::Mesh {
+            path: path.into(),
+            message: "no triangles".into(),
+        });
     }
-    if let Some(p) = t.positions.iter().find(|p| p.iter().any(|c| !c.is_finite())) {
-        return Err(TileError::Mesh { path: path.into(), message: format!("non-finite vertex {p:?}") });
+    if let Some(p) = t
+        .positions
+        .iter()
+        .find(|p| p.iter().any(|c| !c.is_finite()))
+    {
+        return Err(TileError::Mesh {
+            path: path.into(),
+            message: format!("non-finite vertex {p:?}"),
+        });
     }
     for p in &mut t.positions {
         let s = unit_m as f32;
@@ -51,11 +70,20 @@ pub fn load_mesh(path: &Path, unit_m: f64, up: UpAxis) -> Result<Template, TileE
 }
 
 fn load_obj(path: &Path) -> Result<Template, TileError> {
-    let opts = tobj::LoadOptions { triangulate: true, single_index: true, ignore_points: true, ignore_lines: true };
-    let (models, mats) =
-        tobj::load_obj(path, &opts).map_err(|e| TileError::Mesh { path: path.into(), message: e.to_string() })?;
+    let opts = tobj::LoadOptions {
+        triangulate: true,
+        single_index: true,
+        ignore_points: true,
+        ignore_lines: true,
+    };
+    let (models, mats) = tobj::load_obj(path, &opts).map_err(|e| TileError::Mesh {
+        path: path.into(),
+        message: e.to_string(),
+    })?;
     // A missing .mtl is not fatal: the materials keep their indices and get generic names.
-    let mat_names: Vec<String> = mats.map(|m| m.into_iter().map(|m| m.name).collect()).unwrap_or_default();
+    let mat_names: Vec<String> = mats
+        .map(|m| m.into_iter().map(|m| m.name).collect())
+        .unwrap_or_default();
     let mut t = Template {
         name: String::new(),
         source: String::new(),
@@ -67,9 +95,13 @@ fn load_obj(path: &Path) -> Result<Template, TileError> {
     for m in models {
         let base = t.positions.len() as u32;
         let mesh = &m.mesh;
-        t.positions.extend(mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
+        t.positions
+            .extend(mesh.positions.chunks_exact(3).map(|c| [c[0], c[1], c[2]]));
         let name = match mesh.material_id {
-            Some(i) => mat_names.get(i).cloned().unwrap_or_else(|| format!("material{i}")),
+            Some(i) => mat_names
+                .get(i)
+                .cloned()
+                .unwrap_or_else(|| format!("material{i}")),
             None => "unnamed".to_string(),
         };
         let mi = material_slot(&mut t.material_names, name);
@@ -102,10 +134,17 @@ fn ply_scalar(ty: &str) -> Option<(usize, ScalarReader)> {
 /// PLY: `element vertex` with float x, y, z (other properties skipped) and `element face`
 /// with one list property of indices; other elements are refused.
 fn load_ply(path: &Path) -> Result<Template, TileError> {
-    let err = |m: String| TileError::Mesh { path: path.into(), message: m };
+    let err = |m: String| TileError::Mesh {
+        path: path.into(),
+        message: m,
+    };
     let bytes = std::fs::read(path).map_err(|e| err(e.to_string()))?;
-    let end = bytes.windows(11).position(|w| w == b"end_header\n").ok_or_else(|| err("no `end_header` line".into()))?;
-    let header = std::str::from_utf8(&bytes[..end]).map_err(|_| err("header is not text".into()))?;
+    let end = bytes
+        .windows(11)
+        .position(|w| w == b"end_header\n")
+        .ok_or_else(|| err("no `end_header` line".into()))?;
+    let header =
+        std::str::from_utf8(&bytes[..end]).map_err(|_| err("header is not text".into()))?;
     let mut body = &bytes[end + 11..];
     let mut lines = header.lines();
     if lines.next().map(str::trim) != Some("ply") {
@@ -121,11 +160,16 @@ fn load_ply(path: &Path) -> Result<Template, TileError> {
             ["format", "ascii", _] => binary = false,
             ["format", "binary_little_endian", _] => binary = true,
             ["format", f, _] => {
-                return Err(err(format!("PLY format `{f}` is not supported (ascii, binary_little_endian)")))
+                return Err(err(format!(
+                    "PLY format `{f}` is not supported (ascii, binary_little_endian)"
+                )))
             }
-            ["element", name, n] => {
-                elements.push((name.to_string(), n.parse().map_err(|_| err(format!("bad count in `{line}`")))?, vec![]))
-            }
+            ["element", name, n] => elements.push((
+                name.to_string(),
+                n.parse()
+                    .map_err(|_| err(format!("bad count in `{line}`")))?,
+                vec![],
+            )),
             ["property", "list", ct, it, name] => elements
                 .last_mut()
                 .ok_or_else(|| err("property before element".into()))?
@@ -140,7 +184,10 @@ fn load_ply(path: &Path) -> Result<Template, TileError> {
             _ => return Err(err(format!("unsupported header line `{line}`"))),
         }
     }
-    let name = path.file_stem().map(|s| s.to_string_lossy().into_owned()).unwrap_or_else(|| "unnamed".into());
+    let name = path
+        .file_stem()
+        .map(|s| s.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "unnamed".into());
     let mut t = Template {
         name: String::new(),
         source: String::new(),
@@ -149,11 +196,16 @@ fn load_ply(path: &Path) -> Result<Template, TileError> {
         triangle_materials: vec![],
         material_names: vec![name],
     };
-    let text = if binary { String::new() } else { String::from_utf8_lossy(body).into_owned() };
+    let text = if binary {
+        String::new()
+    } else {
+        String::from_utf8_lossy(body).into_owned()
+    };
     let mut tokens = text.split_whitespace();
     let mut next_value = |ty: &str, body: &mut &[u8]| -> Result<f64, TileError> {
         if binary {
-            let (n, read) = ply_scalar(ty).ok_or_else(|| err(format!("unknown PLY type `{ty}`")))?;
+            let (n, read) =
+                ply_scalar(ty).ok_or_else(|| err(format!("unknown PLY type `{ty}`")))?;
             if body.len() < n {
                 return Err(err("file ends inside the data".into()));
             }
@@ -182,7 +234,8 @@ fn load_ply(path: &Path) -> Result<Template, TileError> {
                         }
                         vals[k] = next_value(&p.1, &mut body)?;
                     }
-                    t.positions.push([vals[ix] as f32, vals[iy] as f32, vals[iz] as f32]);
+                    t.positions
+                        .push([vals[ix] as f32, vals[iy] as f32, vals[iz] as f32]);
                 }
             }
             "face" => {
@@ -208,7 +261,11 @@ fn load_ply(path: &Path) -> Result<Template, TileError> {
                     }
                 }
             }
-            other => return Err(err(format!("PLY element `{other}` is not supported (vertex, face)"))),
+            other => {
+                return Err(err(format!(
+                    "PLY element `{other}` is not supported (vertex, face)"
+                )))
+            }
         }
     }
     let n = t.positions.len() as u32;
@@ -231,10 +288,17 @@ fn material_slot(names: &mut Vec<String>, name: String) -> u16 {
 fn load_gltf(path: &Path) -> Result<Template, TileError> {
     // Buffers only: textures are not needed (materials come from the library), and game assets
     // often name texture files that are not shipped beside them.
-    let gltf::Gltf { document: doc, blob } =
-        gltf::Gltf::open(path).map_err(|e| TileError::Mesh { path: path.into(), message: e.to_string() })?;
-    let buffers = gltf::import_buffers(&doc, path.parent(), blob)
-        .map_err(|e| TileError::Mesh { path: path.into(), message: format!("buffers: {e}") })?;
+    let gltf::Gltf {
+        document: doc,
+        blob,
+    } = gltf::Gltf::open(path).map_err(|e| TileError::Mesh {
+        path: path.into(),
+        message: e.to_string(),
+    })?;
+    let buffers = gltf::import_buffers(&doc, path.parent(), blob).map_err(|e| TileError::Mesh {
+        path: path.into(),
+        message: format!("buffers: {e}"),
+    })?;
     let mut t = Template {
         name: String::new(),
         source: String::new(),
@@ -246,7 +310,10 @@ fn load_gltf(path: &Path) -> Result<Template, TileError> {
     let scene = doc
         .default_scene()
         .or_else(|| doc.scenes().next())
-        .ok_or_else(|| TileError::Mesh { path: path.into(), message: "no scene".into() })?;
+        .ok_or_else(|| TileError::Mesh {
+            path: path.into(),
+            message: "no scene".into(),
+        })?;
     fn visit(
         node: gltf::Node,
         parent: glam::Mat4,
@@ -261,9 +328,12 @@ fn load_gltf(path: &Path) -> Result<Template, TileError> {
                     continue;
                 }
                 let reader = prim.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-                let Some(pos) = reader.read_positions() else { continue };
+                let Some(pos) = reader.read_positions() else {
+                    continue;
+                };
                 let base = t.positions.len() as u32;
-                t.positions.extend(pos.map(|p| m.transform_point3(glam::Vec3::from(p)).to_array()));
+                t.positions
+                    .extend(pos.map(|p| m.transform_point3(glam::Vec3::from(p)).to_array()));
                 let n = t.positions.len() as u32 - base;
                 let idx: Vec<u32> = match reader.read_indices() {
                     Some(i) => i.into_u32().collect(),
@@ -275,8 +345,11 @@ fn load_gltf(path: &Path) -> Result<Template, TileError> {
                         message: format!("index {bad} past {n} vertices in mesh {:?}", mesh.name()),
                     });
                 }
-                let name =
-                    prim.material().name().map(str::to_string).unwrap_or_else(|| match prim.material().index() {
+                let name = prim
+                    .material()
+                    .name()
+                    .map(str::to_string)
+                    .unwrap_or_else(|| match prim.material().index() {
                         Some(i) => format!("material{i}"),
                         None => "unnamed".into(),
                     });
@@ -310,7 +383,9 @@ mod tests {
     use super::*;
 
     fn fixture(name: &str) -> std::path::PathBuf {
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/fixtures").join(name)
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("tests/fixtures")
+            .join(name)
     }
 
     /// Rationale: an OBJ written y-up in centimetres must come out in metres, z up, with its
@@ -320,9 +395,16 @@ mod tests {
         let t = load_mesh(&fixture("pyramid_cm_yup.obj"), 0.01, UpAxis::Y).unwrap();
         assert_eq!(t.indices.len(), 6);
         let (lo, hi) = t.bounds();
-        assert!((hi[2] - 2.0).abs() < 1e-6 && lo[2].abs() < 1e-6, "apex 200 cm up in y becomes z = 2 m: {lo:?} {hi:?}");
+        assert!(
+            (hi[2] - 2.0).abs() < 1e-6 && lo[2].abs() < 1e-6,
+            "apex 200 cm up in y becomes z = 2 m: {lo:?} {hi:?}"
+        );
         assert!((hi[0] - 1.0).abs() < 1e-6 && (lo[1] + 1.0).abs() < 1e-6);
-        assert!(t.material_names.contains(&"stone".to_string()), "{:?}", t.material_names);
+        assert!(
+            t.material_names.contains(&"stone".to_string()),
+            "{:?}",
+            t.material_names
+        );
     }
 
     /// Rationale: an ASCII PLY quad is read and fanned into two triangles named after the file;
@@ -358,7 +440,10 @@ mod tests {
         assert_eq!((f.positions.len(), f.indices.len()), (29445, 22044));
         assert_eq!((t.positions.len(), t.indices.len()), (9832, 17206));
         let (lo, hi) = f.bounds();
-        assert!(hi[2] - lo[2] > 1.0 && hi[2] - lo[2] < 10.0, "a citrus crown of a few metres: {lo:?} {hi:?}");
+        assert!(
+            hi[2] - lo[2] > 1.0 && hi[2] - lo[2] < 10.0,
+            "a citrus crown of a few metres: {lo:?} {hi:?}"
+        );
     }
 
     /// Rationale: a real glTF binary (Kenney city builder, CC0) loads with positions and
@@ -368,7 +453,10 @@ mod tests {
         let t = load_mesh(&fixture("building-garage.glb"), 10.0, UpAxis::Y).unwrap();
         assert!(t.indices.len() > 10 && !t.material_names.is_empty());
         let (lo, hi) = t.bounds();
-        assert!(hi[2] - lo[2] > 1.0 && hi[2] - lo[2] < 30.0, "a garage of a few metres: {lo:?} {hi:?}");
+        assert!(
+            hi[2] - lo[2] > 1.0 && hi[2] - lo[2] < 30.0,
+            "a garage of a few metres: {lo:?} {hi:?}"
+        );
         let bad = std::env::temp_dir().join(format!("broken-{}.glb", std::process::id()));
         std::fs::write(&bad, b"glTF not really").unwrap();
         let e = load_mesh(&bad, 1.0, UpAxis::Y).unwrap_err();

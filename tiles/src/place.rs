@@ -37,7 +37,17 @@ impl PlacedInstance {
     pub fn linear(&self) -> [f32; 9] {
         let (s, c) = self.yaw.sin_cos();
         let k = self.scale;
-        [(c * k) as f32, (s * k) as f32, 0.0, (-s * k) as f32, (c * k) as f32, 0.0, 0.0, 0.0, k as f32]
+        [
+            (c * k) as f32,
+            (s * k) as f32,
+            0.0,
+            (-s * k) as f32,
+            (c * k) as f32,
+            0.0,
+            0.0,
+            0.0,
+            k as f32,
+        ]
     }
 }
 
@@ -61,9 +71,18 @@ pub fn place_instances(
             // Keep strictly inside the tile even where rounding would reach the far edge.
             let x = tile_min[0] + (rng.uniform() * tile_size[0]).min(tile_size[0] * (1.0 - 1e-9));
             let y = tile_min[1] + (rng.uniform() * tile_size[1]).min(tile_size[1] * (1.0 - 1e-9));
-            let yaw = if r.random_rotation { rng.uniform() * std::f64::consts::TAU } else { 0.0 };
+            let yaw = if r.random_rotation {
+                rng.uniform() * std::f64::consts::TAU
+            } else {
+                0.0
+            };
             let scale = r.scale[0] + rng.uniform() * (r.scale[1] - r.scale[0]);
-            out.push(PlacedInstance { template: r.template, position: [x, y, height(x, y)], yaw, scale });
+            out.push(PlacedInstance {
+                template: r.template,
+                position: [x, y, height(x, y)],
+                yaw,
+                scale,
+            });
         }
     }
 }
@@ -77,7 +96,12 @@ mod tests {
     /// on (seed, tile index).
     #[test]
     fn counts_positions_and_determinism() {
-        let rule = PlacementRule { template: 3, density_per_ha: 2.5, scale: [0.5, 2.0], random_rotation: true };
+        let rule = PlacementRule {
+            template: 3,
+            density_per_ha: 2.5,
+            scale: [0.5, 2.0],
+            random_rotation: true,
+        };
         let mut total = 0usize;
         let tiles = 20_000u64;
         for t in 0..tiles {
@@ -94,10 +118,21 @@ mod tests {
         }
         // 0.025 per tile: mean 500 over 20 000 tiles, Poisson-binomial sd ≈ 22; 5 sd bounds.
         let expected = 2.5 * 0.01 * tiles as f64;
-        assert!((total as f64 - expected).abs() < 5.0 * expected.sqrt(), "{total} vs {expected}");
+        assert!(
+            (total as f64 - expected).abs() < 5.0 * expected.sqrt(),
+            "{total} vs {expected}"
+        );
         let run = |seed| {
             let mut v = Vec::new();
-            place_instances(7, [0.0, 0.0], [100.0, 100.0], &[&rule], seed, |_, _| 0.0, &mut v);
+            place_instances(
+                7,
+                [0.0, 0.0],
+                [100.0, 100.0],
+                &[&rule],
+                seed,
+                |_, _| 0.0,
+                &mut v,
+            );
             v
         };
         assert_eq!(run(1), run(1));

@@ -58,21 +58,45 @@ impl ProceduralSpec {
             }
         };
         match self {
-            ProceduralSpec::Tree { height, trunk_height, trunk_radius, crown_radius, leaves, leaf_size, .. }
-            | ProceduralSpec::Conifer { height, trunk_height, trunk_radius, crown_radius, leaves, leaf_size, .. } => {
+            ProceduralSpec::Tree {
+                height,
+                trunk_height,
+                trunk_radius,
+                crown_radius,
+                leaves,
+                leaf_size,
+                ..
+            }
+            | ProceduralSpec::Conifer {
+                height,
+                trunk_height,
+                trunk_radius,
+                crown_radius,
+                leaves,
+                leaf_size,
+                ..
+            } => {
                 pos("height", *height)?;
                 pos("trunk_radius", *trunk_radius)?;
                 pos("crown_radius", *crown_radius)?;
                 pos("leaf_size", *leaf_size)?;
                 if !(*trunk_height >= 0.0 && trunk_height < height) {
-                    return Err(("trunk_height".into(), format!("{trunk_height} must be in [0, height = {height}) m")));
+                    return Err((
+                        "trunk_height".into(),
+                        format!("{trunk_height} must be in [0, height = {height}) m"),
+                    ));
                 }
                 if *leaves == 0 || *leaves > 10_000_000 {
                     return Err(("leaves".into(), format!("{leaves} must be in 1..=10000000")));
                 }
                 Ok(())
             }
-            ProceduralSpec::Building { width, depth, wall_height, roof_height } => {
+            ProceduralSpec::Building {
+                width,
+                depth,
+                wall_height,
+                roof_height,
+            } => {
                 pos("width", *width)?;
                 pos("depth", *depth)?;
                 pos("wall_height", *wall_height)?;
@@ -86,15 +110,48 @@ impl ProceduralSpec {
 
     pub fn generate(&self) -> Template {
         match self {
-            ProceduralSpec::Tree { height, trunk_height, trunk_radius, crown_radius, leaves, leaf_size, seed } => {
-                tree(*height, *trunk_height, *trunk_radius, *crown_radius, *leaves, *leaf_size, *seed, false)
-            }
-            ProceduralSpec::Conifer { height, trunk_height, trunk_radius, crown_radius, leaves, leaf_size, seed } => {
-                tree(*height, *trunk_height, *trunk_radius, *crown_radius, *leaves, *leaf_size, *seed, true)
-            }
-            ProceduralSpec::Building { width, depth, wall_height, roof_height } => {
-                building(*width, *depth, *wall_height, *roof_height)
-            }
+            ProceduralSpec::Tree {
+                height,
+                trunk_height,
+                trunk_radius,
+                crown_radius,
+                leaves,
+                leaf_size,
+                seed,
+            } => tree(
+                *height,
+                *trunk_height,
+                *trunk_radius,
+                *crown_radius,
+                *leaves,
+                *leaf_size,
+                *seed,
+                false,
+            ),
+            ProceduralSpec::Conifer {
+                height,
+                trunk_height,
+                trunk_radius,
+                crown_radius,
+                leaves,
+                leaf_size,
+                seed,
+            } => tree(
+                *height,
+                *trunk_height,
+                *trunk_radius,
+                *crown_radius,
+                *leaves,
+                *leaf_size,
+                *seed,
+                true,
+            ),
+            ProceduralSpec::Building {
+                width,
+                depth,
+                wall_height,
+                roof_height,
+            } => building(*width, *depth, *wall_height, *roof_height),
         }
     }
 }
@@ -117,7 +174,9 @@ impl MeshBuilder {
         }
     }
     fn vertex(&mut self, p: [f64; 3]) -> u32 {
-        self.t.positions.push([p[0] as f32, p[1] as f32, p[2] as f32]);
+        self.t
+            .positions
+            .push([p[0] as f32, p[1] as f32, p[2] as f32]);
         (self.t.positions.len() - 1) as u32
     }
     fn tri(&mut self, a: u32, b: u32, c: u32, m: u16) {
@@ -155,8 +214,16 @@ fn tree(
     for i in 0..n {
         let a0 = 2.0 * PI * i as f64 / n as f64;
         let a1 = 2.0 * PI * (i + 1) as f64 / n as f64;
-        let (x0, y0, x1, y1) = (trunk_r * a0.cos(), trunk_r * a0.sin(), trunk_r * a1.cos(), trunk_r * a1.sin());
-        b.quad([[x0, y0, 0.0], [x1, y1, 0.0], [x1, y1, top], [x0, y0, top]], 1);
+        let (x0, y0, x1, y1) = (
+            trunk_r * a0.cos(),
+            trunk_r * a0.sin(),
+            trunk_r * a1.cos(),
+            trunk_r * a1.sin(),
+        );
+        b.quad(
+            [[x0, y0, 0.0], [x1, y1, 0.0], [x1, y1, top], [x0, y0, top]],
+            1,
+        );
     }
     let mut rng = SplitMix64::keyed(seed, 0x7EE);
     let half = 0.5 * (height - trunk_height);
@@ -183,19 +250,39 @@ fn tree(
         let phi = 2.0 * PI * rng.uniform();
         let sz = (1.0 - cz * cz).max(0.0).sqrt();
         let nrm = [sz * phi.cos(), sz * phi.sin(), cz];
-        let helper = if nrm[2].abs() < 0.9 { [0.0, 0.0, 1.0] } else { [1.0, 0.0, 0.0] };
+        let helper = if nrm[2].abs() < 0.9 {
+            [0.0, 0.0, 1.0]
+        } else {
+            [1.0, 0.0, 0.0]
+        };
         let u = normalize(cross(helper, nrm));
         let v = cross(nrm, u);
         let corner = |a: f64, bb: f64| {
-            [c[0] + s * (a * u[0] + bb * v[0]), c[1] + s * (a * u[1] + bb * v[1]), c[2] + s * (a * u[2] + bb * v[2])]
+            [
+                c[0] + s * (a * u[0] + bb * v[0]),
+                c[1] + s * (a * u[1] + bb * v[1]),
+                c[2] + s * (a * u[2] + bb * v[2]),
+            ]
         };
-        b.quad([corner(-1.0, -1.0), corner(1.0, -1.0), corner(1.0, 1.0), corner(-1.0, 1.0)], 0);
+        b.quad(
+            [
+                corner(-1.0, -1.0),
+                corner(1.0, -1.0),
+                corner(1.0, 1.0),
+                corner(-1.0, 1.0),
+            ],
+            0,
+        );
     }
     b.t
 }
 
 fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]]
+    [
+        a[1] * b[2] - a[2] * b[1],
+        a[2] * b[0] - a[0] * b[2],
+        a[0] * b[1] - a[1] * b[0],
+    ]
 }
 fn normalize(a: [f64; 3]) -> [f64; 3] {
     let l = (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt();
@@ -216,14 +303,31 @@ fn building(w: f64, d: f64, h: f64, roof: f64) -> Template {
     b.quad([[x0, y1, 0.0], [x0, y0, 0.0], [x0, y0, h], [x0, y1, h]], 0); // west
     let top = h + roof;
     // Gables (east and west) and the two roof slopes; ridge along x at y = 0.
-    let e = [b.vertex([x1, y0, h]), b.vertex([x1, y1, h]), b.vertex([x1, 0.0, top])];
+    let e = [
+        b.vertex([x1, y0, h]),
+        b.vertex([x1, y1, h]),
+        b.vertex([x1, 0.0, top]),
+    ];
     b.tri(e[0], e[1], e[2], 0);
-    let wv = [b.vertex([x0, y1, h]), b.vertex([x0, y0, h]), b.vertex([x0, 0.0, top])];
+    let wv = [
+        b.vertex([x0, y1, h]),
+        b.vertex([x0, y0, h]),
+        b.vertex([x0, 0.0, top]),
+    ];
     b.tri(wv[0], wv[1], wv[2], 0);
-    b.quad([[x0, y0, h], [x1, y0, h], [x1, 0.0, top], [x0, 0.0, top]], 1);
-    b.quad([[x1, y1, h], [x0, y1, h], [x0, 0.0, top], [x1, 0.0, top]], 1);
+    b.quad(
+        [[x0, y0, h], [x1, y0, h], [x1, 0.0, top], [x0, 0.0, top]],
+        1,
+    );
+    b.quad(
+        [[x1, y1, h], [x0, y1, h], [x0, 0.0, top], [x1, 0.0, top]],
+        1,
+    );
     // Floor, facing down, closes the volume.
-    b.quad([[x0, y0, 0.0], [x0, y1, 0.0], [x1, y1, 0.0], [x1, y0, 0.0]], 0);
+    b.quad(
+        [[x0, y0, 0.0], [x0, y1, 0.0], [x1, y1, 0.0], [x1, y0, 0.0]],
+        0,
+    );
     b.t
 }
 
@@ -256,7 +360,13 @@ mod tests {
     /// ray cannot leak into it; and its winding gives outward normals (positive volume).
     #[test]
     fn building_is_closed_with_outward_normals() {
-        let t = ProceduralSpec::Building { width: 10.0, depth: 8.0, wall_height: 6.0, roof_height: 3.0 }.generate();
+        let t = ProceduralSpec::Building {
+            width: 10.0,
+            depth: 8.0,
+            wall_height: 6.0,
+            roof_height: 3.0,
+        }
+        .generate();
         let key = |p: [f32; 3]| (p[0].to_bits(), p[1].to_bits(), p[2].to_bits());
         let mut edges = std::collections::HashMap::new();
         let mut vol = 0.0f64;
@@ -264,14 +374,24 @@ mod tests {
             let p: Vec<[f32; 3]> = tri.iter().map(|&i| t.positions[i as usize]).collect();
             for k in 0..3 {
                 let (a, b) = (key(p[k]), key(p[(k + 1) % 3]));
-                *edges.entry(if a < b { (a, b) } else { (b, a) }).or_insert(0) += 1;
+                *edges
+                    .entry(if a < b { (a, b) } else { (b, a) })
+                    .or_insert(0) += 1;
             }
-            let (a, b, c) = (p[0].map(f64::from), p[1].map(f64::from), p[2].map(f64::from));
+            let (a, b, c) = (
+                p[0].map(f64::from),
+                p[1].map(f64::from),
+                p[2].map(f64::from),
+            );
             vol += (a[0] * (b[1] * c[2] - b[2] * c[1]) - a[1] * (b[0] * c[2] - b[2] * c[0])
                 + a[2] * (b[0] * c[1] - b[1] * c[0]))
                 / 6.0;
         }
-        assert!(edges.values().all(|&n| n == 2), "open edges: {:?}", edges.iter().filter(|(_, &n)| n != 2).count());
+        assert!(
+            edges.values().all(|&n| n == 2),
+            "open edges: {:?}",
+            edges.iter().filter(|(_, &n)| n != 2).count()
+        );
         let expected = 10.0 * 8.0 * 6.0 + 0.5 * 8.0 * 3.0 * 10.0;
         assert!((vol - expected).abs() < 1e-3, "volume {vol} vs {expected}");
     }

@@ -132,7 +132,14 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Run { experiment, output, threads, quiet, fresh, shard } => {
+        Command::Run {
+            experiment,
+            output,
+            threads,
+            quiet,
+            fresh,
+            shard,
+        } => {
             set_threads(threads)?;
             let exp = Experiment::load(&experiment)?;
             std::fs::create_dir_all(&output)
@@ -152,12 +159,19 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let (shard, shards) = match &shard {
                 None => (0, 1),
                 Some(s) => parse_shard(s).map_err(|m| {
-                    anyhow::Error::new(ConfigError::Invalid { path: experiment.clone(), key: "--shard".into(), message: m })
+                    anyhow::Error::new(ConfigError::Invalid {
+                        path: experiment.clone(),
+                        key: "--shard".into(),
+                        message: m,
+                    })
                 })?,
             };
             let (results, resumed) = simulator::run::run_shard(&exp, !quiet, &ckpt, shard, shards)?;
             if resumed > 0 {
-                tracing::info!("resumed {resumed} completed task(s) from {}", ckpt.display());
+                tracing::info!(
+                    "resumed {resumed} completed task(s) from {}",
+                    ckpt.display()
+                );
             }
             let missing = results.iter().filter(|r| r.is_none()).count();
             if missing > 0 {
@@ -200,11 +214,22 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
-        Command::Pics { acquisitions, site, output, threads, quiet } => {
+        Command::Pics {
+            acquisitions,
+            site,
+            output,
+            threads,
+            quiet,
+        } => {
             set_threads(threads)?;
             let acqs = simulator::pics::read_acquisitions(&acquisitions)?;
-            std::fs::create_dir_all(&output).with_context(|| format!("cannot create output folder {}", output.display()))?;
-            let bar = if quiet { indicatif::ProgressBar::hidden() } else { indicatif::ProgressBar::new(acqs.len() as u64) };
+            std::fs::create_dir_all(&output)
+                .with_context(|| format!("cannot create output folder {}", output.display()))?;
+            let bar = if quiet {
+                indicatif::ProgressBar::hidden()
+            } else {
+                indicatif::ProgressBar::new(acqs.len() as u64)
+            };
             let rows = simulator::pics::run(&site, &acqs, |k| bar.set_position(k as u64))?;
             bar.finish_and_clear();
             let csv = output.join("pics.csv");
@@ -213,10 +238,19 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             for r in &rows {
                 println!(
                     "{}  {:<20} sza {:6.2} vza {:5.1}  reflectance {:.5} ± {:.1e}",
-                    r.acquisition.time_utc, r.acquisition.srf, r.sza, r.acquisition.vza, r.reflectance.0, r.reflectance.1
+                    r.acquisition.time_utc,
+                    r.acquisition.srf,
+                    r.sza,
+                    r.acquisition.vza,
+                    r.reflectance.0,
+                    r.reflectance.1
                 );
             }
-            tracing::info!("wrote {} and {}", csv.display(), output.join("pics.nc").display());
+            tracing::info!(
+                "wrote {} and {}",
+                csv.display(),
+                output.join("pics.nc").display()
+            );
             Ok(())
         }
         Command::Bench {
@@ -234,9 +268,17 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
 
 /// `K/N` with 0 ≤ K < N.
 fn parse_shard(s: &str) -> Result<(usize, usize), String> {
-    let (k, n) = s.split_once('/').ok_or_else(|| format!("\"{s}\" must be K/N, e.g. 0/4"))?;
-    let k: usize = k.trim().parse().map_err(|_| format!("\"{s}\": K is not a number"))?;
-    let n: usize = n.trim().parse().map_err(|_| format!("\"{s}\": N is not a number"))?;
+    let (k, n) = s
+        .split_once('/')
+        .ok_or_else(|| format!("\"{s}\" must be K/N, e.g. 0/4"))?;
+    let k: usize = k
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\": K is not a number"))?;
+    let n: usize = n
+        .trim()
+        .parse()
+        .map_err(|_| format!("\"{s}\": N is not a number"))?;
     if n == 0 || k >= n {
         return Err(format!("\"{s}\": need 0 <= K < N"));
     }

@@ -657,35 +657,75 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
 
     // Illumination.
-    let IlluminationConfig::Directional { zenith, azimuth, irradiance, date, time, latitude, longitude, elevation } =
-        &cfg.illumination;
+    let IlluminationConfig::Directional {
+        zenith,
+        azimuth,
+        irradiance,
+        date,
+        time,
+        latitude,
+        longitude,
+        elevation,
+    } = &cfg.illumination;
     let mut sun_distance_factor = None;
     let mut sun_distance_au = None;
     let (zenith, azimuth) = match (time, zenith) {
         (Some(t), None) => {
             if azimuth.is_some() {
-                return Err(ctx.err("illumination.azimuth", "is computed from `time`; give one or the other"));
+                return Err(ctx.err(
+                    "illumination.azimuth",
+                    "is computed from `time`; give one or the other",
+                ));
             }
             if date.is_some() {
-                return Err(ctx.err("illumination.date", "is implied by `time`; give one or the other"));
+                return Err(ctx.err(
+                    "illumination.date",
+                    "is implied by `time`; give one or the other",
+                ));
             }
-            let lat = latitude.ok_or_else(|| ctx.err("illumination.latitude", "is required with `time`"))?;
-            let lon = longitude.ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
-            let p = sun_position(t, ctx.finite("illumination.latitude", lat)?, ctx.finite("illumination.longitude", lon)?, elevation.unwrap_or(0.0), None)
-                .map_err(|m| ctx.err("illumination.time", m))?;
-            tracing::debug!("Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU", p.zenith, p.azimuth, p.distance_au);
+            let lat = latitude
+                .ok_or_else(|| ctx.err("illumination.latitude", "is required with `time`"))?;
+            let lon = longitude
+                .ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
+            let p = sun_position(
+                t,
+                ctx.finite("illumination.latitude", lat)?,
+                ctx.finite("illumination.longitude", lon)?,
+                elevation.unwrap_or(0.0),
+                None,
+            )
+            .map_err(|m| ctx.err("illumination.time", m))?;
+            tracing::debug!(
+                "Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU",
+                p.zenith,
+                p.azimuth,
+                p.distance_au
+            );
             sun_distance_factor = Some(1.0 / (p.distance_au * p.distance_au));
             sun_distance_au = Some(p.distance_au);
             (p.zenith, p.azimuth)
         }
         (None, Some(z)) => {
             if latitude.is_some() || longitude.is_some() || elevation.is_some() {
-                return Err(ctx.err("illumination", "`latitude`/`longitude`/`elevation` are used only with `time`"));
+                return Err(ctx.err(
+                    "illumination",
+                    "`latitude`/`longitude`/`elevation` are used only with `time`",
+                ));
             }
             (*z, azimuth.unwrap_or(0.0))
         }
-        (Some(_), Some(_)) => return Err(ctx.err("illumination.zenith", "give either `zenith` (and `azimuth`) or `time` with a place, not both")),
-        (None, None) => return Err(ctx.err("illumination", "give `zenith` (and `azimuth`), or `time` with `latitude` and `longitude`")),
+        (Some(_), Some(_)) => {
+            return Err(ctx.err(
+                "illumination.zenith",
+                "give either `zenith` (and `azimuth`) or `time` with a place, not both",
+            ))
+        }
+        (None, None) => {
+            return Err(ctx.err(
+                "illumination",
+                "give `zenith` (and `azimuth`), or `time` with `latitude` and `longitude`",
+            ))
+        }
     };
     let zenith = ctx.finite("illumination.zenith", zenith)?;
     if planet_radius.is_none() && !(0.0..90.0).contains(&zenith) {
@@ -1033,7 +1073,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     // the N independent wavelengths may then be √N_eff times noisier, with
     // N_eff = (Σ a_k)² / Σ a_k² and a_k = w_k·E0_k (equal relative errors combine this way).
     if let Some(b) = &band {
-        let a: Vec<f64> = b.weights.iter().zip(&irradiance).map(|(w, e)| w * e).collect();
+        let a: Vec<f64> = b
+            .weights
+            .iter()
+            .zip(&irradiance)
+            .map(|(w, e)| w * e)
+            .collect();
         let (s1, s2) = (a.iter().sum::<f64>(), a.iter().map(|x| x * x).sum::<f64>());
         if s2 > 0.0 {
             let n_eff = s1 * s1 / s2;
