@@ -26,14 +26,20 @@ const TSIS_1: &str = include_str!("../data/solar/tsis1_hsrs_v1_1nm.csv");
 const THUILLIER_2003: &str = include_str!("../data/solar/thuillier_2003.csv");
 
 impl Spectrum {
-    /// A built-in spectrum by name, or `None` if the name is not one.
+    /// A built-in spectrum by name, or `None` if the name is not one. Each embedded table is
+    /// parsed once per process (PICS batches resolve one experiment per acquisition).
     pub fn builtin(name: &str) -> Option<Spectrum> {
-        let text = match name {
-            "tsis_1" => TSIS_1,
-            "thuillier_2003" => THUILLIER_2003,
+        static TSIS: std::sync::OnceLock<Spectrum> = std::sync::OnceLock::new();
+        static THUILLIER: std::sync::OnceLock<Spectrum> = std::sync::OnceLock::new();
+        let (cell, text) = match name {
+            "tsis_1" => (&TSIS, TSIS_1),
+            "thuillier_2003" => (&THUILLIER, THUILLIER_2003),
             _ => return None,
         };
-        Some(Self::from_csv(name, text).expect("embedded spectra are valid"))
+        Some(
+            cell.get_or_init(|| Self::from_csv(name, text).expect("embedded spectra are valid"))
+                .clone(),
+        )
     }
 
     /// Parse a two-column CSV (header line, then `wavelength_nm,value`).

@@ -251,32 +251,26 @@ mod tests {
         PhaseFunction::Rayleigh(Rayleigh::new(0.0).unwrap())
     }
 
+    /// 0–2 km τ 0.3 + 0.1 absorbing, 2–10 km empty, 10–100 km τ 0.1.
+    fn three_layers() -> PlaneParallel {
+        let layer = |bottom: f64, top: f64, tau_sca: f64, tau_abs: f64| LayerOptics {
+            bottom,
+            top,
+            tau_sca,
+            tau_abs,
+            phase: ray(),
+        };
+        let layers = vec![
+            layer(0.0, 2000.0, 0.3, 0.1),
+            layer(2000.0, 10_000.0, 0.0, 0.0),
+            layer(10_000.0, 100_000.0, 0.1, 0.0),
+        ];
+        PlaneParallel::new(layers, 0.0, 100_000.0)
+    }
+
     #[test]
     fn layering_and_lookup() {
-        let layers = vec![
-            LayerOptics {
-                bottom: 0.0,
-                top: 2000.0,
-                tau_sca: 0.3,
-                tau_abs: 0.1,
-                phase: ray(),
-            },
-            LayerOptics {
-                bottom: 2000.0,
-                top: 10_000.0,
-                tau_sca: 0.0,
-                tau_abs: 0.0,
-                phase: ray(),
-            },
-            LayerOptics {
-                bottom: 10_000.0,
-                top: 100_000.0,
-                tau_sca: 0.1,
-                tau_abs: 0.0,
-                phase: ray(),
-            },
-        ];
-        let a = PlaneParallel::new(layers, 0.0, 100_000.0);
+        let a = three_layers();
         assert!((a.total_tau() - 0.5).abs() < 1e-15);
         assert_eq!(a.layer_at_tau(0.05), 0);
         // τ = 0.1 is the boundary with the empty layer: the collision belongs to a real layer.
@@ -294,30 +288,7 @@ mod tests {
     /// across layers, including a = b (upward flight with b = 1/dz).
     #[test]
     fn flight_integrals_match_quadrature() {
-        let layers = vec![
-            LayerOptics {
-                bottom: 0.0,
-                top: 2000.0,
-                tau_sca: 0.3,
-                tau_abs: 0.1,
-                phase: ray(),
-            },
-            LayerOptics {
-                bottom: 2000.0,
-                top: 10_000.0,
-                tau_sca: 0.0,
-                tau_abs: 0.0,
-                phase: ray(),
-            },
-            LayerOptics {
-                bottom: 10_000.0,
-                top: 100_000.0,
-                tau_sca: 0.1,
-                tau_abs: 0.0,
-                phase: ray(),
-            },
-        ];
-        let atm = PlaneParallel::new(layers, 0.0, 100_000.0);
+        let atm = three_layers();
         for &(tau_a, dz, b) in &[
             (0.0, -0.7, 2.0),
             (0.05, -0.3, 1.2),

@@ -187,8 +187,8 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let csv = output.join("results.csv");
             let nc = output.join("results.nc");
             products::csv::write(&csv, &rows)?;
-            products::netcdf::write(&nc, &exp, &rows)?;
             let band = products::band_rows(&exp, &rows);
+            products::netcdf::write(&nc, &exp, &rows, &band)?;
             if !band.is_empty() {
                 let path = output.join("results_band.csv");
                 products::csv::write_band(&path, &band)?;

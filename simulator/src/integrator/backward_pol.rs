@@ -23,6 +23,7 @@ use crate::bsdf::Bsdf;
 use crate::config::resolve::IntegratorSettings;
 use crate::frame::basis_around;
 use crate::optics::OpticalState;
+use crate::phase::PhaseFunction;
 use crate::rng::Stream;
 use crate::stokes::{any_perpendicular, PhaseMatrix};
 
@@ -64,6 +65,55 @@ fn plane(w_in: DVec3, w_out: DVec3, fallback: DVec3) -> (DVec3, DVec3, DVec3) {
     (r, r.cross(w_in), r.cross(w_out))
 }
 
+/// Add a Stokes contribution to (I single, I multiple, Q, U, V).
+#[inline]
+fn add_score(out: &mut [f64; 5], order: u32, s: DVec4) {
+    out[if order == 1 { 0 } else { 1 }] += s.x;
+    out[2] += s.y;
+    out[3] += s.z;
+    out[4] += s.w;
+}
+
+/// Scatter the path at a collision along `d`: draw `d'` from P11, and multiply `T` by the
+/// rotation into the scattering plane and `F(Θ)·ω/a1` (light arrives along −d', leaves along −d).
+/// Returns the new `T`, direction and segment frame axis.
+#[inline]
+fn scatter_path(
+    t: &DMat4,
+    d: DVec3,
+    e1: DVec3,
+    phase: &PhaseFunction,
+    omega: f64,
+    rng: &mut Stream,
+) -> (DMat4, DVec3, DVec3) {
+    let d2 = sample_scattered(phase, d, rng);
+    let f = phase.matrix(d.dot(d2));
+    let (_, l_in, l_out) = plane(-d2, -d, e1);
+    (
+        *t * rotation(-d, l_out, e1) * mueller(&f) * (omega / f.a1),
+        d2,
+        l_in,
+    )
+}
+
+/// Russian roulette on `T`'s (I, I) element, the path's intensity weight (a product of Mueller
+/// matrices has T00 ≥ |T0j|): false when the path ends.
+#[inline]
+fn survives(t: &mut DMat4, order: u32, settings: &IntegratorSettings, rng: &mut Stream) -> bool {
+    let w = t.col(0).x;
+    if w <= 0.0 {
+        return false;
+    }
+    if order > settings.rr_depth && w < RR_THRESHOLD {
+        if rng.next_f64() < w / RR_THRESHOLD {
+            *t *= RR_THRESHOLD / w;
+        } else {
+            return false;
+        }
+    }
+    true
+}
+
 /// One path from (τ₀, d₀) whose sensor frame has first axis `e1_sensor` (⊥ d₀); returns the
 /// (I single, I multiple, Q, U, V) parts of `π·S/(E0 μ_s)`.
 pub fn walk(
@@ -81,16 +131,7 @@ pub fn walk(
     let inv_mu_s = 1.0 / mu_s;
     let t_sun_ground = (-total * inv_mu_s).exp();
     let mut out = [0.0; 5];
-    let mut score = |order: u32, s: DVec4| {
-        if order == 1 {
-            out[0] += s.x;
-        } else {
-            out[1] += s.x;
-        }
-        out[2] += s.y;
-        out[3] += s.z;
-        out[4] += s.w;
-    };
+    let mut score = |order: u32, s: DVec4| add_score(&mut out, order, s);
     let w_sun = -sun_dir;
     let mut d = d0;
     let mut e1 = e1_sensor;
@@ -141,29 +182,12 @@ pub fn walk(
                 let layer = atm.layer_at_tau(tc);
                 let omega = atm.albedo(layer);
                 let phase = atm.phase(layer);
-                let d2 = sample_scattered(phase, d, rng);
-                // Light arrives along −d2 and leaves along −d.
-                let (w_in, w_out) = (-d2, -d);
-                let f = phase.matrix(d.dot(d2));
-                let (_, l_in, l_out) = plane(w_in, w_out, e1);
-                t = t * rotation(w_out, l_out, e1) * mueller(&f) * (omega / f.a1);
-                d = d2;
-                e1 = l_in;
+                (t, d, e1) = scatter_path(&t, d, e1, phase, omega, rng);
             }
         }
         order += 1;
-        // T's (I, I) element is the path's intensity weight (a product of Mueller matrices has
-        // T00 ≥ |T0j|).
-        let w = t.col(0).x;
-        if w <= 0.0 {
+        if !survives(&mut t, order, settings, rng) {
             break;
-        }
-        if order > settings.rr_depth && w < RR_THRESHOLD {
-            if rng.next_f64() < w / RR_THRESHOLD {
-                t *= RR_THRESHOLD / w;
-            } else {
-                break;
-            }
         }
     }
     let k = std::f64::consts::PI / mu_s;
@@ -187,16 +211,7 @@ pub fn walk_spherical(
     rng: &mut Stream,
 ) -> [f64; 5] {
     let mut out = [0.0; 5];
-    let mut score = |order: u32, s: DVec4| {
-        if order == 1 {
-            out[0] += s.x;
-        } else {
-            out[1] += s.x;
-        }
-        out[2] += s.y;
-        out[3] += s.z;
-        out[4] += s.w;
-    };
+    let mut score = |order: u32, s: DVec4| add_score(&mut out, order, s);
     let w_sun = -sun_dir;
     let (mut p, mut l, mut d, mut e1) = (p0, l0, d0, e1_sensor);
     let mut t = DMat4::IDENTITY;
@@ -249,25 +264,12 @@ pub fn walk_spherical(
                         t * (rotation(w_out, l_out, e1) * sv) * (omega * inv4pi * tr),
                     );
                 }
-                let d2 = sample_scattered(phase, d, rng);
-                let f = phase.matrix(d.dot(d2));
-                let (_, l_in, l_out) = plane(-d2, w_out, e1);
-                t = t * rotation(w_out, l_out, e1) * mueller(&f) * (omega / f.a1);
-                d = d2;
-                e1 = l_in;
+                (t, d, e1) = scatter_path(&t, d, e1, phase, omega, rng);
             }
         }
         order += 1;
-        let w = t.col(0).x;
-        if w <= 0.0 {
+        if !survives(&mut t, order, settings, rng) {
             break;
-        }
-        if order > settings.rr_depth && w < RR_THRESHOLD {
-            if rng.next_f64() < w / RR_THRESHOLD {
-                t *= RR_THRESHOLD / w;
-            } else {
-                break;
-            }
         }
     }
     let k = std::f64::consts::PI / mu_norm;

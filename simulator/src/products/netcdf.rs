@@ -21,8 +21,13 @@ use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::measure::MeasureKind;
 
-pub fn write(path: &Path, exp: &Experiment, rows: &[Row]) -> Result<(), OutputError> {
-    let band = super::band_rows(exp, rows);
+/// Write `rows` and the band-weighted `band` rows (`products::band_rows`; empty without a band).
+pub fn write(
+    path: &Path,
+    exp: &Experiment,
+    rows: &[Row],
+    band: &[super::BandRow],
+) -> Result<(), OutputError> {
     let tmp = tmp_path(path);
     let _ = std::fs::remove_file(&tmp);
     let nc = |source| OutputError::Netcdf {
@@ -32,7 +37,7 @@ pub fn write(path: &Path, exp: &Experiment, rows: &[Row]) -> Result<(), OutputEr
     {
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         write_into(&mut f, exp, rows)
-            .and_then(|_| write_band(&mut f, exp, &band))
+            .and_then(|_| write_band(&mut f, exp, band))
             .map_err(|e| {
                 let _ = std::fs::remove_file(&tmp);
                 nc(e)
