@@ -227,7 +227,7 @@ mod tests {
             );
             let d = crate::frame::direction_from_angles(
                 std::f64::consts::FRAC_PI_2 + 1.4 * rng.next_f64(),
-                6.28 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
             );
             match (bvh.intersect(o, d), brute(o, d)) {
                 (Some(h), Some(t)) => {
@@ -258,7 +258,7 @@ mod tests {
             );
             let dir = crate::frame::direction_from_angles(
                 std::f64::consts::PI - 0.6 * rng.next_f64(),
-                6.28 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
             );
             // Start 2 km above the target point, back along the ray.
             let target = DVec3::new(x, y, h(x, y));
