@@ -33,4 +33,17 @@ pub enum OutputError {
         path: PathBuf,
         source: netcdf::Error,
     },
+    /// A GDAL call failed while building a GeoTIFF product (`path` is the product's final name).
+    #[error("cannot write GeoTIFF {}: {what}: {source}", path.display())]
+    Gdal {
+        path: PathBuf,
+        what: String,
+        source: gdal::errors::GdalError,
+    },
+    /// PNG encoding failed (`path` is the product's final name).
+    #[error("cannot write PNG {}: {source}", path.display())]
+    Image {
+        path: PathBuf,
+        source: image::ImageError,
+    },
 }

@@ -8,6 +8,13 @@
 //!   in direction and is not part of it.
 //! * `DistantFlux`: upwelling hemispherical flux (radiosity) through a horizontal level, and the
 //!   albedo = flux / (E0·cos SZA).
+//! * `Ortho` (3D scenes): an image on a north-up grid, each pixel the mean radiance leaving
+//!   the terrain within the pixel towards one direction (parallel projection onto the terrain:
+//!   orthorectified).
+//! * `Perspective` (3D scenes): a pinhole camera; each pixel the mean radiance arriving through
+//!   it.
+//! * In 3D scenes, `Distant` measures the radiance leaving a horizontal target rectangle,
+//!   averaged over it (RAMI's area BRF).
 
 use glam::DVec3;
 
@@ -29,7 +36,11 @@ pub enum MeasureKind {
         /// View zenith and azimuth in degrees (azimuth clockwise from North), for the products.
         vza: Vec<f64>,
         vaa: Vec<f64>,
+        /// 3D scenes: the target rectangle and its height.
+        area: Option<Area>,
     },
+    Ortho(OrthoGrid),
+    Perspective(Camera),
     Radiancemeter {
         /// Position, m (x, y, altitude).
         origin: DVec3,
@@ -45,11 +56,57 @@ pub enum MeasureKind {
     },
 }
 
+/// A horizontal rectangle in the scene's local frame, m.
+#[derive(Clone, Copy, Debug)]
+pub struct Area {
+    /// [xmin, ymin, xmax, ymax].
+    pub rect: [f64; 4],
+    pub height: f64,
+}
+
+/// A north-up image grid with its view direction.
+#[derive(Clone, Debug)]
+pub struct OrthoGrid {
+    pub width: usize,
+    pub height: usize,
+    /// GDAL geotransform in the scene's **local** frame (pixel corners, row 0 at the north).
+    pub geotransform: [f64; 6],
+    /// Unit vector towards the sensor.
+    pub view: DVec3,
+    /// degrees.
+    pub vza: f64,
+    pub vaa: f64,
+}
+
+/// A pinhole camera: pixel (col, row) looks along `forward + x·right − y·up` with
+/// `x = (2(col+½)/width − 1)·tan_x`, `y = (2(row+½)/height − 1)·tan_y`.
+#[derive(Clone, Debug)]
+pub struct Camera {
+    pub origin: DVec3,
+    pub forward: DVec3,
+    pub right: DVec3,
+    pub up: DVec3,
+    pub tan_x: f64,
+    pub tan_y: f64,
+    pub width: usize,
+    pub height: usize,
+}
+
 impl Measure {
+    /// Whether the cells form an image (the stopping rule then uses the median error).
+    pub fn is_image(&self) -> bool {
+        matches!(
+            self.kind,
+            MeasureKind::Ortho(_) | MeasureKind::Perspective(_)
+        )
+    }
+
     /// Number of output cells (directions, or 1).
     pub fn cell_count(&self) -> usize {
         match &self.kind {
             MeasureKind::Distant { directions, .. } => directions.len(),
+            MeasureKind::Ortho(g) => g.width * g.height,
+            MeasureKind::Perspective(c) => c.width * c.height,
             _ => 1,
         }
     }
@@ -59,6 +116,8 @@ impl Measure {
             MeasureKind::Distant { .. } => "mdistant",
             MeasureKind::Radiancemeter { .. } => "radiancemeter",
             MeasureKind::DistantFlux { .. } => "distant_flux",
+            MeasureKind::Ortho(_) => "ortho",
+            MeasureKind::Perspective(_) => "perspective",
         }
     }
 }

@@ -12,6 +12,7 @@ use crate::config::resolve::{Experiment, IntegratorKind};
 use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
 use crate::integrator::forward_pol;
+use crate::integrator::scene_walk::{self, SceneContext};
 use crate::integrator::{backward, backward_pol, backward_sph, Accum};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
@@ -25,6 +26,8 @@ pub const BLOCK: u64 = 2048;
 pub enum Method {
     Forward,
     Backward,
+    /// Backward walk through a 3D scene (`integrator::scene_walk`).
+    Scene,
 }
 
 impl Method {
@@ -32,6 +35,7 @@ impl Method {
         match self {
             Method::Forward => "forward",
             Method::Backward => "backward",
+            Method::Scene => "scene",
         }
     }
 }
@@ -46,6 +50,9 @@ pub struct MeasureResult {
 }
 
 pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
+    if exp.scene.is_some() {
+        return Method::Scene;
+    }
     if exp.planet_radius.is_some() {
         return Method::Backward;
     }
@@ -69,6 +76,23 @@ fn run_block(
     let method = method_for(exp, m);
     let ids = [iw as u64, im as u64, cell as u64];
     match method {
+        Method::Scene => {
+            let scene = exp.scene.as_ref().expect("scene method without a scene");
+            let ctx = SceneContext {
+                atmosphere: &opt.atmosphere,
+                scene,
+                models: &opt.scene_models,
+                sun: exp.sun_dir,
+            };
+            let mut acc = Accum::new(1);
+            for s in range {
+                let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+                let (o, d) = scene_start(&ctx, m, cell, &mut rng);
+                let (a, b) = scene_walk::walk(&ctx, o, d, &exp.integrator, &mut rng);
+                acc.add(0, a, b);
+            }
+            acc
+        }
         Method::Forward => {
             let (dirs, flux_tau, hints): (&[DVec3], Option<f64>, Vec<f64>) = match &m.kind {
                 MeasureKind::Distant {
@@ -83,8 +107,10 @@ fn run_block(
                     Some(opt.atmosphere.tau_at_altitude(*altitude)),
                     Vec::new(),
                 ),
-                MeasureKind::Radiancemeter { .. } => {
-                    unreachable!("resolver forbids forward radiancemeters")
+                MeasureKind::Radiancemeter { .. }
+                | MeasureKind::Ortho(_)
+                | MeasureKind::Perspective(_) => {
+                    unreachable!("resolver forbids forward radiancemeters; images use the scene walk")
                 }
             };
             let targets = ForwardTargets {
@@ -126,6 +152,7 @@ fn run_block(
                 MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
                 MeasureKind::Radiancemeter { frame_azimuth, .. } => *frame_azimuth,
                 MeasureKind::DistantFlux { .. } => 0.0,
+                MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
             };
             if let (true, Some(shell)) = (exp.polarized, &opt.shell) {
                 let mut acc = Accum::new_polarized(1);
@@ -235,9 +262,51 @@ fn spherical_start(
             let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
             (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), -up)
         }
+        MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
     };
     let l = shell.shell_at(p.length()).min(shell.shell_count() - 1);
     Some((p, l, d))
+}
+
+/// Start point and direction of a sample of a 3D-scene measure (`cell`: direction or pixel).
+fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -> (DVec3, DVec3) {
+    let z0 = ctx.start_altitude();
+    // The ray through `q` towards the sensor direction `v`, started at altitude z0.
+    let from_top = |q: DVec3, v: DVec3| (q + v * ((z0 - q.z) / v.z), -v);
+    match &m.kind {
+        MeasureKind::Distant {
+            directions, area, ..
+        } => {
+            let v = directions[cell];
+            let a = area.expect("3D distant measures have an area");
+            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+            let q = DVec3::new(
+                a.rect[0] + u1 * (a.rect[2] - a.rect[0]),
+                a.rect[1] + u2 * (a.rect[3] - a.rect[1]),
+                a.height,
+            );
+            from_top(q, v)
+        }
+        MeasureKind::Ortho(g) => {
+            let (col, row) = (cell % g.width, cell / g.width);
+            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+            let x = g.geotransform[0] + (col as f64 + u1) * g.geotransform[1];
+            let y = g.geotransform[3] + (row as f64 + u2) * g.geotransform[5];
+            let z = ctx
+                .scene
+                .ground_height(x, y)
+                .unwrap_or(ctx.scene.reference_height);
+            from_top(DVec3::new(x, y, z), g.view)
+        }
+        MeasureKind::Perspective(c) => {
+            let (col, row) = (cell % c.width, cell / c.width);
+            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+            let x = (2.0 * (col as f64 + u1) / c.width as f64 - 1.0) * c.tan_x;
+            let y = (2.0 * (row as f64 + u2) / c.height as f64 - 1.0) * c.tan_y;
+            (c.origin, (c.forward + c.right * x - c.up * y).normalize())
+        }
+        _ => unreachable!("the resolver allows only distant, ortho and perspective measures with a scene"),
+    }
 }
 
 /// Starting optical depth and path direction of a backward sample.
@@ -251,6 +320,7 @@ fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream
             let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
             (opt.atmosphere.tau_at_altitude(*altitude), -up)
         }
+        MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
     }
 }
 
@@ -359,9 +429,13 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
         }
         done = next;
-        let reached = m
-            .target_rel_stderr
-            .is_some_and(|t| acc.max_rel_stderr() <= t);
+        // Images stop on the median pixel error, other measures on the worst cell.
+        let rel = if m.is_image() {
+            acc.median_rel_stderr()
+        } else {
+            acc.max_rel_stderr()
+        };
+        let reached = m.target_rel_stderr.is_some_and(|t| rel <= t);
         if done >= m.spp || reached {
             if reached && done < m.spp {
                 bar.inc((m.spp - done) * walks_per_sample(exp, m));
@@ -370,7 +444,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
         }
         next = next_round_end(
             done,
-            acc.max_rel_stderr(),
+            rel,
             m.target_rel_stderr.unwrap_or(0.0),
             m.spp,
         );
@@ -436,10 +510,10 @@ pub mod checkpoint {
         {
             return None;
         }
-        let method = if s.method == "forward" {
-            Method::Forward
-        } else {
-            Method::Backward
+        let method = match s.method.as_str() {
+            "forward" => Method::Forward,
+            "scene" => Method::Scene,
+            _ => Method::Backward,
         };
         Some(MeasureResult {
             measure: im,

@@ -132,6 +132,82 @@ impl PlaneParallel {
         self.z.iter().copied().zip(self.tau.iter().copied())
     }
 
+    /// Distance along a straight ray to its collision, for a sampled optical path `s`.
+    ///
+    /// The ray starts at altitude `z0` (m) with vertical direction cosine `dz` (> 0 up) and
+    /// travels at most `tmax` metres. Layers are homogeneous, so the extinction coefficient
+    /// (m⁻¹) is constant inside each and the optical path is exact whatever the direction,
+    /// horizontal included. Returns the distance of the collision, or `None` when the ray
+    /// reaches `tmax` or leaves the atmosphere (through the top, or below the ground) first.
+    /// Used by the 3D walks, whose positions are metres rather than optical depths.
+    pub fn march(&self, z0: f64, dz: f64, mut s: f64, tmax: f64) -> Option<f64> {
+        let n = self.albedo.len();
+        let (toa, ground) = (self.z[0], self.z[n]);
+        let mut t = 0.0;
+        // Enter the atmosphere from above.
+        if z0 >= toa {
+            if dz >= 0.0 {
+                return None;
+            }
+            t = (z0 - toa) / -dz;
+        } else if z0 < ground {
+            return None;
+        }
+        if t >= tmax {
+            return None;
+        }
+        let z = (z0 + t * dz).min(toa);
+        // Layer i spans [z[i+1], z[i]]; pick the one holding z (the lower one on a boundary
+        // when going down, the upper one when going up).
+        let mut i = if dz < 0.0 {
+            self.z.partition_point(|&b| b > z).clamp(1, n) - 1
+        } else {
+            self.z.partition_point(|&b| b >= z).clamp(1, n) - 1
+        };
+        loop {
+            let (zt, zb) = (self.z[i], self.z[i + 1]);
+            let zi = z0 + t * dz;
+            let to_edge = if dz > 0.0 {
+                ((zt - zi) / dz).max(0.0)
+            } else if dz < 0.0 {
+                ((zi - zb) / -dz).max(0.0)
+            } else {
+                f64::INFINITY
+            };
+            let seg = to_edge.min(tmax - t);
+            let k = if zt > zb {
+                (self.tau[i + 1] - self.tau[i]) / (zt - zb)
+            } else {
+                0.0
+            };
+            if k > 0.0 && s <= k * seg {
+                return Some(t + s / k);
+            }
+            s -= k * seg;
+            t += seg;
+            if t >= tmax || !to_edge.is_finite() {
+                return None;
+            }
+            if dz > 0.0 {
+                if i == 0 {
+                    return None;
+                }
+                i -= 1;
+            } else {
+                if i + 1 >= n {
+                    return None;
+                }
+                i += 1;
+            }
+        }
+    }
+
+    /// Index of the layer holding altitude `z` (clamped to the atmosphere).
+    pub fn layer_at_altitude(&self, z: f64) -> usize {
+        let n = self.albedo.len();
+        self.z.partition_point(|&b| b > z).clamp(1, n) - 1
+    }
+
     /// Layer count (including an empty placeholder when there is no atmosphere).
     pub fn layer_count(&self) -> usize {
         self.albedo.len()
@@ -324,5 +400,43 @@ mod tests {
         let a = PlaneParallel::new(vec![], 0.0, 100_000.0);
         assert_eq!(a.total_tau(), 0.0);
         assert_eq!(a.fly(0.0, -0.3, 0.001), FlightEnd::Surface);
+    }
+    /// `march` (metres) agrees with `fly` (optical depth): the optical depth between start and
+    /// collision equals s·|dz|, layer crossings included; horizontal rays collide at s/k; `tmax`
+    /// and leaving the atmosphere give `None`.
+    #[test]
+    fn march_agrees_with_fly() {
+        let atm = three_layers();
+        let mut rng = crate::rng::Stream::new(3, [0, 0, 0, 0]);
+        for _ in 0..2000 {
+            let z0 = 120_000.0 * rng.next_f64() - 1_000.0;
+            let dz = 2.0 * rng.next_f64() - 1.0;
+            let s = -rng.next_f64_open0().ln();
+            let tau0 = atm.tau_at_altitude(z0);
+            let expect = if z0 < atm.ground() {
+                None
+            } else {
+                match atm.fly(tau0, dz, s) {
+                    FlightEnd::Collision(t) => Some(t),
+                    _ => None,
+                }
+            };
+            match (atm.march(z0, dz, s, f64::INFINITY), expect) {
+                (Some(t), Some(tau_c)) => {
+                    let zc = z0 + t * dz;
+                    let got = atm.tau_at_altitude(zc);
+                    assert!((got - tau_c).abs() < 1e-9 * (1.0 + tau_c), "{got} vs {tau_c}");
+                    // A shorter tmax stops it.
+                    assert_eq!(atm.march(z0, dz, s, 0.999 * t), None);
+                }
+                (None, None) => {}
+                (a, b) => panic!("march {a:?} vs fly {b:?} (z0 {z0}, dz {dz}, s {s})"),
+            }
+        }
+        // Horizontal at 1 km: layer 0-2 km has k = 0.4 / 2000 m.
+        let t = atm.march(1_000.0, 0.0, 0.2, f64::INFINITY).unwrap();
+        assert!((t - 0.2 / (0.4 / 2_000.0)).abs() < 1e-6, "{t}");
+        // Horizontal in the empty layer: never.
+        assert_eq!(atm.march(5_000.0, 0.0, 0.2, f64::INFINITY), None);
     }
 }

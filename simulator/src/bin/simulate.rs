@@ -188,7 +188,18 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let nc = output.join("results.nc");
             products::csv::write(&csv, &rows)?;
             let band = products::band_rows(&exp, &rows);
-            products::netcdf::write(&nc, &exp, &rows, &band)?;
+            let images = products::imagery::image_products(&exp, &results);
+            products::netcdf::write(&nc, &exp, &rows, &band, &images)?;
+            for img in &images {
+                let (files, what) = products::imagery::write_files(&output, &exp, img)?;
+                for f in &files {
+                    println!("{:<16} wrote {}", img.id, f.display());
+                }
+                println!(
+                    "{:<16} {} × {} px, quicklook: {what}",
+                    img.id, img.width, img.height
+                );
+            }
             if !band.is_empty() {
                 let path = output.join("results_band.csv");
                 products::csv::write_band(&path, &band)?;

@@ -7,6 +7,7 @@
 //! converts to SI (m, radians) and checks ranges.
 
 pub mod resolve;
+pub mod scene;
 
 use serde::Deserialize;
 
@@ -31,7 +32,12 @@ pub struct ExperimentConfig {
     pub geometry: GeometryConfig,
     #[serde(default)]
     pub atmosphere: Option<AtmosphereConfig>,
-    pub surface: SurfaceConfig,
+    /// The 1D surface (required unless `scene` is given).
+    #[serde(default)]
+    pub surface: Option<SurfaceConfig>,
+    /// A 3D scene (bundle or canopy) instead of the 1D surface.
+    #[serde(default)]
+    pub scene: Option<scene::SceneConfig>,
     pub illumination: IlluminationConfig,
     pub measures: Vec<MeasureConfig>,
     #[serde(default)]
@@ -294,6 +300,52 @@ pub enum MeasureConfig {
         /// degrees; directions: view azimuths, one per zenith.
         #[serde(default)]
         azimuths: Option<Vec<f64>>,
+        /// 3D scenes: the area whose mean BRF is measured, [xmin, ymin, xmax, ymax] in the
+        /// scene's coordinates (m; a bundle's working CRS). Default: the scene's extent.
+        #[serde(default)]
+        target_m: Option<[f64; 4]>,
+        /// 3D scenes: height of the target area, m (default: the top of the scene).
+        #[serde(default)]
+        target_height_m: Option<f64>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    /// A georeferenced TOA image of a 3D scene seen from one direction (parallel projection,
+    /// orthorectified on the terrain).
+    Ortho {
+        id: String,
+        /// m.
+        pixel_size_m: f64,
+        /// [xmin, ymin, xmax, ymax] in the scene's coordinates (m); default: the scene extent.
+        #[serde(default)]
+        window_m: Option<[f64; 4]>,
+        /// degrees: view zenith and azimuth (clockwise from North) of the sensor.
+        #[serde(default)]
+        zenith: f64,
+        #[serde(default)]
+        azimuth: f64,
+        /// Samples per pixel (the maximum when `target_rel_stderr` is set).
+        spp: u64,
+        /// Stop when the **median** relative standard error of the pixels' BRF is at most this.
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    /// A pinhole camera.
+    Perspective {
+        id: String,
+        /// m, scene coordinates (x, y, height).
+        origin_m: [f64; 3],
+        /// m: the point the camera looks at.
+        target_m: [f64; 3],
+        /// Up vector (default [0, 0, 1]).
+        #[serde(default)]
+        up: Option<[f64; 3]>,
+        /// degrees: horizontal field of view.
+        fov: f64,
+        /// pixels.
+        width: usize,
+        height: usize,
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,

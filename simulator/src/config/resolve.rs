@@ -18,6 +18,7 @@ use crate::error::ConfigError;
 use crate::frame::direction_from_angles;
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
+use crate::scene::Scene;
 use crate::phase::{HenyeyGreenstein, PhaseFunction, Rayleigh, Tabulated};
 use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
 use crate::srf::Srf;
@@ -77,6 +78,8 @@ pub struct Experiment {
     pub polarized: bool,
     /// Spherical-shell geometry: the planet radius, m (None: plane-parallel).
     pub planet_radius: Option<f64>,
+    /// The 3D scene, when the experiment renders one (shared: it can be large).
+    pub scene: Option<Arc<Scene>>,
     /// The experiment file's text (written into the products for provenance).
     pub source_text: String,
     pub source_path: PathBuf,
@@ -569,8 +572,21 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     }
 
     // Surface, per wavelength.
-    let surfaces: Vec<Bsdf> = {
-        let s = &cfg.surface;
+    let surfaces: Vec<Bsdf> = match (&cfg.surface, &cfg.scene) {
+        (Some(_), Some(_)) => {
+            return Err(ctx.err(
+                "surface",
+                "is replaced by the scene: give `scene` or `surface`, not both (a bundle's surroundings are `scene.background`)",
+            ))
+        }
+        (None, None) => {
+            return Err(ctx.err(
+                "surface",
+                "is required (or a 3D `scene`)",
+            ))
+        }
+        (None, Some(_)) => vec![Bsdf::Lambertian(Lambertian::new(0.0).expect("valid")); nw],
+        (Some(s), None) => {
         let big = 1e6;
         let mut out = Vec::with_capacity(nw);
         match s {
@@ -654,6 +670,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             }
         }
         out
+        }
     };
 
     // Illumination.
@@ -791,6 +808,40 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let sun_azimuth = azimuth.rem_euclid(360.0).to_radians();
     let sun_dir = direction_from_angles(sun_zenith, sun_azimuth);
 
+    // Scene.
+    let scene: Option<Arc<Scene>> = match &cfg.scene {
+        None => None,
+        Some(sc) => {
+            if planet_radius.is_some() {
+                return Err(ctx.err(
+                    "scene",
+                    "3D scenes are rendered under plane-parallel atmospheres only",
+                ));
+            }
+            if cfg.polarized {
+                return Err(ctx.err(
+                    "polarized",
+                    "3D scenes are rendered with scalar transport only (set polarized = false)",
+                ));
+            }
+            if sun_dir.z <= 1e-6 {
+                return Err(ctx.err(
+                    "illumination.zenith",
+                    "the Sun must be above the horizon to render a 3D scene",
+                ));
+            }
+            let built = scene::build_scene(sc, &base).map_err(|(k, m)| ctx.err(k, m))?;
+            if built.z_range[0] < ground - 1e-6 && !built.z_range[0].is_nan() {
+                tracing::warn!(
+                    "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
+                    built.z_range[0],
+                    ground
+                );
+            }
+            Some(Arc::new(built))
+        }
+    };
+
     // Measures.
     if cfg.measures.is_empty() {
         return Err(ctx.err("measures", "at least one measure is required"));
@@ -812,6 +863,18 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 ..
             }
             | MeasureConfig::DistantFlux {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::Ortho {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::Perspective {
                 id,
                 spp,
                 target_rel_stderr,
@@ -850,6 +913,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 azimuth,
                 zeniths,
                 azimuths,
+                target_m,
+                target_height_m,
                 ..
             } => {
                 let construct = construct.clone().unwrap_or_else(|| {
@@ -938,11 +1003,64 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                         direction_from_angles(z.to_radians(), a.to_radians())
                     })
                     .collect();
+                let area = match (&scene, target_m, target_height_m) {
+                    (Some(sc), r, h) => Some(
+                        scene::area(sc, *r, *h).map_err(|m| ctx.err(format!("{key}.target_m"), m))?,
+                    ),
+                    (None, None, None) => None,
+                    (None, _, _) => {
+                        return Err(ctx.err(
+                            format!("{key}.target_m"),
+                            "a target area needs a 3D `scene`",
+                        ))
+                    }
+                };
                 MeasureKind::Distant {
                     directions,
                     vza,
                     vaa,
+                    area,
                 }
+            }
+            MeasureConfig::Ortho {
+                pixel_size_m,
+                window_m,
+                zenith,
+                azimuth,
+                ..
+            } => {
+                let sc = scene
+                    .as_ref()
+                    .ok_or_else(|| ctx.err(key.clone(), "an ortho measure needs a 3D `scene`"))?;
+                MeasureKind::Ortho(
+                    scene::ortho_grid(sc, *pixel_size_m, *window_m, *zenith, *azimuth)
+                        .map_err(|(k, m)| ctx.err(format!("{key}.{k}"), m))?,
+                )
+            }
+            MeasureConfig::Perspective {
+                origin_m,
+                target_m,
+                up,
+                fov,
+                width,
+                height,
+                ..
+            } => {
+                let sc = scene.as_ref().ok_or_else(|| {
+                    ctx.err(key.clone(), "a perspective measure needs a 3D `scene`")
+                })?;
+                MeasureKind::Perspective(
+                    scene::camera(sc, *origin_m, *target_m, *up, *fov, *width, *height)
+                        .map_err(|(k, m)| ctx.err(format!("{key}.{k}"), m))?,
+                )
+            }
+            MeasureConfig::Radiancemeter { .. } | MeasureConfig::DistantFlux { .. }
+                if scene.is_some() =>
+            {
+                return Err(ctx.err(
+                    key.clone(),
+                    "radiancemeter and distant_flux measures are 1D; with a 3D scene use `perspective` or an `mdistant` with a target area",
+                ))
             }
             MeasureConfig::Radiancemeter {
                 origin,
@@ -1030,6 +1148,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
         }
     }
+    if scene.is_some() && kind == IntegratorKind::Forward {
+        return Err(ctx.err(
+            "integrator.type",
+            "3D scenes use the backward walk (\"auto\" or \"backward\")",
+        ));
+    }
     let max_depth = match cfg.integrator.max_depth {
         Some(0) => return Err(ctx.err("integrator.max_depth", "must be at least 1")),
         Some(d) => d,
@@ -1059,15 +1183,22 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         .map(|(iw, (layers, surface))| {
             let atmosphere = PlaneParallel::new(layers, ground, toa);
             let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
-            OpticalState {
+            let scene_models = match &scene {
+                Some(sc) => sc
+                    .models_at(wavelengths[iw])
+                    .map_err(|m| ctx.err("scene", m))?,
+                None => Vec::new(),
+            };
+            Ok(OpticalState {
                 wavelength: wavelengths[iw],
                 atmosphere,
                 shell,
                 surface,
+                scene_models,
                 irradiance: irradiance[iw],
-            }
+            })
         })
-        .collect();
+        .collect::<Result<Vec<_>, ConfigError>>()?;
 
     // With a sensor band, `target_rel_stderr` is the target of the band-weighted result: each of
     // the N independent wavelengths may then be √N_eff times noisier, with
@@ -1104,6 +1235,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         seed: cfg.seed,
         polarized: cfg.polarized,
         planet_radius,
+        scene,
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
     })

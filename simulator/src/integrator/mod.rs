@@ -21,6 +21,7 @@ pub mod backward_pol;
 pub mod backward_sph;
 pub mod forward;
 pub mod forward_pol;
+pub mod scene_walk;
 
 /// Weight below which Russian roulette plays (after `rr_depth` interactions).
 pub const RR_THRESHOLD: f64 = 0.25;
@@ -163,6 +164,29 @@ impl Accum {
         let o = cell * self.ncomp;
         let (ma, mb) = (self.sum[o + a] / n, self.sum[o + b] / n);
         (self.cross[cell * 3 + pair] / n - ma * mb) / (n - 1.0)
+    }
+
+    /// Median over cells of the relative standard error of the total (cells whose mean is 0
+    /// count as 0 when their error is 0, else as infinite).
+    pub fn median_rel_stderr(&self) -> f64 {
+        let mut r: Vec<f64> = (0..self.n.len())
+            .map(|c| {
+                let (m, e) = self.mean_stderr(c, TOTAL);
+                if m.abs() > 0.0 {
+                    e / m.abs()
+                } else if e > 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                }
+            })
+            .map(|x| if x.is_nan() { f64::INFINITY } else { x })
+            .collect();
+        if r.is_empty() {
+            return 0.0;
+        }
+        r.sort_by(|a, b| a.total_cmp(b));
+        r[r.len() / 2]
     }
 
     /// Largest relative standard error of the total over all cells.

@@ -10,6 +10,8 @@
 //! Every quantity carries the Monte Carlo standard error of its mean.
 
 pub mod csv;
+pub mod image;
+pub mod imagery;
 pub mod netcdf;
 
 use std::path::Path;
@@ -79,6 +81,10 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
     let mut out = Vec::new();
     for r in results {
         let m = &exp.measures[r.measure];
+        if m.is_image() {
+            // Images have their own products (`products::image`, image variables in netCDF).
+            continue;
+        }
         let e0 = exp.optics[r.wavelength].irradiance;
         let to_rad = e0 * mu_s / std::f64::consts::PI;
         for c in 0..m.cell_count() {
@@ -122,6 +128,7 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                     row.vaa = Some(a.to_degrees());
                 }
                 MeasureKind::DistantFlux { .. } => {}
+                MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("skipped"),
             }
             if let MeasureKind::DistantFlux { .. } = m.kind {
                 if sun_up {

@@ -9,7 +9,12 @@
 //! * polarized runs add `ID_brf_q`, `ID_brf_u`, `ID_brf_v` (Stokes components normalised like
 //!   the BRF, meridian frame of the view direction), `ID_dolp` and their `_stderr`;
 //! * `distant_flux`: `ID_albedo`, `ID_albedo_stderr`, `ID_flux`, `ID_flux_stderr`,
-//!   `ID_n_samples` on `(wavelength)`.
+//!   `ID_n_samples` on `(wavelength)`;
+//! * `ortho` / `perspective` images: dimensions `ID_y`, `ID_x`; ortho images have coordinates
+//!   `ID_x(ID_x)`, `ID_y(ID_y)` (pixel centres in the scene's CRS, m) and the CRS's WKT as the
+//!   attribute `crs_wkt`; data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`, `ID_brf_multiple`,
+//!   `ID_radiance`, `ID_radiance_stderr` on `(wavelength, ID_y, ID_x)` (row 0 = north / top);
+//!   `ID_n_samples(wavelength)` samples per pixel.
 //!
 //! Global attributes: `Conventions`, `title`, `source` (crate and version), `history`,
 //! `seed`, `sun_zenith`, `sun_azimuth`, and `experiment` (the experiment file's text).
@@ -27,6 +32,7 @@ pub fn write(
     exp: &Experiment,
     rows: &[Row],
     band: &[super::BandRow],
+    images: &[super::imagery::ImageProduct],
 ) -> Result<(), OutputError> {
     let tmp = tmp_path(path);
     let _ = std::fs::remove_file(&tmp);
@@ -37,6 +43,7 @@ pub fn write(
     {
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         write_into(&mut f, exp, rows)
+            .and_then(|_| images.iter().try_for_each(|p| write_image(&mut f, p)))
             .and_then(|_| write_band(&mut f, exp, band))
             .map_err(|e| {
                 let _ = std::fs::remove_file(&tmp);
@@ -76,6 +83,9 @@ fn write_into(
         v.put_values(&exp.wavelengths, ..)?;
     }
     for m in &exp.measures {
+        if m.is_image() {
+            continue;
+        }
         let id = &m.id;
         let mrows: Vec<&Row> = rows.iter().filter(|r| &r.measure == id).collect();
         let nc = m.cell_count();
@@ -286,6 +296,9 @@ fn write_band(
     let Some(b) = &exp.band else { return Ok(()) };
     f.add_attribute("srf", b.name.as_str())?;
     for m in &exp.measures {
+        if m.is_image() {
+            continue;
+        }
         let id = &m.id;
         let rows: Vec<&super::BandRow> = band.iter().filter(|r| &r.measure == id).collect();
         let dim = match m.kind {
@@ -360,5 +373,60 @@ fn write_band(
             v.put_values(&data, ..)?;
         }
     }
+    Ok(())
+}
+
+/// The variables of one image measure.
+fn write_image(
+    f: &mut netcdf::FileMut,
+    p: &super::imagery::ImageProduct,
+) -> Result<(), netcdf::Error> {
+    let id = &p.id;
+    let (dy, dx) = (format!("{id}_y"), format!("{id}_x"));
+    f.add_dimension(&dy, p.height)?;
+    f.add_dimension(&dx, p.width)?;
+    if let Some(gt) = p.geotransform {
+        let xs: Vec<f64> = (0..p.width)
+            .map(|c| gt[0] + (c as f64 + 0.5) * gt[1])
+            .collect();
+        let ys: Vec<f64> = (0..p.height)
+            .map(|r| gt[3] + (r as f64 + 0.5) * gt[5])
+            .collect();
+        for (name, dim, data, long) in [
+            (&dx, &dx, xs, "easting of pixel centres"),
+            (&dy, &dy, ys, "northing of pixel centres"),
+        ] {
+            let mut v = f.add_variable::<f64>(name, &[dim])?;
+            v.put_attribute("units", "m")?;
+            v.put_attribute("long_name", long)?;
+            v.put_values(&data, ..)?;
+        }
+    }
+    let sets: [(&str, &Vec<Vec<f64>>, &str, &str); 6] = [
+        ("brf", &p.brf, "1", "bidirectional reflectance factor pi L / (E0 cos SZA)"),
+        ("brf_stderr", &p.brf_stderr, "1", "standard error of brf"),
+        ("brf_single", &p.brf_single, "1", "single-scattering part of brf"),
+        ("brf_multiple", &p.brf_multiple, "1", "multiple-scattering part of brf"),
+        ("radiance", &p.radiance, "W m-2 sr-1 nm-1", "radiance"),
+        ("radiance_stderr", &p.radiance_stderr, "W m-2 sr-1 nm-1", "standard error of radiance"),
+    ];
+    for (name, data, units, long) in sets {
+        let flat: Vec<f64> = data.iter().flatten().copied().collect();
+        let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dy, &dx])?;
+        v.put_attribute("units", units)?;
+        v.put_attribute("long_name", long)?;
+        if !p.wkt.is_empty() {
+            v.put_attribute("crs_wkt", p.wkt.as_str())?;
+        }
+        if let Some((vza, vaa)) = p.view {
+            v.put_attribute("vza", vza)?;
+            v.put_attribute("vaa", vaa)?;
+        }
+        v.put_values(&flat, ..)?;
+    }
+    let n: Vec<i64> = p.n_samples.iter().map(|&x| x as i64).collect();
+    let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength"])?;
+    v.put_attribute("long_name", "Monte Carlo samples per pixel")?;
+    v.put_values(&n, ..)?;
     Ok(())
 }

@@ -1,4 +1,5 @@
-//! 3D scene geometry from a scene bundle (groundwork for issue 4: terrain only so far).
+//! 3D scenes: geometry (terrain BVH here, instanced objects in `instances`), materials, the
+//! assembled [`Scene`] and its builders (bundle, canopy).
 //!
 //! Precision: the bundle stores each terrain tile in f32 relative to an f64 tile origin. The
 //! BVH (obvhs, f32) is built in a *render frame* whose origin is the bundle's local-frame origin
@@ -7,6 +8,13 @@
 //! frame in f64 and converted once; hit distances are refined in f64 against the hit triangle
 //! (computed from the f64 tile origin + f32 offsets), so the returned point is accurate to
 //! rounding of the stored vertices.
+
+pub mod build;
+pub mod instances;
+pub mod material;
+pub mod world;
+
+pub use world::{Scene, SurfaceHit};
 
 use glam::{DVec3, Vec3A};
 use obvhs::ray::{Ray, RayHit};
@@ -95,6 +103,21 @@ impl TerrainBvh {
 
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
+    }
+
+    /// The render-frame origin (centre of the terrain's bounding box, local frame).
+    pub fn render_origin(&self) -> DVec3 {
+        self.render_origin
+    }
+
+    /// Approximate memory of triangles, f64 copies, ids and BVH nodes, bytes.
+    pub fn memory_bytes(&self) -> usize {
+        self.tris.len()
+            * (std::mem::size_of::<Triangle>()
+                + std::mem::size_of::<[DVec3; 3]>()
+                + std::mem::size_of::<(u32, u32)>())
+            + self.bvh.nodes.len() * std::mem::size_of_val(&self.bvh.nodes[0])
+            + self.bvh.primitive_indices.len() * 4
     }
 
     /// Closest terrain hit of the ray `origin + t·dir` (local frame, `dir` unit), `t > 0`.

@@ -1,6 +1,8 @@
 //! Shared helpers of the system and benchmark tests.
 #![allow(dead_code)]
 
+pub mod bundles;
+
 use std::path::{Path, PathBuf};
 
 use simulator::config::Experiment;

@@ -1,0 +1,343 @@
+//! The `[scene]` table of an experiment (raw serde types) and the resolution of scenes and of
+//! the image measures that need one. Coordinates in the experiment file are the scene's own:
+//! a bundle's working CRS (easting, northing, height in m), a canopy's frame (m).
+
+use std::collections::BTreeMap;
+use std::path::Path;
+
+use glam::DVec3;
+use serde::Deserialize;
+
+use crate::bundle::{BrdfSpec, Spectrum};
+use crate::frame::direction_from_angles;
+use crate::measure::{Area, Camera, OrthoGrid};
+use crate::scene::build::{self, Background, CanopyGround, LeafCloud, LeafColumns};
+use crate::scene::Scene;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum SceneConfig {
+    /// A scene bundle written by `scenegen build`.
+    Bundle {
+        /// The bundle directory (relative to the experiment file).
+        path: String,
+        /// What surrounds the terrain (default: a flat plane at the lowest terrain height with the
+        /// most frequent material).
+        #[serde(default)]
+        background: Option<BackgroundConfig>,
+        /// Replace materials of the bundle by name: `[scene.materials.grass] type = "rpv" …`.
+        #[serde(default)]
+        materials: BTreeMap<String, BrdfSpec>,
+    },
+    /// Discrete-leaf canopy (RAMI / ROMC layouts).
+    Canopy {
+        objects: Vec<LeafCloudConfig>,
+        #[serde(default)]
+        ground: Option<CanopyGroundConfig>,
+        #[serde(default)]
+        padding: Option<PaddingConfig>,
+    },
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum BackgroundConfig {
+    /// Paths leaving the terrain's extent downwards are lost.
+    None,
+    Flat {
+        /// m (default: the lowest terrain height).
+        #[serde(default)]
+        altitude_m: Option<f64>,
+        /// default: the material raster's most frequent material.
+        #[serde(default)]
+        brdf: Option<BrdfSpec>,
+    },
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LeafCloudConfig {
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Leaf file: one disc per line.
+    pub leaves: String,
+    /// "r x y z nx ny nz" (default for `.def` files) or "x y z nx ny nz r" (default otherwise).
+    #[serde(default)]
+    pub columns: Option<String>,
+    /// File of `x y z` translations of the copies (default: one copy at the origin).
+    #[serde(default)]
+    pub positions: Option<String>,
+    /// Bi-Lambertian leaf optics.
+    pub reflectance: Spectrum,
+    pub transmittance: Spectrum,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CanopyGroundConfig {
+    /// m.
+    #[serde(default)]
+    pub altitude_m: f64,
+    /// [xmin, ymin, xmax, ymax], m (default: infinite).
+    #[serde(default)]
+    pub extent_m: Option<[f64; 4]>,
+    pub brdf: BrdfSpec,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PaddingConfig {
+    /// m: size of the unit cell.
+    pub cell_m: [f64; 2],
+    /// Copies on each side (the cell is repeated (2p+1)² times).
+    pub copies: u32,
+}
+
+/// A (key, message) error of scene resolution; the caller adds the file.
+pub type SceneErr = (String, String);
+
+fn check_spec(key: &str, spec: &BrdfSpec) -> Result<(), SceneErr> {
+    // Validate at a few wavelengths: spectra are checked for shape, models for ranges.
+    for w in [400.0, 550.0, 700.0, 1000.0, 2000.0] {
+        crate::scene::material::SurfaceModel::from_spec(spec, w)
+            .map_err(|m| (key.to_string(), m))?;
+    }
+    Ok(())
+}
+
+/// Build the scene of `cfg`; relative paths are taken from `base`.
+pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
+    match cfg {
+        SceneConfig::Bundle {
+            path,
+            background,
+            materials,
+        } => {
+            let bg = match background {
+                None => Background::Flat {
+                    altitude: None,
+                    brdf: None,
+                },
+                Some(BackgroundConfig::None) => Background::None,
+                Some(BackgroundConfig::Flat { altitude_m, brdf }) => {
+                    if let Some(a) = altitude_m {
+                        if !a.is_finite() {
+                            return Err((
+                                "scene.background.altitude_m".into(),
+                                format!("{a} is not a finite number"),
+                            ));
+                        }
+                    }
+                    if let Some(b) = brdf {
+                        check_spec("scene.background.brdf", b)?;
+                    }
+                    Background::Flat {
+                        altitude: *altitude_m,
+                        brdf: brdf.clone(),
+                    }
+                }
+            };
+            let mut overrides = Vec::new();
+            for (name, spec) in materials {
+                check_spec(&format!("scene.materials.{name}"), spec)?;
+                overrides.push((name.clone(), spec.clone()));
+            }
+            let dir = base.join(path);
+            build::from_bundle(&dir, &bg, &overrides).map_err(|m| ("scene.path".into(), m))
+        }
+        SceneConfig::Canopy {
+            objects,
+            ground,
+            padding,
+        } => {
+            if objects.is_empty() {
+                return Err(("scene.objects".into(), "needs at least one leaf cloud".into()));
+            }
+            let mut clouds = Vec::new();
+            for (i, o) in objects.iter().enumerate() {
+                let key = format!("scene.objects[{i}]");
+                let leaves = base.join(&o.leaves);
+                let columns = match o.columns.as_deref() {
+                    Some("r x y z nx ny nz") => LeafColumns::RadiusFirst,
+                    Some("x y z nx ny nz r") => LeafColumns::RadiusLast,
+                    Some(other) => {
+                        return Err((
+                            format!("{key}.columns"),
+                            format!("\"{other}\" is unknown (known: \"r x y z nx ny nz\", \"x y z nx ny nz r\")"),
+                        ))
+                    }
+                    None if o.leaves.ends_with(".def") => LeafColumns::RadiusFirst,
+                    None => LeafColumns::RadiusLast,
+                };
+                let positions = match &o.positions {
+                    None => Vec::new(),
+                    Some(p) => build::read_table(&base.join(p), 3)
+                        .map_err(|m| (format!("{key}.positions"), m))?
+                        .into_iter()
+                        .map(|r| DVec3::new(r[0], r[1], r[2]))
+                        .collect(),
+                };
+                let brdf = BrdfSpec::BiLambertian {
+                    reflectance: o.reflectance.clone(),
+                    transmittance: o.transmittance.clone(),
+                };
+                check_spec(&key, &brdf)?;
+                clouds.push(LeafCloud {
+                    name: o.name.clone().unwrap_or_else(|| format!("leaves{i}")),
+                    leaves,
+                    columns,
+                    positions,
+                    brdf,
+                });
+            }
+            let ground = match ground {
+                None => None,
+                Some(g) => {
+                    check_spec("scene.ground.brdf", &g.brdf)?;
+                    if let Some(e) = g.extent_m {
+                        if !(e[0] < e[2] && e[1] < e[3]) {
+                            return Err((
+                                "scene.ground.extent_m".into(),
+                                "must be [xmin, ymin, xmax, ymax] with min < max".into(),
+                            ));
+                        }
+                    }
+                    Some(CanopyGround {
+                        altitude: g.altitude_m,
+                        extent: g.extent_m,
+                        brdf: g.brdf.clone(),
+                    })
+                }
+            };
+            let pad = match padding {
+                None => None,
+                Some(p) => {
+                    if !(p.cell_m[0] > 0.0 && p.cell_m[1] > 0.0) {
+                        return Err((
+                            "scene.padding.cell_m".into(),
+                            "cell sizes must be > 0".into(),
+                        ));
+                    }
+                    Some((p.cell_m, p.copies))
+                }
+            };
+            build::canopy(&clouds, ground.as_ref(), pad).map_err(|m| ("scene.objects".into(), m))
+        }
+    }
+}
+
+/// Scene coordinates of the experiment file → the scene's local frame.
+pub fn to_local(scene: &Scene, x: f64, y: f64) -> (f64, f64) {
+    match &scene.georef {
+        Some(g) => (x - g.origin.x, y - g.origin.y),
+        None => (x, y),
+    }
+}
+
+/// The target area of a distant measure (default: the scene's extent at its top).
+pub fn area(scene: &Scene, rect: Option<[f64; 4]>, height: Option<f64>) -> Result<Area, String> {
+    let rect = match rect {
+        None => scene.extent,
+        Some(r) => {
+            if !(r.iter().all(|v| v.is_finite()) && r[0] < r[2] && r[1] < r[3]) {
+                return Err("must be [xmin, ymin, xmax, ymax] with min < max".into());
+            }
+            let (a, b) = to_local(scene, r[0], r[1]);
+            let (c, d) = to_local(scene, r[2], r[3]);
+            [a, b, c, d]
+        }
+    };
+    let height = height.unwrap_or(scene.z_range[1]);
+    if !height.is_finite() {
+        return Err(format!("target height {height} is not finite"));
+    }
+    Ok(Area { rect, height })
+}
+
+/// The pixel grid of an ortho measure, snapped outwards to whole pixels.
+pub fn ortho_grid(
+    scene: &Scene,
+    pixel: f64,
+    window: Option<[f64; 4]>,
+    zenith: f64,
+    azimuth: f64,
+) -> Result<OrthoGrid, SceneErr> {
+    if !(pixel.is_finite() && pixel > 0.0) {
+        return Err(("pixel_size_m".into(), format!("{pixel} must be > 0")));
+    }
+    if !(zenith.is_finite() && (0.0..89.0).contains(&zenith)) {
+        return Err(("zenith".into(), format!("{zenith} degrees must lie in [0, 89)")));
+    }
+    if !azimuth.is_finite() {
+        return Err(("azimuth".into(), format!("{azimuth} is not finite")));
+    }
+    let a = area(scene, window, None).map_err(|m| ("window_m".into(), m))?;
+    let r = a.rect;
+    let width = ((r[2] - r[0]) / pixel).ceil().max(1.0) as usize;
+    let height = ((r[3] - r[1]) / pixel).ceil().max(1.0) as usize;
+    if width.saturating_mul(height) > 50_000_000 {
+        return Err((
+            "pixel_size_m".into(),
+            format!("{width} × {height} pixels is too many (limit 5·10⁷); use a larger pixel or a window"),
+        ));
+    }
+    // Centre the snapped grid on the requested window.
+    let x0 = 0.5 * (r[0] + r[2]) - 0.5 * width as f64 * pixel;
+    let y1 = 0.5 * (r[1] + r[3]) + 0.5 * height as f64 * pixel;
+    let azimuth = azimuth.rem_euclid(360.0);
+    Ok(OrthoGrid {
+        width,
+        height,
+        geotransform: [x0, pixel, 0.0, y1, 0.0, -pixel],
+        view: direction_from_angles(zenith.to_radians(), azimuth.to_radians()),
+        vza: zenith,
+        vaa: azimuth,
+    })
+}
+
+/// A pinhole camera from origin, target, up and horizontal field of view.
+pub fn camera(
+    scene: &Scene,
+    origin: [f64; 3],
+    target: [f64; 3],
+    up: Option<[f64; 3]>,
+    fov: f64,
+    width: usize,
+    height: usize,
+) -> Result<Camera, SceneErr> {
+    if origin.iter().chain(&target).any(|v| !v.is_finite()) {
+        return Err(("origin_m".into(), "origin and target must be finite".into()));
+    }
+    if !(fov > 0.0 && fov < 179.0) {
+        return Err(("fov".into(), format!("{fov} degrees must lie in (0, 179)")));
+    }
+    if width == 0 || height == 0 || width.saturating_mul(height) > 50_000_000 {
+        return Err(("width".into(), "width and height must be 1..; at most 5·10⁷ pixels".into()));
+    }
+    let (ox, oy) = to_local(scene, origin[0], origin[1]);
+    let (tx, ty) = to_local(scene, target[0], target[1]);
+    let o = DVec3::new(ox, oy, origin[2]);
+    let t = DVec3::new(tx, ty, target[2]);
+    let forward = (t - o).normalize_or_zero();
+    if forward == DVec3::ZERO {
+        return Err(("target_m".into(), "must differ from origin_m".into()));
+    }
+    let upv = DVec3::from_array(up.unwrap_or([0.0, 0.0, 1.0]));
+    let right = forward.cross(upv).normalize_or_zero();
+    if right == DVec3::ZERO {
+        return Err(("up".into(), "must not be parallel to the viewing direction".into()));
+    }
+    let true_up = right.cross(forward);
+    let tan_x = (0.5 * fov).to_radians().tan();
+    let tan_y = tan_x * height as f64 / width as f64;
+    Ok(Camera {
+        origin: o,
+        forward,
+        right,
+        up: true_up,
+        tan_x,
+        tan_y,
+        width,
+        height,
+    })
+}

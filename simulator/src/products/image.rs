@@ -1,0 +1,594 @@
+//! Georeferenced image products: a multi-band GeoTIFF with the physical values, and an 8-bit PNG
+//! quicklook for eyes.
+//!
+//! # GeoTIFF (`write_geotiff`)
+//!
+//! * One band per quantity (e.g. `brf_550nm`), sample type **Float32** (values given as `f64` are
+//!   rounded to the nearest `f32`).
+//! * Values are row-major with **row 0 the northern edge** (the first row of the file), column 0
+//!   the western edge, as GDAL expects with a north-up geotransform.
+//! * The geotransform is in GDAL order `[x0, dx, rx, y0, ry, dy]` and refers to **pixel corners**
+//!   (`x0, y0` is the outer corner of the top-left pixel; `dy` is negative for north-up images),
+//!   i.e. the GeoTIFF `PixelIsArea` convention.
+//! * The CRS is the WKT given by the caller; an empty WKT writes no CRS.
+//! * **NaN is nodata**: every band's nodata value is NaN (pixels the run did not estimate).
+//! * The band *description* (what GIS tools show as the band name) is `ImageBand::name`; the longer
+//!   `ImageBand::description` goes into the band metadata item `long_name`. Dataset metadata
+//!   (units, wavelength, angles, software version…) is written as GDAL metadata items in the
+//!   default domain (TIFF tag `GDAL_METADATA`), so no `.aux.xml` side-car is needed.
+//! * DEFLATE compression always; 256×256 tiles when the image is larger than 256 px on a side
+//!   (strips otherwise); `BIGTIFF=IF_SAFER`; band interleaving.
+//!
+//! # PNG quicklook (`write_quicklook_png`)
+//!
+//! * **True colour** when the run has wavelengths within ±30 nm of 660, 550 and 440 nm (the closest
+//!   to each goes to R, G and B); otherwise **grey** from the wavelength closest to 550 nm (or the
+//!   mean of all channels when the wavelengths are not known: `wavelengths_nm` empty or of another
+//!   length than `channels`).
+//! * Stretch: one common linear scale for the drawn channels, from 0 to the 99th percentile of
+//!   their finite values (so relative colour is kept; values above it saturate, below 0 clip to 0),
+//!   then sRGB gamma encoding to 8 bits.
+//! * Pixels that are not finite in any drawn channel are **magenta** in colour images and **black**
+//!   in grey ones.
+//!
+//! # Atomicity
+//!
+//! Both files are first built in memory (the GeoTIFF in GDAL's `/vsimem/`), then written with
+//! [`super::write_atomic`]: a temporary file in the destination folder renamed over `path`. A full
+//! disk or a read-only folder is reported as an [`OutputError`] naming `path` and never leaves a
+//! partial file at `path`. Building in memory also makes write errors visible with GDAL < 3.7,
+//! whose `GDALClose` does not report them.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use gdal::raster::{Buffer, RasterCreationOptions};
+use gdal::{DriverManager, Metadata};
+
+use super::write_atomic;
+use crate::error::OutputError;
+
+/// One band of an image: name (e.g. "brf_550nm"), description, row-major values (row 0 = north),
+/// f64.
+#[derive(Clone, Debug)]
+pub struct ImageBand<'a> {
+    pub name: String,
+    pub description: String,
+    pub values: &'a [f64],
+}
+
+/// Tiles (and not strips) above this many pixels on a side.
+const TILE_ABOVE: usize = 256;
+
+fn invalid(path: &Path, message: String) -> OutputError {
+    OutputError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidInput, message),
+    }
+}
+
+/// Removes an in-memory GDAL file (and a possible PAM side-car) when dropped.
+struct MemFile(PathBuf);
+
+impl Drop for MemFile {
+    fn drop(&mut self) {
+        let _ = gdal::vsi::unlink_mem_file(&self.0);
+        let mut aux = self.0.clone().into_os_string();
+        aux.push(".aux.xml");
+        let _ = gdal::vsi::unlink_mem_file(PathBuf::from(aux));
+    }
+}
+
+/// Write a multi-band Float32 GeoTIFF atomically (temp file in the same folder, then rename):
+/// `geotransform` in GDAL order (pixel corners), `wkt` the CRS (may be empty: then no CRS is set),
+/// NaN as nodata, band descriptions set, metadata key/values on the dataset (e.g. units,
+/// wavelength, view angles, software version). DEFLATE compression; tiled when the image is
+/// larger than 256 px on a side. See the module documentation for the conventions.
+pub fn write_geotiff(
+    path: &Path,
+    width: usize,
+    height: usize,
+    geotransform: [f64; 6],
+    wkt: &str,
+    bands: &[ImageBand],
+    metadata: &[(String, String)],
+) -> Result<(), OutputError> {
+    if width == 0 || height == 0 {
+        return Err(invalid(path, format!("empty image ({width}×{height})")));
+    }
+    if bands.is_empty() {
+        return Err(invalid(path, "no band to write".into()));
+    }
+    let n = width
+        .checked_mul(height)
+        .ok_or_else(|| invalid(path, format!("image too large ({width}×{height})")))?;
+    for b in bands {
+        if b.values.len() != n {
+            return Err(invalid(
+                path,
+                format!(
+                    "band {} has {} values, expected {width}×{height} = {n}",
+                    b.name,
+                    b.values.len()
+                ),
+            ));
+        }
+    }
+    let gdal_err = |what: &str| {
+        let what = what.to_string();
+        move |source| OutputError::Gdal {
+            path: path.to_path_buf(),
+            what,
+            source,
+        }
+    };
+
+    static COUNTER: AtomicU64 = AtomicU64::new(0);
+    let mem = MemFile(PathBuf::from(format!(
+        "/vsimem/simulator_image_{}_{}.tif",
+        std::process::id(),
+        COUNTER.fetch_add(1, Ordering::Relaxed)
+    )));
+
+    let driver = DriverManager::get_driver_by_name("GTiff").map_err(gdal_err("GTiff driver"))?;
+    let mut opts = RasterCreationOptions::new();
+    let mut opt = |k: &str, v: &str| {
+        opts.add_name_value(k, v)
+            .map_err(gdal_err("creation options"))
+    };
+    opt("COMPRESS", "DEFLATE")?;
+    opt("BIGTIFF", "IF_SAFER")?;
+    opt("INTERLEAVE", "BAND")?;
+    if width > TILE_ABOVE || height > TILE_ABOVE {
+        opt("TILED", "YES")?;
+        opt("BLOCKXSIZE", "256")?;
+        opt("BLOCKYSIZE", "256")?;
+    }
+    let mut ds = driver
+        .create_with_band_type_with_options::<f32, _>(&mem.0, width, height, bands.len(), &opts)
+        .map_err(gdal_err("create"))?;
+    ds.set_geo_transform(&geotransform)
+        .map_err(gdal_err("set geotransform"))?;
+    if !wkt.trim().is_empty() {
+        ds.set_projection(wkt).map_err(gdal_err("set CRS"))?;
+    }
+    for (k, v) in metadata {
+        ds.set_metadata_item(k, v, "")
+            .map_err(gdal_err(&format!("metadata item {k}")))?;
+    }
+    for (i, b) in bands.iter().enumerate() {
+        let mut band = ds.rasterband(i + 1).map_err(gdal_err("band"))?;
+        band.set_no_data_value(Some(f64::NAN))
+            .map_err(gdal_err("set nodata"))?;
+        band.set_description(&b.name)
+            .map_err(gdal_err("band description"))?;
+        if !b.description.is_empty() {
+            band.set_metadata_item("long_name", &b.description, "")
+                .map_err(gdal_err("band long_name"))?;
+        }
+        let data: Vec<f32> = b.values.iter().map(|&v| v as f32).collect();
+        let mut buf = Buffer::new((width, height), data);
+        band.write((0, 0), (width, height), &mut buf)
+            .map_err(gdal_err(&format!("write band {}", b.name)))?;
+    }
+    ds.close().map_err(gdal_err("close"))?;
+    gdal::vsi::call_on_mem_file_bytes(&mem.0, |bytes| write_atomic(path, bytes))
+        .map_err(gdal_err("read in-memory GeoTIFF"))?
+}
+
+/// Reference wavelengths (nm) of the true-colour channels R, G, B and the tolerance.
+const RGB_NM: [f64; 3] = [660.0, 550.0, 440.0];
+const RGB_TOLERANCE_NM: f64 = 30.0;
+
+/// Index of the wavelength closest to `target`.
+fn closest(wavelengths_nm: &[f64], target: f64) -> Option<usize> {
+    wavelengths_nm
+        .iter()
+        .enumerate()
+        .filter(|(_, w)| w.is_finite())
+        .min_by(|a, b| (a.1 - target).abs().total_cmp(&(b.1 - target).abs()))
+        .map(|(i, _)| i)
+}
+
+/// Linear [0, 1] → sRGB-encoded 8-bit value.
+fn srgb8(linear: f64) -> u8 {
+    let v = linear.clamp(0.0, 1.0);
+    let e = if v <= 0.003_130_8 {
+        12.92 * v
+    } else {
+        1.055 * v.powf(1.0 / 2.4) - 0.055
+    };
+    (e * 255.0).round().clamp(0.0, 255.0) as u8
+}
+
+/// 99th percentile (nearest rank) of the finite values; `None` when there are none.
+fn percentile_99(values: impl Iterator<Item = f64>) -> Option<f64> {
+    let mut v: Vec<f64> = values.filter(|x| x.is_finite()).collect();
+    if v.is_empty() {
+        return None;
+    }
+    let k = ((v.len() - 1) as f64 * 0.99).round() as usize;
+    let (_, p, _) = v.select_nth_unstable_by(k, f64::total_cmp);
+    Some(*p)
+}
+
+/// `x` with 3 significant digits, without trailing zeros.
+fn fmt_sig(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() {
+        return format!("{x}");
+    }
+    let mag = x.abs().log10().floor() as i32;
+    if !(-4..6).contains(&mag) {
+        return format!("{x:.2e}");
+    }
+    let decimals = (2 - mag).max(0) as usize;
+    let s = format!("{x:.decimals$}");
+    if s.contains('.') {
+        s.trim_end_matches('0').trim_end_matches('.').to_string()
+    } else {
+        s
+    }
+}
+
+fn fmt_nm(w: f64) -> String {
+    fmt_sig(w)
+}
+
+/// PNG quicklook (8-bit, written atomically). `channels` holds one image per wavelength (same
+/// size, row-major, row 0 north); `wavelengths_nm` their wavelengths. True colour when the run
+/// has wavelengths within ±30 nm of 660, 550 and 440 nm (closest for R, G, B), otherwise grey from
+/// the channel closest to 550 nm (the mean of all channels when the wavelengths are not given).
+/// Common linear stretch from 0 to the 99th percentile of the finite drawn values, then sRGB
+/// gamma; non-finite pixels magenta (colour) or black (grey). Returns a short description of what
+/// was drawn, e.g. "true colour R=660 G=550 B=440 nm, 0..0.31".
+pub fn write_quicklook_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    wavelengths_nm: &[f64],
+    channels: &[&[f64]],
+) -> Result<String, OutputError> {
+    if width == 0 || height == 0 {
+        return Err(invalid(path, format!("empty image ({width}×{height})")));
+    }
+    if channels.is_empty() {
+        return Err(invalid(path, "no channel to draw".into()));
+    }
+    let (w32, h32) = match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) => (w, h),
+        _ => return Err(invalid(path, format!("image too large ({width}×{height})"))),
+    };
+    let n = width * height;
+    for (i, c) in channels.iter().enumerate() {
+        if c.len() != n {
+            return Err(invalid(
+                path,
+                format!(
+                    "channel {i} has {} values, expected {width}×{height} = {n}",
+                    c.len()
+                ),
+            ));
+        }
+    }
+    let known = wavelengths_nm.len() == channels.len();
+
+    // True-colour channel choice.
+    let rgb: Option<[usize; 3]> = if known {
+        let pick = |t: f64| {
+            closest(wavelengths_nm, t)
+                .filter(|&i| (wavelengths_nm[i] - t).abs() <= RGB_TOLERANCE_NM)
+        };
+        match (pick(RGB_NM[0]), pick(RGB_NM[1]), pick(RGB_NM[2])) {
+            (Some(r), Some(g), Some(b)) => Some([r, g, b]),
+            _ => None,
+        }
+    } else {
+        None
+    };
+
+    let (bytes, color, description) = if let Some([r, g, b]) = rgb {
+        let (cr, cg, cb) = (channels[r], channels[g], channels[b]);
+        let top = percentile_99(cr.iter().chain(cg).chain(cb).copied());
+        let scale = stretch_top(top);
+        let mut px = Vec::with_capacity(3 * n);
+        for i in 0..n {
+            let (vr, vg, vb) = (cr[i], cg[i], cb[i]);
+            if vr.is_finite() && vg.is_finite() && vb.is_finite() {
+                px.extend([srgb8(vr / scale), srgb8(vg / scale), srgb8(vb / scale)]);
+            } else {
+                px.extend([255, 0, 255]);
+            }
+        }
+        let d = format!(
+            "true colour R={} G={} B={} nm, 0..{}",
+            fmt_nm(wavelengths_nm[r]),
+            fmt_nm(wavelengths_nm[g]),
+            fmt_nm(wavelengths_nm[b]),
+            fmt_sig(scale)
+        );
+        (px, ::image::ExtendedColorType::Rgb8, d)
+    } else {
+        let (grey, what): (Vec<f64>, String) = match closest(wavelengths_nm, RGB_NM[1]) {
+            Some(i) if known => (
+                channels[i].to_vec(),
+                format!("grey from {} nm", fmt_nm(wavelengths_nm[i])),
+            ),
+            _ => (
+                (0..n)
+                    .map(|p| channels.iter().map(|c| c[p]).sum::<f64>() / channels.len() as f64)
+                    .collect(),
+                format!("grey, mean of {} channels", channels.len()),
+            ),
+        };
+        let scale = stretch_top(percentile_99(grey.iter().copied()));
+        let px: Vec<u8> = grey
+            .iter()
+            .map(|&v| if v.is_finite() { srgb8(v / scale) } else { 0 })
+            .collect();
+        let d = format!("{what}, 0..{}", fmt_sig(scale));
+        (px, ::image::ExtendedColorType::L8, d)
+    };
+
+    let mut png = Vec::new();
+    ::image::ImageEncoder::write_image(
+        ::image::codecs::png::PngEncoder::new(&mut png),
+        &bytes,
+        w32,
+        h32,
+        color,
+    )
+    .map_err(|source| OutputError::Image {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    write_atomic(path, &png)?;
+    Ok(description)
+}
+
+/// The value drawn as full white: the 99th percentile when positive, else 1.
+fn stretch_top(p99: Option<f64>) -> f64 {
+    match p99 {
+        Some(p) if p > 0.0 => p,
+        _ => 1.0,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use gdal::spatial_ref::SpatialRef;
+    use gdal::Dataset;
+
+    /// A fresh, empty folder under the system temporary folder.
+    fn temp_dir(test: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!(
+            "simulator_products_image_{test}_{}",
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    #[test]
+    fn geotiff_round_trip() -> Result<(), Box<dyn std::error::Error>> {
+        let dir = temp_dir("round_trip");
+        let path = dir.join("toa.tif");
+        let (w, h) = (7usize, 5usize);
+        let wkt = SpatialRef::from_epsg(32631)?.to_wkt()?;
+        let gt = [500_000.0, 30.0, 0.0, 4_600_150.0, 0.0, -30.0];
+        let data: Vec<Vec<f64>> = (0..3)
+            .map(|b| {
+                (0..w * h)
+                    .map(|i| 0.01 * i as f64 + b as f64 + 1.0 / 3.0)
+                    .collect()
+            })
+            .collect();
+        let mut b1 = data[1].clone();
+        b1[w + 2] = f64::NAN; // row 1, column 2
+        let bands = vec![
+            ImageBand {
+                name: "brf_440nm".into(),
+                description: "BRF at 440 nm".into(),
+                values: &data[0],
+            },
+            ImageBand {
+                name: "brf_550nm".into(),
+                description: "BRF at 550 nm".into(),
+                values: &b1,
+            },
+            ImageBand {
+                name: "brf_660nm".into(),
+                description: "BRF at 660 nm".into(),
+                values: &data[2],
+            },
+        ];
+        let metadata = vec![
+            ("units".to_string(), "1".to_string()),
+            ("vza_deg".to_string(), "0".to_string()),
+            ("software".to_string(), "simulator test".to_string()),
+        ];
+        write_geotiff(&path, w, h, gt, &wkt, &bands, &metadata)?;
+        // Only the product in the folder: no temporary file, no `.aux.xml` side-car.
+        let names: Vec<_> = std::fs::read_dir(&dir)?
+            .map(|e| e.map(|e| e.file_name()))
+            .collect::<Result<_, _>>()?;
+        assert_eq!(names, vec![std::ffi::OsString::from("toa.tif")]);
+
+        let ds = Dataset::open(&path)?;
+        assert_eq!(ds.raster_size(), (w, h));
+        assert_eq!(ds.raster_count(), 3);
+        assert_eq!(ds.geo_transform()?, gt);
+        assert_eq!(ds.spatial_ref()?.auth_code()?, 32631);
+        assert_eq!(ds.metadata_item("units", "").as_deref(), Some("1"));
+        assert_eq!(
+            ds.metadata_item("software", "").as_deref(),
+            Some("simulator test")
+        );
+        for (k, b) in bands.iter().enumerate() {
+            let band = ds.rasterband(k + 1)?;
+            assert_eq!(band.band_type(), gdal::raster::GdalDataType::Float32);
+            assert_eq!(band.description()?, b.name);
+            assert_eq!(
+                band.metadata_item("long_name", "").as_deref(),
+                Some(b.description.as_str())
+            );
+            assert!(band.no_data_value().is_some_and(f64::is_nan));
+            let got = band.read_band_as::<f32>()?;
+            assert_eq!(got.shape(), (w, h));
+            for (i, (&g, &v)) in got.data().iter().zip(b.values).enumerate() {
+                if v.is_nan() {
+                    assert!(g.is_nan(), "band {k} pixel {i}");
+                } else {
+                    assert_eq!(g, v as f32, "band {k} pixel {i}");
+                }
+            }
+        }
+        assert!(ds.rasterband(2)?.read_band_as::<f32>()?.data()[w + 2].is_nan());
+        drop(ds);
+        std::fs::remove_dir_all(&dir)?;
+        Ok(())
+    }
+
+    #[test]
+    fn geotiff_large_is_tiled_and_empty_wkt_has_no_crs() -> Result<(), Box<dyn std::error::Error>> {
+        let dir = temp_dir("tiled");
+        let path = dir.join("big.tif");
+        let (w, h) = (300usize, 20usize);
+        let v: Vec<f64> = (0..w * h).map(|i| i as f64).collect();
+        let bands = [ImageBand {
+            name: "x".into(),
+            description: String::new(),
+            values: &v,
+        }];
+        write_geotiff(
+            &path,
+            w,
+            h,
+            [0.0, 1.0, 0.0, 0.0, 0.0, -1.0],
+            "",
+            &bands,
+            &[],
+        )?;
+        let ds = Dataset::open(&path)?;
+        assert!(ds.spatial_ref().is_err() || ds.projection().is_empty());
+        assert_eq!(ds.rasterband(1)?.block_size(), (256, 256));
+        assert_eq!(
+            ds.metadata_item("COMPRESSION", "IMAGE_STRUCTURE")
+                .as_deref(),
+            Some("DEFLATE")
+        );
+        assert_eq!(
+            ds.rasterband(1)?.read_band_as::<f32>()?.data()[w * h - 1],
+            5999.0
+        );
+        drop(ds);
+        std::fs::remove_dir_all(&dir)?;
+        Ok(())
+    }
+
+    #[test]
+    fn geotiff_into_missing_folder_fails_naming_the_path() {
+        let dir = temp_dir("missing").join("does_not_exist");
+        let path = dir.join("toa.tif");
+        let v = vec![0.5; 4];
+        let bands = [ImageBand {
+            name: "brf".into(),
+            description: "BRF".into(),
+            values: &v,
+        }];
+        let err = write_geotiff(
+            &path,
+            2,
+            2,
+            [0.0, 1.0, 0.0, 2.0, 0.0, -1.0],
+            "",
+            &bands,
+            &[],
+        )
+        .unwrap_err();
+        let msg = err.to_string();
+        assert!(msg.contains(&path.display().to_string()), "{msg}");
+        assert!(!path.exists());
+        assert!(!dir.exists());
+        // Wrong band size: an error naming the file, nothing written.
+        let err = write_geotiff(
+            &path,
+            3,
+            2,
+            [0.0, 1.0, 0.0, 2.0, 0.0, -1.0],
+            "",
+            &bands,
+            &[],
+        )
+        .unwrap_err();
+        assert!(err.to_string().contains(&path.display().to_string()));
+        let _ = std::fs::remove_dir_all(dir.parent().unwrap());
+    }
+
+    #[test]
+    fn quicklook_true_colour_and_grey() -> Result<(), Box<dyn std::error::Error>> {
+        let dir = temp_dir("quicklook");
+        let (w, h) = (4usize, 3usize);
+        let n = w * h;
+        // Grey background 0.1 everywhere; pixel 5 bright only at 660 nm; pixel 7 NaN at 550 nm.
+        let mut c440 = vec![0.1; n];
+        let mut c550 = vec![0.1; n];
+        let mut c660 = vec![0.1; n];
+        c660[5] = 0.3;
+        c550[7] = f64::NAN;
+        c440[0] = 0.05;
+        let path = dir.join("ql.png");
+        let d = write_quicklook_png(&path, w, h, &[440.0, 550.0, 660.0], &[&c440, &c550, &c660])?;
+        assert!(d.starts_with("true colour"), "{d}");
+        assert!(d.contains("R=660 G=550 B=440 nm"), "{d}");
+        let img = ::image::open(&path)?.to_rgb8();
+        assert_eq!(img.dimensions(), (w as u32, h as u32));
+        let p = img.get_pixel(5 % w as u32, 5 / w as u32).0;
+        assert!(p[0] > p[1] + 50 && p[0] > p[2] + 50, "{p:?}");
+        assert_eq!(img.get_pixel(7 % w as u32, 7 / w as u32).0, [255, 0, 255]);
+        let bg = img.get_pixel(1, 0).0;
+        assert!(bg[0] == bg[1] && bg[1] == bg[2] && bg[0] > 0, "{bg:?}");
+
+        // A single near-infrared channel: grey; NaN black.
+        let mut nir = vec![0.4; n];
+        nir[2] = 0.2;
+        nir[3] = f64::NAN;
+        let path = dir.join("nir.png");
+        let d = write_quicklook_png(&path, w, h, &[865.0], &[&nir])?;
+        assert!(d.starts_with("grey from 865 nm"), "{d}");
+        let img = ::image::open(&path)?.to_rgb8();
+        assert_eq!(img.dimensions(), (w as u32, h as u32));
+        for px in img.pixels() {
+            assert!(px.0[0] == px.0[1] && px.0[1] == px.0[2]);
+        }
+        assert_eq!(img.get_pixel(3, 0).0, [0, 0, 0]);
+        assert_eq!(img.get_pixel(0, 0).0, [255, 255, 255]);
+        assert!(img.get_pixel(2, 0).0[0] < 255 && img.get_pixel(2, 0).0[0] > 0);
+        // Wavelengths out of the ±30 nm windows: grey from the one closest to 550 nm.
+        let d = write_quicklook_png(&path, w, h, &[490.0, 560.0, 865.0], &[&c550, &c550, &nir])?;
+        assert!(d.starts_with("grey from 560 nm"), "{d}");
+
+        // Into a missing folder: an error naming the file.
+        let bad = dir.join("nope").join("ql.png");
+        let err = write_quicklook_png(&bad, w, h, &[865.0], &[&nir]).unwrap_err();
+        assert!(err.to_string().contains(&bad.display().to_string()));
+        assert!(!bad.exists());
+        std::fs::remove_dir_all(&dir)?;
+        Ok(())
+    }
+
+    #[test]
+    fn helpers() {
+        assert_eq!(srgb8(0.0), 0);
+        assert_eq!(srgb8(1.0), 255);
+        assert_eq!(srgb8(2.0), 255);
+        assert_eq!(srgb8(0.18), 118);
+        assert_eq!(fmt_sig(0.3123), "0.312");
+        assert_eq!(fmt_sig(660.0), "660");
+        assert_eq!(fmt_sig(0.5), "0.5");
+        let v: Vec<f64> = (0..=100).map(f64::from).chain([f64::NAN]).collect();
+        assert_eq!(percentile_99(v.into_iter()), Some(99.0));
+        assert_eq!(percentile_99([f64::NAN].into_iter()), None);
+    }
+}

@@ -1,0 +1,196 @@
+//! Image products of `ortho` and `perspective` measures.
+//!
+//! For every image measure `ID` the run writes, beside `results.nc` (which holds the same data
+//! as `ID_brf(wavelength, ID_y, ID_x)` and friends):
+//! * ortho measures: `ID_brf.tif`, `ID_brf_stderr.tif`, `ID_radiance.tif`,
+//!   `ID_radiance_stderr.tif` — Float32 GeoTIFFs in the scene's CRS (a bundle's working CRS;
+//!   none for canopies) with the pixel-corner geotransform, one band per wavelength (band `k`
+//!   is `exp.wavelengths[k]`), NaN as nodata;
+//! * both: `ID.png`, a quicklook of the BRF (true colour when wavelengths near 660/550/440 nm
+//!   were simulated, grey otherwise; see `products::image`).
+//!
+//! Units: radiance W m⁻² sr⁻¹ nm⁻¹ (the irradiance's unit per sr), BRF dimensionless.
+
+use std::path::{Path, PathBuf};
+
+use super::image::{write_geotiff, write_quicklook_png, ImageBand};
+use crate::config::resolve::Experiment;
+use crate::error::OutputError;
+use crate::measure::MeasureKind;
+use crate::run::MeasureResult;
+
+/// One image measure's results, per wavelength.
+#[derive(Clone, Debug)]
+pub struct ImageProduct {
+    pub measure: usize,
+    pub id: String,
+    pub width: usize,
+    pub height: usize,
+    /// GDAL geotransform in the scene's CRS coordinates (ortho only).
+    pub geotransform: Option<[f64; 6]>,
+    /// WKT of the CRS (empty when the scene has none).
+    pub wkt: String,
+    /// `[wavelength][pixel]`, row-major from the north / the top.
+    pub brf: Vec<Vec<f64>>,
+    pub brf_stderr: Vec<Vec<f64>>,
+    pub brf_single: Vec<Vec<f64>>,
+    pub brf_multiple: Vec<Vec<f64>>,
+    pub radiance: Vec<Vec<f64>>,
+    pub radiance_stderr: Vec<Vec<f64>>,
+    /// Samples per pixel, per wavelength.
+    pub n_samples: Vec<u64>,
+    /// View angles of an ortho image, degrees.
+    pub view: Option<(f64, f64)>,
+}
+
+/// Collect the image measures' results.
+pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageProduct> {
+    let mu_s = exp.mu_norm();
+    let mut out: Vec<ImageProduct> = Vec::new();
+    for r in results {
+        let m = &exp.measures[r.measure];
+        let (width, height, gt, view) = match &m.kind {
+            MeasureKind::Ortho(g) => {
+                let o = exp
+                    .scene
+                    .as_ref()
+                    .and_then(|s| s.georef.as_ref())
+                    .map_or((0.0, 0.0), |g| (g.origin.x, g.origin.y));
+                let t = g.geotransform;
+                (
+                    g.width,
+                    g.height,
+                    Some([t[0] + o.0, t[1], t[2], t[3] + o.1, t[4], t[5]]),
+                    Some((g.vza, g.vaa)),
+                )
+            }
+            MeasureKind::Perspective(c) => (c.width, c.height, None, None),
+            _ => continue,
+        };
+        let idx = match out.iter().position(|p| p.measure == r.measure) {
+            Some(i) => i,
+            None => {
+                let nw = exp.wavelengths.len();
+                let blank = vec![vec![f64::NAN; width * height]; nw];
+                out.push(ImageProduct {
+                    measure: r.measure,
+                    id: m.id.clone(),
+                    width,
+                    height,
+                    geotransform: gt,
+                    wkt: exp
+                        .scene
+                        .as_ref()
+                        .and_then(|s| s.georef.as_ref())
+                        .map_or(String::new(), |g| g.wkt.clone()),
+                    brf: blank.clone(),
+                    brf_stderr: blank.clone(),
+                    brf_single: blank.clone(),
+                    brf_multiple: blank.clone(),
+                    radiance: blank.clone(),
+                    radiance_stderr: blank,
+                    n_samples: vec![0; nw],
+                    view,
+                });
+                out.len() - 1
+            }
+        };
+        let p = &mut out[idx];
+        let iw = r.wavelength;
+        let to_rad = exp.optics[iw].irradiance * mu_s / std::f64::consts::PI;
+        for c in 0..width * height {
+            let (t, e) = r.acc.mean_stderr(c, 0);
+            p.brf[iw][c] = t;
+            p.brf_stderr[iw][c] = e;
+            p.brf_single[iw][c] = r.acc.mean_stderr(c, 1).0;
+            p.brf_multiple[iw][c] = r.acc.mean_stderr(c, 2).0;
+            p.radiance[iw][c] = t * to_rad;
+            p.radiance_stderr[iw][c] = e * to_rad;
+        }
+        p.n_samples[iw] = r.acc.n.iter().copied().min().unwrap_or(0);
+    }
+    out
+}
+
+/// Write the GeoTIFFs (ortho) and the PNG quicklook of one image into `dir`; returns the paths
+/// written and the quicklook's description.
+pub fn write_files(
+    dir: &Path,
+    exp: &Experiment,
+    p: &ImageProduct,
+) -> Result<(Vec<PathBuf>, String), OutputError> {
+    let mut written = Vec::new();
+    if let Some(gt) = p.geotransform {
+        let mut meta = vec![
+            (
+                "software".to_string(),
+                format!("simulator {}", env!("CARGO_PKG_VERSION")),
+            ),
+            (
+                "sun_zenith_deg".to_string(),
+                format!("{}", exp.sun_zenith_deg),
+            ),
+            (
+                "sun_azimuth_deg".to_string(),
+                format!("{}", exp.sun_azimuth_deg),
+            ),
+            ("samples_per_pixel".to_string(), format!("{:?}", p.n_samples)),
+        ];
+        if let Some((vza, vaa)) = p.view {
+            meta.push(("view_zenith_deg".into(), format!("{vza}")));
+            meta.push(("view_azimuth_deg".into(), format!("{vaa}")));
+        }
+        let sets: [(&str, &Vec<Vec<f64>>, &str, &str); 4] = [
+            ("brf", &p.brf, "1", "bidirectional reflectance factor"),
+            (
+                "brf_stderr",
+                &p.brf_stderr,
+                "1",
+                "standard error of the BRF",
+            ),
+            (
+                "radiance",
+                &p.radiance,
+                "W m-2 sr-1 nm-1",
+                "TOA radiance",
+            ),
+            (
+                "radiance_stderr",
+                &p.radiance_stderr,
+                "W m-2 sr-1 nm-1",
+                "standard error of the radiance",
+            ),
+        ];
+        for (name, data, units, long) in sets {
+            let bands: Vec<ImageBand> = exp
+                .wavelengths
+                .iter()
+                .zip(data.iter())
+                .map(|(w, v)| ImageBand {
+                    name: format!("{name}_{w}nm"),
+                    description: format!("{long} at {w} nm"),
+                    values: v,
+                })
+                .collect();
+            let mut md = meta.clone();
+            md.push(("units".into(), units.into()));
+            md.push(("quantity".into(), long.into()));
+            md.push((
+                "wavelengths_nm".into(),
+                exp.wavelengths
+                    .iter()
+                    .map(|w| w.to_string())
+                    .collect::<Vec<_>>()
+                    .join(","),
+            ));
+            let path = dir.join(format!("{}_{name}.tif", p.id));
+            write_geotiff(&path, p.width, p.height, gt, &p.wkt, &bands, &md)?;
+            written.push(path);
+        }
+    }
+    let path = dir.join(format!("{}.png", p.id));
+    let channels: Vec<&[f64]> = p.brf.iter().map(|v| v.as_slice()).collect();
+    let what = write_quicklook_png(&path, p.width, p.height, &exp.wavelengths, &channels)?;
+    written.push(path);
+    Ok((written, format!("{what} BRF")))
+}

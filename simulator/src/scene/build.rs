@@ -1,0 +1,353 @@
+//! Building a [`Scene`] from a scene bundle or from a discrete-leaf canopy description.
+//!
+//! * Bundle: terrain tiles → one terrain BVH; the material raster → the selector; templates →
+//!   bottom-level BVHs and instances → the top level (stored once each); the bundle's material
+//!   table (optionally overridden by name) → the scene's. Around the terrain a background ground
+//!   plane (default: at the lowest DEM height, with the raster's most frequent material) catches
+//!   paths leaving the region; `background = "none"` loses them instead.
+//! * Canopy: leaf clouds (discs) read from text files in the RAMI/ROMC layouts, copied at a list
+//!   of positions and optionally padded (the whole set repeated on a (2p+1)² grid of cells), over
+//!   a Lambertian ground square. See `docs/scenes.md` and `../shared/data/canopy/MANIFEST.md`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use glam::{DVec3, Mat3};
+
+use super::instances::{Disc, InstanceBvh, InstanceTransform, TemplateGeometry};
+use super::world::{Georef, GroundPlane, MaterialRaster, Scene};
+use super::TerrainBvh;
+use crate::bundle::{BrdfSpec, Bundle};
+
+/// Where to put the background around a bundle's terrain.
+#[derive(Clone, Debug)]
+pub enum Background {
+    None,
+    Flat {
+        /// m; None: the lowest terrain height.
+        altitude: Option<f64>,
+        /// None: the raster's most frequent material.
+        brdf: Option<BrdfSpec>,
+    },
+}
+
+/// Load a bundle into a scene. `overrides` replace materials by name (each name must exist).
+pub fn from_bundle(
+    dir: &Path,
+    background: &Background,
+    overrides: &[(String, BrdfSpec)],
+) -> Result<Scene, String> {
+    let t0 = Instant::now();
+    let bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
+    let m = &bundle.manifest;
+    let origin = DVec3::from_array(m.frame.origin);
+    let extent = [
+        m.extent.min[0] - origin.x,
+        m.extent.min[1] - origin.y,
+        m.extent.max[0] - origin.x,
+        m.extent.max[1] - origin.y,
+    ];
+    let mut materials: Vec<(String, BrdfSpec)> = m
+        .materials
+        .iter()
+        .map(|x| (x.name.clone(), x.brdf.clone()))
+        .collect();
+    for (name, spec) in overrides {
+        match materials.iter_mut().find(|(n, _)| n == name) {
+            Some(slot) => slot.1 = spec.clone(),
+            None => {
+                return Err(format!(
+                    "material `{name}` is not in the bundle (its materials: {})",
+                    materials
+                        .iter()
+                        .map(|(n, _)| n.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                ))
+            }
+        }
+    }
+    let t_load = t0.elapsed().as_secs_f64();
+
+    let t1 = Instant::now();
+    let terrain = TerrainBvh::new(&bundle);
+    let render_origin = terrain.render_origin();
+    let gt = m.material_raster.geotransform;
+    let raster = MaterialRaster {
+        width: m.material_raster.width as usize,
+        height: m.material_raster.height as usize,
+        geotransform: [gt[0] - origin.x, gt[1], gt[2], gt[3] - origin.y, gt[4], gt[5]],
+        data: bundle.material_raster.clone(),
+    };
+    if raster.width == 0 || raster.height == 0 || raster.data.len() != raster.width * raster.height
+    {
+        return Err("the material raster is empty".into());
+    }
+    let templates: Vec<TemplateGeometry> = bundle
+        .templates
+        .iter()
+        .map(|t| TemplateGeometry::Triangles {
+            positions: t.positions.clone(),
+            indices: t.indices.clone(),
+            materials: t.materials.iter().map(|&x| x as u16).collect(),
+        })
+        .collect();
+    let instances: Vec<(u32, InstanceTransform)> = bundle
+        .instances
+        .iter()
+        .map(|i| {
+            (
+                i.template,
+                InstanceTransform {
+                    translation: DVec3::from_array(i.translation),
+                    linear: Mat3::from_cols_array(&i.linear),
+                },
+            )
+        })
+        .collect();
+    let objects = if instances.is_empty() {
+        None
+    } else {
+        Some(InstanceBvh::new(templates, instances, render_origin)?)
+    };
+    let t_bvh = t1.elapsed().as_secs_f64();
+
+    let mut z_range = m.extent.height_range;
+    if let Some(o) = &objects {
+        let (_, hi) = o.bounds();
+        z_range[1] = z_range[1].max(hi.z);
+    }
+    let ground = match background {
+        Background::None => None,
+        Background::Flat { altitude, brdf } => {
+            let material = match brdf {
+                Some(spec) => {
+                    materials.push(("background".into(), spec.clone()));
+                    (materials.len() - 1) as u16
+                }
+                None => {
+                    let h = &m.material_raster.histogram;
+                    (0..h.len().min(255))
+                        .max_by_key(|&i| h[i])
+                        .unwrap_or(0)
+                        .min(materials.len().saturating_sub(1)) as u16
+                }
+            };
+            let altitude = altitude.unwrap_or(m.extent.height_range[0]);
+            z_range[0] = z_range[0].min(altitude);
+            Some(GroundPlane {
+                altitude,
+                material,
+                inside: None,
+                outside: Some(extent),
+            })
+        }
+    };
+    let memory_bytes = terrain.memory_bytes()
+        + raster.data.len()
+        + objects.as_ref().map_or(0, |o| o.memory_bytes());
+    let reference_height = 0.5 * (m.extent.height_range[0] + m.extent.height_range[1]);
+    let scene = Scene {
+        name: dir.display().to_string(),
+        terrain: Some((terrain, raster)),
+        objects,
+        ground,
+        materials,
+        georef: Some(Georef {
+            wkt: m.crs.wkt.clone(),
+            origin,
+        }),
+        extent,
+        z_range,
+        reference_height,
+        render_origin,
+        memory_bytes,
+    };
+    tracing::info!(
+        "{} (load {t_load:.2} s, BVH build {t_bvh:.2} s)",
+        scene.summary()
+    );
+    Ok(scene)
+}
+
+/// One leaf cloud of a canopy.
+#[derive(Clone, Debug)]
+pub struct LeafCloud {
+    pub name: String,
+    pub leaves: PathBuf,
+    /// Column order of the leaf file.
+    pub columns: LeafColumns,
+    /// Translations of the copies; empty: one copy at the origin.
+    pub positions: Vec<DVec3>,
+    pub brdf: BrdfSpec,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum LeafColumns {
+    /// `radius x y z nx ny nz` (ROMC `.def` files).
+    RadiusFirst,
+    /// `x y z nx ny nz radius`.
+    RadiusLast,
+}
+
+/// A Lambertian (or any) ground of a canopy.
+#[derive(Clone, Debug)]
+pub struct CanopyGround {
+    pub altitude: f64,
+    /// [xmin, ymin, xmax, ymax]; None: infinite.
+    pub extent: Option<[f64; 4]>,
+    pub brdf: BrdfSpec,
+}
+
+/// Read whitespace-separated numbers, `columns` per line; `#` starts a comment. Errors name the
+/// file and line.
+pub fn read_table(path: &Path, columns: usize) -> Result<Vec<Vec<f64>>, String> {
+    let text = std::fs::read_to_string(path)
+        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+    let mut rows = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let line = line.split('#').next().unwrap_or("").trim();
+        if line.is_empty() {
+            continue;
+        }
+        let vals: Result<Vec<f64>, _> = line.split_whitespace().map(str::parse::<f64>).collect();
+        match vals {
+            Ok(v) if v.len() == columns && v.iter().all(|x| x.is_finite()) => rows.push(v),
+            Ok(v) => {
+                return Err(format!(
+                    "{}:{}: expected {columns} finite numbers, found {} values",
+                    path.display(),
+                    i + 1,
+                    v.len()
+                ))
+            }
+            Err(e) => return Err(format!("{}:{}: {e}", path.display(), i + 1)),
+        }
+    }
+    if rows.is_empty() {
+        return Err(format!("{}: no data rows", path.display()));
+    }
+    Ok(rows)
+}
+
+/// Read a leaf file into discs.
+pub fn read_leaves(path: &Path, columns: LeafColumns) -> Result<Vec<Disc>, String> {
+    let rows = read_table(path, 7)?;
+    rows.iter()
+        .enumerate()
+        .map(|(i, r)| {
+            let (rad, c, n) = match columns {
+                LeafColumns::RadiusFirst => (r[0], [r[1], r[2], r[3]], [r[4], r[5], r[6]]),
+                LeafColumns::RadiusLast => (r[6], [r[0], r[1], r[2]], [r[3], r[4], r[5]]),
+            };
+            let nv = DVec3::from_array(n);
+            if rad <= 0.0 || nv.length() < 1e-6 {
+                return Err(format!(
+                    "{}: leaf {}: radius {rad} must be > 0 and the normal non-zero",
+                    path.display(),
+                    i + 1
+                ));
+            }
+            let nv = nv.normalize();
+            Ok(Disc {
+                centre: [c[0] as f32, c[1] as f32, c[2] as f32],
+                normal: [nv.x as f32, nv.y as f32, nv.z as f32],
+                radius: rad as f32,
+            })
+        })
+        .collect()
+}
+
+/// Build a canopy scene. `padding`: (cell size x, y in m, copies p): every copy is repeated at
+/// offsets (i·cx, j·cy), |i|, |j| ≤ p.
+pub fn canopy(
+    clouds: &[LeafCloud],
+    ground: Option<&CanopyGround>,
+    padding: Option<([f64; 2], u32)>,
+) -> Result<Scene, String> {
+    let t0 = Instant::now();
+    let mut templates = Vec::new();
+    let mut instances = Vec::new();
+    let mut materials: Vec<(String, BrdfSpec)> = Vec::new();
+    let offsets: Vec<DVec3> = match padding {
+        None => vec![DVec3::ZERO],
+        Some((cell, p)) => {
+            let p = p as i64;
+            let mut v = Vec::new();
+            for j in -p..=p {
+                for i in -p..=p {
+                    v.push(DVec3::new(i as f64 * cell[0], j as f64 * cell[1], 0.0));
+                }
+            }
+            v
+        }
+    };
+    for (k, c) in clouds.iter().enumerate() {
+        let discs = read_leaves(&c.leaves, c.columns)?;
+        let n = discs.len();
+        materials.push((c.name.clone(), c.brdf.clone()));
+        templates.push(TemplateGeometry::Discs {
+            discs,
+            materials: vec![k as u16; n],
+        });
+        let pos = if c.positions.is_empty() {
+            vec![DVec3::ZERO]
+        } else {
+            c.positions.clone()
+        };
+        for o in &offsets {
+            for p in &pos {
+                instances.push((
+                    k as u32,
+                    InstanceTransform {
+                        translation: *p + *o,
+                        linear: Mat3::IDENTITY,
+                    },
+                ));
+            }
+        }
+    }
+    let objects = InstanceBvh::new(templates, instances, DVec3::ZERO)?;
+    let (lo, hi) = objects.bounds();
+    let mut extent = [lo.x, lo.y, hi.x, hi.y];
+    let mut z_range = [lo.z, hi.z];
+    let ground = ground.map(|g| {
+        materials.push(("ground".into(), g.brdf.clone()));
+        if let Some(e) = g.extent {
+            extent = [
+                extent[0].min(e[0]),
+                extent[1].min(e[1]),
+                extent[2].max(e[2]),
+                extent[3].max(e[3]),
+            ];
+        }
+        z_range[0] = z_range[0].min(g.altitude);
+        z_range[1] = z_range[1].max(g.altitude);
+        GroundPlane {
+            altitude: g.altitude,
+            material: (materials.len() - 1) as u16,
+            inside: g.extent,
+            outside: None,
+        }
+    });
+    let memory_bytes = objects.memory_bytes();
+    let scene = Scene {
+        name: "canopy".into(),
+        terrain: None,
+        objects: Some(objects),
+        reference_height: ground.as_ref().map_or(z_range[0], |g| g.altitude),
+        ground,
+        materials,
+        georef: None,
+        extent,
+        z_range,
+        render_origin: DVec3::ZERO,
+        memory_bytes,
+    };
+    tracing::info!(
+        "{} (built in {:.2} s)",
+        scene.summary(),
+        t0.elapsed().as_secs_f64()
+    );
+    Ok(scene)
+}

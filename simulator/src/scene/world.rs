@@ -1,0 +1,299 @@
+//! A 3D scene ready for transport: terrain, instanced objects, a ground plane and the material
+//! table, under one query interface (`intersect`, `occluded`).
+//!
+//! Frame: the scene's *local* frame in metres, x east, y north, z height (for bundles the
+//! bundle's local frame, i.e. working-CRS coordinates minus `frame.origin`; for canopies the
+//! canopy's own coordinates). The plane-parallel atmosphere shares the z axis: a point's altitude
+//! is its z.
+//!
+//! Parts (each optional):
+//! * terrain (bundle tiles, [`TerrainBvh`]) whose material comes from the material raster by
+//!   nearest lookup of the hit's (x, y) — the *selector*. A terrain triangle seen from below is
+//!   black (it can only happen beside the scene's edge, under the terrain skirt).
+//! * instanced objects ([`InstanceBvh`]): template meshes and disc clouds, stored once.
+//! * a horizontal ground plane `z = altitude` with one material, restricted to a rectangle
+//!   (`inside`, a finite soil) and/or outside a rectangle (`outside`, the background around a
+//!   bundle's terrain). Seen from below it is black.
+//!
+//! Self-intersection: a new ray leaving a surface starts at the hit point moved along the
+//! geometric normal, to the side it leaves towards, by [`Scene::offset_distance`]: 10 µm plus
+//! 10⁻⁶ × the distance from the render origin (f32 resolves 1.2·10⁻⁷ of it; the terrain and the
+//! top-level BVH work in f32). It is tested on a terrain 40 km from the origin.
+
+use glam::DVec3;
+
+use super::instances::{InstanceBvh, InstanceHit};
+use super::material::SurfaceModel;
+use super::TerrainBvh;
+use crate::bundle::BrdfSpec;
+
+/// Material id of a black (absorbing) surface, outside the material table.
+pub const BLACK: u16 = u16::MAX;
+
+/// The material raster of a terrain, georeferenced in the local frame.
+#[derive(Clone, Debug)]
+pub struct MaterialRaster {
+    pub width: usize,
+    pub height: usize,
+    /// GDAL geotransform in the **local** frame (working CRS minus the frame origin).
+    pub geotransform: [f64; 6],
+    /// Row-major from the north, raw 8-bit material indices (255: none, drawn black).
+    pub data: Vec<u8>,
+}
+
+impl MaterialRaster {
+    /// Material at local (x, y): nearest cell, clamped to the raster's edges.
+    #[inline]
+    pub fn lookup(&self, x: f64, y: f64) -> u16 {
+        let g = &self.geotransform;
+        let col = ((x - g[0]) / g[1]).floor();
+        let row = ((y - g[3]) / g[5]).floor();
+        let c = (col.max(0.0) as usize).min(self.width - 1);
+        let r = (row.max(0.0) as usize).min(self.height - 1);
+        match self.data[r * self.width + c] {
+            crate::bundle::NO_MATERIAL => BLACK,
+            v => v as u16,
+        }
+    }
+}
+
+/// A horizontal plane with one material.
+#[derive(Clone, Debug)]
+pub struct GroundPlane {
+    /// Height, m.
+    pub altitude: f64,
+    pub material: u16,
+    /// It exists only inside this rectangle [xmin, ymin, xmax, ymax] (None: everywhere)…
+    pub inside: Option<[f64; 4]>,
+    /// …and only outside this one (None: no hole).
+    pub outside: Option<[f64; 4]>,
+}
+
+fn in_rect(r: &[f64; 4], x: f64, y: f64) -> bool {
+    x >= r[0] && x <= r[2] && y >= r[1] && y <= r[3]
+}
+
+impl GroundPlane {
+    /// Distance to the plane along the ray, if the ray meets its existing part; returns the
+    /// distance and whether the ray comes from above.
+    #[inline]
+    fn intersect(&self, o: DVec3, d: DVec3, tmax: f64) -> Option<(f64, bool)> {
+        if d.z == 0.0 {
+            return None;
+        }
+        let t = (self.altitude - o.z) / d.z;
+        if !(t > 0.0 && t < tmax) {
+            return None;
+        }
+        let p = o + d * t;
+        if self.inside.is_some_and(|r| !in_rect(&r, p.x, p.y))
+            || self.outside.is_some_and(|r| in_rect(&r, p.x, p.y))
+        {
+            return None;
+        }
+        Some((t, d.z < 0.0))
+    }
+}
+
+/// A hit on the scene.
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceHit {
+    pub t: f64,
+    pub point: DVec3,
+    /// Unit geometric normal on the side the ray comes from (`normal·dir < 0`).
+    pub normal: DVec3,
+    /// Index into the material table, or [`BLACK`].
+    pub material: u16,
+}
+
+/// Georeferencing of a scene built from a bundle.
+#[derive(Clone, Debug)]
+pub struct Georef {
+    /// OGC WKT of the working CRS.
+    pub wkt: String,
+    /// Working-CRS coordinates of the local origin, m.
+    pub origin: DVec3,
+}
+
+/// A scene: geometry, materials, extent.
+pub struct Scene {
+    pub name: String,
+    pub terrain: Option<(TerrainBvh, MaterialRaster)>,
+    pub objects: Option<InstanceBvh>,
+    pub ground: Option<GroundPlane>,
+    /// (name, model) per material id.
+    pub materials: Vec<(String, BrdfSpec)>,
+    pub georef: Option<Georef>,
+    /// Horizontal extent of the scene's content [xmin, ymin, xmax, ymax] (local frame), m.
+    pub extent: [f64; 4],
+    /// Lowest and highest point of the geometry, m.
+    pub z_range: [f64; 2],
+    /// Mean terrain height (reference height of ortho projections), m.
+    pub reference_height: f64,
+    /// Where the f32 geometry is centred (local frame).
+    pub render_origin: DVec3,
+    /// Approximate memory of geometry and acceleration structures, bytes.
+    pub memory_bytes: usize,
+}
+
+impl std::fmt::Debug for Scene {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Scene")
+            .field("name", &self.name)
+            .field(
+                "terrain_triangles",
+                &self.terrain.as_ref().map(|t| t.0.triangle_count()),
+            )
+            .field(
+                "instances",
+                &self.objects.as_ref().map(|o| o.instance_count()),
+            )
+            .field("ground", &self.ground)
+            .field("materials", &self.materials.len())
+            .field("extent", &self.extent)
+            .field("z_range", &self.z_range)
+            .finish()
+    }
+}
+
+impl Scene {
+    /// Offset that moves a new ray off the surface it starts on (see the module header).
+    #[inline]
+    pub fn offset_distance(&self, p: DVec3) -> f64 {
+        1e-5 + 1e-6 * (p - self.render_origin).abs().max_element()
+    }
+
+    /// The start of a ray leaving a surface at `p` with normal `n` towards `dir`.
+    #[inline]
+    pub fn offset(&self, p: DVec3, n: DVec3, dir: DVec3) -> DVec3 {
+        let e = self.offset_distance(p);
+        if n.dot(dir) >= 0.0 {
+            p + n * e
+        } else {
+            p - n * e
+        }
+    }
+
+    /// Closest hit of `o + t·d` with `0 < t < tmax` (`d` unit).
+    pub fn intersect(&self, o: DVec3, d: DVec3, tmax: f64) -> Option<SurfaceHit> {
+        let mut best: Option<SurfaceHit> = None;
+        let mut tbest = tmax;
+        if let Some((bvh, raster)) = &self.terrain {
+            if let Some(h) = bvh.intersect(o, d) {
+                if h.t > 0.0 && h.t < tbest {
+                    tbest = h.t;
+                    let p = o + d * h.t;
+                    // The normal faces the ray: pointing down means the ray came from below.
+                    let material = if h.normal.z < 0.0 {
+                        BLACK
+                    } else {
+                        raster.lookup(p.x, p.y)
+                    };
+                    best = Some(SurfaceHit {
+                        t: h.t,
+                        point: p,
+                        normal: h.normal,
+                        material,
+                    });
+                }
+            }
+        }
+        if let Some(obj) = &self.objects {
+            if let Some(InstanceHit {
+                t,
+                normal,
+                material,
+                ..
+            }) = obj.intersect(o, d, 0.0, tbest)
+            {
+                tbest = t;
+                best = Some(SurfaceHit {
+                    t,
+                    point: o + d * t,
+                    normal,
+                    material,
+                });
+            }
+        }
+        if let Some(g) = &self.ground {
+            if let Some((t, from_above)) = g.intersect(o, d, tbest) {
+                best = Some(SurfaceHit {
+                    t,
+                    point: o + d * t,
+                    normal: if from_above { DVec3::Z } else { -DVec3::Z },
+                    material: if from_above { g.material } else { BLACK },
+                });
+            }
+        }
+        best
+    }
+
+    /// Whether anything blocks `o + t·d` for `0 < t < tmax` (shadow rays).
+    pub fn occluded(&self, o: DVec3, d: DVec3, tmax: f64) -> bool {
+        // Nothing above the scene's top can block a ray going up from above it.
+        if d.z >= 0.0 && o.z > self.z_range[1] {
+            return false;
+        }
+        if let Some(g) = &self.ground {
+            if g.intersect(o, d, tmax).is_some() {
+                return true;
+            }
+        }
+        if let Some(obj) = &self.objects {
+            if obj.occluded(o, d, 0.0, tmax) {
+                return true;
+            }
+        }
+        if let Some((bvh, _)) = &self.terrain {
+            if bvh.intersect(o, d).is_some_and(|h| h.t > 0.0 && h.t < tmax) {
+                return true;
+            }
+        }
+        false
+    }
+
+    /// Height of the ground (terrain, else the ground plane) below (x, y): a vertical ray from
+    /// above the scene, ignoring objects. `None` where there is no ground.
+    pub fn ground_height(&self, x: f64, y: f64) -> Option<f64> {
+        let top = self.z_range[1] + 10.0;
+        let o = DVec3::new(x, y, top);
+        if let Some((bvh, _)) = &self.terrain {
+            if let Some(h) = bvh.intersect(o, -DVec3::Z) {
+                return Some(top - h.t);
+            }
+        }
+        self.ground
+            .as_ref()
+            .and_then(|g| g.intersect(o, -DVec3::Z, f64::INFINITY))
+            .map(|(t, _)| top - t)
+    }
+
+    /// The material models at one wavelength, indexed by material id.
+    pub fn models_at(&self, wavelength_nm: f64) -> Result<Vec<SurfaceModel>, String> {
+        self.materials
+            .iter()
+            .map(|(name, spec)| {
+                SurfaceModel::from_spec(spec, wavelength_nm)
+                    .map_err(|e| format!("material `{name}`: {e}"))
+            })
+            .collect()
+    }
+
+    /// A one-paragraph summary for logs.
+    pub fn summary(&self) -> String {
+        format!(
+            "scene `{}`: {} terrain triangles, {} instances of {} primitives, ground {}, {} materials, extent {:.0} × {:.0} m, heights {:.1}..{:.1} m, memory {:.1} MiB",
+            self.name,
+            self.terrain.as_ref().map_or(0, |t| t.0.triangle_count()),
+            self.objects.as_ref().map_or(0, |o| o.instance_count()),
+            self.objects.as_ref().map_or(0, |o| o.primitive_count()),
+            if self.ground.is_some() { "yes" } else { "no" },
+            self.materials.len(),
+            self.extent[2] - self.extent[0],
+            self.extent[3] - self.extent[1],
+            self.z_range[0],
+            self.z_range[1],
+            self.memory_bytes as f64 / (1024.0 * 1024.0)
+        )
+    }
+}

@@ -1,0 +1,179 @@
+//! Synthetic scene bundles for the 3D tests: planar terrains (optionally tilted, far from the
+//! frame origin) with a material raster, written with the bundle writer.
+#![allow(dead_code)]
+
+use std::path::{Path, PathBuf};
+
+use simulator::bundle::*;
+
+pub fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("sim-scene-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A planar terrain `z = h0 + sx·x + sy·y` (local frame) over [x0, x0+size] × [y0, y0+size],
+/// split into `tiles`² tiles of `n`² quads each, with a material raster of `raster.len()` =
+/// `rw²` cells over the same square and the given materials.
+pub struct PlaneSpec {
+    pub x0: f64,
+    pub y0: f64,
+    pub size: f64,
+    pub h0: f64,
+    pub sx: f64,
+    pub sy: f64,
+    pub tiles: usize,
+    pub n: usize,
+    pub raster_width: usize,
+    pub raster: Vec<u8>,
+    pub materials: Vec<(String, BrdfSpec)>,
+    /// Working-CRS coordinates of the local origin.
+    pub frame_origin: [f64; 3],
+    pub wkt: String,
+}
+
+pub fn lambertian(r: f64) -> BrdfSpec {
+    BrdfSpec::Lambertian {
+        reflectance: Spectrum::Constant(r),
+    }
+}
+
+/// WKT of UTM 31N (EPSG:32631), written by hand (no GDAL needed to build the bundle).
+pub const UTM31N_EPSG: u32 = 32631;
+
+pub fn write_plane(dir: &Path, p: &PlaneSpec) -> PathBuf {
+    let h = |x: f64, y: f64| p.h0 + p.sx * x + p.sy * y;
+    let tsize = p.size / p.tiles as f64;
+    let mut terrain = Vec::new();
+    let mut zmin = f64::INFINITY;
+    let mut zmax = f64::NEG_INFINITY;
+    for tj in 0..p.tiles {
+        for ti in 0..p.tiles {
+            let ox = p.x0 + ti as f64 * tsize;
+            let oy = p.y0 + tj as f64 * tsize;
+            let oz = h(ox, oy);
+            let step = tsize / p.n as f64;
+            let mut positions = Vec::new();
+            let mut uvs = Vec::new();
+            for j in 0..=p.n {
+                for i in 0..=p.n {
+                    let (x, y) = (ox + i as f64 * step, oy + j as f64 * step);
+                    let z = h(x, y);
+                    zmin = zmin.min(z);
+                    zmax = zmax.max(z);
+                    positions.push([(x - ox) as f32, (y - oy) as f32, (z - oz) as f32]);
+                    uvs.push([
+                        ((x - p.x0) / p.size) as f32,
+                        ((p.y0 + p.size - y) / p.size) as f32,
+                    ]);
+                }
+            }
+            let mut indices = Vec::new();
+            for j in 0..p.n {
+                for i in 0..p.n {
+                    let a = (j * (p.n + 1) + i) as u32;
+                    let (b, c, d) = (a + 1, a + (p.n + 1) as u32, a + (p.n + 2) as u32);
+                    indices.push([a, b, d]);
+                    indices.push([a, d, c]);
+                }
+            }
+            terrain.push(TerrainTile {
+                id: [ti as u32, tj as u32],
+                origin: [ox, oy, oz],
+                positions,
+                uvs,
+                indices,
+            });
+        }
+    }
+    let fo = p.frame_origin;
+    let rw = p.raster_width;
+    assert_eq!(p.raster.len(), rw * rw);
+    let px = p.size / rw as f64;
+    let mut histogram = vec![0u64; 256];
+    for &v in &p.raster {
+        histogram[v as usize] += 1;
+    }
+    let manifest = Manifest {
+        format: FORMAT_NAME.into(),
+        format_version: FORMAT_VERSION,
+        crs: Crs {
+            wkt: p.wkt.clone(),
+            epsg: None,
+            proj: None,
+        },
+        frame: LocalFrame {
+            kind: "projected_enu".into(),
+            origin: fo,
+            centre_lon_lat: [3.0, 45.0],
+            vertical_datum: "test".into(),
+        },
+        extent: Extent {
+            min: [p.x0 + fo[0], p.y0 + fo[1]],
+            max: [p.x0 + p.size + fo[0], p.y0 + p.size + fo[1]],
+            height_range: [zmin, zmax],
+            lon_lat_bbox: [2.9, 44.9, 3.1, 45.1],
+        },
+        terrain: Terrain {
+            file: String::new(),
+            tolerance_m: 0.0,
+            dem_spacing_m: tsize / p.n as f64,
+            dem_samples: 0,
+            vertex_count: 0,
+            triangle_count: 0,
+            tiles: vec![],
+        },
+        material_raster: MaterialRaster {
+            file: String::new(),
+            width: rw as u32,
+            height: rw as u32,
+            geotransform: [
+                p.x0 + fo[0],
+                px,
+                0.0,
+                p.y0 + p.size + fo[1],
+                0.0,
+                -px,
+            ],
+            resampling: "nearest".into(),
+            histogram,
+        },
+        materials: p
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, (name, brdf))| Material {
+                index: i as u8,
+                name: name.clone(),
+                brdf: brdf.clone(),
+                class_codes: vec![i as u32],
+                source: "test".into(),
+            })
+            .collect(),
+        templates: vec![],
+        instances: Instances {
+            file: String::new(),
+            count: 0,
+            per_template: vec![],
+        },
+        provenance: Provenance {
+            generator: "test".into(),
+            generator_version: "0".into(),
+            seed: 0,
+            region_toml: String::new(),
+            inputs: vec![],
+            files: vec![],
+        },
+    };
+    let b = Bundle {
+        manifest,
+        terrain,
+        templates: vec![],
+        instances: vec![],
+        material_raster: p.raster.clone(),
+    };
+    let out = dir.join("bundle");
+    b.write(&out, true).unwrap();
+    out
+}

@@ -1,0 +1,259 @@
+//! 3D scenes in `simulate`: the scene walk against the 1D walks and against closed forms.
+//! Each test states its rationale. Statistical comparisons use `common::check_all`
+//! (|diff| ≤ 4.5σ + max(1e-5, 2e-4·ref)) with σ the combined standard error of both runs.
+
+mod common;
+
+use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
+use common::{check_all, experiment, run_rows, Cmp};
+use simulator::bundle::{BrdfSpec, Spectrum};
+
+fn plane(size: f64, raster_width: usize, raster: Vec<u8>, materials: Vec<(String, BrdfSpec)>) -> PlaneSpec {
+    PlaneSpec {
+        x0: -0.5 * size,
+        y0: -0.5 * size,
+        size,
+        h0: 0.0,
+        sx: 0.0,
+        sy: 0.0,
+        tiles: 2,
+        n: 4,
+        raster_width,
+        raster,
+        materials,
+        frame_origin: [500_000.0, 4_000_000.0, 0.0],
+        wkt: String::new(),
+    }
+}
+
+const ATM: &str = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2\nphase = { type = \"hg\", g = 0.5 }";
+
+fn zeniths() -> (Vec<f64>, Vec<f64>) {
+    (vec![0.0, 30.0, 55.0, 70.0], vec![0.0, 120.0, 30.0, 200.0])
+}
+
+fn distant(id: &str, vza: &[f64], vaa: &[f64], spp: u64, extra: &str) -> String {
+    let z: Vec<String> = vza.iter().map(|v| format!("{v:?}")).collect();
+    let a: Vec<String> = vaa.iter().map(|v| format!("{v:?}")).collect();
+    format!(
+        "[[measures]]\nid = \"{id}\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [{}]\nazimuths = [{}]\nspp = {spp}\n{extra}\n",
+        z.join(", "),
+        a.join(", ")
+    )
+}
+
+/// Compare two runs' BRFs direction by direction with their combined standard error.
+fn compare(case: &str, a: &[simulator::products::Row], b: &[simulator::products::Row]) -> Result<(), String> {
+    assert_eq!(a.len(), b.len());
+    let cmps: Vec<Cmp> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| {
+            let (va, ea) = x.brf.unwrap();
+            let (vb, eb) = y.brf.unwrap();
+            Cmp {
+                label: format!("vza {:?} vaa {:?}", x.vza, x.vaa),
+                reference: vb,
+                value: va,
+                stderr: (ea * ea + eb * eb).sqrt(),
+            }
+        })
+        .collect();
+    check_all(case, &cmps)
+}
+
+/// A flat bundle made of one material, with the background plane of the same material at the
+/// same height, is an infinite uniform surface: its area-averaged TOA BRF must equal the 1D
+/// surface's under the same atmosphere (Lambertian and RPV; the 3D walk traverses the terrain
+/// BVH, the selector and the tilted-frame BRDF evaluation, the 1D walk does not).
+#[test]
+fn flat_bundle_equals_1d_surface() {
+    let rpv = BrdfSpec::Rpv {
+        rho_0: Spectrum::Constant(0.12),
+        k: Spectrum::Constant(0.8),
+        g: Spectrum::Constant(-0.2),
+        rho_c: None,
+    };
+    let cases = [
+        ("lambertian", lambertian(0.3), "type = \"lambertian\"\nreflectance = 0.3"),
+        ("rpv", rpv, "type = \"rpv\"\nrho_0 = 0.12\nk = 0.8\ng = -0.2"),
+    ];
+    let (vza, vaa) = zeniths();
+    let mut errs = Vec::new();
+    for (name, spec, surf) in cases {
+        let dir = tmp(&format!("flat-{name}"));
+        let b = write_plane(
+            &dir,
+            &plane(2000.0, 4, vec![0; 16], vec![(name.to_string(), spec)]),
+        );
+        let head = format!(
+            "seed = 3\n[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = 35.0\nazimuth = 40.0\n{ATM}\n"
+        );
+        let e3 = experiment(&format!(
+            "{head}[scene]\ntype = \"bundle\"\npath = \"{}\"\n{}",
+            b.display(),
+            distant(
+                "area",
+                &vza,
+                &vaa,
+                100_000,
+                "target_m = [499800.0, 3999800.0, 500200.0, 4000200.0]"
+            )
+        ));
+        let e1 = experiment(&format!(
+            "{head}[surface]\n{surf}\n[integrator]\ntype = \"backward\"\n{}",
+            distant("area", &vza, &vaa, 100_000, "")
+        ));
+        let (r3, r1) = (run_rows(&e3), run_rows(&e1));
+        if let Err(e) = compare(&format!("flat bundle = 1D ({name})"), &r3, &r1) {
+            errs.push(e);
+        }
+    }
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
+}
+
+/// The selector picks the material of the raster cell under each hit: with no atmosphere, a flat
+/// Lambertian checkerboard seen at nadir gives each ortho pixel (aligned with the raster cells)
+/// exactly its cell's reflectance × (cos SZA / cos SZA) = ρ, with zero variance (one bounce, then
+/// the path leaves). A one-class raster gives the plain BSDF everywhere.
+#[test]
+fn selector_and_ortho_pixels_are_exact() {
+    let dir = tmp("selector");
+    let rw = 4;
+    let raster: Vec<u8> = (0..rw * rw).map(|k| ((k / rw + k % rw) % 2) as u8).collect();
+    let b = write_plane(
+        &dir,
+        &plane(
+            400.0,
+            rw,
+            raster.clone(),
+            vec![("dark".into(), lambertian(0.1)), ("bright".into(), lambertian(0.6))],
+        ),
+    );
+    let e = experiment(&format!(
+        "seed = 1\n[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[scene]\ntype = \"bundle\"\npath = \"{}\"\nbackground = {{ type = \"none\" }}\n[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 100.0\nspp = 64\n",
+        b.display()
+    ));
+    let res = simulator::run::run(&e, false);
+    let imgs = simulator::products::imagery::image_products(&e, &res);
+    assert_eq!(imgs.len(), 1);
+    let img = &imgs[0];
+    assert_eq!((img.width, img.height), (4, 4));
+    for (k, &cls) in raster.iter().enumerate() {
+        let want = if cls == 0 { 0.1 } else { 0.6 };
+        let got = img.brf[0][k];
+        assert!(
+            (got - want).abs() < 1e-9,
+            "pixel {k}: BRF {got}, want {want} (class {cls})"
+        );
+        assert!(img.brf_stderr[0][k] < 1e-9);
+    }
+    // Georeferencing: the grid covers the raster, north-up, in working-CRS coordinates.
+    let gt = img.geotransform.unwrap();
+    assert_eq!(gt, [499_800.0, 100.0, 0.0, 4_000_200.0, 0.0, -100.0]);
+}
+
+/// Self-intersection on a tilted terrain 40 km from the frame origin: with no atmosphere and no
+/// background, a sunlit Lambertian plane of normal n has BRF = ρ·(n·s)/cos SZA at every point
+/// and nothing else (reflected paths leave the plane for good). A ray that re-hit its own
+/// triangle, or a shadow ray blocked by it, would darken pixels; a path that slipped through
+/// the surface would brighten nothing but lose its estimate. Every pixel must be exact.
+#[test]
+fn tilted_far_terrain_has_no_self_intersection() {
+    let dir = tmp("tilted");
+    let mut p = plane(2000.0, 1, vec![0], vec![("soil".into(), lambertian(0.4))]);
+    p.x0 = 40_000.0;
+    p.y0 = -1_000.0;
+    p.h0 = 300.0;
+    p.sx = 0.15;
+    p.sy = -0.1;
+    p.n = 16;
+    let b = write_plane(&dir, &p);
+    let (sza, saa) = (40.0_f64, 250.0_f64);
+    let e = experiment(&format!(
+        "seed = 2\n[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = {sza}\nazimuth = {saa}\n[scene]\ntype = \"bundle\"\npath = \"{}\"\nbackground = {{ type = \"none\" }}\n[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 100.0\nzenith = 20.0\nazimuth = 100.0\nwindow_m = [540100.0, 3999100.0, 541900.0, 4000900.0]\nspp = 16\n",
+        b.display()
+    ));
+    let res = simulator::run::run(&e, false);
+    let img = &simulator::products::imagery::image_products(&e, &res)[0];
+    let n = glam::DVec3::new(-p.sx, -p.sy, 1.0).normalize();
+    let s = simulator::frame::direction_from_angles(sza.to_radians(), saa.to_radians());
+    let want = 0.4 * n.dot(s) / s.z;
+    for (k, &v) in img.brf[0].iter().enumerate() {
+        assert!((v - want).abs() < 1e-9, "pixel {k}: {v} vs {want}");
+    }
+}
+
+/// End to end through the command line: the ortho GeoTIFFs open in GDAL with the bundle's CRS
+/// and the measure's geotransform, one band per wavelength, and their pixels equal the image
+/// variables of `results.nc` (which also carries pixel-centre coordinates); the PNG quicklook is
+/// true colour for 440/550/660 nm.
+#[test]
+fn ortho_geotiff_matches_netcdf() {
+    use gdal::Dataset;
+    let dir = tmp("geotiff");
+    let wkt = gdal::spatial_ref::SpatialRef::from_epsg(32631)
+        .unwrap()
+        .to_wkt()
+        .unwrap();
+    let mut p = plane(
+        600.0,
+        3,
+        vec![0, 1, 0, 1, 0, 1, 0, 1, 0],
+        vec![("a".into(), lambertian(0.05)), ("b".into(), lambertian(0.4))],
+    );
+    p.wkt = wkt;
+    let b = write_plane(&dir, &p);
+    let exp = dir.join("exp.toml");
+    std::fs::write(
+        &exp,
+        format!(
+            "seed = 4\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 120.0\nirradiance = \"tsis_1\"\n{ATM}\n[scene]\ntype = \"bundle\"\npath = \"{}\"\n[[measures]]\nid = \"toa\"\ntype = \"ortho\"\npixel_size_m = 150.0\nzenith = 10.0\nazimuth = 45.0\nspp = 200\n",
+            b.display()
+        ),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+        .args(["run", exp.to_str().unwrap(), "-o", out.to_str().unwrap(), "--quiet"])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{}\n{}",
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let nc = netcdf::open(out.join("results.nc")).unwrap();
+    let brf_nc: Vec<f64> = nc.variable("toa_brf").unwrap().get_values(..).unwrap();
+    let xs: Vec<f64> = nc.variable("toa_x").unwrap().get_values(..).unwrap();
+    let ys: Vec<f64> = nc.variable("toa_y").unwrap().get_values(..).unwrap();
+    let ds = Dataset::open(out.join("toa_brf.tif")).unwrap();
+    assert_eq!(ds.raster_size(), (4, 4));
+    assert_eq!(ds.raster_count(), 3);
+    let gt = ds.geo_transform().unwrap();
+    assert_eq!(gt, [499_700.0, 150.0, 0.0, 4_000_300.0, 0.0, -150.0]);
+    assert_eq!(ds.spatial_ref().unwrap().auth_code().unwrap(), 32631);
+    assert!((xs[0] - 499_775.0).abs() < 1e-9 && (ys[0] - 4_000_225.0).abs() < 1e-9);
+    for band in 1..=3 {
+        let v = ds
+            .rasterband(band)
+            .unwrap()
+            .read_band_as::<f32>()
+            .unwrap()
+            .data()
+            .to_vec();
+        for (k, x) in v.iter().enumerate() {
+            let want = brf_nc[(band - 1) * 16 + k];
+            assert!(
+                (*x as f64 - want).abs() <= 1e-6 * want.abs().max(1e-3),
+                "band {band} pixel {k}: tif {x} nc {want}"
+            );
+        }
+    }
+    for f in ["toa_brf_stderr.tif", "toa_radiance.tif", "toa_radiance_stderr.tif", "toa.png"] {
+        assert!(out.join(f).exists(), "{f} missing");
+    }
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(stdout.contains("true colour"), "{stdout}");
+}
