@@ -18,6 +18,7 @@
 
 pub mod atmosphere;
 pub mod bench;
+pub mod bench_scene;
 pub mod bsdf;
 pub mod bundle;
 pub mod config;

@@ -202,6 +202,26 @@ impl PlaneParallel {
         }
     }
 
+    /// Optical path (extinction) along the straight ray from altitude `z0` with vertical cosine
+    /// `dz` over the distance `t` (m).
+    pub fn optical_path(&self, z0: f64, dz: f64, t: f64) -> f64 {
+        if dz.abs() > 1e-12 {
+            (self.tau_at_altitude(z0) - self.tau_at_altitude(z0 + t * dz)).abs() / dz.abs()
+        } else {
+            let n = self.albedo.len();
+            if z0 >= self.z[0] || z0 < self.z[n] {
+                return 0.0;
+            }
+            let i = self.layer_at_altitude(z0);
+            let (zt, zb) = (self.z[i], self.z[i + 1]);
+            if zt > zb {
+                (self.tau[i + 1] - self.tau[i]) / (zt - zb) * t
+            } else {
+                0.0
+            }
+        }
+    }
+
     /// Index of the layer holding altitude `z` (clamped to the atmosphere).
     pub fn layer_at_altitude(&self, z: f64) -> usize {
         let n = self.albedo.len();
@@ -273,14 +293,29 @@ impl PlaneParallel {
     /// this turns the local estimate at the next collision into its expected value (exact
     /// integration along the flight: no variance from the collision position).
     #[inline]
-    pub fn flight_integrals(&self, tau_a: f64, dz: f64, b: f64, mut f: impl FnMut(usize, f64)) {
+    pub fn flight_integrals(&self, tau_a: f64, dz: f64, b: f64, f: impl FnMut(usize, f64)) {
+        self.flight_integrals_within(tau_a, dz, b, 0.0, self.total_tau, f)
+    }
+
+    /// [`Self::flight_integrals`] restricted to collisions with optical depth in
+    /// `[tau_lo, tau_hi]` (the collision density is still that of the whole flight from
+    /// `tau_a`): the 3D walk integrates exactly over the part of a flight above the scene.
+    pub fn flight_integrals_within(
+        &self,
+        tau_a: f64,
+        dz: f64,
+        b: f64,
+        tau_lo: f64,
+        tau_hi: f64,
+        mut f: impl FnMut(usize, f64),
+    ) {
         let n = self.albedo.len();
         if self.total_tau <= 0.0 {
             return;
         }
         if dz.abs() < 1e-9 {
             // Horizontal: the collision happens at tau_a (if inside the medium).
-            if tau_a > 0.0 && tau_a < self.total_tau {
+            if tau_a > 0.0 && tau_a < self.total_tau && tau_a >= tau_lo && tau_a <= tau_hi {
                 f(self.layer_at_tau(tau_a), (-b * tau_a).exp());
             }
             return;
@@ -289,7 +324,10 @@ impl PlaneParallel {
         if dz < 0.0 {
             // Downwards: layers from the one holding tau_a to the bottom.
             for l in 0..n {
-                let (t1, t2) = (self.tau[l].max(tau_a), self.tau[l + 1]);
+                let (t1, t2) = (
+                    self.tau[l].max(tau_a).max(tau_lo),
+                    self.tau[l + 1].min(tau_hi),
+                );
                 if t2 <= t1 {
                     continue;
                 }
@@ -300,7 +338,10 @@ impl PlaneParallel {
         } else {
             // Upwards: layers from the one holding tau_a to the top.
             for l in 0..n {
-                let (t1, t2) = (self.tau[l], self.tau[l + 1].min(tau_a));
+                let (t1, t2) = (
+                    self.tau[l].max(tau_lo),
+                    self.tau[l + 1].min(tau_a).min(tau_hi),
+                );
                 if t2 <= t1 {
                     continue;
                 }

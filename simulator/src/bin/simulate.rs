@@ -66,6 +66,23 @@ enum Command {
     },
     /// Validate an experiment file without running it.
     Check { experiment: PathBuf },
+    /// 3D-scene benchmark on a bundle: set-up time, memory, ray rates, time to render an ortho
+    /// image to a median relative standard error (see BENCHMARKS.md).
+    BenchScene {
+        /// Scene bundle (from `scenegen build`).
+        bundle: PathBuf,
+        /// Ortho pixel size, m.
+        #[arg(long, default_value_t = 1000.0)]
+        pixel: f64,
+        /// Target median relative standard error of the pixels.
+        #[arg(long, default_value_t = 0.005)]
+        target: f64,
+        /// Primary rays to time (one thread).
+        #[arg(long, default_value_t = 1_000_000)]
+        rays: usize,
+        #[arg(long)]
+        threads: Option<usize>,
+    },
     /// Time-to-precision benchmark on the reference workload (see BENCHMARKS.md).
     Bench {
         /// Target relative standard error in every direction.
@@ -199,6 +216,18 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                     "{:<16} {} × {} px, quicklook: {what}",
                     img.id, img.width, img.height
                 );
+                for (w, (b, e, s)) in exp
+                    .wavelengths
+                    .iter()
+                    .zip(products::imagery::medians(img))
+                {
+                    println!(
+                        "{:<16} {w:>8.2} nm: median BRF {b:.5}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
+                        img.id,
+                        100.0 * e,
+                        s
+                    );
+                }
             }
             if !band.is_empty() {
                 let path = output.join("results_band.csv");
@@ -263,6 +292,16 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 output.join("pics.nc").display()
             );
             Ok(())
+        }
+        Command::BenchScene {
+            bundle,
+            pixel,
+            target,
+            rays,
+            threads,
+        } => {
+            set_threads(threads)?;
+            simulator::bench_scene::run(&bundle, pixel, target, rays)
         }
         Command::Bench {
             target,

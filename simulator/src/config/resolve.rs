@@ -831,7 +831,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 ));
             }
             let built = scene::build_scene(sc, &base).map_err(|(k, m)| ctx.err(k, m))?;
-            if built.z_range[0] < ground - 1e-6 && !built.z_range[0].is_nan() {
+            if cfg.atmosphere.is_some() && built.z_range[0] < ground - 1e-6 {
                 tracing::warn!(
                     "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
                     built.z_range[0],

@@ -194,3 +194,27 @@ pub fn write_files(
     written.push(path);
     Ok((written, format!("{what} BRF")))
 }
+
+/// Per wavelength: median BRF, median relative standard error and median single-scattering
+/// fraction over the pixels with a finite, positive BRF (for summaries).
+pub fn medians(p: &ImageProduct) -> Vec<(f64, f64, f64)> {
+    let med = |mut v: Vec<f64>| -> f64 {
+        if v.is_empty() {
+            return f64::NAN;
+        }
+        v.sort_by(|a, b| a.total_cmp(b));
+        v[v.len() / 2]
+    };
+    (0..p.brf.len())
+        .map(|iw| {
+            let ok: Vec<usize> = (0..p.brf[iw].len())
+                .filter(|&c| p.brf[iw][c].is_finite() && p.brf[iw][c] > 0.0)
+                .collect();
+            (
+                med(ok.iter().map(|&c| p.brf[iw][c]).collect()),
+                med(ok.iter().map(|&c| p.brf_stderr[iw][c] / p.brf[iw][c]).collect()),
+                med(ok.iter().map(|&c| p.brf_single[iw][c] / p.brf[iw][c]).collect()),
+            )
+        })
+        .collect()
+}

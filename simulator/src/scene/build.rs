@@ -162,6 +162,8 @@ pub fn from_bundle(
         reference_height,
         render_origin,
         memory_bytes,
+        load_seconds: t_load,
+        build_seconds: t_bvh,
     };
     tracing::info!(
         "{} (load {t_load:.2} s, BVH build {t_bvh:.2} s)",
@@ -343,6 +345,8 @@ pub fn canopy(
         z_range,
         render_origin: DVec3::ZERO,
         memory_bytes,
+        load_seconds: 0.0,
+        build_seconds: t0.elapsed().as_secs_f64(),
     };
     tracing::info!(
         "{} (built in {:.2} s)",

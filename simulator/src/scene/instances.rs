@@ -51,7 +51,7 @@
 //! `normalize(L⁻ᵀ n_template)` (correct under non-uniform scale), turned to face the ray origin
 //! (`normal · dir < 0`). Triangles and discs are two-sided: both faces are hit.
 
-use glam::{DMat3, DVec3, Mat3, Vec3, Vec3A};
+use glam::{DMat3, DVec3, Mat3, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::bvh2::node::Bvh2Node;
@@ -160,7 +160,13 @@ const SLAB_ROBUST: f32 = 4e-7;
 struct RayF {
     o: Vec3A,
     d: Vec3A,
-    inv: Vec3A,
+    /// Origin and inverse direction, each component splatted (for [`Pair`] tests).
+    ox: Vec4,
+    oy: Vec4,
+    oz: Vec4,
+    ix: Vec4,
+    iy: Vec4,
+    iz: Vec4,
 }
 
 impl RayF {
@@ -172,25 +178,71 @@ impl RayF {
         RayF {
             o,
             d,
-            inv: Vec3A::new(1.0 / nz(d.x), 1.0 / nz(d.y), 1.0 / nz(d.z)),
+            ox: Vec4::splat(o.x),
+            oy: Vec4::splat(o.y),
+            oz: Vec4::splat(o.z),
+            ix: Vec4::splat(1.0 / nz(d.x)),
+            iy: Vec4::splat(1.0 / nz(d.y)),
+            iz: Vec4::splat(1.0 / nz(d.z)),
         }
     }
 
-    /// Entry parameter of the box clipped to `[lo, hi]`, or +∞ if missed. `hi` must be finite.
+    /// Entry parameters of the two boxes of a pair clipped to `[lo, hi]`, +∞ for a miss.
+    /// `hi` must be finite.
     #[inline(always)]
-    fn slab(&self, b: &Aabb, lo: f32, hi: f32) -> f32 {
-        let t1 = (b.min - self.o) * self.inv;
-        let t2 = (b.max - self.o) * self.inv;
-        let tn = t1.min(t2).max_element();
-        let tf = t1.max(t2).min_element();
-        let tn = (tn - tn.abs() * SLAB_ROBUST).max(lo);
-        let tf = (tf + tf.abs() * SLAB_ROBUST).min(hi);
-        if tn <= tf {
-            tn
-        } else {
-            f32::INFINITY
+    fn slab2(&self, p: &Pair, lo: f32, hi: f32) -> (f32, f32) {
+        // Lanes: [a.min, b.min, a.max, b.max] per axis; the swizzle pairs min with max.
+        let tx = (p.x - self.ox) * self.ix;
+        let ty = (p.y - self.oy) * self.iy;
+        let tz = (p.z - self.oz) * self.iz;
+        let (sx, sy, sz) = (tx.zwxy(), ty.zwxy(), tz.zwxy());
+        let near = tx.min(sx).max(ty.min(sy)).max(tz.min(sz));
+        let far = tx.max(sx).min(ty.max(sy)).min(tz.max(sz));
+        // Robust widening by a relative 1 ± ε, written so that ±∞ stays ±∞ (never NaN).
+        let (up, down) = (Vec4::splat(1.0 + SLAB_ROBUST), Vec4::splat(1.0 - SLAB_ROBUST));
+        let near = (near * up).min(near * down).max(Vec4::splat(lo));
+        let far = (far * up).max(far * down).min(Vec4::splat(hi));
+        let m = near.cmple(far).bitmask();
+        (
+            if m & 1 != 0 { near.x } else { f32::INFINITY },
+            if m & 2 != 0 { near.y } else { f32::INFINITY },
+        )
+    }
+}
+
+/// Two sibling nodes in one cache line (64 B): their boxes, struct-of-arrays per axis as
+/// `[a.min, b.min, a.max, b.max]`, and for each either a leaf (`count > 0` primitives from slot
+/// `first`) or an inner node (`count == 0`, children in pair `first`). Pair 0 holds the root
+/// (as `a`) and an empty box far away (as `b`, never within a finite `hi`).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+struct Pair {
+    x: Vec4,
+    y: Vec4,
+    z: Vec4,
+    first: [u32; 2],
+    count: [u32; 2],
+}
+
+const _: () = assert!(std::mem::size_of::<Pair>() == 64);
+
+impl Pair {
+    fn new(a: (&Aabb, u32, u32), b: (&Aabb, u32, u32)) -> Self {
+        let (ba, bb) = (a.0, b.0);
+        Pair {
+            x: Vec4::new(ba.min.x, bb.min.x, ba.max.x, bb.max.x),
+            y: Vec4::new(ba.min.y, bb.min.y, ba.max.y, bb.max.y),
+            z: Vec4::new(ba.min.z, bb.min.z, ba.max.z, bb.max.z),
+            first: [a.1, b.1],
+            count: [a.2, b.2],
         }
     }
+}
+
+/// A BVH in [`Pair`] layout (depth-first order) and its depth (edges root → deepest leaf).
+struct Tree {
+    pairs: Vec<Pair>,
+    depth: usize,
 }
 
 /// A primitive of a BLAS: an f32 prefilter and an exact f64 test.
@@ -333,7 +385,7 @@ impl Primitive for DiscPrim {
 
 /// One bottom-level BVH with its primitives in leaf order.
 struct Blas<P> {
-    nodes: Vec<Bvh2Node>,
+    tree: Tree,
     prims: Vec<P>,
     /// Original primitive index of each slot.
     ids: Vec<u32>,
@@ -341,10 +393,54 @@ struct Blas<P> {
     materials: Vec<u16>,
     /// Spatial margin (template units) of the f32 stage.
     eps: f32,
-    /// Depth of the tree (edges from the root to the deepest leaf).
-    depth: usize,
     /// f64 box of all primitives (template space); `None` if empty.
     bounds: Option<(DVec3, DVec3)>,
+    /// (centre, half extent) of up to [`CUT_BOXES`] BLAS nodes covering all primitives: the
+    /// world box of an instance is the union of these transformed, tighter than the
+    /// transformed template box for rotated instances.
+    cut: Vec<(DVec3, DVec3)>,
+}
+
+/// Number of BLAS boxes transformed to bound an instance.
+const CUT_BOXES: usize = 16;
+
+/// (centre, half extent) of the boxes of a cut of at most `k` nodes of the tree, covering
+/// all its primitives: starting from the root, the inner node of largest area is replaced by
+/// its children while there are fewer than `k` nodes.
+fn tree_cut(tree: &Tree, k: usize) -> Vec<(DVec3, DVec3)> {
+    if tree.pairs.is_empty() {
+        return Vec::new();
+    }
+    let get = |(p, l): (usize, usize)| {
+        let q = &tree.pairs[p];
+        let lo = DVec3::new(q.x[l] as f64, q.y[l] as f64, q.z[l] as f64);
+        let hi = DVec3::new(q.x[l + 2] as f64, q.y[l + 2] as f64, q.z[l + 2] as f64);
+        (lo, hi, q.count[l] == 0, q.first[l] as usize)
+    };
+    let area = |(lo, hi): (DVec3, DVec3)| {
+        let d = hi - lo;
+        d.x * d.y + d.y * d.z + d.z * d.x
+    };
+    let mut cut = vec![(0usize, 0usize)];
+    while cut.len() < k {
+        let mut best: Option<(usize, f64)> = None;
+        for (i, &n) in cut.iter().enumerate() {
+            let (lo, hi, inner, _) = get(n);
+            if inner && best.is_none_or(|(_, a)| area((lo, hi)) > a) {
+                best = Some((i, area((lo, hi))));
+            }
+        }
+        let Some((i, _)) = best else { break };
+        let child = get(cut[i]).3;
+        cut[i] = (child, 0);
+        cut.push((child, 1));
+    }
+    cut.into_iter()
+        .map(|n| {
+            let (lo, hi, _, _) = get(n);
+            (0.5 * (lo + hi), 0.5 * (hi - lo))
+        })
+        .collect()
 }
 
 /// Widen an f64 box by `pad` and round it to f32 outwards.
@@ -372,35 +468,168 @@ fn aabb_f32(lo: DVec3, hi: DVec3, pad: f64) -> Aabb {
     )
 }
 
-/// Depth (edges) of an obvhs Bvh2 given by its nodes (root at 0).
-fn tree_depth(nodes: &[Bvh2Node]) -> usize {
-    if nodes.is_empty() {
-        return 0;
-    }
-    let mut max = 0;
-    let mut stack = vec![(0usize, 0usize)];
-    while let Some((i, d)) = stack.pop() {
-        let n = &nodes[i];
-        if n.is_leaf() {
-            max = max.max(d);
-        } else {
-            stack.push((n.first_index as usize, d + 1));
-            stack.push((n.first_index as usize + 1, d + 1));
-        }
-    }
-    max
-}
-
-/// Build a Bvh2 over boxes; returns (nodes, slot → input index). Empty input → empty tree.
-fn build_tree(aabbs: &[Aabb], params: BvhBuildParams) -> (Vec<Bvh2Node>, Vec<u32>) {
+/// Build a BVH over boxes with obvhs and convert it to [`Pair`] layout; returns the tree and
+/// the input index of each primitive slot (leaves index slots). Empty input → empty tree.
+fn build_tree(aabbs: &[Aabb], params: BvhBuildParams) -> (Tree, Vec<u32>) {
     if aabbs.is_empty() {
-        return (Vec::new(), Vec::new());
+        return (
+            Tree {
+                pairs: Vec::new(),
+                depth: 0,
+            },
+            Vec::new(),
+        );
     }
     let bvh = build_bvh2(aabbs, params, &mut std::time::Duration::default());
-    let mut nodes = bvh.nodes;
-    nodes.shrink_to_fit();
-    (nodes, bvh.primitive_indices)
+    (to_pairs(&bvh.nodes), bvh.primitive_indices)
 }
+
+/// Convert obvhs-layout nodes (root at 0, children of an inner node at `first_index` and
+/// `first_index + 1`, leaves with `prim_count > 0`) to [`Pair`] layout, depth first.
+fn to_pairs(nodes: &[Bvh2Node]) -> Tree {
+    let info = |i: usize| (&nodes[i].aabb, nodes[i].first_index, nodes[i].prim_count);
+    let far = Aabb::new(Vec3A::splat(f32::MAX), Vec3A::splat(f32::MAX));
+    let mut pairs = Vec::with_capacity(nodes.len().div_ceil(2));
+    pairs.push(Pair::new(info(0), (&far, 0, 1)));
+    // Depth-first: (pair, lane, obvhs node, depth of that node) of inner nodes to expand.
+    let mut depth = 0;
+    let mut todo = vec![(0usize, 0usize, 0usize, 0usize)];
+    while let Some((p, lane, i, d)) = todo.pop() {
+        let n = &nodes[i];
+        if n.is_leaf() {
+            depth = depth.max(d);
+            continue;
+        }
+        let c = n.first_index as usize;
+        let k = pairs.len();
+        pairs.push(Pair::new(info(c), info(c + 1)));
+        pairs[p].first[lane] = k as u32;
+        pairs[p].count[lane] = 0;
+        todo.push((k, 1, c + 1, d + 1));
+        todo.push((k, 0, c, d + 1));
+    }
+    pairs.shrink_to_fit();
+    Tree { pairs, depth }
+}
+
+/// Top-down binned-SAH build (Wald 2007, "On fast construction of SAH-based bounding volume
+/// hierarchies") over boxes: (tree, slot → input index). Costs relative to a node-pair visit:
+/// an instance test costs `isect`; leaves hold at most `max_leaf` primitives.
+fn build_sah(aabbs: &[Aabb], max_leaf: usize, isect: f32) -> (Tree, Vec<u32>) {
+    const BINS: usize = 16;
+    let n = aabbs.len();
+    if n == 0 {
+        return (
+            Tree {
+                pairs: Vec::new(),
+                depth: 0,
+            },
+            Vec::new(),
+        );
+    }
+    let mut idx: Vec<u32> = (0..n as u32).collect();
+    let cent: Vec<Vec3A> = aabbs.iter().map(|b| b.center()).collect();
+    let mut nodes: Vec<Bvh2Node> = Vec::with_capacity(2 * n);
+    let bound = |ix: &[u32]| {
+        let mut b = Aabb::INVALID;
+        let mut c = Aabb::INVALID;
+        for &i in ix {
+            b = b.union(&aabbs[i as usize]);
+            c.extend(cent[i as usize]);
+        }
+        (b, c)
+    };
+    let half_area = |b: &Aabb| {
+        let d = (b.max - b.min).max(Vec3A::ZERO);
+        d.x * d.y + d.y * d.z + d.z * d.x
+    };
+    let (b0, c0) = bound(&idx);
+    nodes.push(Bvh2Node::new(b0, n as u32, 0));
+    // (node, start, end, centroid box)
+    let mut todo = vec![(0usize, 0usize, n, c0)];
+    while let Some((ni, start, end, cb)) = todo.pop() {
+        let count = end - start;
+        let nb = nodes[ni].aabb;
+        if count <= 1 {
+            continue;
+        }
+        let ext = cb.max - cb.min;
+        // Best split over the three axes.
+        let mut best = (f32::INFINITY, 0usize, 0usize); // (cost, axis, bins on the left)
+        for axis in 0..3 {
+            if ext[axis] <= 0.0 {
+                continue;
+            }
+            let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
+            let mut bb = [Aabb::INVALID; BINS];
+            let mut bc = [0u32; BINS];
+            for &i in &idx[start..end] {
+                let k = (((cent[i as usize][axis] - cb.min[axis]) * scale) as usize).min(BINS - 1);
+                bc[k] += 1;
+                bb[k] = bb[k].union(&aabbs[i as usize]);
+            }
+            let mut right_area = [0f32; BINS];
+            let mut acc = Aabb::INVALID;
+            let mut cnt = [0u32; BINS];
+            let mut c = 0;
+            for k in (1..BINS).rev() {
+                acc = acc.union(&bb[k]);
+                c += bc[k];
+                right_area[k] = half_area(&acc);
+                cnt[k] = c;
+            }
+            let mut acc = Aabb::INVALID;
+            let mut c = 0;
+            for k in 0..BINS - 1 {
+                acc = acc.union(&bb[k]);
+                c += bc[k];
+                if c == 0 || cnt[k + 1] == 0 {
+                    continue;
+                }
+                let cost = half_area(&acc) * c as f32 + right_area[k + 1] * cnt[k + 1] as f32;
+                if cost < best.0 {
+                    best = (cost, axis, k + 1);
+                }
+            }
+        }
+        let parent_area = half_area(&nb).max(f32::MIN_POSITIVE);
+        let split_cost = 1.0 + isect * best.0 / parent_area;
+        let leaf_cost = isect * count as f32;
+        if count <= max_leaf && leaf_cost <= split_cost {
+            continue;
+        }
+        let mid = if best.0.is_finite() {
+            let (axis, k) = (best.1, best.2);
+            let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
+            let left = |i: u32| {
+                (((cent[i as usize][axis] - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
+            };
+            // In-place partition.
+            let (mut a, mut b) = (start, end);
+            while a < b {
+                if left(idx[a]) {
+                    a += 1;
+                } else {
+                    b -= 1;
+                    idx.swap(a, b);
+                }
+            }
+            a
+        } else {
+            // All centroids equal: split the range in half.
+            start + count / 2
+        };
+        let (lb, lc) = bound(&idx[start..mid]);
+        let (rb, rc) = bound(&idx[mid..end]);
+        let l = nodes.len();
+        nodes.push(Bvh2Node::new(lb, (mid - start) as u32, start as u32));
+        nodes.push(Bvh2Node::new(rb, (end - mid) as u32, mid as u32));
+        nodes[ni].prim_count = 0;
+        nodes[ni].first_index = l as u32;
+        todo.push((l + 1, mid, end, rc));
+        todo.push((l, start, mid, lc));
+    }
+    (to_pairs(&nodes), idx)
 
 impl<P: Primitive + Copy> Blas<P> {
     fn build(prims: Vec<P>, materials: &[u16]) -> Self {
@@ -417,21 +646,21 @@ impl<P: Primitive + Copy> Blas<P> {
             .iter()
             .map(|&(lo, hi)| aabb_f32(lo, hi, eps as f64))
             .collect();
-        let (nodes, order) = build_tree(&aabbs, BvhBuildParams::medium_build());
-        let depth = tree_depth(&nodes);
+        let (tree, order) = build_tree(&aabbs, BvhBuildParams::medium_build());
+        let cut = tree_cut(&tree, CUT_BOXES);
         Blas {
-            nodes,
+            cut,
+            tree,
             prims: order.iter().map(|&i| prims[i as usize]).collect(),
             materials: order.iter().map(|&i| materials[i as usize]).collect(),
             ids: order,
             eps,
-            depth,
             bounds,
         }
     }
 
     fn memory_bytes(&self) -> usize {
-        self.nodes.len() * std::mem::size_of::<Bvh2Node>()
+        self.tree.pairs.len() * std::mem::size_of::<Pair>()
             + self.prims.len() * (std::mem::size_of::<P>() + 4 + 2)
             + std::mem::size_of::<Self>()
     }
@@ -456,7 +685,7 @@ impl<P: Primitive + Copy> Blas<P> {
         let mut best = u32::MAX;
         let eps = self.eps;
         traverse(
-            &self.nodes,
+            &self.tree.pairs,
             &ray,
             lo32,
             &mut hi32,
@@ -487,58 +716,52 @@ impl<P: Primitive + Copy> Blas<P> {
     }
 }
 
-/// Stack traversal of an obvhs Bvh2 (`nodes[0]` root; the children of an inner node at
-/// `first_index` and `first_index + 1`). `leaf(first, count, &mut hi)` tests a leaf's
-/// primitives, may lower `hi`, and returns `true` to stop. Returns whether it was stopped.
-/// `stack` must hold at least the tree's depth.
+/// Stack traversal of a [`Tree`], near child first. `leaf(first, count, &mut hi)` tests a
+/// leaf's primitives, may lower `hi`, and returns `true` to stop. Returns whether it was
+/// stopped. `hi` must be finite; `stack` must hold at least the tree's depth.
 #[inline(always)]
 fn traverse<F: FnMut(u32, u32, &mut f32) -> bool>(
-    nodes: &[Bvh2Node],
+    pairs: &[Pair],
     ray: &RayF,
     lo: f32,
     hi: &mut f32,
     stack: &mut [u32],
     mut leaf: F,
 ) -> bool {
-    let Some(root) = nodes.first() else {
+    if pairs.is_empty() {
         return false;
-    };
-    if ray.slab(root.aabb(), lo, *hi) == f32::INFINITY {
-        return false;
-    }
-    if root.is_leaf() {
-        return leaf(root.first_index, root.prim_count, hi);
     }
     let mut sp = 0usize;
-    let mut cur = root.first_index as usize;
+    let mut cur = 0usize;
     loop {
         DBG[0].fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-        let (mut na, mut nb) = (&nodes[cur], &nodes[cur + 1]);
-        let (mut ta, mut tb) = (ray.slab(na.aabb(), lo, *hi), ray.slab(nb.aabb(), lo, *hi));
+        let p = &pairs[cur];
+        let (mut ta, mut tb) = ray.slab2(p, lo, *hi);
+        let (mut a, mut b) = (0, 1);
         if tb < ta {
-            std::mem::swap(&mut na, &mut nb);
+            std::mem::swap(&mut a, &mut b);
             std::mem::swap(&mut ta, &mut tb);
         }
         let mut next = u32::MAX;
         if ta < f32::INFINITY {
-            if na.is_leaf() {
-                if leaf(na.first_index, na.prim_count, hi) {
+            if p.count[a] > 0 {
+                if leaf(p.first[a], p.count[a], hi) {
                     return true;
                 }
             } else {
-                next = na.first_index;
+                next = p.first[a];
             }
         }
         // `hi` may have been lowered by the near leaf.
         if tb <= *hi {
-            if nb.is_leaf() {
-                if leaf(nb.first_index, nb.prim_count, hi) {
+            if p.count[b] > 0 {
+                if leaf(p.first[b], p.count[b], hi) {
                     return true;
                 }
             } else if next == u32::MAX {
-                next = nb.first_index;
+                next = p.first[b];
             } else {
-                stack[sp] = nb.first_index;
+                stack[sp] = p.first[b];
                 sp += 1;
             }
         }
@@ -561,14 +784,21 @@ enum TemplateBlas {
 impl TemplateBlas {
     fn depth(&self) -> usize {
         match self {
-            TemplateBlas::Tris(b) => b.depth,
-            TemplateBlas::Discs(b) => b.depth,
+            TemplateBlas::Tris(b) => b.tree.depth,
+            TemplateBlas::Discs(b) => b.tree.depth,
         }
     }
     fn bounds(&self) -> Option<(DVec3, DVec3)> {
         match self {
             TemplateBlas::Tris(b) => b.bounds,
             TemplateBlas::Discs(b) => b.bounds,
+        }
+    }
+    /// Covering boxes of a cut of the BLAS (see [`tree_cut`]).
+    fn cut(&self) -> &[(DVec3, DVec3)] {
+        match self {
+            TemplateBlas::Tris(b) => &b.cut,
+            TemplateBlas::Discs(b) => &b.cut,
         }
     }
     fn len(&self) -> usize {
@@ -598,7 +828,7 @@ struct Best {
 pub struct InstanceBvh {
     templates: Vec<TemplateBlas>,
     /// TLAS nodes (render frame, f32, padded boxes).
-    tlas: Vec<Bvh2Node>,
+    tlas: Tree,
     /// Instance records in TLAS slot order.
     records: Vec<InstanceRecord>,
     /// Original instance index of each TLAS slot.
@@ -623,7 +853,7 @@ impl std::fmt::Debug for InstanceBvh {
             .field("templates", &self.templates.len())
             .field("instances", &self.n_instances)
             .field("primitives", &self.primitive_count())
-            .field("tlas_nodes", &self.tlas.len())
+            .field("tlas_pairs", &self.tlas.pairs.len())
             .field("bounds", &self.bounds())
             .finish()
     }
@@ -632,9 +862,16 @@ impl std::fmt::Debug for InstanceBvh {
 /// TLAS build parameters: PLOC "medium" with small leaves (an instance test costs a ray
 /// transform and a BLAS traversal, far more than a box test).
 fn tlas_params() -> BvhBuildParams {
+    let leaf: u32 = std::env::var("TLAS_LEAF").ok().and_then(|v| v.parse().ok()).unwrap_or(2);
+    let cost: f32 = std::env::var("TLAS_COST").ok().and_then(|v| v.parse().ok()).unwrap_or(1.0);
+    let reins: f32 = std::env::var("TLAS_REINS").ok().and_then(|v| v.parse().ok()).unwrap_or(0.05);
+    let sd = match std::env::var("TLAS_SD").ok().as_deref() { Some("high") => obvhs::ploc::PlocSearchDistance::High, Some("vh") => obvhs::ploc::PlocSearchDistance::VeryHigh, _ => obvhs::ploc::PlocSearchDistance::Medium };
     BvhBuildParams {
-        max_prims_per_leaf: 2,
-        collapse_traversal_cost: 1.0,
+        max_prims_per_leaf: leaf,
+        collapse_traversal_cost: cost,
+        reinsertion_batch_ratio: reins,
+        ploc_search_distance: sd,
+        post_collapse_reinsertion_batch_ratio_multiplier: std::env::var("TLAS_MULT").ok().and_then(|v| v.parse().ok()).unwrap_or(2.0),
         ..BvhBuildParams::medium_build()
     }
 }
@@ -699,19 +936,17 @@ impl InstanceBvh {
                     "instance {i}: linear part cannot be inverted in f32"
                 ));
             }
-            let Some((blo, bhi)) = b.bounds() else {
+            if b.cut().is_empty() {
                 continue; // no geometry: nothing to hit
-            };
+            }
+            // World box: union of the transformed cut boxes (exact box of each transformed box:
+            // centre L·c, half extent |L|·h).
+            let labs = DMat3::from_cols(l.x_axis.abs(), l.y_axis.abs(), l.z_axis.abs());
             let (mut wlo, mut whi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
-            for c in 0..8 {
-                let p = DVec3::new(
-                    if c & 1 == 0 { blo.x } else { bhi.x },
-                    if c & 2 == 0 { blo.y } else { bhi.y },
-                    if c & 4 == 0 { blo.z } else { bhi.z },
-                );
-                let w = tr.translation + l * p;
-                wlo = wlo.min(w);
-                whi = whi.max(w);
+            for &(c, h) in b.cut() {
+                let (wc, wh) = (tr.translation + l * c, labs * h);
+                wlo = wlo.min(wc - wh);
+                whi = whi.max(wc + wh);
             }
             lo = lo.min(wlo);
             hi = hi.max(whi);
@@ -744,7 +979,7 @@ impl InstanceBvh {
             .map(|&(a, b)| aabb_f32(a - render_origin, b - render_origin, pad))
             .collect();
         drop(boxes);
-        let (tlas, order) = build_tree(&aabbs, tlas_params());
+        let (tlas, order) = if std::env::var("SAH").is_ok() { build_sah(&aabbs, std::env::var("SAH_LEAF").ok().and_then(|v| v.parse().ok()).unwrap_or(4), std::env::var("SAH_ISECT").ok().and_then(|v| v.parse().ok()).unwrap_or(2.0)) } else { build_tree(&aabbs, tlas_params()) };
         drop(aabbs);
         let mut records = Vec::with_capacity(order.len());
         let mut ids = Vec::with_capacity(order.len());
@@ -753,7 +988,7 @@ impl InstanceBvh {
             records.push(r);
             ids.push(id);
         }
-        let tlas_depth = tree_depth(&tlas);
+        let tlas_depth = tlas.depth;
         let blas_depth = blas.iter().map(|b| b.depth()).max().unwrap_or(0);
         Ok(InstanceBvh {
             templates: blas,
@@ -911,7 +1146,7 @@ impl InstanceBvh {
             .iter()
             .map(TemplateBlas::memory_bytes)
             .sum::<usize>()
-            + self.tlas.len() * std::mem::size_of::<Bvh2Node>()
+            + self.tlas.pairs.len() * std::mem::size_of::<Pair>()
             + self.records.len() * std::mem::size_of::<InstanceRecord>()
             + self.ids.len() * 4
             + std::mem::size_of::<Self>()
@@ -943,7 +1178,7 @@ impl InstanceBvh {
         tmax: f64,
     ) -> Option<Best> {
         // NaN bounds or a degenerate ray: no hit.
-        if self.tlas.is_empty()
+        if self.tlas.pairs.is_empty()
             || !(tmin < tmax)
             || !origin.is_finite()
             || !dir.is_finite()
@@ -986,7 +1221,7 @@ impl InstanceBvh {
             slot: u32::MAX,
             prim: u32::MAX,
         };
-        traverse(&self.tlas, &ray, lo, &mut hi, ts, |first, count, h| {
+        traverse(&self.tlas.pairs, &ray, lo, &mut hi, ts, |first, count, h| {
             for k in first..first + count {
                 if let Some((t, prim)) = self.hit_instance::<ANY>(k, origin, dir, tmin, best.t, bs)
                 {
@@ -1513,7 +1748,7 @@ mod tests {
         use std::time::Instant;
         let mut rng = Stream::new(3, [0, 0, 0, 0]);
         let templates = vec![disc_cloud(&mut rng, 200), box_mesh()];
-        let n = 1000usize;
+        let n: usize = std::env::var("NGRID").ok().and_then(|v| v.parse().ok()).unwrap_or(1000);
         let centre = DVec3::new(40_000.0, 0.0, 0.0);
         let mut instances = Vec::with_capacity(n * n);
         for j in 0..n {
@@ -1535,9 +1770,31 @@ mod tests {
                 ));
             }
         }
+        let inst_copy = instances.clone();
+        let cpu_b = std::fs::read_to_string("/proc/thread-self/schedstat").ok().and_then(|s| s.split_whitespace().next().and_then(|x| x.parse::<f64>().ok())).unwrap_or(0.0) * 1e-9;
         let t0 = Instant::now();
         let bvh = InstanceBvh::new(templates, instances, centre).unwrap();
+        if std::env::var("BOXCOUNT").is_ok() {
+            let bx: Vec<(DVec3, DVec3)> = inst_copy.iter().map(|(tid, tr)| {
+                let b = bvh.templates[*tid as usize].bounds().unwrap();
+                let l = tr.linear.as_dmat3();
+                let (mut lo, mut hi) = (DVec3::INFINITY, DVec3::NEG_INFINITY);
+                for c in 0..8 { let p = DVec3::new(if c & 1 == 0 { b.0.x } else { b.1.x }, if c & 2 == 0 { b.0.y } else { b.1.y }, if c & 4 == 0 { b.0.z } else { b.1.z }); let w = tr.translation + l * p; lo = lo.min(w); hi = hi.max(w); }
+                (lo, hi)
+            }).collect();
+            let mut tot = 0; let mut tested = 0;
+            for _ in 0..200 {
+                let o = centre + DVec3::new((9.0 * n as f64) * (rng.next_f64() - 0.5), (9.0 * n as f64) * (rng.next_f64() - 0.5), 20.0);
+                let d = direction_from_angles(PI - 0.8 * rng.next_f64(), TAU * rng.next_f64());
+                for &(lo, hi) in &bx { if clip(o, d, lo, hi, 0.0, 1e9).is_some() { tot += 1; } }
+                DBG[1].store(0, std::sync::atomic::Ordering::Relaxed);
+                bvh.occluded(o, d, 1e-4, f64::INFINITY);
+                tested += DBG[1].load(std::sync::atomic::Ordering::Relaxed);
+            }
+            println!("boxes hit per ray {}, instance tests per ray (any-hit) {}", tot as f64 / 200.0, tested as f64 / 200.0);
+        }
         let build = t0.elapsed().as_secs_f64();
+        println!("build cpu {:.2} s", std::fs::read_to_string("/proc/thread-self/schedstat").ok().and_then(|s| s.split_whitespace().next().and_then(|x| x.parse::<f64>().ok())).unwrap_or(0.0) * 1e-9 - cpu_b);
         let mem = bvh.memory_bytes();
         println!(
             "build {:.2} s for {} instances; memory {:.1} MiB = {:.1} B/instance; tlas depth {}, {} nodes",
@@ -1546,15 +1803,15 @@ mod tests {
             mem as f64 / 1048576.0,
             mem as f64 / bvh.instance_count() as f64,
             bvh.tlas_depth,
-            bvh.tlas.len()
+            bvh.tlas.pairs.len()
         );
         let nr = 100_000;
         let mut rays = Vec::with_capacity(nr);
         for _ in 0..nr {
             let o = centre
                 + DVec3::new(
-                    9_000.0 * (rng.next_f64() - 0.5),
-                    9_000.0 * (rng.next_f64() - 0.5),
+                    (9.0 * n as f64) * (rng.next_f64() - 0.5),
+                    (9.0 * n as f64) * (rng.next_f64() - 0.5),
                     20.0,
                 );
             let d = direction_from_angles(PI - 0.8 * rng.next_f64(), TAU * rng.next_f64());
@@ -1564,8 +1821,8 @@ mod tests {
         for _ in 0..nr {
             let o = centre
                 + DVec3::new(
-                    9_000.0 * (rng.next_f64() - 0.5),
-                    9_000.0 * (rng.next_f64() - 0.5),
+                    (9.0 * n as f64) * (rng.next_f64() - 0.5),
+                    (9.0 * n as f64) * (rng.next_f64() - 0.5),
                     1.0 + 8.0 * rng.next_f64(),
                 );
             inside.push((o, random_unit(&mut rng)));
@@ -1574,6 +1831,8 @@ mod tests {
             ("from above (sun-like)", &rays),
             ("inside the canopy", &inside),
         ] {
+            let cpu = || std::fs::read_to_string("/proc/thread-self/schedstat").ok().and_then(|s| s.split_whitespace().next().and_then(|x| x.parse::<f64>().ok())).unwrap_or(0.0) * 1e-9;
+            let c0 = cpu();
             let t0 = Instant::now();
             let mut hits = 0usize;
             let mut tsum = 0.0;
@@ -1585,12 +1844,15 @@ mod tests {
             }
             let dt = t0.elapsed().as_secs_f64();
             println!("counters per ray: {:?}", DBG.iter().map(|c| c.swap(0, std::sync::atomic::Ordering::Relaxed) as f64 / nr as f64).collect::<Vec<_>>());
+            let c1 = cpu();
             let t1 = Instant::now();
             let mut occ = 0usize;
             for &(o, d) in set.iter() {
                 occ += bvh.occluded(o, d, 1e-4, f64::INFINITY) as usize;
             }
             let dt1 = t1.elapsed().as_secs_f64();
+            let c2 = cpu();
+            println!("cpu: closest {:.3} us/ray, occluded {:.3} us/ray", (c1 - c0) / nr as f64 * 1e6, (c2 - c1) / nr as f64 * 1e6);
             assert_eq!(occ, hits);
             println!(
                 "{name}: closest hit {:.2} Mrays/s ({:.1}% hit, mean t {:.1} m), occluded {:.2} Mrays/s",
@@ -1599,6 +1861,29 @@ mod tests {
                 tsum / hits.max(1) as f64,
                 nr as f64 / dt1 / 1e6
             );
+        }
+    }
+}
+#[cfg(test)]
+mod dbg_tests {
+    use super::*;
+    #[test]
+    fn dbg_slab2() {
+        let mut rng = crate::rng::Stream::new(1, [0, 0, 0, 0]);
+        let mut r = || rng.next_f64() as f32;
+        for _ in 0..100000 {
+            let a = Aabb::new(Vec3A::new(r(), r(), r()), Vec3A::new(r(), r(), r()) + 1.0);
+            let b = Aabb::new(Vec3A::new(r(), r(), r()) * 3.0, Vec3A::new(r(), r(), r()) * 3.0 + 1.0);
+            let p = Pair::new((&a, 0, 0), (&b, 0, 0));
+            let o = Vec3A::new(r() * 6.0 - 3.0, r() * 6.0 - 3.0, r() * 6.0 - 3.0);
+            let d = Vec3A::new(r() - 0.5, r() - 0.5, r() - 0.5).normalize();
+            let ray = RayF::new(o, d);
+            let (ta, tb) = ray.slab2(&p, 0.0, 100.0);
+            let ra = obvhs::ray::Ray::new(o, d, 0.0, 100.0);
+            let ea = a.intersect_ray(&ra);
+            let eb = b.intersect_ray(&ra);
+            assert_eq!(ta < f32::INFINITY, ea < f32::INFINITY, "{a:?} {o} {d} {ta} {ea}");
+            assert_eq!(tb < f32::INFINITY, eb < f32::INFINITY, "{b:?} {o} {d} {tb} {eb}");
         }
     }
 }

@@ -134,6 +134,9 @@ pub struct Scene {
     pub render_origin: DVec3,
     /// Approximate memory of geometry and acceleration structures, bytes.
     pub memory_bytes: usize,
+    /// Time to read the inputs and to build the BVHs, s.
+    pub load_seconds: f64,
+    pub build_seconds: f64,
 }
 
 impl std::fmt::Debug for Scene {
