@@ -20,6 +20,18 @@ use crate::rng::Stream;
 
 /// Samples per block (the unit of parallel work and of deterministic merging).
 pub const BLOCK: u64 = 2048;
+/// Samples per block of image measures (ortho, perspective): their cells are pixels, each
+/// needing far fewer samples than a direction of a distant measure.
+pub const IMAGE_BLOCK: u64 = 64;
+
+/// The block size of a measure.
+pub fn block_size(m: &Measure) -> u64 {
+    if m.is_image() {
+        IMAGE_BLOCK
+    } else {
+        BLOCK
+    }
+}
 
 /// Which walk serves a measure.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -371,20 +383,21 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
 /// End of the next round: the sample count at which the target should be met (the standard
 /// error falls as 1/√n), with a 10 % margin, at least 8 more blocks and at most 4× the samples
 /// done, rounded up to whole blocks. Depends only on results, so it is thread-count independent.
-fn next_round_end(done: u64, rel: f64, target: f64, spp: u64) -> u64 {
+fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64) -> u64 {
     let grow = if rel.is_finite() && target > 0.0 {
         (done as f64 * (rel / target).powi(2) * 1.1).ceil() as u64
     } else {
         done * 4
     };
-    let n = grow.clamp(done + 8 * BLOCK, done * 4);
-    (n.div_ceil(BLOCK) * BLOCK).min(spp)
+    let n = grow.clamp(done + 8 * block, done * 4);
+    (n.div_ceil(block) * block).min(spp)
 }
 
 /// Run one measure at one wavelength, in rounds when a target precision is set.
 pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) -> MeasureResult {
     let m = &exp.measures[im];
     let method = method_for(exp, m);
+    let bs = block_size(m);
     let cells = m.cell_count();
     let walk_cells: Vec<usize> = if method == Method::Forward {
         vec![0]
@@ -400,21 +413,21 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
         None => m.spp,
-        Some(_) => (4 * BLOCK).min(m.spp),
+        Some(_) => (4 * bs).min(m.spp),
     };
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
             .iter()
             .flat_map(|&c| {
-                let first = done.div_ceil(BLOCK);
-                let last = next.div_ceil(BLOCK);
+                let first = done.div_ceil(bs);
+                let last = next.div_ceil(bs);
                 (first..last).map(move |b| (c, b))
             })
             .collect();
         let parts: Vec<(usize, Accum)> = blocks
             .par_iter()
             .map(|&(c, b)| {
-                let range = (b * BLOCK).max(done)..((b + 1) * BLOCK).min(next);
+                let range = (b * bs).max(done)..((b + 1) * bs).min(next);
                 let n = range.end - range.start;
                 let a = run_block(exp, iw, im, c, range);
                 bar.inc(n);
@@ -447,6 +460,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             rel,
             m.target_rel_stderr.unwrap_or(0.0),
             m.spp,
+            bs,
         );
     }
     MeasureResult {

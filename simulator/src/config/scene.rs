@@ -31,7 +31,11 @@ pub enum SceneConfig {
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
+        #[serde(default)]
         objects: Vec<LeafCloudConfig>,
+        /// Generated trees (trunk + conical crown), e.g. RAMI HET06.
+        #[serde(default)]
+        cone_trees: Vec<ConeTreesConfig>,
         #[serde(default)]
         ground: Option<CanopyGroundConfig>,
         #[serde(default)]
@@ -70,6 +74,46 @@ pub struct LeafCloudConfig {
     /// Bi-Lambertian leaf optics.
     pub reflectance: Spectrum,
     pub transmittance: Spectrum,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ConeTreesConfig {
+    /// File of `x y z` tree base positions.
+    pub positions: String,
+    /// m.
+    pub trunk_radius_m: f64,
+    /// m, relative to the tree base: [bottom, top].
+    pub trunk_m: [f64; 2],
+    pub trunk_brdf: BrdfSpec,
+    /// m: the crown cone's height and base radius (its base at the trunk's top).
+    pub crown_height_m: f64,
+    pub crown_radius_m: f64,
+    /// Leaves per crown and their radius (m).
+    pub leaves: usize,
+    pub leaf_radius_m: f64,
+    /// Goel–Strebel leaf inclination parameters (2θ/π ~ Beta(mu, nu)).
+    #[serde(default = "default_mu")]
+    pub mu: f64,
+    #[serde(default = "default_nu")]
+    pub nu: f64,
+    pub reflectance: Spectrum,
+    pub transmittance: Spectrum,
+    /// Number of different crowns generated (assigned to the trees in turn).
+    #[serde(default = "default_variants")]
+    pub variants: usize,
+    #[serde(default)]
+    pub seed: u64,
+}
+
+fn default_mu() -> f64 {
+    1.066
+}
+fn default_nu() -> f64 {
+    1.853
+}
+fn default_variants() -> usize {
+    16
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -147,11 +191,65 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
         }
         SceneConfig::Canopy {
             objects,
+            cone_trees,
             ground,
             padding,
         } => {
-            if objects.is_empty() {
-                return Err(("scene.objects".into(), "needs at least one leaf cloud".into()));
+            if objects.is_empty() && cone_trees.is_empty() {
+                return Err((
+                    "scene.objects".into(),
+                    "a canopy needs at least one leaf cloud (`objects`) or `cone_trees`".into(),
+                ));
+            }
+            let mut trees = Vec::new();
+            for (i, t) in cone_trees.iter().enumerate() {
+                let key = format!("scene.cone_trees[{i}]");
+                let positions: Vec<DVec3> = build::read_table(&base.join(&t.positions), 3)
+                    .map_err(|m| (format!("{key}.positions"), m))?
+                    .into_iter()
+                    .map(|r| DVec3::new(r[0], r[1], r[2]))
+                    .collect();
+                let pos_ok = |v: f64| v.is_finite() && v > 0.0;
+                for (name, v) in [
+                    ("trunk_radius_m", t.trunk_radius_m),
+                    ("crown_height_m", t.crown_height_m),
+                    ("crown_radius_m", t.crown_radius_m),
+                    ("leaf_radius_m", t.leaf_radius_m),
+                    ("mu", t.mu),
+                    ("nu", t.nu),
+                ] {
+                    if !pos_ok(v) {
+                        return Err((format!("{key}.{name}"), format!("{v} must be > 0")));
+                    }
+                }
+                if !(t.trunk_m[0] < t.trunk_m[1]) {
+                    return Err((format!("{key}.trunk_m"), "must be [bottom, top] with bottom < top".into()));
+                }
+                if t.leaves == 0 || t.variants == 0 || t.variants > 1024 {
+                    return Err((format!("{key}.leaves"), "leaves must be ≥ 1 and variants in 1..=1024".into()));
+                }
+                check_spec(&format!("{key}.trunk_brdf"), &t.trunk_brdf)?;
+                let leaf_brdf = BrdfSpec::BiLambertian {
+                    reflectance: t.reflectance.clone(),
+                    transmittance: t.transmittance.clone(),
+                };
+                check_spec(&key, &leaf_brdf)?;
+                trees.push(build::ConeTrees {
+                    positions,
+                    trunk_radius: t.trunk_radius_m,
+                    trunk_bottom: t.trunk_m[0],
+                    trunk_top: t.trunk_m[1],
+                    trunk_brdf: t.trunk_brdf.clone(),
+                    crown_height: t.crown_height_m,
+                    crown_radius: t.crown_radius_m,
+                    leaves: t.leaves,
+                    leaf_radius: t.leaf_radius_m,
+                    mu: t.mu,
+                    nu: t.nu,
+                    leaf_brdf,
+                    variants: t.variants,
+                    seed: t.seed,
+                });
             }
             let mut clouds = Vec::new();
             for (i, o) in objects.iter().enumerate() {
@@ -221,7 +319,8 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
                     Some((p.cell_m, p.copies))
                 }
             };
-            build::canopy(&clouds, ground.as_ref(), pad).map_err(|m| ("scene.objects".into(), m))
+            build::canopy(&clouds, &trees, ground.as_ref(), pad)
+                .map_err(|m| ("scene.objects".into(), m))
         }
     }
 }

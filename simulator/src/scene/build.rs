@@ -260,10 +260,96 @@ pub fn read_leaves(path: &Path, columns: LeafColumns) -> Result<Vec<Disc>, Strin
         .collect()
 }
 
+/// Trees made of a cylindrical trunk and a conical leaf cloud (RAMI HET06), generated with a
+/// seeded generator: `variants` different crowns, assigned to the trees in turn.
+#[derive(Clone, Debug)]
+pub struct ConeTrees {
+    pub positions: Vec<DVec3>,
+    /// Trunk: radius, bottom and top heights (m, relative to the tree base), BRDF.
+    pub trunk_radius: f64,
+    pub trunk_bottom: f64,
+    pub trunk_top: f64,
+    pub trunk_brdf: BrdfSpec,
+    /// Crown: a cone with its base at the trunk's top, apex up (m).
+    pub crown_height: f64,
+    pub crown_radius: f64,
+    pub leaves: usize,
+    pub leaf_radius: f64,
+    /// Goel–Strebel leaf inclination: 2θ/π ~ Beta(mu, nu); azimuth uniform.
+    pub mu: f64,
+    pub nu: f64,
+    pub leaf_brdf: BrdfSpec,
+    pub variants: usize,
+    pub seed: u64,
+}
+
+/// A Beta(a, b) number by Jöhnk's method (Ross & Marshak 1991, appendix 1).
+fn beta_johnk(a: f64, b: f64, rng: &mut crate::rng::Stream) -> f64 {
+    loop {
+        let x = rng.next_f64().powf(1.0 / a);
+        let y = rng.next_f64().powf(1.0 / b);
+        if x + y <= 1.0 && x + y > 0.0 {
+            return x / (x + y);
+        }
+    }
+}
+
+impl ConeTrees {
+    /// The crown of variant `k`: discs uniform in the cone's volume.
+    pub fn crown(&self, k: usize) -> Vec<Disc> {
+        let mut rng = crate::rng::Stream::new(self.seed, [0x7ee5, k as u64, 0, 0]);
+        (0..self.leaves)
+            .map(|_| {
+                // Height above the cone's base: density ∝ (1 − h/H)².
+                let h = self.crown_height * (1.0 - (1.0 - rng.next_f64()).cbrt());
+                let rmax = self.crown_radius * (1.0 - h / self.crown_height);
+                let r = rmax * rng.next_f64().sqrt();
+                let phi = std::f64::consts::TAU * rng.next_f64();
+                let theta = std::f64::consts::FRAC_PI_2 * beta_johnk(self.mu, self.nu, &mut rng);
+                let az = std::f64::consts::TAU * rng.next_f64();
+                let n = crate::frame::direction_from_angles(theta, az);
+                Disc {
+                    centre: [
+                        (r * phi.cos()) as f32,
+                        (r * phi.sin()) as f32,
+                        (self.trunk_top + h) as f32,
+                    ],
+                    normal: [n.x as f32, n.y as f32, n.z as f32],
+                    radius: self.leaf_radius as f32,
+                }
+            })
+            .collect()
+    }
+
+    /// The trunk: a 16-sided prism with a top cap.
+    pub fn trunk(&self) -> (Vec<[f32; 3]>, Vec<[u32; 3]>) {
+        let k = 16u32;
+        let mut pos = Vec::new();
+        for i in 0..k {
+            let a = std::f64::consts::TAU * i as f64 / k as f64;
+            let (x, y) = (self.trunk_radius * a.cos(), self.trunk_radius * a.sin());
+            pos.push([x as f32, y as f32, self.trunk_bottom as f32]);
+            pos.push([x as f32, y as f32, self.trunk_top as f32]);
+        }
+        pos.push([0.0, 0.0, self.trunk_top as f32]);
+        let c = 2 * k;
+        let mut idx = Vec::new();
+        for i in 0..k {
+            let j = (i + 1) % k;
+            let (b0, t0, b1, t1) = (2 * i, 2 * i + 1, 2 * j, 2 * j + 1);
+            idx.push([b0, b1, t1]);
+            idx.push([b0, t1, t0]);
+            idx.push([t0, t1, c]);
+        }
+        (pos, idx)
+    }
+}
+
 /// Build a canopy scene. `padding`: (cell size x, y in m, copies p): every copy is repeated at
 /// offsets (i·cx, j·cy), |i|, |j| ≤ p.
 pub fn canopy(
     clouds: &[LeafCloud],
+    trees: &[ConeTrees],
     ground: Option<&CanopyGround>,
     padding: Option<([f64; 2], u32)>,
 ) -> Result<Scene, String> {
@@ -306,6 +392,38 @@ pub fn canopy(
                         linear: Mat3::IDENTITY,
                     },
                 ));
+            }
+        }
+    }
+    for t in trees {
+        let trunk_mat = materials.len() as u16;
+        materials.push(("trunk".into(), t.trunk_brdf.clone()));
+        let leaf_mat = materials.len() as u16;
+        materials.push(("crown".into(), t.leaf_brdf.clone()));
+        let (positions, indices) = t.trunk();
+        let trunk_tpl = templates.len() as u32;
+        let ntri = indices.len();
+        templates.push(TemplateGeometry::Triangles {
+            positions,
+            indices,
+            materials: vec![trunk_mat; ntri],
+        });
+        let first_crown = templates.len() as u32;
+        let variants = t.variants.max(1);
+        for k in 0..variants {
+            templates.push(TemplateGeometry::Discs {
+                discs: t.crown(k),
+                materials: vec![leaf_mat; t.leaves],
+            });
+        }
+        for o in &offsets {
+            for (i, p) in t.positions.iter().enumerate() {
+                let tr = InstanceTransform {
+                    translation: *p + *o,
+                    linear: Mat3::IDENTITY,
+                };
+                instances.push((trunk_tpl, tr));
+                instances.push((first_crown + (i % variants) as u32, tr));
             }
         }
     }
