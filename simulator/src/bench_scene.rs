@@ -31,7 +31,7 @@ pub fn peak_rss_bytes() -> u64 {
 
 pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let scene = from_bundle(bundle, &Background::Flat { altitude: None, brdf: None }, &[])
+    let scene = from_bundle(bundle, &Background::Flat { altitude: None, brdf: None }, &[], &[])
         .map_err(|e| anyhow::anyhow!(e))?;
     let t_scene = t0.elapsed().as_secs_f64();
     println!("bundle: {}", bundle.display());

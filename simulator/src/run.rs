@@ -95,6 +95,7 @@ fn run_block(
                 scene,
                 models: &opt.scene_models,
                 sun: exp.sun_dir,
+                wavelength: opt.wavelength,
             };
             let mut acc = Accum::new(1);
             for s in range {

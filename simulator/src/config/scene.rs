@@ -28,6 +28,9 @@ pub enum SceneConfig {
         /// Replace materials of the bundle by name: `[scene.materials.grass] type = "rpv" …`.
         #[serde(default)]
         materials: BTreeMap<String, BrdfSpec>,
+        /// Spatially varying reflectance of Lambertian materials on the terrain.
+        #[serde(default)]
+        textures: Vec<TextureConfig>,
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
@@ -41,6 +44,18 @@ pub enum SceneConfig {
         #[serde(default)]
         padding: Option<PaddingConfig>,
     },
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TextureConfig {
+    /// The bundle material it applies to (must be Lambertian).
+    pub material: String,
+    /// Raster (GeoTIFF…) in the bundle's CRS; its pixels are reflectances in [0, 1].
+    pub file: String,
+    /// nm, one per band (default: one band, used at every wavelength).
+    #[serde(default)]
+    pub wavelengths_nm: Option<Vec<f64>>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -156,6 +171,7 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
             path,
             background,
             materials,
+            textures,
         } => {
             let bg = match background {
                 None => Background::Flat {
@@ -186,8 +202,23 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
                 check_spec(&format!("scene.materials.{name}"), spec)?;
                 overrides.push((name.clone(), spec.clone()));
             }
+            let reqs: Vec<build::TextureRequest> = textures
+                .iter()
+                .map(|t| build::TextureRequest {
+                    material: t.material.clone(),
+                    file: base.join(&t.file),
+                    wavelengths: t.wavelengths_nm.clone().unwrap_or_else(|| vec![550.0]),
+                })
+                .collect();
             let dir = base.join(path);
-            build::from_bundle(&dir, &bg, &overrides).map_err(|m| ("scene.path".into(), m))
+            build::from_bundle(&dir, &bg, &overrides, &reqs).map_err(|m| {
+                let key = if m.starts_with("texture") || m.contains("two textures") {
+                    "scene.textures"
+                } else {
+                    "scene.path"
+                };
+                (key.into(), m)
+            })
         }
         SceneConfig::Canopy {
             objects,

@@ -33,6 +33,7 @@ use glam::DVec3;
 
 use super::{roulette, sample_scattered};
 use crate::atmosphere::PlaneParallel;
+use crate::bsdf::{Bsdf, Lambertian};
 use crate::config::resolve::IntegratorSettings;
 use crate::rng::Stream;
 use crate::scene::material::SurfaceModel;
@@ -47,6 +48,8 @@ pub struct SceneContext<'a> {
     pub models: &'a [SurfaceModel],
     /// Unit vector towards the Sun (`z > 0`).
     pub sun: DVec3,
+    /// nm (for reflectance textures).
+    pub wavelength: f64,
 }
 
 impl SceneContext<'_> {
@@ -122,8 +125,12 @@ pub fn walk(
             w *= omega;
             d = sample_scattered(phase, d, rng);
         } else if let Some(h) = hit {
+            let textured;
             let model = if h.material == BLACK {
                 &SurfaceModel::Black
+            } else if let Some(r) = scene.texture_reflectance(&h, ctx.wavelength) {
+                textured = SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian { reflectance: r }));
+                &textured
             } else {
                 ctx.models
                     .get(h.material as usize)

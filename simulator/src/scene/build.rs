@@ -32,10 +32,19 @@ pub enum Background {
 }
 
 /// Load a bundle into a scene. `overrides` replace materials by name (each name must exist).
+/// A reflectance texture request: material name, raster file, wavelength of each band.
+#[derive(Clone, Debug)]
+pub struct TextureRequest {
+    pub material: String,
+    pub file: PathBuf,
+    pub wavelengths: Vec<f64>,
+}
+
 pub fn from_bundle(
     dir: &Path,
     background: &Background,
     overrides: &[(String, BrdfSpec)],
+    textures: &[TextureRequest],
 ) -> Result<Scene, String> {
     let t0 = Instant::now();
     let bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
@@ -66,6 +75,35 @@ pub fn from_bundle(
                 ))
             }
         }
+    }
+    let mut tex = Vec::new();
+    let mut texture_of: Vec<Option<usize>> = vec![None; materials.len()];
+    for r in textures {
+        let Some(id) = materials.iter().position(|(n, _)| *n == r.material) else {
+            return Err(format!(
+                "texture {}: material `{}` is not in the bundle",
+                r.file.display(),
+                r.material
+            ));
+        };
+        if !matches!(materials[id].1, BrdfSpec::Lambertian { .. }) {
+            return Err(format!(
+                "texture {}: material `{}` is not Lambertian (only Lambertian materials take reflectance textures)",
+                r.file.display(),
+                r.material
+            ));
+        }
+        if texture_of[id].is_some() {
+            return Err(format!("material `{}` has two textures", r.material));
+        }
+        texture_of[id] = Some(tex.len());
+        tex.push(super::texture::Texture::read(
+            &r.file,
+            id as u16,
+            &r.wavelengths,
+            &m.crs.wkt,
+            [origin.x, origin.y],
+        )?);
     }
     let t_load = t0.elapsed().as_secs_f64();
 
@@ -161,7 +199,13 @@ pub fn from_bundle(
         z_range,
         reference_height,
         render_origin,
-        memory_bytes,
+        memory_bytes: memory_bytes
+            + tex
+                .iter()
+                .map(|t| t.bands.len() * t.width * t.height * 4)
+                .sum::<usize>(),
+        textures: tex,
+        texture_of,
         load_seconds: t_load,
         build_seconds: t_bvh,
     };
@@ -463,6 +507,8 @@ pub fn canopy(
         z_range,
         render_origin: DVec3::ZERO,
         memory_bytes,
+        textures: Vec::new(),
+        texture_of: Vec::new(),
         load_seconds: 0.0,
         build_seconds: t0.elapsed().as_secs_f64(),
     };

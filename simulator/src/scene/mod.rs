@@ -12,6 +12,7 @@
 pub mod build;
 pub mod instances;
 pub mod material;
+pub mod texture;
 pub mod world;
 
 pub use world::{Scene, SurfaceHit};
@@ -19,7 +20,8 @@ pub use world::{Scene, SurfaceHit};
 use glam::{DVec3, Vec3A};
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
-use obvhs::{bvh2::builder::build_bvh2_from_tris, bvh2::Bvh2, BvhBuildParams};
+use obvhs::aabb::Aabb;
+use obvhs::{bvh2::builder::build_bvh2, bvh2::Bvh2, BvhBuildParams};
 
 use crate::bundle::Bundle;
 
@@ -43,8 +45,11 @@ pub struct TerrainBvh {
     ids: Vec<(u32, u32)>,
     /// Render-frame origin in the bundle's local frame, m.
     render_origin: DVec3,
-    /// f64 vertices of each triangle in the local frame (for the refinement).
+    /// f64 vertices of each triangle in the local frame (every hit is decided with them).
     verts: Vec<[DVec3; 3]>,
+    /// Bounding box of the terrain (local frame), padded, for clipping rays in f64.
+    lo: DVec3,
+    hi: DVec3,
 }
 
 impl TerrainBvh {
@@ -87,17 +92,37 @@ impl TerrainBvh {
                 verts.push(w);
             }
         }
-        let bvh = build_bvh2_from_tris(
-            &tris,
+        // Boxes padded beyond the f32 rounding of the render frame, so that the f32 traversal
+        // never drops a triangle the f64 test would hit (hits are decided in f64 below).
+        let size = if lo.x.is_finite() {
+            (hi - lo).max_element()
+        } else {
+            0.0
+        };
+        let pad = (1e-3 + 1e-6 * size) as f32;
+        let boxes: Vec<Aabb> = tris
+            .iter()
+            .map(|t| {
+                Aabb::new(
+                    t.v0.min(t.v1).min(t.v2) - Vec3A::splat(pad),
+                    t.v0.max(t.v1).max(t.v2) + Vec3A::splat(pad),
+                )
+            })
+            .collect();
+        let bvh = build_bvh2(
+            &boxes,
             BvhBuildParams::medium_build(),
             &mut std::time::Duration::default(),
         );
+        let padv = DVec3::splat(1.0 + 1e-5 * size);
         Self {
             bvh,
             tris,
             ids,
             render_origin,
             verts,
+            lo: if lo.x.is_finite() { lo - padv } else { DVec3::ZERO },
+            hi: if lo.x.is_finite() { hi + padv } else { DVec3::ZERO },
         }
     }
 
@@ -121,36 +146,98 @@ impl TerrainBvh {
     }
 
     /// Closest terrain hit of the ray `origin + t·dir` (local frame, `dir` unit), `t > 0`.
+    ///
+    /// The ray is first clipped in f64 to the terrain's (padded) bounding box and its origin moved
+    /// there, so the f32 traversal works with coordinates of the scene's size even for rays
+    /// starting 100 km away; the traversal only proposes candidates (boxes padded beyond f32
+    /// rounding) and every candidate triangle is decided by an f64 Möller–Trumbore test against
+    /// the f64 vertices, so no ray slips between two triangles because of f32 rounding.
     pub fn intersect(&self, origin: DVec3, dir: DVec3) -> Option<TerrainHit> {
-        let o = Vec3A::from((origin - self.render_origin).as_vec3());
-        let ray = Ray::new_inf(o, Vec3A::from(dir.as_vec3()));
-        let mut hit = RayHit::none();
-        if !self.bvh.ray_traverse(ray, &mut hit, |r, id| {
-            self.tris[self.bvh.primitive_indices[id] as usize].intersect(r)
-        }) {
+        if self.tris.is_empty() {
             return None;
         }
-        let prim = self.bvh.primitive_indices[hit.primitive_id as usize] as usize;
+        // Slab test in f64.
+        let inv = DVec3::ONE / dir;
+        let ta = (self.lo - origin) * inv;
+        let tb = (self.hi - origin) * inv;
+        let tnear = ta.min(tb);
+        let tfar = ta.max(tb);
+        let pick = |a: f64, b: f64| if a.is_nan() { b } else { a };
+        let t0 = pick(tnear.x, f64::NEG_INFINITY)
+            .max(pick(tnear.y, f64::NEG_INFINITY))
+            .max(pick(tnear.z, f64::NEG_INFINITY))
+            .max(0.0);
+        let t1 = pick(tfar.x, f64::INFINITY)
+            .min(pick(tfar.y, f64::INFINITY))
+            .min(pick(tfar.z, f64::INFINITY));
+        if t1 < t0 {
+            return None;
+        }
+        let o2 = origin + dir * t0;
+        let o = Vec3A::from((o2 - self.render_origin).as_vec3());
+        let ray = Ray::new(o, Vec3A::from(dir.as_vec3()), 0.0, f32::INFINITY);
+        let mut hit = RayHit::none();
+        let mut best = (f64::INFINITY, usize::MAX);
+        self.bvh.ray_traverse(ray, &mut hit, |_, id| {
+            let prim = self.bvh.primitive_indices[id] as usize;
+            match moller_trumbore(o2, dir, &self.verts[prim]) {
+                Some(t) if t > 0.0 => {
+                    // Candidates are tested in f64; the traversal's f32 bound is a
+                    // conservative copy (rounded up) of the f64 best.
+                    if t < best.0 {
+                        best = (t, prim);
+                    }
+                    (t as f32).max(f32::MIN_POSITIVE) * (1.0 + 4.0 * f32::EPSILON)
+                }
+                _ => f32::INFINITY,
+            }
+        });
+        if best.1 == usize::MAX {
+            return None;
+        }
+        let prim = best.1;
         let [a, b, c] = self.verts[prim];
-        // Refine in f64: intersection with the triangle's plane.
         let mut n = (b - a).cross(c - a).normalize();
-        let denom = n.dot(dir);
-        let t = if denom.abs() > 1e-12 {
-            n.dot(a - origin) / denom
-        } else {
-            hit.t as f64
-        };
         if n.dot(dir) > 0.0 {
             n = -n;
         }
         let (tile, triangle) = self.ids[prim];
         Some(TerrainHit {
-            t,
+            t: t0 + best.0,
             tile: tile as usize,
             triangle: triangle as usize,
             normal: n,
         })
     }
+}
+
+/// Ray–triangle distance in f64 (Möller & Trumbore 1997), two-sided; `None` for a miss or a
+/// ray parallel to the triangle.
+#[inline]
+fn moller_trumbore(o: DVec3, d: DVec3, v: &[DVec3; 3]) -> Option<f64> {
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    // A margin of 1e-12 in barycentric coordinates (≈ 1e-10 m on a 100 m triangle) closes
+    // the rounding gaps along shared edges: a ray through an edge hits both neighbours (at the
+    // same distance) instead of possibly neither.
+    const EPS: f64 = 1e-12;
+    let inv = 1.0 / det;
+    let s = o - v[0];
+    let u = s.dot(p) * inv;
+    if !(-EPS..=1.0 + EPS).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let w = d.dot(q) * inv;
+    if w < -EPS || u + w > 1.0 + EPS {
+        return None;
+    }
+    Some(e2.dot(q) * inv)
 }
 
 #[cfg(test)]

@@ -104,6 +104,8 @@ pub struct SurfaceHit {
     pub normal: DVec3,
     /// Index into the material table, or [`BLACK`].
     pub material: u16,
+    /// Whether it is a terrain hit (textures apply to the terrain only).
+    pub terrain: bool,
 }
 
 /// Georeferencing of a scene built from a bundle.
@@ -134,6 +136,9 @@ pub struct Scene {
     pub render_origin: DVec3,
     /// Approximate memory of geometry and acceleration structures, bytes.
     pub memory_bytes: usize,
+    /// Reflectance textures of terrain materials, and the texture of each material id.
+    pub textures: Vec<super::texture::Texture>,
+    pub texture_of: Vec<Option<usize>>,
     /// Time to read the inputs and to build the BVHs, s.
     pub load_seconds: f64,
     pub build_seconds: f64,
@@ -197,6 +202,7 @@ impl Scene {
                         point: p,
                         normal: h.normal,
                         material,
+                        terrain: true,
                     });
                 }
             }
@@ -215,6 +221,7 @@ impl Scene {
                     point: o + d * t,
                     normal,
                     material,
+                    terrain: false,
                 });
             }
         }
@@ -225,6 +232,7 @@ impl Scene {
                     point: o + d * t,
                     normal: if from_above { DVec3::Z } else { -DVec3::Z },
                     material: if from_above { g.material } else { BLACK },
+                    terrain: false,
                 });
             }
         }
@@ -269,6 +277,17 @@ impl Scene {
             .as_ref()
             .and_then(|g| g.intersect(o, -DVec3::Z, f64::INFINITY))
             .map(|(t, _)| top - t)
+    }
+
+    /// The textured Lambertian reflectance at a terrain hit, if its material has a texture that
+    /// covers the hit.
+    #[inline]
+    pub fn texture_reflectance(&self, h: &SurfaceHit, wavelength_nm: f64) -> Option<f64> {
+        if !h.terrain {
+            return None;
+        }
+        let k = (*self.texture_of.get(h.material as usize)?)?;
+        self.textures[k].reflectance(h.point.x, h.point.y, wavelength_nm)
     }
 
     /// The material models at one wavelength, indexed by material id.
