@@ -317,6 +317,32 @@ pub fn validate_brdf(b: &BrdfSpec) -> Result<(), (String, String)> {
             check("f_vol", f_vol, -10.0, 10.0)?;
             check("f_geo", f_geo, -10.0, 10.0)
         }
+        BrdfSpec::Hapke {
+            w,
+            b,
+            c,
+            theta,
+            b_0,
+            h,
+        } => {
+            check("w", w, 0.0, 1.0)?;
+            check("b", b, 0.0, 1.0)?;
+            check("c", c, 0.0, 1.0)?;
+            check("theta", theta, 0.0, 90.0)?;
+            check("B_0", b_0, 0.0, 1.0)?;
+            check("h", h, 0.0, 1.0)
+        }
+        BrdfSpec::Ocean {
+            wind_speed,
+            refractive_index,
+            ..
+        } => {
+            check("wind_speed", wind_speed, 0.0, 40.0)?;
+            if let Some(n) = refractive_index {
+                check("refractive_index", n, 1.0, 3.0)?;
+            }
+            Ok(())
+        }
     }
 }
 

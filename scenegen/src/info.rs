@@ -87,6 +87,8 @@ pub fn summary(dir: &Path) -> Result<String, ScenegenError> {
             BrdfSpec::BiLambertian { .. } => "bi_lambertian",
             BrdfSpec::Rpv { .. } => "rpv",
             BrdfSpec::Rtls { .. } => "rtls",
+            BrdfSpec::Hapke { .. } => "hapke",
+            BrdfSpec::Ocean { .. } => "ocean",
         };
         let codes = if mat.class_codes.is_empty() {
             "template material".to_string()

@@ -31,8 +31,16 @@ pub fn peak_rss_bytes() -> u64 {
 
 pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Result<()> {
     let t0 = Instant::now();
-    let scene = from_bundle(bundle, &Background::Flat { altitude: None, brdf: None }, &[], &[])
-        .map_err(|e| anyhow::anyhow!(e))?;
+    let scene = from_bundle(
+        bundle,
+        &Background::Flat {
+            altitude: None,
+            brdf: None,
+        },
+        &[],
+        &[],
+    )
+    .map_err(|e| anyhow::anyhow!(e))?;
     let t_scene = t0.elapsed().as_secs_f64();
     println!("bundle: {}", bundle.display());
     println!("{}", scene.summary());
@@ -130,9 +138,6 @@ target_rel_stderr = {target}
         acc.median_rel_stderr(),
         rayon::current_num_threads()
     );
-    println!(
-        "peak RSS {:.0} MiB",
-        peak_rss_bytes() as f64 / 1048576.0
-    );
+    println!("peak RSS {:.0} MiB", peak_rss_bytes() as f64 / 1048576.0);
     Ok(())
 }

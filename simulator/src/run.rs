@@ -123,7 +123,9 @@ fn run_block(
                 MeasureKind::Radiancemeter { .. }
                 | MeasureKind::Ortho(_)
                 | MeasureKind::Perspective(_) => {
-                    unreachable!("resolver forbids forward radiancemeters; images use the scene walk")
+                    unreachable!(
+                        "resolver forbids forward radiancemeters; images use the scene walk"
+                    )
                 }
             };
             let targets = ForwardTargets {
@@ -318,7 +320,9 @@ fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -
             let y = (2.0 * (row as f64 + u2) / c.height as f64 - 1.0) * c.tan_y;
             (c.origin, (c.forward + c.right * x - c.up * y).normalize())
         }
-        _ => unreachable!("the resolver allows only distant, ortho and perspective measures with a scene"),
+        _ => unreachable!(
+            "the resolver allows only distant, ortho and perspective measures with a scene"
+        ),
     }
 }
 
@@ -456,13 +460,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
             break;
         }
-        next = next_round_end(
-            done,
-            rel,
-            m.target_rel_stderr.unwrap_or(0.0),
-            m.spp,
-            bs,
-        );
+        next = next_round_end(done, rel, m.target_rel_stderr.unwrap_or(0.0), m.spp, bs);
     }
     MeasureResult {
         measure: im,

@@ -8,7 +8,12 @@ use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
 use common::{check_all, experiment, run_rows, Cmp};
 use simulator::bundle::{BrdfSpec, Spectrum};
 
-fn plane(size: f64, raster_width: usize, raster: Vec<u8>, materials: Vec<(String, BrdfSpec)>) -> PlaneSpec {
+fn plane(
+    size: f64,
+    raster_width: usize,
+    raster: Vec<u8>,
+    materials: Vec<(String, BrdfSpec)>,
+) -> PlaneSpec {
     PlaneSpec {
         x0: -0.5 * size,
         y0: -0.5 * size,
@@ -43,7 +48,11 @@ fn distant(id: &str, vza: &[f64], vaa: &[f64], spp: u64, extra: &str) -> String 
 }
 
 /// Compare two runs' BRFs direction by direction with their combined standard error.
-fn compare(case: &str, a: &[simulator::products::Row], b: &[simulator::products::Row]) -> Result<(), String> {
+fn compare(
+    case: &str,
+    a: &[simulator::products::Row],
+    b: &[simulator::products::Row],
+) -> Result<(), String> {
     assert_eq!(a.len(), b.len());
     let cmps: Vec<Cmp> = a
         .iter()
@@ -75,8 +84,16 @@ fn flat_bundle_equals_1d_surface() {
         rho_c: None,
     };
     let cases = [
-        ("lambertian", lambertian(0.3), "type = \"lambertian\"\nreflectance = 0.3"),
-        ("rpv", rpv, "type = \"rpv\"\nrho_0 = 0.12\nk = 0.8\ng = -0.2"),
+        (
+            "lambertian",
+            lambertian(0.3),
+            "type = \"lambertian\"\nreflectance = 0.3",
+        ),
+        (
+            "rpv",
+            rpv,
+            "type = \"rpv\"\nrho_0 = 0.12\nk = 0.8\ng = -0.2",
+        ),
     ];
     let (vza, vaa) = zeniths();
     let mut errs = Vec::new();
@@ -120,14 +137,19 @@ fn flat_bundle_equals_1d_surface() {
 fn selector_and_ortho_pixels_are_exact() {
     let dir = tmp("selector");
     let rw = 4;
-    let raster: Vec<u8> = (0..rw * rw).map(|k| ((k / rw + k % rw) % 2) as u8).collect();
+    let raster: Vec<u8> = (0..rw * rw)
+        .map(|k| ((k / rw + k % rw) % 2) as u8)
+        .collect();
     let b = write_plane(
         &dir,
         &plane(
             400.0,
             rw,
             raster.clone(),
-            vec![("dark".into(), lambertian(0.1)), ("bright".into(), lambertian(0.6))],
+            vec![
+                ("dark".into(), lambertian(0.1)),
+                ("bright".into(), lambertian(0.6)),
+            ],
         ),
     );
     let e = experiment(&format!(
@@ -200,7 +222,10 @@ fn ortho_geotiff_matches_netcdf() {
         600.0,
         3,
         vec![0, 1, 0, 1, 0, 1, 0, 1, 0],
-        vec![("a".into(), lambertian(0.05)), ("b".into(), lambertian(0.4))],
+        vec![
+            ("a".into(), lambertian(0.05)),
+            ("b".into(), lambertian(0.4)),
+        ],
     );
     p.wkt = wkt;
     let b = write_plane(&dir, &p);
@@ -215,7 +240,13 @@ fn ortho_geotiff_matches_netcdf() {
     .unwrap();
     let out = dir.join("out");
     let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
-        .args(["run", exp.to_str().unwrap(), "-o", out.to_str().unwrap(), "--quiet"])
+        .args([
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
         .output()
         .unwrap();
     assert!(
@@ -251,7 +282,12 @@ fn ortho_geotiff_matches_netcdf() {
             );
         }
     }
-    for f in ["toa_brf_stderr.tif", "toa_radiance.tif", "toa_radiance_stderr.tif", "toa.png"] {
+    for f in [
+        "toa_brf_stderr.tif",
+        "toa_radiance.tif",
+        "toa_radiance_stderr.tif",
+        "toa.png",
+    ] {
         assert!(out.join(f).exists(), "{f} missing");
     }
     let stdout = String::from_utf8_lossy(&o.stdout);
@@ -295,7 +331,11 @@ fn expected_and_collision_estimators_agree_in_a_canopy() {
         ));
         rows.push(run_rows(&e));
     }
-    if let Err(e) = compare("scene walk: expected vs collision estimators", &rows[0], &rows[1]) {
+    if let Err(e) = compare(
+        "scene walk: expected vs collision estimators",
+        &rows[0],
+        &rows[1],
+    ) {
         errs.push(e);
     }
     // The expected estimator is the less noisy one.
@@ -321,7 +361,12 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
         .to_wkt()
         .unwrap();
     // 0.25 is exact in f32 (the texture's storage), so (1) can ask for bit identity.
-    let mut p = plane(400.0, 2, vec![0; 4], vec![("soil".into(), lambertian(0.25))]);
+    let mut p = plane(
+        400.0,
+        2,
+        vec![0; 4],
+        vec![("soil".into(), lambertian(0.25))],
+    );
     p.wkt = wkt.clone();
     let b = write_plane(&dir, &p);
     let gt = [499_800.0, 100.0, 0.0, 4_000_200.0, 0.0, -100.0];
@@ -332,7 +377,11 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
         4,
         gt,
         &wkt,
-        &[ImageBand { name: "r".into(), description: "r".into(), values: &uniform }],
+        &[ImageBand {
+            name: "r".into(),
+            description: "r".into(),
+            values: &uniform,
+        }],
         &[],
     )
     .unwrap();
@@ -345,20 +394,35 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
         gt,
         &wkt,
         &[
-            ImageBand { name: "r400".into(), description: "".into(), values: &b400 },
-            ImageBand { name: "r700".into(), description: "".into(), values: &b700 },
+            ImageBand {
+                name: "r400".into(),
+                description: "".into(),
+                values: &b400,
+            },
+            ImageBand {
+                name: "r700".into(),
+                description: "".into(),
+                values: &b700,
+            },
         ],
         &[],
     )
     .unwrap();
-    let other = gdal::spatial_ref::SpatialRef::from_epsg(32632).unwrap().to_wkt().unwrap();
+    let other = gdal::spatial_ref::SpatialRef::from_epsg(32632)
+        .unwrap()
+        .to_wkt()
+        .unwrap();
     write_geotiff(
         &dir.join("utm32.tif"),
         4,
         4,
         gt,
         &other,
-        &[ImageBand { name: "r".into(), description: "".into(), values: &uniform }],
+        &[ImageBand {
+            name: "r".into(),
+            description: "".into(),
+            values: &uniform,
+        }],
         &[],
     )
     .unwrap();
@@ -374,8 +438,14 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
         "[[scene.textures]]\nmaterial = \"soil\"\nfile = \"{}\"",
         dir.join("uniform.tif").display()
     );
-    let (e1, e2) = (experiment(&text(ATM, "", meas)), experiment(&text(ATM, &tex_u, meas)));
-    let (r1, r2) = (simulator::run::run(&e1, false), simulator::run::run(&e2, false));
+    let (e1, e2) = (
+        experiment(&text(ATM, "", meas)),
+        experiment(&text(ATM, &tex_u, meas)),
+    );
+    let (r1, r2) = (
+        simulator::run::run(&e1, false),
+        simulator::run::run(&e2, false),
+    );
     assert_eq!(r1[0].acc, r2[0].acc, "uniform texture changed the result");
     // (2) Exact pixels without atmosphere.
     let tex_2 = format!(
@@ -420,7 +490,10 @@ fn perspective_camera_sees_the_plane() {
             400.0,
             2,
             vec![0, 1, 1, 0],
-            vec![("dark".into(), lambertian(0.1)), ("bright".into(), lambertian(0.6))],
+            vec![
+                ("dark".into(), lambertian(0.1)),
+                ("bright".into(), lambertian(0.6)),
+            ],
         ),
     );
     // Camera 300 m above (500010, 4000010) (the north-east cell, class 1 = bright), looking down,
@@ -439,7 +512,10 @@ fn perspective_camera_sees_the_plane() {
     let tl = img.brf[0][0];
     assert!((tl - 0.1).abs() < 1e-9, "top-left pixel {tl}");
     for v in &img.brf[0] {
-        assert!((v - 0.1).abs() < 1e-9 || (v - 0.6).abs() < 1e-9 || *v == 0.0 || (*v > 0.1 && *v < 0.6), "{v}");
+        assert!(
+            (v - 0.1).abs() < 1e-9 || (v - 0.6).abs() < 1e-9 || *v == 0.0 || (*v > 0.1 && *v < 0.6),
+            "{v}"
+        );
     }
 }
 
@@ -450,7 +526,12 @@ fn perspective_camera_sees_the_plane() {
 #[test]
 fn terrain_is_watertight_for_distant_rays() {
     let dir = tmp("watertight");
-    let p = plane(400.0, 2, vec![0; 4], vec![("soil".into(), lambertian(0.25))]);
+    let p = plane(
+        400.0,
+        2,
+        vec![0; 4],
+        vec![("soil".into(), lambertian(0.25))],
+    );
     let b = write_plane(&dir, &p);
     let scene = simulator::scene::build::from_bundle(
         &b,
@@ -477,13 +558,18 @@ fn terrain_is_watertight_for_distant_rays() {
         }
         n += 1;
         let zen = std::f64::consts::PI - 0.3 * rng.next_f64();
-        let d = simulator::frame::direction_from_angles(zen, std::f64::consts::TAU * rng.next_f64());
+        let d =
+            simulator::frame::direction_from_angles(zen, std::f64::consts::TAU * rng.next_f64());
         let target = glam::DVec3::new(x, y, 0.0);
         let o = target - d * (100_000.0 / -d.z);
         match scene.intersect(o, d, f64::INFINITY) {
             None => miss += 1,
             Some(h) => {
-                assert!((h.point - target).length() < 1e-6, "{:?} vs {target:?}", h.point);
+                assert!(
+                    (h.point - target).length() < 1e-6,
+                    "{:?} vs {target:?}",
+                    h.point
+                );
                 let s = scene.offset(h.point, h.normal, sun);
                 if scene.occluded(s, sun, f64::INFINITY) {
                     occl += 1;

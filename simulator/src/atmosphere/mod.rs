@@ -466,7 +466,10 @@ mod tests {
                 (Some(t), Some(tau_c)) => {
                     let zc = z0 + t * dz;
                     let got = atm.tau_at_altitude(zc);
-                    assert!((got - tau_c).abs() < 1e-9 * (1.0 + tau_c), "{got} vs {tau_c}");
+                    assert!(
+                        (got - tau_c).abs() < 1e-9 * (1.0 + tau_c),
+                        "{got} vs {tau_c}"
+                    );
                     // A shorter tmax stops it.
                     assert_eq!(atm.march(z0, dz, s, 0.999 * t), None);
                 }

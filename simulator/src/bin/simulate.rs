@@ -216,11 +216,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                     "{:<16} {} × {} px, quicklook: {what}",
                     img.id, img.width, img.height
                 );
-                for (w, (b, e, s)) in exp
-                    .wavelengths
-                    .iter()
-                    .zip(products::imagery::medians(img))
-                {
+                for (w, (b, e, s)) in exp.wavelengths.iter().zip(products::imagery::medians(img)) {
                     println!(
                         "{:<16} {w:>8.2} nm: median BRF {b:.5}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
                         img.id,

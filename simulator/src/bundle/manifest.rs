@@ -227,6 +227,28 @@ pub enum BrdfSpec {
         f_vol: Spectrum,
         f_geo: Spectrum,
     },
+    /// Hapke (parameters as the simulator's `hapke` surface; `theta` in degrees).
+    Hapke {
+        w: Spectrum,
+        b: Spectrum,
+        c: Spectrum,
+        theta: Spectrum,
+        #[serde(rename = "B_0")]
+        b_0: Spectrum,
+        h: Spectrum,
+    },
+    /// Rough water surface (Cox–Munk, Fresnel; wind speed in m/s).
+    Ocean {
+        wind_speed: Spectrum,
+        #[serde(default)]
+        refractive_index: Option<Spectrum>,
+        #[serde(default = "yes")]
+        shadowing: bool,
+    },
+}
+
+fn yes() -> bool {
+    true
 }
 
 /// A template mesh stored once in `templates.bin`.

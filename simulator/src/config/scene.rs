@@ -16,6 +16,7 @@ use crate::scene::Scene;
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+#[allow(clippy::large_enum_variant)] // one per experiment
 pub enum SceneConfig {
     /// A scene bundle written by `scenegen build`.
     Bundle {
@@ -69,7 +70,7 @@ pub enum BackgroundConfig {
         altitude_m: Option<f64>,
         /// default: the material raster's most frequent material.
         #[serde(default)]
-        brdf: Option<BrdfSpec>,
+        brdf: Option<Box<BrdfSpec>>,
     },
 }
 
@@ -193,7 +194,7 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
                     }
                     Background::Flat {
                         altitude: *altitude_m,
-                        brdf: brdf.clone(),
+                        brdf: brdf.as_deref().cloned().map(Box::new),
                     }
                 }
             };
@@ -253,11 +254,17 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
                         return Err((format!("{key}.{name}"), format!("{v} must be > 0")));
                     }
                 }
-                if !(t.trunk_m[0] < t.trunk_m[1]) {
-                    return Err((format!("{key}.trunk_m"), "must be [bottom, top] with bottom < top".into()));
+                if t.trunk_m[0].partial_cmp(&t.trunk_m[1]) != Some(std::cmp::Ordering::Less) {
+                    return Err((
+                        format!("{key}.trunk_m"),
+                        "must be [bottom, top] with bottom < top".into(),
+                    ));
                 }
                 if t.leaves == 0 || t.variants == 0 || t.variants > 1024 {
-                    return Err((format!("{key}.leaves"), "leaves must be ≥ 1 and variants in 1..=1024".into()));
+                    return Err((
+                        format!("{key}.leaves"),
+                        "leaves must be ≥ 1 and variants in 1..=1024".into(),
+                    ));
                 }
                 check_spec(&format!("{key}.trunk_brdf"), &t.trunk_brdf)?;
                 let leaf_brdf = BrdfSpec::BiLambertian {
@@ -396,7 +403,10 @@ pub fn ortho_grid(
         return Err(("pixel_size_m".into(), format!("{pixel} must be > 0")));
     }
     if !(zenith.is_finite() && (0.0..89.0).contains(&zenith)) {
-        return Err(("zenith".into(), format!("{zenith} degrees must lie in [0, 89)")));
+        return Err((
+            "zenith".into(),
+            format!("{zenith} degrees must lie in [0, 89)"),
+        ));
     }
     if !azimuth.is_finite() {
         return Err(("azimuth".into(), format!("{azimuth} is not finite")));
@@ -442,7 +452,10 @@ pub fn camera(
         return Err(("fov".into(), format!("{fov} degrees must lie in (0, 179)")));
     }
     if width == 0 || height == 0 || width.saturating_mul(height) > 50_000_000 {
-        return Err(("width".into(), "width and height must be 1..; at most 5·10⁷ pixels".into()));
+        return Err((
+            "width".into(),
+            "width and height must be 1..; at most 5·10⁷ pixels".into(),
+        ));
     }
     let (ox, oy) = to_local(scene, origin[0], origin[1]);
     let (tx, ty) = to_local(scene, target[0], target[1]);
@@ -455,7 +468,10 @@ pub fn camera(
     let upv = DVec3::from_array(up.unwrap_or([0.0, 0.0, 1.0]));
     let right = forward.cross(upv).normalize_or_zero();
     if right == DVec3::ZERO {
-        return Err(("up".into(), "must not be parallel to the viewing direction".into()));
+        return Err((
+            "up".into(),
+            "must not be parallel to the viewing direction".into(),
+        ));
     }
     let true_up = right.cross(forward);
     let tan_x = (0.5 * fov).to_radians().tan();

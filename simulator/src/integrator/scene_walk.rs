@@ -102,8 +102,7 @@ pub fn walk(
         let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
         let mut score = 0.0;
         if settings.expected_local_estimate && has_atm {
-            score += w * expected_atmospheric(ctx, p, d, reach, t_hit, top, tau_top, rng)
-                * inv_4pi;
+            score += w * expected_atmospheric(ctx, p, d, reach, t_hit, top, tau_top, rng) * inv_4pi;
         }
         let s = -rng.next_f64_open0().ln();
         let t_coll = if has_atm {

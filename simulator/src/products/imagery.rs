@@ -134,7 +134,10 @@ pub fn write_files(
                 "sun_azimuth_deg".to_string(),
                 format!("{}", exp.sun_azimuth_deg),
             ),
-            ("samples_per_pixel".to_string(), format!("{:?}", p.n_samples)),
+            (
+                "samples_per_pixel".to_string(),
+                format!("{:?}", p.n_samples),
+            ),
         ];
         if let Some((vza, vaa)) = p.view {
             meta.push(("view_zenith_deg".into(), format!("{vza}")));
@@ -148,12 +151,7 @@ pub fn write_files(
                 "1",
                 "standard error of the BRF",
             ),
-            (
-                "radiance",
-                &p.radiance,
-                "W m-2 sr-1 nm-1",
-                "TOA radiance",
-            ),
+            ("radiance", &p.radiance, "W m-2 sr-1 nm-1", "TOA radiance"),
             (
                 "radiance_stderr",
                 &p.radiance_stderr,
@@ -212,8 +210,14 @@ pub fn medians(p: &ImageProduct) -> Vec<(f64, f64, f64)> {
                 .collect();
             (
                 med(ok.iter().map(|&c| p.brf[iw][c]).collect()),
-                med(ok.iter().map(|&c| p.brf_stderr[iw][c] / p.brf[iw][c]).collect()),
-                med(ok.iter().map(|&c| p.brf_single[iw][c] / p.brf[iw][c]).collect()),
+                med(ok
+                    .iter()
+                    .map(|&c| p.brf_stderr[iw][c] / p.brf[iw][c])
+                    .collect()),
+                med(ok
+                    .iter()
+                    .map(|&c| p.brf_single[iw][c] / p.brf[iw][c])
+                    .collect()),
             )
         })
         .collect()

@@ -403,12 +403,32 @@ fn write_image(
         }
     }
     let sets: [(&str, &Vec<Vec<f64>>, &str, &str); 6] = [
-        ("brf", &p.brf, "1", "bidirectional reflectance factor pi L / (E0 cos SZA)"),
+        (
+            "brf",
+            &p.brf,
+            "1",
+            "bidirectional reflectance factor pi L / (E0 cos SZA)",
+        ),
         ("brf_stderr", &p.brf_stderr, "1", "standard error of brf"),
-        ("brf_single", &p.brf_single, "1", "single-scattering part of brf"),
-        ("brf_multiple", &p.brf_multiple, "1", "multiple-scattering part of brf"),
+        (
+            "brf_single",
+            &p.brf_single,
+            "1",
+            "single-scattering part of brf",
+        ),
+        (
+            "brf_multiple",
+            &p.brf_multiple,
+            "1",
+            "multiple-scattering part of brf",
+        ),
         ("radiance", &p.radiance, "W m-2 sr-1 nm-1", "radiance"),
-        ("radiance_stderr", &p.radiance_stderr, "W m-2 sr-1 nm-1", "standard error of radiance"),
+        (
+            "radiance_stderr",
+            &p.radiance_stderr,
+            "W m-2 sr-1 nm-1",
+            "standard error of radiance",
+        ),
     ];
     for (name, data, units, long) in sets {
         let flat: Vec<f64> = data.iter().flatten().copied().collect();

@@ -27,7 +27,7 @@ pub enum Background {
         /// m; None: the lowest terrain height.
         altitude: Option<f64>,
         /// None: the raster's most frequent material.
-        brdf: Option<BrdfSpec>,
+        brdf: Option<Box<BrdfSpec>>,
     },
 }
 
@@ -114,7 +114,14 @@ pub fn from_bundle(
     let raster = MaterialRaster {
         width: m.material_raster.width as usize,
         height: m.material_raster.height as usize,
-        geotransform: [gt[0] - origin.x, gt[1], gt[2], gt[3] - origin.y, gt[4], gt[5]],
+        geotransform: [
+            gt[0] - origin.x,
+            gt[1],
+            gt[2],
+            gt[3] - origin.y,
+            gt[4],
+            gt[5],
+        ],
         data: bundle.material_raster.clone(),
     };
     if raster.width == 0 || raster.height == 0 || raster.data.len() != raster.width * raster.height
@@ -160,7 +167,7 @@ pub fn from_bundle(
         Background::Flat { altitude, brdf } => {
             let material = match brdf {
                 Some(spec) => {
-                    materials.push(("background".into(), spec.clone()));
+                    materials.push(("background".into(), (**spec).clone()));
                     (materials.len() - 1) as u16
                 }
                 None => {

@@ -25,7 +25,7 @@
 
 use glam::DVec3;
 
-use crate::bsdf::{Bsdf, Lambertian, Rpv, Rtls};
+use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
 use crate::bundle::BrdfSpec;
 use crate::frame::{basis_around, sample_cosine_hemisphere};
 
@@ -80,9 +80,35 @@ impl SurfaceModel {
                 at(g),
                 rho_c.as_ref().map_or(at(rho_0), at),
             )?)),
-            BrdfSpec::Rtls { f_iso, f_vol, f_geo } => SurfaceModel::Opaque(Bsdf::Rtls(
-                Rtls::new(at(f_iso), at(f_vol), at(f_geo))?,
-            )),
+            BrdfSpec::Rtls {
+                f_iso,
+                f_vol,
+                f_geo,
+            } => SurfaceModel::Opaque(Bsdf::Rtls(Rtls::new(at(f_iso), at(f_vol), at(f_geo))?)),
+            BrdfSpec::Hapke {
+                w,
+                b,
+                c,
+                theta,
+                b_0,
+                h,
+            } => SurfaceModel::Opaque(Bsdf::Hapke(Hapke::new(
+                at(w),
+                at(b),
+                at(c),
+                at(theta),
+                at(b_0),
+                at(h),
+            )?)),
+            BrdfSpec::Ocean {
+                wind_speed,
+                refractive_index,
+                shadowing,
+            } => SurfaceModel::Opaque(Bsdf::Ocean(Ocean::new(
+                at(wind_speed),
+                refractive_index.as_ref().map_or(1.33, at),
+                *shadowing,
+            )?)),
         })
     }
 

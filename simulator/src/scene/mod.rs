@@ -18,9 +18,9 @@ pub mod world;
 pub use world::{Scene, SurfaceHit};
 
 use glam::{DVec3, Vec3A};
+use obvhs::aabb::Aabb;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
-use obvhs::aabb::Aabb;
 use obvhs::{bvh2::builder::build_bvh2, bvh2::Bvh2, BvhBuildParams};
 
 use crate::bundle::Bundle;
@@ -121,8 +121,16 @@ impl TerrainBvh {
             ids,
             render_origin,
             verts,
-            lo: if lo.x.is_finite() { lo - padv } else { DVec3::ZERO },
-            hi: if lo.x.is_finite() { hi + padv } else { DVec3::ZERO },
+            lo: if lo.x.is_finite() {
+                lo - padv
+            } else {
+                DVec3::ZERO
+            },
+            hi: if lo.x.is_finite() {
+                hi + padv
+            } else {
+                DVec3::ZERO
+            },
         }
     }
 
