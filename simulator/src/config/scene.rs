@@ -44,6 +44,9 @@ pub enum SceneConfig {
         ground: Option<CanopyGroundConfig>,
         #[serde(default)]
         padding: Option<PaddingConfig>,
+        /// A periodic unit cell [xmin, ymin, xmax, ymax] (m): the scene repeats it without end.
+        #[serde(default)]
+        periodic_m: Option<[f64; 4]>,
     },
 }
 
@@ -226,7 +229,23 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
             cone_trees,
             ground,
             padding,
+            periodic_m,
         } => {
+            if let Some(c) = periodic_m {
+                if !(c.iter().all(|v| v.is_finite()) && c[0] < c[2] && c[1] < c[3]) {
+                    return Err((
+                        "scene.periodic_m".into(),
+                        "must be [xmin, ymin, xmax, ymax] with min < max".into(),
+                    ));
+                }
+                if padding.is_some() {
+                    return Err((
+                        "scene.padding".into(),
+                        "is not used with `periodic_m` (a periodic cell repeats without end)"
+                            .into(),
+                    ));
+                }
+            }
             if objects.is_empty() && cone_trees.is_empty() {
                 return Err((
                     "scene.objects".into(),
@@ -357,7 +376,7 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
                     Some((p.cell_m, p.copies))
                 }
             };
-            build::canopy(&clouds, &trees, ground.as_ref(), pad)
+            build::canopy(&clouds, &trees, ground.as_ref(), pad, *periodic_m)
                 .map_err(|m| ("scene.objects".into(), m))
         }
     }

@@ -111,7 +111,7 @@ pub fn walk(
             None
         };
         if let Some(t) = t_coll {
-            p += d * t;
+            p = scene.wrap_point(p + d * t);
             let layer = atm.layer_at_altitude(p.z);
             let omega = atm.albedo(layer);
             let phase = atm.phase(layer);

@@ -211,6 +211,7 @@ pub fn from_bundle(
                 .iter()
                 .map(|t| t.bands.len() * t.width * t.height * 4)
                 .sum::<usize>(),
+        periodic: None,
         textures: tex,
         texture_of,
         load_seconds: t_load,
@@ -398,19 +399,34 @@ impl ConeTrees {
 
 /// Build a canopy scene. `padding`: (cell size x, y in m, copies p): every copy is repeated at
 /// offsets (i·cx, j·cy), |i|, |j| ≤ p.
+/// `periodic`: the unit cell [xmin, ymin, xmax, ymax]; the scene repeats it in x and y (every
+/// object is also copied into the 8 neighbouring cells so that parts sticking out of a cell are
+/// seen from the next one; the ground is infinite).
 pub fn canopy(
     clouds: &[LeafCloud],
     trees: &[ConeTrees],
     ground: Option<&CanopyGround>,
     padding: Option<([f64; 2], u32)>,
+    periodic: Option<[f64; 4]>,
 ) -> Result<Scene, String> {
     let t0 = Instant::now();
     let mut templates = Vec::new();
     let mut instances = Vec::new();
     let mut materials: Vec<(String, BrdfSpec)> = Vec::new();
-    let offsets: Vec<DVec3> = match padding {
-        None => vec![DVec3::ZERO],
-        Some((cell, p)) => {
+    let offsets: Vec<DVec3> = match (padding, periodic) {
+        (Some(_), Some(_)) => return Err("padding and a periodic cell exclude each other".into()),
+        (None, Some(c)) => {
+            let (w, h) = (c[2] - c[0], c[3] - c[1]);
+            let mut v = Vec::new();
+            for j in -1..=1 {
+                for i in -1..=1 {
+                    v.push(DVec3::new(i as f64 * w, j as f64 * h, 0.0));
+                }
+            }
+            v
+        }
+        (None, None) => vec![DVec3::ZERO],
+        (Some((cell, p)), None) => {
             let p = p as i64;
             let mut v = Vec::new();
             for j in -p..=p {
@@ -497,10 +513,13 @@ pub fn canopy(
         GroundPlane {
             altitude: g.altitude,
             material: (materials.len() - 1) as u16,
-            inside: g.extent,
+            inside: if periodic.is_some() { None } else { g.extent },
             outside: None,
         }
     });
+    if let Some(c) = periodic {
+        extent = c;
+    }
     let memory_bytes = objects.memory_bytes();
     let scene = Scene {
         name: "canopy".into(),
@@ -514,6 +533,7 @@ pub fn canopy(
         z_range,
         render_origin: DVec3::ZERO,
         memory_bytes,
+        periodic,
         textures: Vec::new(),
         texture_of: Vec::new(),
         load_seconds: 0.0,

@@ -136,6 +136,9 @@ pub struct Scene {
     pub render_origin: DVec3,
     /// Approximate memory of geometry and acceleration structures, bytes.
     pub memory_bytes: usize,
+    /// Periodic scenes: the unit cell [xmin, ymin, xmax, ymax] (local frame); rays leaving it
+    /// re-enter through the opposite wall.
+    pub periodic: Option<[f64; 4]>,
     /// Reflectance textures of terrain materials, and the texture of each material id.
     pub textures: Vec<super::texture::Texture>,
     pub texture_of: Vec<Option<usize>>,
@@ -182,8 +185,118 @@ impl Scene {
         }
     }
 
-    /// Closest hit of `o + t·d` with `0 < t < tmax` (`d` unit).
+    /// Closest hit of `o + t·d` with `0 < t < tmax` (`d` unit). In a periodic scene the ray
+    /// is followed cell by cell (positions wrapped into the cell) and the hit point is returned
+    /// in cell coordinates.
     pub fn intersect(&self, o: DVec3, d: DVec3, tmax: f64) -> Option<SurfaceHit> {
+        match self.periodic {
+            None => self.intersect_once(o, d, tmax),
+            Some(cell) => {
+                let mut hit = None;
+                self.walk_cells(cell, o, d, tmax, |p, tacc, seg| {
+                    if let Some(mut h) = self.intersect_once(p, d, seg) {
+                        h.t += tacc;
+                        hit = Some(h);
+                        true
+                    } else {
+                        false
+                    }
+                });
+                hit
+            }
+        }
+    }
+
+    /// Follow the ray `o + t·d`, `t < tmax`, through the periodic cell `cell`: `f(p, t0, len)`
+    /// gets each straight piece inside the cell (start `p` in cell coordinates, distance `t0`
+    /// already travelled, length `len`) and returns true to stop. Pieces start once the ray is
+    /// within the geometry's heights and end when it leaves them for good.
+    fn walk_cells(
+        &self,
+        cell: [f64; 4],
+        o: DVec3,
+        d: DVec3,
+        tmax: f64,
+        mut f: impl FnMut(DVec3, f64, f64) -> bool,
+    ) {
+        let (zlo, zhi) = (self.z_range[0], self.z_range[1]);
+        let mut t = 0.0;
+        // Come down (or up) to the geometry's slab first.
+        if o.z > zhi {
+            if d.z >= 0.0 {
+                return;
+            }
+            t = (o.z - zhi) / -d.z;
+        } else if o.z < zlo {
+            if d.z <= 0.0 {
+                return;
+            }
+            t = (zlo - o.z) / d.z;
+        }
+        let mut p = self.wrap(cell, o + d * t);
+        let (w, h) = (cell[2] - cell[0], cell[3] - cell[1]);
+        for _ in 0..100_000 {
+            if t >= tmax {
+                return;
+            }
+            let ex = if d.x > 0.0 {
+                (cell[2] - p.x) / d.x
+            } else if d.x < 0.0 {
+                (cell[0] - p.x) / d.x
+            } else {
+                f64::INFINITY
+            };
+            let ey = if d.y > 0.0 {
+                (cell[3] - p.y) / d.y
+            } else if d.y < 0.0 {
+                (cell[1] - p.y) / d.y
+            } else {
+                f64::INFINITY
+            };
+            let exit = ex.min(ey).max(0.0);
+            let len = exit.min(tmax - t);
+            if f(p, t, len) {
+                return;
+            }
+            if exit >= tmax - t || !exit.is_finite() {
+                return;
+            }
+            t += exit;
+            p += d * exit;
+            if (d.z >= 0.0 && p.z > zhi) || (d.z <= 0.0 && p.z < zlo) {
+                return;
+            }
+            // Re-enter through the opposite wall.
+            if ex <= ey {
+                p.x += if d.x > 0.0 { -w } else { w };
+            }
+            if ey <= ex {
+                p.y += if d.y > 0.0 { -h } else { h };
+            }
+        }
+        tracing::warn!("a ray crossed 100 000 periodic cells without leaving the scene; stopped");
+    }
+
+    /// `p` wrapped into the periodic cell (unchanged in non-periodic scenes).
+    #[inline]
+    pub fn wrap_point(&self, p: DVec3) -> DVec3 {
+        match self.periodic {
+            Some(cell) => self.wrap(cell, p),
+            None => p,
+        }
+    }
+
+    #[inline]
+    fn wrap(&self, cell: [f64; 4], p: DVec3) -> DVec3 {
+        let (w, h) = (cell[2] - cell[0], cell[3] - cell[1]);
+        DVec3::new(
+            cell[0] + (p.x - cell[0]).rem_euclid(w),
+            cell[1] + (p.y - cell[1]).rem_euclid(h),
+            p.z,
+        )
+    }
+
+    fn intersect_once(&self, o: DVec3, d: DVec3, tmax: f64) -> Option<SurfaceHit> {
         let mut best: Option<SurfaceHit> = None;
         let mut tbest = tmax;
         if let Some((bvh, raster)) = &self.terrain {
@@ -241,6 +354,20 @@ impl Scene {
 
     /// Whether anything blocks `o + t·d` for `0 < t < tmax` (shadow rays).
     pub fn occluded(&self, o: DVec3, d: DVec3, tmax: f64) -> bool {
+        match self.periodic {
+            None => self.occluded_once(o, d, tmax),
+            Some(cell) => {
+                let mut blocked = false;
+                self.walk_cells(cell, o, d, tmax, |p, _, seg| {
+                    blocked = self.occluded_once(p, d, seg);
+                    blocked
+                });
+                blocked
+            }
+        }
+    }
+
+    fn occluded_once(&self, o: DVec3, d: DVec3, tmax: f64) -> bool {
         // Nothing above the scene's top can block a ray going up from above it.
         if d.z >= 0.0 && o.z > self.z_range[1] {
             return false;
@@ -267,7 +394,7 @@ impl Scene {
     /// above the scene, ignoring objects. `None` where there is no ground.
     pub fn ground_height(&self, x: f64, y: f64) -> Option<f64> {
         let top = self.z_range[1] + 10.0;
-        let o = DVec3::new(x, y, top);
+        let o = self.wrap_point(DVec3::new(x, y, top));
         if let Some((bvh, _)) = &self.terrain {
             if let Some(h) = bvh.intersect(o, -DVec3::Z) {
                 return Some(top - h.t);
