@@ -136,6 +136,9 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
         "geometry",
         "atmosphere",
         "surface",
+        "scene",
+        "target_m",
+        "target_height_m",
         "polarized",
     ];
     if let Some(k) = site.keys().find(|k| !known.contains(&k.as_str())) {
@@ -150,7 +153,7 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
     spectral.insert("srf".into(), toml::Value::String(acq.srf.clone()));
     spectral.insert("wavelength_step".into(), toml::Value::Float(step));
     t.insert("spectral".into(), toml::Value::Table(spectral));
-    for k in ["geometry", "atmosphere", "surface"] {
+    for k in ["geometry", "atmosphere", "surface", "scene"] {
         if let Some(v) = site.get(k) {
             t.insert(k.into(), v.clone());
         }
@@ -177,6 +180,11 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
         "azimuths".into(),
         toml::Value::Array(vec![toml::Value::Float(acq.vaa)]),
     );
+    for k in ["target_m", "target_height_m"] {
+        if let Some(v) = site.get(k) {
+            m.insert(k.into(), v.clone());
+        }
+    }
     m.insert("spp".into(), toml::Value::Integer(spp));
     if let Some(x) = site.get("target_rel_stderr") {
         m.insert("target_rel_stderr".into(), x.clone());
@@ -206,6 +214,8 @@ pub fn run(
             message: e.to_string(),
         })?;
     let mut out = Vec::with_capacity(acquisitions.len());
+    // Keeps a 3D site's scene alive, so that every acquisition reuses it (built once).
+    let mut _scene: Option<std::sync::Arc<crate::scene::Scene>> = None;
     for (k, acq) in acquisitions.iter().enumerate() {
         let exp_text =
             experiment_text(&site, acq, k as u64).map_err(|message| ConfigError::Invalid {
@@ -218,6 +228,9 @@ pub fn run(
             key: format!("acquisition {} ({})", k + 1, acq.time_utc),
             message: e.to_string(),
         })?;
+        if _scene.is_none() {
+            _scene = exp.scene.clone();
+        }
         let res = crate::run::run(&exp, false);
         let r = rows(&exp, &res);
         let b = band_rows(&exp, &r);

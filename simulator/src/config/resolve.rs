@@ -830,7 +830,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     "the Sun must be above the horizon to render a 3D scene",
                 ));
             }
-            let built = scene::build_scene(sc, &base).map_err(|(k, m)| ctx.err(k, m))?;
+            let built = scene::build_scene_shared(sc, &base).map_err(|(k, m)| ctx.err(k, m))?;
             if cfg.atmosphere.is_some() && built.z_range[0] < ground - 1e-6 {
                 tracing::warn!(
                     "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
@@ -838,7 +838,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     ground
                 );
             }
-            Some(Arc::new(built))
+            Some(built)
         }
     };
 

@@ -168,6 +168,38 @@ fn check_spec(key: &str, spec: &BrdfSpec) -> Result<(), SceneErr> {
     Ok(())
 }
 
+/// Scenes built in this process, by configuration: experiments with the same `[scene]` table
+/// (e.g. the acquisitions of a calibration-site batch, or the bands of one study) share one
+/// scene while any of them holds it. Files changed on disk meanwhile are not re-read.
+static CACHE: std::sync::Mutex<Vec<(String, std::sync::Weak<Scene>)>> =
+    std::sync::Mutex::new(Vec::new());
+
+/// [`build_scene`], reusing a scene built from the same configuration that is still alive.
+pub fn build_scene_shared(
+    cfg: &SceneConfig,
+    base: &Path,
+) -> Result<std::sync::Arc<Scene>, SceneErr> {
+    let key = format!("{}|{cfg:?}", base.display());
+    {
+        let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
+        cache.retain(|(_, w)| w.strong_count() > 0);
+        if let Some(s) = cache
+            .iter()
+            .find(|(k, _)| *k == key)
+            .and_then(|(_, w)| w.upgrade())
+        {
+            tracing::debug!("reusing the scene built for an earlier experiment");
+            return Ok(s);
+        }
+    }
+    let s = std::sync::Arc::new(build_scene(cfg, base)?);
+    CACHE
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .push((key, std::sync::Arc::downgrade(&s)));
+    Ok(s)
+}
+
 /// Build the scene of `cfg`; relative paths are taken from `base`.
 pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
     match cfg {
