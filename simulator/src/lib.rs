@@ -16,6 +16,7 @@
 //! name says otherwise, wavelengths in nm, angles in degrees in config files and radians inside,
 //! BRF = π·L/(E0·cos SZA) with E0 the solar irradiance normal to the beam.
 
+pub mod absorption;
 pub mod atmosphere;
 pub mod bench;
 pub mod bench_scene;

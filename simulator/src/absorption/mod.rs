@@ -62,7 +62,9 @@ pub enum AbsorptionError {
         variable: String,
         message: String,
     },
-    #[error("{path}: `{variable}` holds the non-finite or negative value {value} at flat index {index}")]
+    #[error(
+        "{path}: `{variable}` holds the non-finite or negative value {value} at flat index {index}"
+    )]
     BadValue {
         path: String,
         variable: String,
@@ -250,9 +252,7 @@ pub(crate) mod test_data {
     pub fn shared(sub: &str) -> Option<PathBuf> {
         let root = std::env::var_os("SIMULATOR_SHARED_DATA")
             .map(PathBuf::from)
-            .unwrap_or_else(|| {
-                PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data")
-            });
+            .unwrap_or_else(|| PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"));
         let p = root.join(sub);
         if p.exists() {
             Some(p)

@@ -11,6 +11,7 @@
 //! albedo is `tau_sca / (tau_sca + tau_abs)`.
 
 pub mod molecular;
+pub mod particles;
 pub mod spherical;
 
 use crate::phase::PhaseFunction;

@@ -332,6 +332,9 @@ fn parse_shard(s: &str) -> Result<(usize, usize), String> {
 }
 
 fn print_summary(rows: &[products::Row]) {
+    if rows.is_empty() {
+        return;
+    }
     println!(
         "{:<16} {:>9} {:>8} {:>8} {:>12} {:>10}",
         "measure", "wl [nm]", "vza", "vaa", "value", "rel.err"

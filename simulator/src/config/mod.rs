@@ -130,9 +130,53 @@ pub enum AtmosphereConfig {
         /// km.
         #[serde(default = "default_layer_thickness")]
         layer_thickness: f64,
+        /// Aerosol (particle) layers mixed into the molecular layers.
+        #[serde(default)]
+        particle_layers: Vec<ParticleLayerConfig>,
     },
     /// No atmosphere (same as omitting the table).
     None {},
+}
+
+/// One `[[atmosphere.particle_layers]]` table (see `atmosphere::particles`).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ParticleLayerConfig {
+    /// km.
+    pub bottom: f64,
+    /// km.
+    pub top: f64,
+    /// Extinction optical thickness of the whole layer at `reference_wavelength`.
+    pub optical_thickness: f64,
+    /// nm.
+    #[serde(default = "default_reference_wavelength")]
+    pub reference_wavelength: f64,
+    #[serde(default)]
+    pub distribution: DistributionConfig,
+    /// Aer-Core v2 netCDF or libRadtran `.mie.cdf` file (relative to the experiment file).
+    pub dataset: String,
+    /// libRadtran files: index along `reff`/`hum`.
+    #[serde(default)]
+    pub size_index: usize,
+}
+
+fn default_reference_wavelength() -> f64 {
+    550.0
+}
+
+/// Vertical distribution of a particle layer; lengths in km.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum DistributionConfig {
+    #[default]
+    Uniform,
+    Exponential {
+        scale_height: f64,
+    },
+    Gaussian {
+        mean: f64,
+        std: f64,
+    },
 }
 
 fn default_profile() -> String {

@@ -11,6 +11,7 @@ use super::*;
 use crate::atmosphere::molecular::{
     depolarization as molecular_depolarization, rayleigh_cross_section, Profile,
 };
+use crate::atmosphere::particles::{Distribution, ParticleDataset, VerticalProfile};
 use crate::atmosphere::spherical::SphericalShell;
 use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
@@ -18,7 +19,7 @@ use crate::error::ConfigError;
 use crate::frame::direction_from_angles;
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
-use crate::phase::{HenyeyGreenstein, PhaseFunction, Rayleigh, Tabulated};
+use crate::phase::{HenyeyGreenstein, Mixture, PhaseFunction, Rayleigh, Tabulated};
 use crate::scene::Scene;
 use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
 use crate::srf::Srf;
@@ -277,6 +278,121 @@ impl Ctx<'_> {
     }
 }
 
+/// One particle layer, resolved: its fraction in each computational layer, and per run
+/// wavelength its column optical thickness, single-scattering albedo and phase function.
+struct ResolvedParticles {
+    fractions: Vec<f64>,
+    tau: Vec<f64>,
+    ssa: Vec<f64>,
+    phase: Vec<PhaseFunction>,
+}
+
+/// Resolve `atmosphere.particle_layers` on the computational `grid` (m, bottom to top).
+fn resolve_particle_layers(
+    ctx: &Ctx,
+    base: &Path,
+    layers: &[ParticleLayerConfig],
+    grid: &[(f64, f64)],
+    wavelengths: &[f64],
+) -> Result<Vec<ResolvedParticles>, ConfigError> {
+    let (ground, toa) = (grid[0].0, grid[grid.len() - 1].1);
+    // Datasets and phase functions shared between layers: (file, size_index) and run wavelength.
+    let mut datasets: Vec<(PathBuf, usize, ParticleDataset)> = Vec::new();
+    let mut phases: Vec<(usize, usize, PhaseFunction)> = Vec::new();
+    let mut out = Vec::with_capacity(layers.len());
+    for (ip, l) in layers.iter().enumerate() {
+        let key = format!("atmosphere.particle_layers[{ip}]");
+        let k = |s: &str| format!("{key}.{s}");
+        let bottom = ctx.finite(&k("bottom"), l.bottom)? * 1e3;
+        let top = ctx.finite(&k("top"), l.top)? * 1e3;
+        if bottom < ground - 1e-6 || top > toa + 1e-6 {
+            return Err(ctx.err(
+                k(if bottom < ground - 1e-6 {
+                    "bottom"
+                } else {
+                    "top"
+                }),
+                format!(
+                    "{}..{} km must lie within ground_altitude..toa_altitude = {}..{} km",
+                    l.bottom,
+                    l.top,
+                    ground / 1e3,
+                    toa / 1e3
+                ),
+            ));
+        }
+        let tau_ref = ctx.finite(&k("optical_thickness"), l.optical_thickness)?;
+        if tau_ref < 0.0 {
+            return Err(ctx.err(k("optical_thickness"), format!("{tau_ref} must be ≥ 0")));
+        }
+        let wl_ref = ctx.finite(&k("reference_wavelength"), l.reference_wavelength)?;
+        if wl_ref <= 0.0 {
+            return Err(ctx.err(
+                k("reference_wavelength"),
+                format!("{wl_ref} nm must be positive"),
+            ));
+        }
+        let shape = match l.distribution {
+            DistributionConfig::Uniform => Distribution::Uniform,
+            DistributionConfig::Exponential { scale_height } => Distribution::Exponential {
+                scale_height: scale_height * 1e3,
+            },
+            DistributionConfig::Gaussian { mean, std } => Distribution::Gaussian {
+                mean: mean * 1e3,
+                std: std * 1e3,
+            },
+        };
+        let profile =
+            VerticalProfile::new(bottom, top, shape).map_err(|(sub, m)| ctx.err(k(&sub), m))?;
+        let fractions = profile.fractions(grid);
+        let fpath = base.join(&l.dataset);
+        let ids = match datasets
+            .iter()
+            .position(|(p, s, _)| *p == fpath && *s == l.size_index)
+        {
+            Some(i) => i,
+            None => {
+                if !fpath.exists() {
+                    return Err(
+                        ctx.err(k("dataset"), format!("file {} not found", fpath.display()))
+                    );
+                }
+                let d = ParticleDataset::load(&fpath, l.size_index)
+                    .map_err(|e| ctx.err(k("dataset"), e.to_string()))?;
+                datasets.push((fpath.clone(), l.size_index, d));
+                datasets.len() - 1
+            }
+        };
+        let ds = &datasets[ids].2;
+        ds.extinction(wl_ref)
+            .map_err(|e| ctx.err(k("reference_wavelength"), e.to_string()))?;
+        let (mut tau, mut ssa, mut phase) = (Vec::new(), Vec::new(), Vec::new());
+        for (iw, &wl) in wavelengths.iter().enumerate() {
+            let at = |e: crate::atmosphere::particles::DatasetError| {
+                ctx.err(k("dataset"), format!("run wavelength {wl} nm: {e}"))
+            };
+            tau.push(tau_ref * ds.extinction_ratio(wl, wl_ref).map_err(at)?);
+            ssa.push(ds.albedo(wl).map_err(at)?);
+            let p = match phases.iter().find(|(d, w, _)| *d == ids && *w == iw) {
+                Some((_, _, p)) => p.clone(),
+                None => {
+                    let p = PhaseFunction::Tabulated(Arc::new(ds.phase(wl).map_err(at)?));
+                    phases.push((ids, iw, p.clone()));
+                    p
+                }
+            };
+            phase.push(p);
+        }
+        out.push(ResolvedParticles {
+            fractions,
+            tau,
+            ssa,
+            phase,
+        });
+    }
+    Ok(out)
+}
+
 /// Validate a parsed experiment. `text` and `path` are kept for provenance and messages.
 pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experiment, ConfigError> {
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
@@ -442,6 +558,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         Some(AtmosphereConfig::Molecular {
             profile,
             layer_thickness,
+            particle_layers,
         }) => {
             let prof = Profile::builtin(profile).map_err(|m| ctx.err("atmosphere.profile", m))?;
             let dz = ctx.finite("atmosphere.layer_thickness", *layer_thickness)? * 1e3;
@@ -463,24 +580,53 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     ),
                 ));
             }
+            let mut grid = Vec::new();
             let mut z = ground;
             while z < toa - 1e-6 {
                 let top = (z + dz).min(toa);
-                let column = prof.column(z, top);
+                grid.push((z, top));
+                z = top;
+            }
+            let particles =
+                resolve_particle_layers(&ctx, &base, particle_layers, &grid, &wavelengths)?;
+            for (j, &(bottom, top)) in grid.iter().enumerate() {
+                let column = prof.column(bottom, top);
                 for iw in 0..nw {
                     let wl = wavelengths[iw];
+                    let rayleigh = PhaseFunction::Rayleigh(
+                        Rayleigh::new(molecular_depolarization(wl))
+                            .expect("air depolarization is in range"),
+                    );
+                    let tau_ray = column * rayleigh_cross_section(wl);
+                    // Rayleigh first, then each particle layer's scattering (τ_aer·ω) and
+                    // absorption (τ_aer·(1 − ω)); the phase function is the mixture weighted by
+                    // the scattering optical thicknesses (plain Rayleigh without particles).
+                    let (mut tau_sca, mut tau_abs) = (tau_ray, 0.0);
+                    let mut parts = Vec::new();
+                    for p in &particles {
+                        let tau_aer = p.tau[iw] * p.fractions[j];
+                        if tau_aer > 0.0 {
+                            tau_sca += tau_aer * p.ssa[iw];
+                            tau_abs += tau_aer * (1.0 - p.ssa[iw]);
+                            parts.push((tau_aer * p.ssa[iw], p.phase[iw].clone()));
+                        }
+                    }
+                    let phase = if parts.is_empty() {
+                        rayleigh
+                    } else {
+                        parts.insert(0, (tau_ray, rayleigh));
+                        Mixture::build(parts).map_err(|m| {
+                            ctx.err("atmosphere.particle_layers", format!("{wl} nm: {m}"))
+                        })?
+                    };
                     layers_per_w[iw].push(LayerOptics {
-                        bottom: z,
+                        bottom,
                         top,
-                        tau_sca: column * rayleigh_cross_section(wl),
-                        tau_abs: 0.0,
-                        phase: PhaseFunction::Rayleigh(
-                            Rayleigh::new(molecular_depolarization(wl))
-                                .expect("air depolarization is in range"),
-                        ),
+                        tau_sca,
+                        tau_abs,
+                        phase,
                     });
                 }
-                z = top;
             }
         }
         Some(AtmosphereConfig::Layered { layers }) => {

@@ -12,10 +12,12 @@
 //! (photon) and backward (importance) walks.
 
 pub mod hg;
+pub mod mixture;
 pub mod rayleigh;
 pub mod tabulated;
 
 pub use hg::HenyeyGreenstein;
+pub use mixture::Mixture;
 pub use rayleigh::Rayleigh;
 pub use tabulated::Tabulated;
 
@@ -27,6 +29,8 @@ pub enum PhaseFunction {
     Hg(HenyeyGreenstein),
     /// Shared: tables can be large and the same table serves many layers.
     Tabulated(Arc<Tabulated>),
+    /// Weighted sum of phase functions (molecules + particles in one layer).
+    Mixture(Arc<Mixture>),
 }
 
 impl PhaseFunction {
@@ -37,6 +41,7 @@ impl PhaseFunction {
             PhaseFunction::Rayleigh(p) => p.eval(cos_theta),
             PhaseFunction::Hg(p) => p.eval(cos_theta),
             PhaseFunction::Tabulated(p) => p.eval(cos_theta),
+            PhaseFunction::Mixture(p) => p.eval(cos_theta),
         }
     }
 
@@ -47,16 +52,19 @@ impl PhaseFunction {
             PhaseFunction::Rayleigh(p) => p.sample_cos(u),
             PhaseFunction::Hg(p) => p.sample_cos(u),
             PhaseFunction::Tabulated(p) => p.sample_cos(u),
+            PhaseFunction::Mixture(p) => p.sample_cos(u),
         }
     }
 
     /// The phase matrix at cos Θ (polarized runs). Rayleigh and tables with phase-matrix elements
-    /// are polarizing; Henyey–Greenstein and P11-only tables act as depolarizers (only I scatters).
+    /// are polarizing; Henyey–Greenstein and P11-only tables act as depolarizers (only I scatters);
+    /// a mixture's matrix is the weighted sum of its components'.
     #[inline]
     pub fn matrix(&self, cos_theta: f64) -> crate::stokes::PhaseMatrix {
         match self {
             PhaseFunction::Rayleigh(p) => p.matrix(cos_theta),
             PhaseFunction::Tabulated(t) => t.matrix(cos_theta),
+            PhaseFunction::Mixture(m) => m.matrix(cos_theta),
             PhaseFunction::Hg(_) => crate::stokes::PhaseMatrix::depolarizing(self.eval(cos_theta)),
         }
     }
@@ -67,6 +75,7 @@ impl PhaseFunction {
             PhaseFunction::Rayleigh(_) => 0.0,
             PhaseFunction::Hg(p) => p.g,
             PhaseFunction::Tabulated(p) => p.asymmetry(),
+            PhaseFunction::Mixture(p) => p.asymmetry(),
         }
     }
 }
