@@ -62,12 +62,15 @@
 //! at 345–355 nm the two differ by 1.8 %). The spectral coordinates (bin, g ∈ [g_min, g_max],
 //! monochromatic wavelength) are never clamped. The files store coordinates as float32
 //! (x_O3 = 1e-5 is 9.99999975e-6), so a value within a relative 2.5e-7 of a grid edge counts as
-//! the edge. Non-finite inputs are always errors; stored values must be finite and ≥ 0 (checked
-//! on load), so no NaN is returned.
+//! the edge. Non-finite inputs are always errors; stored values must be finite (checked
+//! on load; negative stored values are set to 0 with a warning), so no NaN or negative
+//! coefficient is returned.
 //!
 //! ## What the sample databases contain (found while testing)
 //! * `nanockd_v1` tables differ per bin: O₃ only for 295–365 nm, CO₂ + H₂O + O₃ for 365–395 nm,
-//!   H₂O only for 395–405 nm. At x_O3 = 0 the 345–355 nm bin is exactly 0.
+//!   H₂O only for 395–405 nm. At x_O3 = 0 the 345–355 nm bin is exactly 0. The files
+//!   375–385 and 385–395 nm hold 160 and 480 small negative values (down to −2.4e-4 km⁻¹,
+//!   e.g. at x = 0, x_O3 = 1e-5, p = 100 Pa, T = 320 K, g = 0): artefacts, set to 0 on load.
 //! * `nanomono_v1` (345–355 nm, 8165 points) has **no O₃**: only CO₂ (0, 4e-4) and the fixed
 //!   O₂, CH₄, H₂, O, whose absorption there is < 3e-16 m⁻¹ (column τ ~ 1e-12). It cannot
 //!   reproduce the CKD bin's O₃ absorption; see the consistency test for what is compared.
@@ -449,6 +452,8 @@ pub struct AbsorptionTable {
     /// `ng` values and `error(w, ng)` per file `w` index (CKD, when present).
     error: Option<(Vec<usize>, Vec<Vec<f64>>)>,
     warned: Arc<Mutex<HashSet<String>>>,
+    /// Negative stored values, set to 0 on load.
+    negatives_zeroed: usize,
 }
 
 impl AbsorptionTable {
@@ -587,8 +592,9 @@ impl AbsorptionTable {
             wrong_units("sigma_a", u, "an absorption coefficient (km^-1 or m^-1)")
         })?;
         let mut data = read_f64(&sig, &ps)?;
+        let (mut negatives, mut most_negative) = (0usize, 0.0f64);
         for (index, v) in data.iter_mut().enumerate() {
-            if !v.is_finite() || *v < 0.0 {
+            if !v.is_finite() {
                 return Err(AbsorptionError::BadValue {
                     path: ps.clone(),
                     variable: "sigma_a".into(),
@@ -596,7 +602,18 @@ impl AbsorptionTable {
                     index,
                 });
             }
+            if *v < 0.0 {
+                negatives += 1;
+                most_negative = most_negative.min(*v);
+                *v = 0.0;
+            }
             *v *= factor;
+        }
+        if negatives > 0 {
+            tracing::warn!(
+                "{ps}: {negatives} negative `sigma_a` values (down to {most_negative:e} in the \
+                 file's units) set to 0"
+            );
         }
 
         // CKD extras: bin bounds and the quadrature error table.
@@ -680,7 +697,14 @@ impl AbsorptionTable {
             wbounds_nm,
             error,
             warned,
+            negatives_zeroed: negatives,
         })
+    }
+
+    /// How many negative `sigma_a` values the file held (set to 0 on load, with a warning; e.g.
+    /// 160 in `nanockd_v1-375_385.nc`, down to −2.4e-4 km⁻¹).
+    pub fn negatives_zeroed(&self) -> usize {
+        self.negatives_zeroed
     }
 
     /// The file.
@@ -1436,8 +1460,16 @@ mod data_tests {
             std::fs::copy(db.dir().join(&f.name), tmp.join(&f.name)).unwrap();
         }
         let scanned = AxsDatabase::open(&tmp);
-        std::fs::remove_dir_all(&tmp).unwrap();
         let scanned = scanned.unwrap();
+        // Every file was read: the negative artefacts were zeroed, not rejected.
+        let negatives: usize = scanned
+            .load_range(295.0, 405.0)
+            .unwrap()
+            .iter()
+            .map(|t| t.negatives_zeroed())
+            .sum();
+        std::fs::remove_dir_all(&tmp).unwrap();
+        assert_eq!(negatives, 160 + 480);
         assert!(scanned.metadata().is_none());
         assert_eq!(scanned.bins().len(), db.bins().len());
         for (a, b) in scanned.bins().iter().zip(db.bins()) {
