@@ -166,20 +166,24 @@ impl Accum {
         (self.cross[cell * 3 + pair] / n - ma * mb) / (n - 1.0)
     }
 
-    /// Median over cells of the relative standard error of the total (cells whose mean is 0
-    /// count as 0 when their error is 0, else as infinite).
+    /// Relative standard error of the total of `cell` (0 for a zero mean with zero error,
+    /// infinite for a zero mean with an error; NaN with fewer than two samples).
+    fn rel_stderr(&self, cell: usize) -> f64 {
+        let (m, e) = self.mean_stderr(cell, TOTAL);
+        if m.abs() > 0.0 {
+            e / m.abs()
+        } else if e > 0.0 {
+            f64::INFINITY
+        } else {
+            0.0
+        }
+    }
+
+    /// Median over cells of the relative standard error of the total (cells without an
+    /// estimate count as infinite).
     pub fn median_rel_stderr(&self) -> f64 {
         let mut r: Vec<f64> = (0..self.n.len())
-            .map(|c| {
-                let (m, e) = self.mean_stderr(c, TOTAL);
-                if m.abs() > 0.0 {
-                    e / m.abs()
-                } else if e > 0.0 {
-                    f64::INFINITY
-                } else {
-                    0.0
-                }
-            })
+            .map(|c| self.rel_stderr(c))
             .map(|x| if x.is_nan() { f64::INFINITY } else { x })
             .collect();
         if r.is_empty() {
@@ -192,16 +196,7 @@ impl Accum {
     /// Largest relative standard error of the total over all cells.
     pub fn max_rel_stderr(&self) -> f64 {
         (0..self.n.len())
-            .map(|c| {
-                let (m, e) = self.mean_stderr(c, TOTAL);
-                if m.abs() > 0.0 {
-                    e / m.abs()
-                } else if e > 0.0 {
-                    f64::INFINITY
-                } else {
-                    0.0
-                }
-            })
+            .map(|c| self.rel_stderr(c))
             .fold(0.0, f64::max)
     }
 }
