@@ -17,4 +17,8 @@ pub struct OpticalState {
     pub scene_models: Vec<crate::scene::material::SurfaceModel>,
     /// Solar irradiance normal to the beam, W m⁻² nm⁻¹.
     pub irradiance: f64,
+    /// `mode = "ckd"`: the bin's g-points, each (quadrature weight, optical state with that
+    /// g-point's gas absorption); empty in monochromatic runs. Blocks of samples cycle through
+    /// them (`run::run_block`).
+    pub g_states: Vec<(f64, OpticalState)>,
 }

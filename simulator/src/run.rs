@@ -75,7 +75,10 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
     }
 }
 
-/// Run the samples `range` of measure `im` at wavelength `iw` (one block).
+/// Run the samples `range` of measure `im` at wavelength `iw` (one block). In CKD runs block
+/// `b` uses g-point `b mod N_g` and its samples are weighted by `w_g·N_g`: with whole cycles of
+/// blocks (guaranteed by the round sizes) the mean is Σ_g w_g·R_g, unbiased; the pooled
+/// variance over-estimates that of the stratified mean (honest, slightly pessimistic errors).
 fn run_block(
     exp: &Experiment,
     iw: usize,
@@ -83,8 +86,27 @@ fn run_block(
     cell: usize,
     range: std::ops::Range<u64>,
 ) -> Accum {
+    let base = &exp.optics[iw];
+    if base.g_states.is_empty() {
+        return run_block_at(exp, base, iw, im, cell, range);
+    }
+    let ng = base.g_states.len();
+    let b = range.start / block_size(&exp.measures[im]);
+    let (w, opt) = &base.g_states[(b % ng as u64) as usize];
+    let mut acc = run_block_at(exp, opt, iw, im, cell, range);
+    acc.scale(w * ng as f64);
+    acc
+}
+
+fn run_block_at(
+    exp: &Experiment,
+    opt: &OpticalState,
+    iw: usize,
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Accum {
     let m = &exp.measures[im];
-    let opt = &exp.optics[iw];
     let method = method_for(exp, m);
     let ids = [iw as u64, im as u64, cell as u64];
     match method {
@@ -386,15 +408,18 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
 }
 
 /// End of the next round: the sample count at which the target should be met (the standard
-/// error falls as 1/√n), with a 10 % margin, at least 8 more blocks and at most 4× the samples
-/// done, rounded up to whole blocks. Depends only on results, so it is thread-count independent.
+/// error falls as 1/√n), with a 10 % margin, at least 8 more units (`block`: a block, or a whole
+/// cycle of g-point blocks in CKD runs) and at most 4× the samples done (or the 8 units, if that
+/// is more), rounded up to whole units. Depends only on results, so it is thread-count
+/// independent.
 fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64) -> u64 {
     let grow = if rel.is_finite() && target > 0.0 {
         (done as f64 * (rel / target).powi(2) * 1.1).ceil() as u64
     } else {
         done * 4
     };
-    let n = grow.clamp(done + 8 * block, done * 4);
+    let lo = done + 8 * block;
+    let n = grow.clamp(lo, (done * 4).max(lo));
     (n.div_ceil(block) * block).min(spp)
 }
 
@@ -403,6 +428,8 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     let m = &exp.measures[im];
     let method = method_for(exp, m);
     let bs = block_size(m);
+    // Rounds end on whole cycles of g-point blocks in CKD runs.
+    let unit = bs * exp.optics[iw].g_states.len().max(1) as u64;
     let cells = m.cell_count();
     let walk_cells: Vec<usize> = if method == Method::Forward {
         vec![0]
@@ -418,7 +445,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
         None => m.spp,
-        Some(_) => (4 * bs).min(m.spp),
+        Some(_) => ((4 * bs).div_ceil(unit) * unit).min(m.spp),
     };
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
@@ -460,7 +487,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
             break;
         }
-        next = next_round_end(done, rel, m.target_rel_stderr.unwrap_or(0.0), m.spp, bs);
+        next = next_round_end(done, rel, m.target_rel_stderr.unwrap_or(0.0), m.spp, unit);
     }
     MeasureResult {
         measure: im,

@@ -66,6 +66,9 @@ pub struct SpectralConfig {
     /// nm: spacing of the wavelengths sampling an SRF (default 5).
     #[serde(default)]
     pub wavelength_step: Option<f64>,
+    /// `mode = "ckd"`: use only this g-point (index from 0) with weight 1 (validation).
+    #[serde(default)]
+    pub g_point: Option<usize>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -133,6 +136,9 @@ pub enum AtmosphereConfig {
         /// Aerosol (particle) layers mixed into the molecular layers.
         #[serde(default)]
         particle_layers: Vec<ParticleLayerConfig>,
+        /// `mode = "ckd"`: a correlated-k absorption file (eradiate v0 k(z, bin, g) format).
+        #[serde(default)]
+        absorption_data: Option<String>,
     },
     /// No atmosphere (same as omitting the table).
     None {},

@@ -397,11 +397,18 @@ fn resolve_particle_layers(
 pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experiment, ConfigError> {
     let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
     let mut ctx = Ctx { path, nw: 0 };
-    if cfg.mode != "mono" {
-        return Err(ctx.err(
-            "mode",
-            format!("\"{}\" is not supported (supported: \"mono\")", cfg.mode),
-        ));
+    let ckd = match cfg.mode.as_str() {
+        "mono" => false,
+        "ckd" => true,
+        other => {
+            return Err(ctx.err(
+                "mode",
+                format!("\"{other}\" is not supported (supported: \"mono\", \"ckd\")"),
+            ))
+        }
+    };
+    if cfg.spectral.g_point.is_some() && !ckd {
+        return Err(ctx.err("spectral.g_point", "is used only with mode = \"ckd\""));
     }
     let (wavelengths, band) = match (&cfg.spectral.wavelengths, &cfg.spectral.srf) {
         (Some(w), None) => {
@@ -491,6 +498,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
 
     // Atmosphere: per wavelength, a list of layers.
     let mut layers_per_w: Vec<Vec<LayerOptics>> = vec![Vec::new(); nw];
+    // CKD: per wavelength, per g-point: (weight, gas absorption optical thickness per layer of
+    // `layers_per_w[iw]`, in order).
+    let mut ckd_tau: Vec<Vec<GPoint>> = Vec::new();
     let mut phase_cache: Vec<(String, f64, usize, Arc<Tabulated>)> = Vec::new();
     let mut make_phase =
         |key: &str, p: &PhaseConfig, iw: usize| -> Result<PhaseFunction, ConfigError> {
@@ -559,6 +569,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             profile,
             layer_thickness,
             particle_layers,
+            absorption_data,
         }) => {
             let prof = Profile::builtin(profile).map_err(|m| ctx.err("atmosphere.profile", m))?;
             let dz = ctx.finite("atmosphere.layer_thickness", *layer_thickness)? * 1e3;
@@ -589,6 +600,31 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             }
             let particles =
                 resolve_particle_layers(&ctx, &base, particle_layers, &grid, &wavelengths)?;
+            match (ckd, absorption_data) {
+                (false, Some(_)) => {
+                    return Err(ctx.err(
+                        "atmosphere.absorption_data",
+                        "correlated-k absorption needs mode = \"ckd\"",
+                    ))
+                }
+                (true, None) => {
+                    return Err(ctx.err(
+                        "atmosphere.absorption_data",
+                        "mode = \"ckd\" needs a correlated-k absorption file",
+                    ))
+                }
+                (false, None) => {}
+                (true, Some(file)) => {
+                    ckd_tau = resolve_ckd(
+                        &ctx,
+                        &base.join(file),
+                        profile,
+                        &grid,
+                        &wavelengths,
+                        cfg.spectral.g_point,
+                    )?;
+                }
+            }
             for (j, &(bottom, top)) in grid.iter().enumerate() {
                 let column = prof.column(bottom, top);
                 for iw in 0..nw {
@@ -1322,11 +1358,43 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         expected_local_estimate,
     };
 
+    if ckd && ckd_tau.is_empty() {
+        return Err(ctx.err(
+            "atmosphere",
+            "mode = \"ckd\" needs a `molecular` atmosphere with `absorption_data`",
+        ));
+    }
     let optics = layers_per_w
         .into_iter()
         .zip(surfaces)
         .enumerate()
         .map(|(iw, (layers, surface))| {
+            let g_states: Vec<(f64, OpticalState)> = match ckd_tau.get(iw) {
+                None => Vec::new(),
+                Some(gs) => gs
+                    .iter()
+                    .map(|(w, taus)| {
+                        let mut l = layers.clone();
+                        for (layer, t) in l.iter_mut().zip(taus) {
+                            layer.tau_abs += t;
+                        }
+                        let atmosphere = PlaneParallel::new(l, ground, toa);
+                        let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
+                        (
+                            *w,
+                            OpticalState {
+                                wavelength: wavelengths[iw],
+                                atmosphere,
+                                shell,
+                                surface: surface.clone(),
+                                scene_models: Vec::new(),
+                                irradiance: irradiance[iw],
+                                g_states: Vec::new(),
+                            },
+                        )
+                    })
+                    .collect(),
+            };
             let atmosphere = PlaneParallel::new(layers, ground, toa);
             let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
             let scene_models = match &scene {
@@ -1335,6 +1403,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     .map_err(|m| ctx.err("scene", m))?,
                 None => Vec::new(),
             };
+            let mut g_states = g_states;
+            for (_, g) in &mut g_states {
+                g.scene_models = scene_models.clone();
+            }
             Ok(OpticalState {
                 wavelength: wavelengths[iw],
                 atmosphere,
@@ -1342,6 +1414,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 surface,
                 scene_models,
                 irradiance: irradiance[iw],
+                g_states,
             })
         })
         .collect::<Result<Vec<_>, ConfigError>>()?;
@@ -1366,6 +1439,25 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             }
         }
     }
+    // CKD: blocks of samples cycle through the g-points, so every measure's sample count is a
+    // whole number of cycles (rounded up).
+    if let Some(ng) = optics.first().map(|o: &OpticalState| o.g_states.len()) {
+        if ng > 1 {
+            for m in &mut measures {
+                let unit = crate::run::block_size(m) * ng as u64;
+                let spp = m.spp.div_ceil(unit) * unit;
+                if spp != m.spp {
+                    tracing::info!(
+                        "measure `{}`: spp {} rounded up to {spp} (whole cycles of {ng} g-points × {} samples)",
+                        m.id,
+                        m.spp,
+                        unit / ng as u64
+                    );
+                    m.spp = spp;
+                }
+            }
+        }
+    }
     Ok(Experiment {
         wavelengths,
         band,
@@ -1385,4 +1477,77 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
     })
+}
+
+/// A g-point: its quadrature weight and the gas absorption optical thickness of each layer.
+type GPoint = (f64, Vec<f64>);
+
+/// Per wavelength, per g-point: (quadrature weight, gas absorption optical thickness of each
+/// layer of `grid`), from an eradiate v0 CKD file (k(z, bin, g) for the US standard
+/// atmosphere, 16 Gauss–Legendre g-points per 10 nm bin; `absorption::eradiate_v0`). Each run
+/// wavelength selects the bin containing it; `g_point` keeps one g-point with weight 1.
+fn resolve_ckd(
+    ctx: &Ctx,
+    file: &Path,
+    profile: &str,
+    grid: &[(f64, f64)],
+    wavelengths: &[f64],
+    g_point: Option<usize>,
+) -> Result<Vec<Vec<GPoint>>, ConfigError> {
+    use crate::absorption::eradiate_v0::{EradiateV0Ckd, V0Interpolation};
+    let key = "atmosphere.absorption_data";
+    if profile != "afgl_1986-us_standard" {
+        return Err(ctx.err(
+            key,
+            format!(
+                "this correlated-k file holds k(z) precomputed for the AFGL 1986 US standard atmosphere; \
+                 it cannot describe profile \"{profile}\""
+            ),
+        ));
+    }
+    let db = EradiateV0Ckd::open(file, None).map_err(|e| ctx.err(key, e.to_string()))?;
+    let mut out = Vec::with_capacity(wavelengths.len());
+    for (iw, &wl) in wavelengths.iter().enumerate() {
+        let bin = db.bin_containing(wl).ok_or_else(|| {
+            let b = db.bins();
+            ctx.err(
+                format!("spectral.wavelengths[{iw}]"),
+                format!(
+                    "{wl} nm is in no bin of {} (bins cover {}..{} nm)",
+                    file.display(),
+                    b.first().map_or(f64::NAN, |x| x.lower_nm),
+                    b.last().map_or(f64::NAN, |x| x.upper_nm)
+                ),
+            )
+        })?;
+        let gs: Vec<usize> = match g_point {
+            Some(g) if g >= bin.g.len() => {
+                return Err(ctx.err(
+                    "spectral.g_point",
+                    format!("{g} is not a g-point index (0..{})", bin.g.len() - 1),
+                ))
+            }
+            Some(g) => vec![g],
+            None => (0..bin.g.len()).collect(),
+        };
+        let mut per_g = Vec::with_capacity(gs.len());
+        for g in gs {
+            let w = if g_point.is_some() {
+                1.0
+            } else {
+                bin.weights[g]
+            };
+            let taus = grid
+                .iter()
+                .map(|&(b, t)| {
+                    db.optical_thickness(bin, g, b, t, V0Interpolation::Cells)
+                        .map(|x| x.max(0.0))
+                        .map_err(|e| ctx.err(key, e.to_string()))
+                })
+                .collect::<Result<Vec<f64>, _>>()?;
+            per_g.push((w, taus));
+        }
+        out.push(per_g);
+    }
+    Ok(out)
 }

@@ -104,6 +104,13 @@ impl Accum {
         self.cross[c + 2] += q * u;
     }
 
+    /// Multiply every sample by `f` (the sums by f, the sums of squares and products by f²).
+    pub fn scale(&mut self, f: f64) {
+        self.sum.iter_mut().for_each(|x| *x *= f);
+        self.sum2.iter_mut().for_each(|x| *x *= f * f);
+        self.cross.iter_mut().for_each(|x| *x *= f * f);
+    }
+
     /// Add `other` (same layout) into self; exact merge of partial results.
     pub fn merge(&mut self, other: &Accum) {
         assert_eq!(
