@@ -408,17 +408,17 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
 }
 
 /// End of the next round: the sample count at which the target should be met (the standard
-/// error falls as 1/√n), with a 10 % margin, at least 8 more units (`block`: a block, or a whole
-/// cycle of g-point blocks in CKD runs) and at most 4× the samples done (or the 8 units, if that
-/// is more), rounded up to whole units. Depends only on results, so it is thread-count
-/// independent.
-fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64) -> u64 {
+/// error falls as 1/√n), with a 10 % margin, at least `min_grow` more samples and at most 4×
+/// the samples done (or `min_grow` more, if that is larger), rounded up to whole units
+/// (`block`: a block, or a whole cycle of g-point blocks in CKD runs). Depends only on
+/// results, so it is thread-count independent.
+fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_grow: u64) -> u64 {
     let grow = if rel.is_finite() && target > 0.0 {
         (done as f64 * (rel / target).powi(2) * 1.1).ceil() as u64
     } else {
         done * 4
     };
-    let lo = done + 8 * block;
+    let lo = done + min_grow;
     let n = grow.clamp(lo, (done * 4).max(lo));
     (n.div_ceil(block) * block).min(spp)
 }
@@ -487,7 +487,16 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
             break;
         }
-        next = next_round_end(done, rel, m.target_rel_stderr.unwrap_or(0.0), m.spp, unit);
+        // At least 8 blocks more, or one more g-point cycle (cycles are already 16 blocks).
+        let min_grow = if unit > bs { unit } else { 8 * bs };
+        next = next_round_end(
+            done,
+            rel,
+            m.target_rel_stderr.unwrap_or(0.0),
+            m.spp,
+            unit,
+            min_grow,
+        );
     }
     MeasureResult {
         measure: im,
