@@ -68,6 +68,9 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
     if exp.planet_radius.is_some() {
         return Method::Backward;
     }
+    if exp.integrator.alis {
+        return Method::Backward;
+    }
     match (exp.integrator.kind, &m.kind) {
         (_, MeasureKind::Radiancemeter { .. }) => Method::Backward,
         (IntegratorKind::Backward, _) => Method::Backward,
@@ -90,11 +93,59 @@ fn run_block(
     if base.g_states.is_empty() {
         return run_block_at(exp, base, iw, im, cell, range);
     }
+    if exp.integrator.alis {
+        return run_block_alis(exp, base, iw, im, cell, range);
+    }
     let ng = base.g_states.len();
     let b = range.start / block_size(&exp.measures[im]);
     let (w, opt) = &base.g_states[(b % ng as u64) as usize];
     let mut acc = run_block_at(exp, opt, iw, im, cell, range);
     acc.scale(w * ng as f64);
+    acc
+}
+
+/// A block of ALIS walks: every walk carries all g-points of the bin.
+fn run_block_alis(
+    exp: &Experiment,
+    base: &OpticalState,
+    iw: usize,
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Accum {
+    use crate::integrator::backward_alis::{self, GPoints};
+    let m = &exp.measures[im];
+    let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
+    let atms: Vec<&crate::atmosphere::PlaneParallel> =
+        base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
+    let g = GPoints {
+        weights: &weights,
+        atms: &atms,
+    };
+    let toa = atms[0].toa();
+    let mut acc = Accum::new(1);
+    for s in range {
+        let mut rng = Stream::new(exp.seed, [iw as u64, im as u64, cell as u64, s]);
+        let (z0, d0) = match &m.kind {
+            MeasureKind::Distant { directions, .. } => (toa, -directions[cell]),
+            MeasureKind::Radiancemeter { origin, look, .. } => (origin.z, *look),
+            MeasureKind::DistantFlux { altitude } => {
+                let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
+                (*altitude, -up)
+            }
+            MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
+        };
+        let (a, b) = backward_alis::walk(
+            &g,
+            &base.surface,
+            exp.sun_dir,
+            z0,
+            d0,
+            &exp.integrator,
+            &mut rng,
+        );
+        acc.add(0, a, b);
+    }
     acc
 }
 
@@ -429,7 +480,12 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     let method = method_for(exp, m);
     let bs = block_size(m);
     // Rounds end on whole cycles of g-point blocks in CKD runs.
-    let unit = bs * exp.optics[iw].g_states.len().max(1) as u64;
+    let cycle = if exp.integrator.alis {
+        1
+    } else {
+        exp.optics[iw].g_states.len().max(1)
+    };
+    let unit = bs * cycle as u64;
     let cells = m.cell_count();
     let walk_cells: Vec<usize> = if method == Method::Forward {
         vec![0]

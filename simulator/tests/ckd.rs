@@ -72,6 +72,33 @@ fn ckd_run_equals_the_g_point_quadrature() {
         })
         .collect();
     check_all("CKD 760 nm = Σ w_g R_g", &cmps).unwrap();
+    // The ALIS walk (one backward walk carrying all 16 g-points) against the same quadrature.
+    let alis_text = text(&file, 7, 760.0, None, 400_000).replace(
+        "[surface]",
+        "[integrator]\ntype = \"backward\"\nckd_walk = \"alis\"\n[surface]",
+    );
+    let alis = run_rows(&experiment(&alis_text));
+    let cmps: Vec<Cmp> = alis
+        .iter()
+        .enumerate()
+        .map(|(k, r)| {
+            let (v, e) = r.brf.unwrap();
+            Cmp {
+                label: format!("alis vza {:?}", r.vza),
+                reference: sum[k],
+                value: v,
+                stderr: (e * e + var[k]).sqrt(),
+            }
+        })
+        .collect();
+    check_all("ALIS 760 nm = Σ w_g R_g", &cmps).unwrap();
+    // Walks needed for equal noise: per-walk variance of the cycling estimator over ALIS's.
+    let var_per_walk = |r: &simulator::products::Row| r.brf.unwrap().1.powi(2) * r.n_samples as f64;
+    println!(
+        "per-walk variance ratio cycle/ALIS at 760 nm: nadir {:.1}, 50° {:.1}",
+        var_per_walk(&full[0]) / var_per_walk(&alis[0]),
+        var_per_walk(&full[1]) / var_per_walk(&alis[1])
+    );
     let window = run_rows(&experiment(&text(&file, 2, 750.0, None, 16 * 2048)));
     println!(
         "nadir BRF: 750 nm bin {:.4}, 760 nm bin {:.4}",

@@ -439,4 +439,8 @@ pub struct IntegratorConfig {
     /// "expected" (default): expected local estimates along flights; "collision": at collisions.
     #[serde(default)]
     pub local_estimate: Option<String>,
+    /// `mode = "ckd"`: "cycle" (default: blocks of samples cycle through the g-points) or
+    /// "alis" (one backward walk carries every g-point of a bin).
+    #[serde(default)]
+    pub ckd_walk: Option<String>,
 }

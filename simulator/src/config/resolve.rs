@@ -44,6 +44,8 @@ pub struct IntegratorSettings {
     pub rr_depth: u32,
     /// Score the expected local estimate along each flight (true) or at sampled collisions.
     pub expected_local_estimate: bool,
+    /// CKD runs: one backward walk for all g-points of a bin (`integrator/backward_alis.rs`).
+    pub alis: bool,
 }
 
 /// A sensor band sampled by the run's wavelengths.
@@ -1351,11 +1353,39 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             ))
         }
     };
+    let alis = match cfg.integrator.ckd_walk.as_deref() {
+        None | Some("cycle") => false,
+        Some("alis") => {
+            if !ckd {
+                return Err(ctx.err("integrator.ckd_walk", "is used only with mode = \"ckd\""));
+            }
+            if cfg.polarized || planet_radius.is_some() || scene.is_some() {
+                return Err(ctx.err(
+                    "integrator.ckd_walk",
+                    "\"alis\" is implemented for scalar plane-parallel 1D runs only",
+                ));
+            }
+            if kind == IntegratorKind::Forward {
+                return Err(ctx.err(
+                    "integrator.ckd_walk",
+                    "\"alis\" is a backward walk (integrator.type \"auto\" or \"backward\")",
+                ));
+            }
+            true
+        }
+        Some(other) => {
+            return Err(ctx.err(
+                "integrator.ckd_walk",
+                format!("\"{other}\" is unknown (known: \"cycle\", \"alis\")"),
+            ))
+        }
+    };
     let integrator = IntegratorSettings {
         kind,
         max_depth,
         rr_depth: cfg.integrator.rr_depth.unwrap_or(5),
         expected_local_estimate,
+        alis,
     };
 
     if ckd && ckd_tau.is_empty() {
@@ -1442,7 +1472,13 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     // CKD: blocks of samples cycle through the g-points, so every measure's sample count is a
     // whole number of cycles (rounded up).
     if let Some(ng) = optics.first().map(|o: &OpticalState| o.g_states.len()) {
-        if ng > 1 {
+        if ng > 64 && integrator.alis {
+            return Err(ctx.err(
+                "integrator.ckd_walk",
+                format!("\"alis\" handles at most 64 g-points per bin (this file has {ng})"),
+            ));
+        }
+        if ng > 1 && !integrator.alis {
             for m in &mut measures {
                 let unit = crate::run::block_size(m) * ng as u64;
                 let spp = m.spp.div_ceil(unit) * unit;

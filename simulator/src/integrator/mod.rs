@@ -17,6 +17,7 @@
 //! [`RR_THRESHOLD`], so it is unbiased and costs little variance.
 
 pub mod backward;
+pub mod backward_alis;
 pub mod backward_pol;
 pub mod backward_sph;
 pub mod forward;
