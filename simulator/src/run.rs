@@ -118,9 +118,12 @@ fn run_block_alis(
     let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
+    // Reference: the bin's atmosphere without gas absorption (scattering and particle
+    // absorption only), so every g-point's path factor is a pure gas transmittance.
     let g = GPoints {
         weights: &weights,
         atms: &atms,
+        reference: &base.atmosphere,
     };
     let toa = atms[0].toa();
     let mut acc = Accum::new(1);

@@ -118,14 +118,14 @@ impl PlaneParallel {
         if z >= self.z[0] {
             return 0.0;
         }
-        for i in 0..self.albedo.len() {
-            let (zt, zb) = (self.z[i], self.z[i + 1]);
-            if z >= zb {
-                let f = if zt > zb { (zt - z) / (zt - zb) } else { 0.0 };
-                return self.tau[i] + f * (self.tau[i + 1] - self.tau[i]);
-            }
+        // The first layer i with z ≥ its bottom z[i+1] (boundaries descend): binary search.
+        let i = self.z[1..].partition_point(|&b| b > z);
+        if i >= self.albedo.len() {
+            return self.total_tau;
         }
-        self.total_tau
+        let (zt, zb) = (self.z[i], self.z[i + 1]);
+        let f = if zt > zb { (zt - z) / (zt - zb) } else { 0.0 };
+        self.tau[i] + f * (self.tau[i + 1] - self.tau[i])
     }
 
     /// Layer boundaries from the top down: (altitude m, optical depth from TOA).
