@@ -120,10 +120,12 @@ fn run_block_alis(
         base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
     // Reference: the bin's atmosphere without gas absorption (scattering and particle
     // absorption only), so every g-point's path factor is a pure gas transmittance.
+    let layers = backward_alis::Layers::new(&base.atmosphere, &atms);
     let g = GPoints {
         weights: &weights,
         atms: &atms,
         reference: &base.atmosphere,
+        layers: &layers,
     };
     let toa = atms[0].toa();
     let mut acc = Accum::new(1);

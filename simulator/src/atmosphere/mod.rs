@@ -275,7 +275,7 @@ impl PlaneParallel {
 
 /// `expm1(x)/x`, continuous at 0.
 #[inline]
-fn exprel(x: f64) -> f64 {
+pub(crate) fn exprel(x: f64) -> f64 {
     if x.abs() < 1e-8 {
         1.0 + 0.5 * x
     } else {

@@ -11,11 +11,11 @@
 //! included), so `e_g` is exactly their ratio: each g-point's estimate is unbiased. At every
 //! event the next-event estimate to the Sun uses each g-point's own transmittance
 //! `exp(−τ_g(z)/μ_s)`; the walk scores the bin mean `Σ_g w_g·(estimate_g)` (quadrature weights
-//! w_g). Collision estimator (no expected-value integration along flights yet): efficient where
-//! the scattering is not optically thin — 16–23× fewer walks than cycling through the g-points
-//! in the O2 A-band — but in saturated bands, where the signal comes from rare scattering high
-//! in the atmosphere (1380 nm), it needs far more walks than the forward walk's expected
-//! estimates. Plane-parallel, scalar, 1D surface; positions are altitudes.
+//! w_g). By default the atmospheric estimate is its expectation over the next collision,
+//! integrated exactly layer by layer for every g-point ([`expected`]); without it (the collision
+//! estimator, `local_estimate = "collision"`) saturated bands, whose signal comes from rare
+//! scattering high in the atmosphere (1380 nm), need orders of magnitude more walks.
+//! Plane-parallel, scalar, 1D surface; positions are altitudes.
 
 use glam::DVec3;
 
@@ -31,6 +31,121 @@ pub struct GPoints<'a> {
     pub weights: &'a [f64],
     pub atms: &'a [&'a PlaneParallel],
     pub reference: &'a PlaneParallel,
+    /// Layer tables for the expected estimates (from [`Layers::new`]).
+    pub layers: &'a Layers,
+}
+
+/// Per-layer coefficients shared by the walks of a block: boundaries (top down), the reference
+/// scattering coefficient σ_s (m⁻¹), and per g-point the extinction coefficient k_g (m⁻¹) and
+/// the optical depth τ_g at each boundary.
+pub struct Layers {
+    z: Vec<f64>,
+    sigma_s: Vec<f64>,
+    k: Vec<Vec<f64>>,
+    tau: Vec<Vec<f64>>,
+}
+
+impl Layers {
+    pub fn new(reference: &PlaneParallel, atms: &[&PlaneParallel]) -> Self {
+        let b: Vec<(f64, f64)> = reference.boundaries().collect();
+        let n = b.len() - 1;
+        let z: Vec<f64> = b.iter().map(|x| x.0).collect();
+        let coef = |t: &[(f64, f64)], i: usize| {
+            let dz = t[i].0 - t[i + 1].0;
+            if dz > 0.0 {
+                (t[i + 1].1 - t[i].1) / dz
+            } else {
+                0.0
+            }
+        };
+        let sigma_s = (0..n).map(|i| reference.albedo(i) * coef(&b, i)).collect();
+        let mut k = Vec::new();
+        let mut tau = Vec::new();
+        for a in atms {
+            let t: Vec<(f64, f64)> = a.boundaries().collect();
+            k.push((0..n).map(|i| coef(&t, i)).collect());
+            tau.push(t.iter().map(|x| x.1).collect());
+        }
+        Layers { z, sigma_s, k, tau }
+    }
+}
+
+/// Expected value over the next (reference) collision of the flight from altitude `z` along `d`
+/// of the bin-mean next-event estimate `Σ_g w_g·e_g·σ_s P/(4π)·T_g,sun / k_ref…`, integrated
+/// exactly layer by layer (every factor is exponential in the distance inside a layer): per
+/// g-point `∫ σ_s,L P_L e_g e^{−S_g(ℓ)} e^{−τ_g(z(ℓ))/μ_s} dℓ` over the flight to the ground or
+/// the top (`S_g`: the g-point's optical path from the flight's start).
+fn expected(g: &GPoints, e: &[f64], z: f64, d: DVec3, sun: DVec3) -> f64 {
+    let l = g.layers;
+    let n = l.sigma_s.len();
+    let (toa, ground) = (l.z[0], l.z[n]);
+    let mu_s = sun.z;
+    let cos = sun.dot(d);
+    let dz = d.z;
+    let mut z = z.min(toa);
+    if z < ground || (z >= toa && dz >= 0.0) {
+        return 0.0;
+    }
+    let mut i = if dz < 0.0 {
+        l.z.partition_point(|&b| b > z).clamp(1, n) - 1
+    } else {
+        l.z.partition_point(|&b| b >= z).clamp(1, n) - 1
+    };
+    let ng = g.weights.len();
+    let mut s = [0.0_f64; 64];
+    let s = &mut s[..ng];
+    let mut total = 0.0;
+    loop {
+        let (zt, zb) = (l.z[i], l.z[i + 1]);
+        let len = if dz > 0.0 {
+            (zt - z) / dz
+        } else if dz < 0.0 {
+            (z - zb) / -dz
+        } else {
+            f64::INFINITY
+        };
+        let sig = l.sigma_s[i];
+        if sig > 0.0 {
+            let p = g.reference.phase(i).eval(cos);
+            let mut acc = 0.0;
+            for k in 0..ng {
+                let kg = l.k[k][i];
+                // τ_g at z inside layer i.
+                let f = if zt > zb { (zt - z) / (zt - zb) } else { 0.0 };
+                let tau_z = l.tau[k][i] + f * (l.tau[k][i + 1] - l.tau[k][i]);
+                let a = kg * (1.0 - dz / mu_s);
+                let integral = if len.is_finite() {
+                    len * crate::atmosphere::exprel(-a * len)
+                } else if a > 0.0 {
+                    1.0 / a
+                } else {
+                    0.0
+                };
+                acc += g.weights[k] * e[k] * (-s[k] - tau_z / mu_s).exp() * integral;
+            }
+            total += sig * p * acc;
+        }
+        if !len.is_finite() {
+            break;
+        }
+        for (sk, kk) in s.iter_mut().zip(&l.k) {
+            *sk += kk[i] * len;
+        }
+        if dz > 0.0 {
+            if i == 0 {
+                break;
+            }
+            z = zt;
+            i -= 1;
+        } else {
+            if i + 1 >= n {
+                break;
+            }
+            z = zb;
+            i += 1;
+        }
+    }
+    total * (0.25 * std::f64::consts::FRAC_1_PI)
 }
 
 /// One path from altitude `z0` along `d0`; returns the (single, multiple) parts of the bin mean
@@ -68,9 +183,13 @@ pub fn walk(
             e[k] *= (-(a.optical_path(z, dz, t) - r)).exp();
         }
     };
+    let expected_mode = settings.expected_local_estimate;
     while order <= settings.max_depth {
+        let mut score = 0.0;
+        if expected_mode {
+            score += w * expected(g, e, z, d, sun);
+        }
         let s = -rng.next_f64_open0().ln();
-        let score;
         match reference.march(z, d.z, s, f64::INFINITY) {
             Some(t) => {
                 update(e, z, d.z, t);
@@ -78,15 +197,17 @@ pub fn walk(
                 let layer = reference.layer_at_altitude(z);
                 let omega = reference.albedo(layer);
                 let phase = reference.phase(layer);
-                let common = w * omega * phase.eval(sun.dot(d)) * inv_4pi;
-                let acc: f64 = g
-                    .atms
-                    .iter()
-                    .zip(g.weights)
-                    .zip(e.iter())
-                    .map(|((a, wk), ek)| wk * ek * (-a.tau_at_altitude(z) / mu_s).exp())
-                    .sum();
-                score = common * acc;
+                if !expected_mode {
+                    let common = w * omega * phase.eval(sun.dot(d)) * inv_4pi;
+                    let acc: f64 = g
+                        .atms
+                        .iter()
+                        .zip(g.weights)
+                        .zip(e.iter())
+                        .map(|((a, wk), ek)| wk * ek * (-a.tau_at_altitude(z) / mu_s).exp())
+                        .sum();
+                    score += common * acc;
+                }
                 w *= omega;
                 d = sample_scattered(phase, d, rng);
             }
@@ -104,12 +225,20 @@ pub fn walk(
                     .zip(&t_ground)
                     .map(|((wk, ek), tk)| wk * ek * tk)
                     .sum();
-                score = w * f * acc;
+                score += w * f * acc;
                 let smp = surface.sample(wo, rng.next_f64(), rng.next_f64());
                 w *= smp.weight;
                 d = smp.wi;
             }
-            None => break,
+            None => {
+                // Leaves through the top: its expected estimate still counts.
+                if order == 1 {
+                    single += score;
+                } else {
+                    multiple += score;
+                }
+                break;
+            }
         }
         if order == 1 {
             single += score;
