@@ -31,6 +31,29 @@ fn plane(
     }
 }
 
+/// A leaf file (`x y z nx ny nz r`) of `n` discs of radius `r`, centres uniform in
+/// [−h, h]² × [z0, z1], normals isotropic, from a seeded stream.
+fn write_random_leaves(path: &std::path::Path, seed: u64, n: usize, h: f64, z: [f64; 2], r: f64) {
+    let mut rng = simulator::rng::Stream::new(seed, [0, 0, 0, 0]);
+    let mut leaves = String::from("# x y z nx ny nz r\n");
+    for _ in 0..n {
+        let nv = simulator::frame::direction_from_angles(
+            (rng.next_f64() * 2.0 - 1.0).acos(),
+            std::f64::consts::TAU * rng.next_f64(),
+        );
+        leaves.push_str(&format!(
+            "{} {} {} {} {} {} {r}\n",
+            2.0 * h * rng.next_f64() - h,
+            2.0 * h * rng.next_f64() - h,
+            z[0] + (z[1] - z[0]) * rng.next_f64(),
+            nv.x,
+            nv.y,
+            nv.z
+        ));
+    }
+    std::fs::write(path, leaves).unwrap();
+}
+
 const ATM: &str = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2\nphase = { type = \"hg\", g = 0.5 }";
 
 fn zeniths() -> (Vec<f64>, Vec<f64>) {
@@ -305,24 +328,7 @@ fn ortho_geotiff_matches_netcdf() {
 #[test]
 fn expected_and_collision_estimators_agree_in_a_canopy() {
     let dir = tmp("estimators");
-    let mut rng = simulator::rng::Stream::new(9, [0, 0, 0, 0]);
-    let mut leaves = String::from("# x y z nx ny nz r\n");
-    for _ in 0..3000 {
-        let n = simulator::frame::direction_from_angles(
-            (rng.next_f64() * 2.0 - 1.0).acos(),
-            std::f64::consts::TAU * rng.next_f64(),
-        );
-        leaves.push_str(&format!(
-            "{} {} {} {} {} {} 0.25\n",
-            20.0 * rng.next_f64() - 10.0,
-            20.0 * rng.next_f64() - 10.0,
-            0.5 + 5.5 * rng.next_f64(),
-            n.x,
-            n.y,
-            n.z
-        ));
-    }
-    std::fs::write(dir.join("leaves.txt"), leaves).unwrap();
+    write_random_leaves(&dir.join("leaves.txt"), 9, 3000, 10.0, [0.5, 6.0], 0.25);
     let mut errs = Vec::new();
     let mut rows = Vec::new();
     for (seed, est) in [(5, "expected"), (6, "collision")] {
@@ -590,26 +596,9 @@ fn terrain_is_watertight_for_distant_rays() {
 #[test]
 fn periodic_cell_equals_wide_padding() {
     let dir = tmp("periodic");
-    let mut rng = simulator::rng::Stream::new(21, [0, 0, 0, 0]);
-    let mut leaves = String::new();
     // LAI ≈ 2 of r = 0.15 m discs in a 10 × 10 × 2 m cell; centres up to the walls, so discs
     // stick out into the neighbours.
-    for _ in 0..2800 {
-        let n = simulator::frame::direction_from_angles(
-            (rng.next_f64() * 2.0 - 1.0).acos(),
-            std::f64::consts::TAU * rng.next_f64(),
-        );
-        leaves.push_str(&format!(
-            "{} {} {} {} {} {} 0.15\n",
-            10.0 * rng.next_f64() - 5.0,
-            10.0 * rng.next_f64() - 5.0,
-            0.2 + 1.8 * rng.next_f64(),
-            n.x,
-            n.y,
-            n.z
-        ));
-    }
-    std::fs::write(dir.join("leaves.txt"), leaves).unwrap();
+    write_random_leaves(&dir.join("leaves.txt"), 21, 2800, 5.0, [0.2, 2.0], 0.15);
     // Different seeds: the two estimates must be independent for the z-test to be calibrated
     // (with one seed most paths would be identical and any difference hidden).
     let run = |seed: u64, extra: &str| {
