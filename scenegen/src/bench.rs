@@ -14,13 +14,8 @@ use crate::error::ScenegenError;
 use crate::info::human_bytes;
 use crate::synth;
 
-/// Peak resident set size of this process (Linux `VmHWM`), bytes.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
+/// Peak resident memory of this process (VmHWM), bytes (shared with `simulate bench-scene`).
+pub use simulator::bench_scene::peak_rss_bytes;
 
 fn dir_size(p: &Path) -> u64 {
     std::fs::read_dir(p)

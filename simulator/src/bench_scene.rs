@@ -16,17 +16,16 @@ use crate::config::Experiment;
 use crate::frame::direction_from_angles;
 use crate::scene::build::{from_bundle, Background};
 
-/// Peak resident memory of this process (VmHWM), bytes; 0 where /proc is not available.
-pub fn peak_rss_bytes() -> u64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1))
-                .and_then(|v| v.parse::<u64>().ok())
-        })
-        .map_or(0, |kb| kb * 1024)
+/// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is not available.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
+fn peak_rss_mib() -> f64 {
+    peak_rss_bytes().unwrap_or(0) as f64 / 1048576.0
 }
 
 pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Result<()> {
@@ -48,7 +47,7 @@ pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Res
         "load {:.2} s, BVH build {:.2} s (total set-up {t_scene:.2} s), peak RSS after set-up {:.0} MiB",
         scene.load_seconds,
         scene.build_seconds,
-        peak_rss_bytes() as f64 / 1048576.0
+        peak_rss_mib()
     );
 
     // Primary and shadow rays, one thread.
@@ -138,6 +137,6 @@ target_rel_stderr = {target}
         acc.median_rel_stderr(),
         rayon::current_num_threads()
     );
-    println!("peak RSS {:.0} MiB", peak_rss_bytes() as f64 / 1048576.0);
+    println!("peak RSS {:.0} MiB", peak_rss_mib());
     Ok(())
 }

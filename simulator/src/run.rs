@@ -131,15 +131,7 @@ fn run_block_alis(
     let mut acc = Accum::new(1);
     for s in range {
         let mut rng = Stream::new(exp.seed, [iw as u64, im as u64, cell as u64, s]);
-        let (z0, d0) = match &m.kind {
-            MeasureKind::Distant { directions, .. } => (toa, -directions[cell]),
-            MeasureKind::Radiancemeter { origin, look, .. } => (origin.z, *look),
-            MeasureKind::DistantFlux { altitude } => {
-                let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
-                (*altitude, -up)
-            }
-            MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
-        };
+        let (z0, d0) = backward_start_altitude(toa, m, cell, &mut rng);
         let (a, b) = backward_alis::walk(
             &g,
             &base.surface,
@@ -404,19 +396,23 @@ fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -
     }
 }
 
-/// Starting optical depth and path direction of a backward sample.
-fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
+/// Starting altitude and path direction of a backward sample (distant measures start at TOA).
+fn backward_start_altitude(toa: f64, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
     match &m.kind {
-        MeasureKind::Distant { directions, .. } => (0.0, -directions[cell]),
-        MeasureKind::Radiancemeter { origin, look, .. } => {
-            (opt.atmosphere.tau_at_altitude(origin.z), *look)
-        }
+        MeasureKind::Distant { directions, .. } => (toa, -directions[cell]),
+        MeasureKind::Radiancemeter { origin, look, .. } => (origin.z, *look),
         MeasureKind::DistantFlux { altitude } => {
             let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
-            (opt.atmosphere.tau_at_altitude(*altitude), -up)
+            (*altitude, -up)
         }
         MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
     }
+}
+
+/// Starting optical depth and path direction of a backward sample.
+fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
+    let (z, d) = backward_start_altitude(opt.atmosphere.toa(), m, cell, rng);
+    (opt.atmosphere.tau_at_altitude(z), d)
 }
 
 /// Walks a measure costs per sample index (a forward walk serves every direction).

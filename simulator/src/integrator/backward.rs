@@ -17,7 +17,7 @@
 
 use glam::DVec3;
 
-use super::{roulette, sample_scattered};
+use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::FlightEnd;
 use crate::config::resolve::IntegratorSettings;
 use crate::optics::OpticalState;
@@ -36,14 +36,7 @@ pub fn walk(
     let total = atm.total_tau();
     let mu_s = sun_dir.z;
     let t_sun_ground = (-total / mu_s).exp();
-    let (mut single, mut multiple) = (0.0, 0.0);
-    let mut score = |order: u32, v: f64| {
-        if order == 1 {
-            single += v;
-        } else {
-            multiple += v;
-        }
-    };
+    let mut split = OrderSplit::default();
     let mut d = d0;
     let mut tau = tau0;
     let mut w = 1.0_f64;
@@ -57,7 +50,7 @@ pub fn walk(
             atm.flight_integrals(tau, d.z, inv_mu_s, |l, i| {
                 acc += atm.albedo(l) * atm.phase(l).eval(cos) * i;
             });
-            score(order, w * acc * (0.25 * std::f64::consts::FRAC_1_PI));
+            split.add(order, w * acc * (0.25 * std::f64::consts::FRAC_1_PI));
         }
         let s = -rng.next_f64_open0().ln();
         match atm.fly(tau, d.z, s) {
@@ -66,7 +59,7 @@ pub fn walk(
                 tau = total;
                 let wo = -d;
                 let f = opt.surface.eval(sun_dir, wo);
-                score(order, w * f * mu_s * t_sun_ground);
+                split.add(order, w * f * mu_s * t_sun_ground);
                 let smp = opt.surface.sample(wo, rng.next_f64(), rng.next_f64());
                 w *= smp.weight;
                 d = smp.wi;
@@ -77,7 +70,7 @@ pub fn walk(
                 let omega = atm.albedo(layer);
                 let phase = atm.phase(layer);
                 if !settings.expected_local_estimate {
-                    score(
+                    split.add(
                         order,
                         w * omega
                             * phase.eval(sun_dir.dot(d))
@@ -98,5 +91,5 @@ pub fn walk(
         }
     }
     let k = std::f64::consts::PI / mu_s;
-    (single * k, multiple * k)
+    split.scaled(k)
 }

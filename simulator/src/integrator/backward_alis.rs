@@ -19,7 +19,7 @@
 
 use glam::DVec3;
 
-use super::{roulette, sample_scattered};
+use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::Bsdf;
 use crate::config::resolve::IntegratorSettings;
@@ -172,7 +172,7 @@ pub fn walk(
         .iter()
         .map(|a| (-a.total_tau() / mu_s).exp())
         .collect();
-    let (mut single, mut multiple) = (0.0, 0.0);
+    let mut split = OrderSplit::default();
     let mut z = z0;
     let mut d = d0;
     let mut w = 1.0_f64;
@@ -232,19 +232,11 @@ pub fn walk(
             }
             None => {
                 // Leaves through the top: its expected estimate still counts.
-                if order == 1 {
-                    single += score;
-                } else {
-                    multiple += score;
-                }
+                split.add(order, score);
                 break;
             }
         }
-        if order == 1 {
-            single += score;
-        } else {
-            multiple += score;
-        }
+        split.add(order, score);
         order += 1;
         if w <= 0.0 {
             break;
@@ -254,5 +246,5 @@ pub fn walk(
         }
     }
     let k = std::f64::consts::PI / mu_s;
-    (single * k, multiple * k)
+    split.scaled(k)
 }

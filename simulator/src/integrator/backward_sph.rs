@@ -14,7 +14,7 @@
 
 use glam::DVec3;
 
-use super::{roulette, sample_scattered};
+use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::bsdf::Bsdf;
 use crate::config::resolve::IntegratorSettings;
@@ -37,14 +37,7 @@ pub fn walk(
     settings: &IntegratorSettings,
     rng: &mut Stream,
 ) -> (f64, f64) {
-    let (mut single, mut multiple) = (0.0, 0.0);
-    let mut score = |order: u32, v: f64| {
-        if order == 1 {
-            single += v;
-        } else {
-            multiple += v;
-        }
-    };
+    let mut split = OrderSplit::default();
     let (mut p, mut l, mut d) = (p0, l0, d0);
     let mut w = 1.0_f64;
     let mut order: u32 = 1;
@@ -71,7 +64,7 @@ pub fn walk(
                         }
                     }
                 }
-                score(order, w * p_coll / NEE_STRATA as f64 * acc * inv4pi);
+                split.add(order, w * p_coll / NEE_STRATA as f64 * acc * inv4pi);
             }
         }
         let s = -rng.next_f64_open0().ln();
@@ -88,7 +81,7 @@ pub fn walk(
                 if cos_sun > 0.0 {
                     let t = shell.transmittance_to_space(p, 0, sun_dir);
                     if t > 0.0 {
-                        score(order, w * surface.eval(local(sun_dir), wo) * cos_sun * t);
+                        split.add(order, w * surface.eval(local(sun_dir), wo) * cos_sun * t);
                     }
                 }
                 let smp = surface.sample(wo, rng.next_f64(), rng.next_f64());
@@ -103,7 +96,7 @@ pub fn walk(
                 if !settings.expected_local_estimate {
                     let t = shell.transmittance_to_space(p, l, sun_dir);
                     if t > 0.0 {
-                        score(order, w * omega * phase.eval(sun_dir.dot(d)) * inv4pi * t);
+                        split.add(order, w * omega * phase.eval(sun_dir.dot(d)) * inv4pi * t);
                     }
                 }
                 w *= omega;
@@ -119,5 +112,5 @@ pub fn walk(
         }
     }
     let k = std::f64::consts::PI / mu_norm;
-    (single * k, multiple * k)
+    split.scaled(k)
 }

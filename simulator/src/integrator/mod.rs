@@ -209,6 +209,31 @@ impl Accum {
     }
 }
 
+/// The scores of one scalar path split by scattering order: the first interaction is single
+/// scattering, every later one multiple.
+#[derive(Clone, Copy, Debug, Default)]
+pub(crate) struct OrderSplit {
+    single: f64,
+    multiple: f64,
+}
+
+impl OrderSplit {
+    #[inline]
+    pub(crate) fn add(&mut self, order: u32, v: f64) {
+        if order == 1 {
+            self.single += v;
+        } else {
+            self.multiple += v;
+        }
+    }
+
+    /// (single, multiple), each multiplied by `k`.
+    #[inline]
+    pub(crate) fn scaled(&self, k: f64) -> (f64, f64) {
+        (self.single * k, self.multiple * k)
+    }
+}
+
 /// A new propagation direction after scattering along `d`: cos Θ from the phase function, a
 /// uniform azimuth about `d` (two random numbers).
 #[inline]

@@ -31,7 +31,7 @@
 
 use glam::DVec3;
 
-use super::{roulette, sample_scattered};
+use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::{Bsdf, Lambertian};
 use crate::config::resolve::IntegratorSettings;
@@ -80,7 +80,7 @@ pub fn walk(
     let tau_top = atm.tau_at_altitude(top);
     let has_atm = atm.total_tau() > 0.0;
     let inv_4pi = 0.25 * std::f64::consts::FRAC_1_PI;
-    let (mut single, mut multiple) = (0.0, 0.0);
+    let mut split = OrderSplit::default();
     let mut p = o;
     let mut d = d;
     let mut w = 1.0_f64;
@@ -153,18 +153,10 @@ pub fn walk(
                 None => w = 0.0,
             }
         } else {
-            if order == 1 {
-                single += score;
-            } else {
-                multiple += score;
-            }
+            split.add(order, score);
             break;
         }
-        if order == 1 {
-            single += score;
-        } else {
-            multiple += score;
-        }
+        split.add(order, score);
         order += 1;
         if w <= 0.0 {
             break;
@@ -174,7 +166,7 @@ pub fn walk(
         }
     }
     let k = std::f64::consts::PI / sun.z;
-    (single * k, multiple * k)
+    split.scaled(k)
 }
 
 /// Expected value, over the next collision of the flight from `p` along `d`, of the

@@ -131,24 +131,12 @@ pub fn from_bundle(
     let templates: Vec<TemplateGeometry> = bundle
         .templates
         .iter()
-        .map(|t| TemplateGeometry::Triangles {
-            positions: t.positions.clone(),
-            indices: t.indices.clone(),
-            materials: t.materials.iter().map(|&x| x as u16).collect(),
-        })
+        .map(TemplateGeometry::from_mesh)
         .collect();
     let instances: Vec<(u32, InstanceTransform)> = bundle
         .instances
         .iter()
-        .map(|i| {
-            (
-                i.template,
-                InstanceTransform {
-                    translation: DVec3::from_array(i.translation),
-                    linear: Mat3::from_cols_array(&i.linear),
-                },
-            )
-        })
+        .map(InstanceTransform::from_bundle)
         .collect();
     let objects = if instances.is_empty() {
         None
