@@ -139,6 +139,12 @@ pub enum AtmosphereConfig {
         /// `mode = "ckd"`: a correlated-k absorption file (eradiate v0 k(z, bin, g) format).
         #[serde(default)]
         absorption_data: Option<String>,
+        /// Rayleigh scattering by the air (false: gas absorption and particles only).
+        #[serde(default = "yes")]
+        rayleigh: bool,
+        /// Rayleigh depolarization factor; none: the value consistent with Bates' King factor.
+        #[serde(default)]
+        depolarization: Option<f64>,
     },
     /// No atmosphere (same as omitting the table).
     None {},

@@ -572,8 +572,19 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             layer_thickness,
             particle_layers,
             absorption_data,
+            rayleigh,
+            depolarization,
         }) => {
             let prof = Profile::builtin(profile).map_err(|m| ctx.err("atmosphere.profile", m))?;
+            if let Some(d) = depolarization {
+                let d = ctx.finite("atmosphere.depolarization", *d)?;
+                if !(0.0..0.5).contains(&d) {
+                    return Err(ctx.err(
+                        "atmosphere.depolarization",
+                        format!("{d} must lie in [0, 0.5)"),
+                    ));
+                }
+            }
             let dz = ctx.finite("atmosphere.layer_thickness", *layer_thickness)? * 1e3;
             if dz <= 0.0 {
                 return Err(ctx.err(
@@ -631,11 +642,17 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 let column = prof.column(bottom, top);
                 for iw in 0..nw {
                     let wl = wavelengths[iw];
-                    let rayleigh = PhaseFunction::Rayleigh(
-                        Rayleigh::new(molecular_depolarization(wl))
-                            .expect("air depolarization is in range"),
+                    let rayleigh_phase = PhaseFunction::Rayleigh(
+                        Rayleigh::new(
+                            depolarization.unwrap_or_else(|| molecular_depolarization(wl)),
+                        )
+                        .expect("air depolarization is in range"),
                     );
-                    let tau_ray = column * rayleigh_cross_section(wl);
+                    let tau_ray = if *rayleigh {
+                        column * rayleigh_cross_section(wl)
+                    } else {
+                        0.0
+                    };
                     // Rayleigh first, then each particle layer's scattering (τ_aer·ω) and
                     // absorption (τ_aer·(1 − ω)); the phase function is the mixture weighted by
                     // the scattering optical thicknesses (plain Rayleigh without particles).
@@ -649,10 +666,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                             parts.push((tau_aer * p.ssa[iw], p.phase[iw].clone()));
                         }
                     }
-                    let phase = if parts.is_empty() {
-                        rayleigh
+                    let phase = if parts.iter().all(|(w, _)| *w <= 0.0) {
+                        rayleigh_phase
                     } else {
-                        parts.insert(0, (tau_ray, rayleigh));
+                        if tau_ray > 0.0 {
+                            parts.insert(0, (tau_ray, rayleigh_phase));
+                        }
                         Mixture::build(parts).map_err(|m| {
                             ctx.err("atmosphere.particle_layers", format!("{wl} nm: {m}"))
                         })?
