@@ -109,7 +109,7 @@ fn ckd_run_equals_the_g_point_quadrature() {
 }
 
 /// Bad CKD input is named: a profile the file was not computed for, a wavelength outside its
-/// bins, absorption data without `mode = "ckd"`, a g-point index out of range.
+/// bins, a correlated-k file without `mode = "ckd"`, a g-point index out of range.
 #[test]
 fn ckd_errors_name_the_key() {
     let Some(file) = ckd_file() else {
@@ -133,7 +133,7 @@ fn ckd_errors_name_the_key() {
     let e = try_(t.replace("[760.0]", "[3000.0]"));
     assert!(e.contains("spectral.wavelengths[0]"), "{e}");
     let e = try_(t.replace("mode = \"ckd\"", "mode = \"mono\""));
-    assert!(e.contains("needs mode = \"ckd\""), "{e}");
+    assert!(e.contains("need mode = \"ckd\""), "{e}");
     let e = try_(t.replace("[spectral]\n", "[spectral]\ng_point = 16\n"));
     assert!(e.contains("spectral.g_point"), "{e}");
 }

@@ -7,6 +7,7 @@
 //! | `axsdb.rs`        | eradiate/axsdb databases (CKD or monochromatic): `sigma_a` vs (x, p, T, spectral) |
 //! | `eradiate_v0.rs`  | the older eradiate CKD file of precomputed k(z, bin, g) for one profile |
 //! | `profile.rs`      | joseki/axsdb thermophysical profiles (z, p, T, n, mole fractions)    |
+//! | `layers.rs`       | layer optical thicknesses: k at a profile's states, integrated per layer |
 //!
 //! Units follow `docs/conventions.md`: everything returned is SI (absorption coefficients in
 //! **m⁻¹**, altitudes in m, pressures in Pa, temperatures in K, number densities in m⁻³),
@@ -14,10 +15,12 @@
 //! file is read, from the `units` attribute of each variable (an unknown unit is an error, never
 //! a guess).
 //!
-//! Nothing here is wired into the experiment configuration yet.
+//! The experiment configuration (`atmosphere.absorption_data`) uses the eradiate v0 file for the
+//! US standard atmosphere, and axsdb CKD / monochromatic databases for any profile.
 
 pub mod axsdb;
 pub mod eradiate_v0;
+pub mod layers;
 pub mod profile;
 
 pub use axsdb::{

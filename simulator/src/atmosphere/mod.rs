@@ -13,6 +13,7 @@
 pub mod molecular;
 pub mod particles;
 pub mod spherical;
+pub mod thermo;
 
 use crate::phase::PhaseFunction;
 

@@ -69,6 +69,9 @@ pub struct SpectralConfig {
     /// `mode = "ckd"`: use only this g-point (index from 0) with weight 1 (validation).
     #[serde(default)]
     pub g_point: Option<usize>,
+    /// `mode = "ckd"` with an axsdb database: number of Gauss–Legendre g-points per bin.
+    #[serde(default)]
+    pub g_points: Option<usize>,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -139,6 +142,12 @@ pub enum AtmosphereConfig {
         /// `mode = "ckd"`: a correlated-k absorption file (eradiate v0 k(z, bin, g) format).
         #[serde(default)]
         absorption_data: Option<String>,
+        /// Rescale species' column amounts (`atmosphere::thermo`).
+        #[serde(default)]
+        rescale: std::collections::BTreeMap<String, crate::atmosphere::thermo::RescaleValue>,
+        /// Out-of-range policy of absorption databases.
+        #[serde(default)]
+        absorption_bounds: AbsorptionBoundsConfig,
         /// Rayleigh scattering by the air (false: gas absorption and particles only).
         #[serde(default = "yes")]
         rayleigh: bool,
@@ -148,6 +157,40 @@ pub enum AtmosphereConfig {
     },
     /// No atmosphere (same as omitting the table).
     None {},
+}
+
+/// `atmosphere.absorption_bounds`: what an absorption database does with a state outside its
+/// grid, per coordinate: "error", "clamp" (edge value) or "zero" (no absorption). Both clamp and
+/// zero log a warning once per coordinate.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AbsorptionBoundsConfig {
+    #[serde(default = "zero_str")]
+    pub pressure: String,
+    #[serde(default = "clamp_str")]
+    pub temperature: String,
+    #[serde(default = "error_str")]
+    pub mole_fraction: String,
+}
+
+impl Default for AbsorptionBoundsConfig {
+    fn default() -> Self {
+        AbsorptionBoundsConfig {
+            pressure: zero_str(),
+            temperature: clamp_str(),
+            mole_fraction: error_str(),
+        }
+    }
+}
+
+fn zero_str() -> String {
+    "zero".into()
+}
+fn clamp_str() -> String {
+    "clamp".into()
+}
+fn error_str() -> String {
+    "error".into()
 }
 
 /// One `[[atmosphere.particle_layers]]` table (see `atmosphere::particles`).

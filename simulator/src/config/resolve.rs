@@ -9,7 +9,7 @@ use glam::DVec3;
 
 use super::*;
 use crate::atmosphere::molecular::{
-    depolarization as molecular_depolarization, rayleigh_cross_section, Profile,
+    depolarization as molecular_depolarization, rayleigh_cross_section,
 };
 use crate::atmosphere::particles::{Distribution, ParticleDataset, VerticalProfile};
 use crate::atmosphere::spherical::SphericalShell;
@@ -412,6 +412,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if cfg.spectral.g_point.is_some() && !ckd {
         return Err(ctx.err("spectral.g_point", "is used only with mode = \"ckd\""));
     }
+    if cfg.spectral.g_points.is_some() && !ckd {
+        return Err(ctx.err("spectral.g_points", "is used only with mode = \"ckd\""));
+    }
     let (wavelengths, band) = match (&cfg.spectral.wavelengths, &cfg.spectral.srf) {
         (Some(w), None) => {
             if cfg.spectral.wavelength_step.is_some() {
@@ -574,8 +577,15 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             absorption_data,
             rayleigh,
             depolarization,
+            rescale,
+            absorption_bounds,
         }) => {
-            let prof = Profile::builtin(profile).map_err(|m| ctx.err("atmosphere.profile", m))?;
+            let mut thermo = crate::atmosphere::thermo::load(profile, &base)
+                .map_err(|m| ctx.err("atmosphere.profile", m))?;
+            crate::atmosphere::thermo::rescale(&mut thermo, rescale)
+                .map_err(|(k, m)| ctx.err(k, m))?;
+            let bounds = resolve_bounds(&ctx, absorption_bounds)?;
+            let prof = thermo.rayleigh.clone();
             if let Some(d) = depolarization {
                 let d = ctx.finite("atmosphere.depolarization", *d)?;
                 if !(0.0..0.5).contains(&d) {
@@ -613,28 +623,40 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             }
             let particles =
                 resolve_particle_layers(&ctx, &base, particle_layers, &grid, &wavelengths)?;
+            let mut mono_gas: Vec<Vec<f64>> = Vec::new();
             match (ckd, absorption_data) {
-                (false, Some(_)) => {
-                    return Err(ctx.err(
-                        "atmosphere.absorption_data",
-                        "correlated-k absorption needs mode = \"ckd\"",
-                    ))
-                }
                 (true, None) => {
                     return Err(ctx.err(
                         "atmosphere.absorption_data",
-                        "mode = \"ckd\" needs a correlated-k absorption file",
+                        "mode = \"ckd\" needs a correlated-k absorption file or database",
                     ))
                 }
-                (false, None) => {}
+                (false, None) => {
+                    if !rescale.is_empty() {
+                        tracing::warn!(
+                            "atmosphere.rescale changes only gas absorption, and this atmosphere has no `absorption_data`"
+                        );
+                    }
+                }
+                (false, Some(file)) => {
+                    mono_gas = resolve_mono_gas(
+                        &ctx,
+                        &base.join(file),
+                        &thermo,
+                        &grid,
+                        &wavelengths,
+                        bounds,
+                    )?;
+                }
                 (true, Some(file)) => {
                     ckd_tau = resolve_ckd(
                         &ctx,
                         &base.join(file),
-                        profile,
+                        &thermo,
                         &grid,
                         &wavelengths,
-                        cfg.spectral.g_point,
+                        &cfg.spectral,
+                        bounds,
                     )?;
                 }
             }
@@ -656,7 +678,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     // Rayleigh first, then each particle layer's scattering (τ_aer·ω) and
                     // absorption (τ_aer·(1 − ω)); the phase function is the mixture weighted by
                     // the scattering optical thicknesses (plain Rayleigh without particles).
-                    let (mut tau_sca, mut tau_abs) = (tau_ray, 0.0);
+                    let gas = mono_gas.get(iw).map_or(0.0, |t| t[j]);
+                    let (mut tau_sca, mut tau_abs) = (tau_ray, gas);
                     let mut parts = Vec::new();
                     for p in &particles {
                         let tau_aer = p.tau[iw] * p.fractions[j];
@@ -1538,25 +1561,95 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
 type GPoint = (f64, Vec<f64>);
 
 /// Per wavelength, per g-point: (quadrature weight, gas absorption optical thickness of each
-/// layer of `grid`), from an eradiate v0 CKD file (k(z, bin, g) for the US standard
-/// atmosphere, 16 Gauss–Legendre g-points per 10 nm bin; `absorption::eradiate_v0`). Each run
-/// wavelength selects the bin containing it; `g_point` keeps one g-point with weight 1.
+/// layer of `grid`). Two sources (`atmosphere.absorption_data`):
+/// * a file: the eradiate v0 CKD format (k(z, bin, g) precomputed for the US standard
+///   atmosphere, 16 Gauss–Legendre g-points per 10 nm bin; `absorption::eradiate_v0`), valid for
+///   the unscaled embedded US standard profile only;
+/// * a directory: an axsdb CKD database, evaluated at the profile's (p, T, x) with
+///   `spectral.g_points` Gauss–Legendre points (default 16; `absorption::layers`).
+///
+/// Each run wavelength selects the bin containing it; `g_point` keeps one g-point with weight 1.
 fn resolve_ckd(
     ctx: &Ctx,
     file: &Path,
-    profile: &str,
+    thermo: &crate::atmosphere::thermo::Thermo,
     grid: &[(f64, f64)],
     wavelengths: &[f64],
-    g_point: Option<usize>,
+    spectral: &super::SpectralConfig,
+    bounds: crate::absorption::BoundsPolicy,
 ) -> Result<Vec<Vec<GPoint>>, ConfigError> {
     use crate::absorption::eradiate_v0::{EradiateV0Ckd, V0Interpolation};
+    use crate::absorption::{AxsDatabase, DatabaseKind, SpectralPoint};
     let key = "atmosphere.absorption_data";
-    if profile != "afgl_1986-us_standard" {
+    let g_point = spectral.g_point;
+    let pick = |ng: usize| -> Result<Vec<usize>, ConfigError> {
+        match g_point {
+            Some(g) if g >= ng => Err(ctx.err(
+                "spectral.g_point",
+                format!("{g} is not a g-point index (0..{})", ng - 1),
+            )),
+            Some(g) => Ok(vec![g]),
+            None => Ok((0..ng).collect()),
+        }
+    };
+    let no_bin = |iw: usize, wl: f64, lo: f64, hi: f64| {
+        ctx.err(
+            format!("spectral.wavelengths[{iw}]"),
+            format!(
+                "{wl} nm is in no bin of {} (bins cover {lo}..{hi} nm)",
+                file.display()
+            ),
+        )
+    };
+    if file.is_dir() {
+        let db = AxsDatabase::open(file).map_err(|e| ctx.err(key, e.to_string()))?;
+        if db.kind() != DatabaseKind::Ckd {
+            return Err(ctx.err(
+                key,
+                format!(
+                    "{} is a monochromatic database; use it with mode = \"mono\"",
+                    file.display()
+                ),
+            ));
+        }
+        let ng = spectral.g_points.unwrap_or(16);
+        if !(1..=64).contains(&ng) {
+            return Err(ctx.err("spectral.g_points", format!("{ng} must lie in 1..=64")));
+        }
+        let quad = crate::absorption::gauss_legendre_unit(ng);
+        let cols = crate::absorption::layers::GasColumns::new(&thermo.gas, grid);
+        let (lo, hi) = db.spectral_range_nm();
+        let mut out = Vec::with_capacity(wavelengths.len());
+        for (iw, &wl) in wavelengths.iter().enumerate() {
+            let bin = db
+                .bin_containing(wl)
+                .ok_or_else(|| no_bin(iw, wl, lo, hi))?;
+            let mut per_g = Vec::new();
+            for g in pick(ng)? {
+                let (gv, w) = quad[g];
+                let taus = cols
+                    .layer_tau(&db, SpectralPoint::Ckd { bin, g: gv }, bounds)
+                    .map_err(|m| ctx.err(key, format!("{} nm bin, g = {gv:.4}: {m}", wl)))?;
+                per_g.push((if g_point.is_some() { 1.0 } else { w }, taus));
+            }
+            out.push(per_g);
+        }
+        return Ok(out);
+    }
+    if spectral.g_points.is_some() {
+        return Err(ctx.err(
+            "spectral.g_points",
+            "is used only with an axsdb CKD database (a directory); the eradiate v0 file has 16 fixed g-points",
+        ));
+    }
+    if !thermo.is_us_standard {
         return Err(ctx.err(
             key,
             format!(
-                "this correlated-k file holds k(z) precomputed for the AFGL 1986 US standard atmosphere; \
-                 it cannot describe profile \"{profile}\""
+                "{} holds k(z) precomputed for the unscaled AFGL 1986 US standard atmosphere; it cannot \
+                 describe profile \"{}\" or a rescaled one (use an axsdb database for other profiles)",
+                file.display(),
+                thermo.rayleigh.name
             ),
         ));
     }
@@ -1565,28 +1658,15 @@ fn resolve_ckd(
     for (iw, &wl) in wavelengths.iter().enumerate() {
         let bin = db.bin_containing(wl).ok_or_else(|| {
             let b = db.bins();
-            ctx.err(
-                format!("spectral.wavelengths[{iw}]"),
-                format!(
-                    "{wl} nm is in no bin of {} (bins cover {}..{} nm)",
-                    file.display(),
-                    b.first().map_or(f64::NAN, |x| x.lower_nm),
-                    b.last().map_or(f64::NAN, |x| x.upper_nm)
-                ),
+            no_bin(
+                iw,
+                wl,
+                b.first().map_or(f64::NAN, |x| x.lower_nm),
+                b.last().map_or(f64::NAN, |x| x.upper_nm),
             )
         })?;
-        let gs: Vec<usize> = match g_point {
-            Some(g) if g >= bin.g.len() => {
-                return Err(ctx.err(
-                    "spectral.g_point",
-                    format!("{g} is not a g-point index (0..{})", bin.g.len() - 1),
-                ))
-            }
-            Some(g) => vec![g],
-            None => (0..bin.g.len()).collect(),
-        };
-        let mut per_g = Vec::with_capacity(gs.len());
-        for g in gs {
+        let mut per_g = Vec::new();
+        for g in pick(bin.g.len())? {
             let w = if g_point.is_some() {
                 1.0
             } else {
@@ -1605,4 +1685,77 @@ fn resolve_ckd(
         out.push(per_g);
     }
     Ok(out)
+}
+
+/// `mode = "mono"` with `absorption_data`: per wavelength, the gas absorption optical thickness
+/// of each layer from an axsdb monochromatic database (linear in wavelength between its
+/// spectral points) at the profile's (p, T, x).
+fn resolve_mono_gas(
+    ctx: &Ctx,
+    dir: &Path,
+    thermo: &crate::atmosphere::thermo::Thermo,
+    grid: &[(f64, f64)],
+    wavelengths: &[f64],
+    bounds: crate::absorption::BoundsPolicy,
+) -> Result<Vec<Vec<f64>>, ConfigError> {
+    use crate::absorption::{AxsDatabase, DatabaseKind, SpectralPoint};
+    let key = "atmosphere.absorption_data";
+    if !dir.is_dir() {
+        return Err(ctx.err(
+            key,
+            format!(
+                "{}: in mode = \"mono\" this must be an axsdb monochromatic database directory \
+                 (correlated-k files and databases need mode = \"ckd\")",
+                dir.display()
+            ),
+        ));
+    }
+    let db = AxsDatabase::open(dir).map_err(|e| ctx.err(key, e.to_string()))?;
+    if db.kind() != DatabaseKind::Mono {
+        return Err(ctx.err(
+            key,
+            format!(
+                "{} is a correlated-k database; use it with mode = \"ckd\"",
+                dir.display()
+            ),
+        ));
+    }
+    let cols = crate::absorption::layers::GasColumns::new(&thermo.gas, grid);
+    let (lo, hi) = db.spectral_range_nm();
+    wavelengths
+        .iter()
+        .enumerate()
+        .map(|(iw, &wl)| {
+            if wl < lo || wl > hi {
+                return Err(ctx.err(
+                    format!("spectral.wavelengths[{iw}]"),
+                    format!("{wl} nm is outside {} ({lo}..{hi} nm)", dir.display()),
+                ));
+            }
+            cols.layer_tau(&db, SpectralPoint::Mono { wavelength_nm: wl }, bounds)
+                .map_err(|m| ctx.err(key, format!("{wl} nm: {m}")))
+        })
+        .collect()
+}
+
+/// `atmosphere.absorption_bounds` → the database policy.
+fn resolve_bounds(
+    ctx: &Ctx,
+    cfg: &super::AbsorptionBoundsConfig,
+) -> Result<crate::absorption::BoundsPolicy, ConfigError> {
+    use crate::absorption::OutOfRange;
+    let one = |k: &str, v: &str| match v {
+        "error" => Ok(OutOfRange::Error),
+        "clamp" => Ok(OutOfRange::Clamp),
+        "zero" => Ok(OutOfRange::Zero),
+        other => Err(ctx.err(
+            format!("atmosphere.absorption_bounds.{k}"),
+            format!("\"{other}\" is not one of \"error\", \"clamp\", \"zero\""),
+        )),
+    };
+    Ok(crate::absorption::BoundsPolicy {
+        pressure: one("pressure", &cfg.pressure)?,
+        temperature: one("temperature", &cfg.temperature)?,
+        mole_fraction: one("mole_fraction", &cfg.mole_fraction)?,
+    })
 }
