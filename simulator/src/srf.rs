@@ -115,6 +115,29 @@ impl Srf {
         self.response[i - 1] + t * (self.response[i] - self.response[i - 1])
     }
 
+    /// ∫ S(λ) dλ over each spectral bin [lower, upper) nm (S linear between its samples; exact
+    /// integration over the pieces). Used in `mode = "ckd"`, where the bins are the sampling.
+    pub fn bin_weights(&self, bins: &[(f64, f64)]) -> Vec<f64> {
+        bins.iter()
+            .map(|&(lo, hi)| {
+                // Breakpoints: the bin's ends and the SRF's samples inside it.
+                let mut x: Vec<f64> = std::iter::once(lo)
+                    .chain(
+                        self.wavelength
+                            .iter()
+                            .copied()
+                            .filter(|&w| w > lo && w < hi),
+                    )
+                    .chain(std::iter::once(hi))
+                    .collect();
+                x.dedup();
+                x.windows(2)
+                    .map(|p| 0.5 * (self.at(p[0]) + self.at(p[1])) * (p[1] - p[0]))
+                    .sum()
+            })
+            .collect()
+    }
+
     /// The sampling grid over the support (step `step` nm) and its trapezoid weights.
     pub fn grid(&self, step: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
         let first = self
@@ -144,6 +167,26 @@ impl Srf {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Bin weights integrate the SRF exactly: over bins tiling the support they sum to the
+    /// integral of S, and a bin outside the support weighs 0.
+    #[test]
+    fn bin_weights_integrate_the_response() {
+        let s = Srf::builtin("sentinel_2a-msi-4").unwrap().unwrap();
+        let bins: Vec<(f64, f64)> = (0..60)
+            .map(|i| (620.0 + i as f64, 621.0 + i as f64))
+            .collect();
+        let w = s.bin_weights(&bins);
+        let total: f64 = s
+            .wavelength
+            .windows(2)
+            .zip(s.response.windows(2))
+            .map(|(x, r)| 0.5 * (r[0] + r[1]) * (x[1] - x[0]))
+            .sum();
+        assert!((w.iter().sum::<f64>() / total - 1.0).abs() < 1e-12);
+        assert_eq!(w[0], 0.0);
+        assert_eq!(s.bin_weights(&[(900.0, 910.0)])[0], 0.0);
+    }
 
     /// Sentinel-2A B4 (red) spans ≈ 646–685 nm with its centroid near 665 nm; band names and
     /// numbers of Landsat-8 OLI agree; unknown bands list the existing ones.

@@ -159,3 +159,58 @@ fn ckd_rounds_are_whole_g_cycles() {
         assert!(r.n_samples < 4_000_000);
     }
 }
+
+/// A sensor band in CKD mode is sampled by the bins it overlaps: Sentinel-2A MSI B4 (≈ 646–685
+/// nm) runs exactly the four 10 nm bins 650…680 of the eradiate v0 file at their centres, with
+/// weights ∫_bin S dλ that add up to the SRF's integral, and the band BRF is Σ w E0 BRF / Σ w E0
+/// of the per-bin rows. `wavelength_step` is refused (bins are the sampling).
+#[test]
+fn ckd_band_is_sampled_by_bins() {
+    let Some(file) = ckd_file() else {
+        eprintln!("skipped: shared data folder not found");
+        return;
+    };
+    let t = text(&file, 7, 760.0, None, 16 * 512)
+        .replace("wavelengths = [760.0]", "srf = \"sentinel_2a-msi-4\"");
+    let exp = experiment(&t);
+    assert_eq!(exp.wavelengths, vec![650.0, 660.0, 670.0, 680.0]);
+    let band = exp.band.as_ref().unwrap();
+    let srf = simulator::srf::Srf::builtin("sentinel_2a-msi-4")
+        .unwrap()
+        .unwrap();
+    let total: f64 = srf
+        .wavelength
+        .windows(2)
+        .zip(srf.response.windows(2))
+        .map(|(x, r)| 0.5 * (r[0] + r[1]) * (x[1] - x[0]))
+        .sum();
+    let sum: f64 = band.weights.iter().sum();
+    assert!((sum / total - 1.0).abs() < 1e-9, "{sum} vs {total}");
+    let rows = run_rows(&exp);
+    let b = simulator::products::band_rows(&exp, &rows);
+    let (mut num, mut den) = (0.0, 0.0);
+    for (k, r) in rows.iter().filter(|r| r.vza == Some(0.0)).enumerate() {
+        let e0 = exp.optics[k].irradiance;
+        num += band.weights[k] * e0 * r.brf.unwrap().0;
+        den += band.weights[k] * e0;
+    }
+    let got = b
+        .iter()
+        .find(|r| r.vza == Some(0.0))
+        .unwrap()
+        .brf
+        .unwrap()
+        .0;
+    assert!(
+        (got / (num / den) - 1.0).abs() < 1e-12,
+        "{got} vs {}",
+        num / den
+    );
+    let e = simulator::config::Experiment::from_str(
+        &t.replace("[spectral]\n", "[spectral]\nwavelength_step = 1.0\n"),
+        &common::data_dir().join("t.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("spectral.wavelength_step"), "{e}");
+}

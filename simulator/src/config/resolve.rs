@@ -52,7 +52,7 @@ pub struct IntegratorSettings {
 #[derive(Clone, Debug)]
 pub struct Band {
     pub name: String,
-    /// Trapezoid weights `S(λ_k)·Δλ_k`, one per wavelength.
+    /// Weights, one per wavelength: trapezoid `S(λ_k)·Δλ_k` in mono mode, `∫_bin S dλ` in CKD mode.
     pub weights: Vec<f64>,
 }
 
@@ -434,21 +434,52 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                         .map_err(|m| ctx.err("spectral.srf", format!("{}: {m}", fpath.display())))?
                 }
             };
-            let step = cfg.spectral.wavelength_step.unwrap_or(5.0);
-            if !(step > 0.0 && step.is_finite()) {
-                return Err(ctx.err(
-                    "spectral.wavelength_step",
-                    format!("{step} nm must be positive"),
-                ));
+            if ckd {
+                if cfg.spectral.wavelength_step.is_some() {
+                    return Err(ctx.err(
+                        "spectral.wavelength_step",
+                        "is not used in mode = \"ckd\": the absorption data's bins sample the band",
+                    ));
+                }
+                let bins = ckd_bins(&ctx, &base, &cfg)?;
+                let weights = srf.bin_weights(&bins);
+                let (mut w, mut wt) = (Vec::new(), Vec::new());
+                for (&(lo, hi), &x) in bins.iter().zip(&weights) {
+                    if x > 0.0 {
+                        w.push(0.5 * (lo + hi));
+                        wt.push(x);
+                    }
+                }
+                if w.is_empty() {
+                    return Err(ctx.err(
+                        "spectral.srf",
+                        format!("band \"{name}\" overlaps no bin of the absorption data"),
+                    ));
+                }
+                (
+                    w,
+                    Some(Band {
+                        name: name.clone(),
+                        weights: wt,
+                    }),
+                )
+            } else {
+                let step = cfg.spectral.wavelength_step.unwrap_or(5.0);
+                if !(step > 0.0 && step.is_finite()) {
+                    return Err(ctx.err(
+                        "spectral.wavelength_step",
+                        format!("{step} nm must be positive"),
+                    ));
+                }
+                let (w, weights) = srf.grid(step).map_err(|m| ctx.err("spectral.srf", m))?;
+                (
+                    w,
+                    Some(Band {
+                        name: name.clone(),
+                        weights,
+                    }),
+                )
             }
-            let (w, weights) = srf.grid(step).map_err(|m| ctx.err("spectral.srf", m))?;
-            (
-                w,
-                Some(Band {
-                    name: name.clone(),
-                    weights,
-                }),
-            )
         }
         (Some(_), Some(_)) => {
             return Err(ctx.err("spectral", "give either `wavelengths` or `srf`, not both"))
@@ -1685,6 +1716,35 @@ fn resolve_ckd(
         out.push(per_g);
     }
     Ok(out)
+}
+
+/// `mode = "ckd"` with `spectral.srf`: the bins (lower, upper) [nm] of the absorption data.
+fn ckd_bins(
+    ctx: &Ctx,
+    base: &Path,
+    cfg: &ExperimentConfig,
+) -> Result<Vec<(f64, f64)>, ConfigError> {
+    let key = "atmosphere.absorption_data";
+    let Some(AtmosphereConfig::Molecular {
+        absorption_data: Some(file),
+        ..
+    }) = &cfg.atmosphere
+    else {
+        return Err(ctx.err(
+            "atmosphere",
+            "mode = \"ckd\" needs a `molecular` atmosphere with `absorption_data`",
+        ));
+    };
+    let path = base.join(file);
+    if path.is_dir() {
+        let db =
+            crate::absorption::AxsDatabase::open(&path).map_err(|e| ctx.err(key, e.to_string()))?;
+        Ok(db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect())
+    } else {
+        let db = crate::absorption::EradiateV0Ckd::open(&path, None)
+            .map_err(|e| ctx.err(key, e.to_string()))?;
+        Ok(db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect())
+    }
 }
 
 /// `mode = "mono"` with `absorption_data`: per wavelength, the gas absorption optical thickness
