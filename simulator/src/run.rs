@@ -502,7 +502,10 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
         None => m.spp,
-        Some(_) => ((4 * bs).div_ceil(unit) * unit).min(m.spp),
+        Some(_) => {
+            let first = exp.integrator.first_check_spp.unwrap_or(4 * bs);
+            (first.div_ceil(unit) * unit).min(m.spp)
+        }
     };
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
@@ -544,8 +547,13 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             }
             break;
         }
-        // At least 8 blocks more, or one more g-point cycle (cycles are already 16 blocks).
-        let min_grow = if unit > bs { unit } else { 8 * bs };
+        // At least 8 blocks more (at most 4× what is done, after an early first check), or one
+        // more g-point cycle (cycles are already 16 blocks).
+        let min_grow = if unit > bs {
+            unit
+        } else {
+            (8 * bs).min(4 * done).max(bs)
+        };
         next = next_round_end(
             done,
             rel,

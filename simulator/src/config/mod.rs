@@ -492,4 +492,7 @@ pub struct IntegratorConfig {
     /// "alis" (one backward walk carries every g-point of a bin).
     #[serde(default)]
     pub ckd_walk: Option<String>,
+    /// Samples per direction before the first check of `target_rel_stderr` (default 8192).
+    #[serde(default)]
+    pub first_check_spp: Option<u64>,
 }

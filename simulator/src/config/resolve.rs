@@ -46,6 +46,8 @@ pub struct IntegratorSettings {
     pub expected_local_estimate: bool,
     /// CKD runs: one backward walk for all g-points of a bin (`integrator/backward_alis.rs`).
     pub alis: bool,
+    /// Samples before the first precision check (None: 4 blocks).
+    pub first_check_spp: Option<u64>,
 }
 
 /// A sensor band sampled by the run's wavelengths.
@@ -1459,6 +1461,15 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         rr_depth: cfg.integrator.rr_depth.unwrap_or(5),
         expected_local_estimate,
         alis,
+        first_check_spp: match cfg.integrator.first_check_spp {
+            Some(n) if n < 64 => {
+                return Err(ctx.err(
+                    "integrator.first_check_spp",
+                    format!("{n} is too few samples to estimate a standard error (at least 64)"),
+                ))
+            }
+            other => other,
+        },
     };
 
     if ckd && ckd_tau.is_empty() {

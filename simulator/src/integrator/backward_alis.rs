@@ -43,6 +43,9 @@ pub struct Layers {
     sigma_s: Vec<f64>,
     k: Vec<Vec<f64>>,
     tau: Vec<Vec<f64>>,
+    /// The reference atmosphere's extinction coefficient and optical depths.
+    k_ref: Vec<f64>,
+    tau_ref: Vec<f64>,
 }
 
 impl Layers {
@@ -66,7 +69,51 @@ impl Layers {
             k.push((0..n).map(|i| coef(&t, i)).collect());
             tau.push(t.iter().map(|x| x.1).collect());
         }
-        Layers { z, sigma_s, k, tau }
+        let k_ref = (0..n).map(|i| coef(&b, i)).collect();
+        let tau_ref = b.iter().map(|x| x.1).collect();
+        Layers {
+            z,
+            sigma_s,
+            k,
+            tau,
+            k_ref,
+            tau_ref,
+        }
+    }
+
+    /// Layer index and fraction `f` (0 at the layer's top) of altitude `z`.
+    fn locate(&self, z: f64) -> (usize, f64) {
+        let n = self.sigma_s.len();
+        let i = self.z.partition_point(|&b| b > z).clamp(1, n) - 1;
+        let (zt, zb) = (self.z[i], self.z[i + 1]);
+        let f = if zt > zb {
+            ((zt - z) / (zt - zb)).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        (i, f)
+    }
+
+    /// Multiply each g-point's path factor by `exp(−(τ_g − τ_ref))` over the flight of length
+    /// `t` from altitude `z` along a direction of vertical component `dz` (optical paths from
+    /// the optical depths at both ends: `|Δτ|/|dz|`; a horizontal flight stays in its layer).
+    fn carry(&self, e: &mut [f64], z: f64, dz: f64, t: f64) {
+        let (i0, f0) = self.locate(z);
+        if dz.abs() < 1e-12 {
+            for (k, ek) in e.iter_mut().enumerate() {
+                *ek *= (-(self.k[k][i0] - self.k_ref[i0]) * t).exp();
+            }
+            return;
+        }
+        let (i1, f1) = self.locate(z + t * dz);
+        let at = |tau: &[f64], i: usize, f: f64| tau[i] + f * (tau[i + 1] - tau[i]);
+        let inv = 1.0 / dz.abs();
+        let d_ref = (at(&self.tau_ref, i1, f1) - at(&self.tau_ref, i0, f0)).abs();
+        for (k, ek) in e.iter_mut().enumerate() {
+            let tau = &self.tau[k];
+            let d = (at(tau, i1, f1) - at(tau, i0, f0)).abs();
+            *ek *= (-(d - d_ref) * inv).exp();
+        }
     }
 }
 
@@ -82,7 +129,7 @@ fn expected(g: &GPoints, e: &[f64], z: f64, d: DVec3, sun: DVec3) -> f64 {
     let mu_s = sun.z;
     let cos = sun.dot(d);
     let dz = d.z;
-    let mut z = z.min(toa);
+    let z = z.min(toa);
     if z < ground || (z >= toa && dz >= 0.0) {
         return 0.0;
     }
@@ -92,8 +139,21 @@ fn expected(g: &GPoints, e: &[f64], z: f64, d: DVec3, sun: DVec3) -> f64 {
         l.z.partition_point(|&b| b >= z).clamp(1, n) - 1
     };
     let ng = g.weights.len();
-    let mut s = [0.0_f64; 64];
-    let s = &mut s[..ng];
+    // amp[k] = w_g·e_g·e^{−S_g(ℓ)}·e^{−τ_g(z(ℓ))/μ_s} at the current point of the flight. Inside
+    // a layer it decays as e^{−a_g ℓ} with a_g = k_g·(1 − d_z/μ_s), so the layer's integral is
+    // amp·(1 − e^{−a_g·len})/a_g and one exponential per g-point and layer carries it on.
+    let mut amp = [0.0_f64; 64];
+    let amp = &mut amp[..ng];
+    {
+        let (zt, zb) = (l.z[i], l.z[i + 1]);
+        let f = if zt > zb { (zt - z) / (zt - zb) } else { 0.0 };
+        for k in 0..ng {
+            let tau_z = l.tau[k][i] + f * (l.tau[k][i + 1] - l.tau[k][i]);
+            amp[k] = g.weights[k] * e[k] * (-tau_z / mu_s).exp();
+        }
+    }
+    let slant = 1.0 - dz / mu_s;
+    let mut z = z;
     let mut total = 0.0;
     loop {
         let (zt, zb) = (l.z[i], l.z[i + 1]);
@@ -105,31 +165,34 @@ fn expected(g: &GPoints, e: &[f64], z: f64, d: DVec3, sun: DVec3) -> f64 {
             f64::INFINITY
         };
         let sig = l.sigma_s[i];
-        if sig > 0.0 {
-            let p = g.reference.phase(i).eval(cos);
-            let mut acc = 0.0;
-            for k in 0..ng {
-                let kg = l.k[k][i];
-                // τ_g at z inside layer i.
-                let f = if zt > zb { (zt - z) / (zt - zb) } else { 0.0 };
-                let tau_z = l.tau[k][i] + f * (l.tau[k][i + 1] - l.tau[k][i]);
-                let a = kg * (1.0 - dz / mu_s);
-                let integral = if len.is_finite() {
-                    len * crate::atmosphere::exprel(-a * len)
-                } else if a > 0.0 {
-                    1.0 / a
+        let finite = len.is_finite();
+        let mut acc = 0.0;
+        for k in 0..ng {
+            let a = l.k[k][i] * slant;
+            let x = a * len;
+            let decay = if finite { (-x).exp() } else { 0.0 };
+            if sig > 0.0 {
+                let integral = if !finite {
+                    if a > 0.0 {
+                        1.0 / a
+                    } else {
+                        0.0
+                    }
+                } else if x.abs() < 1e-6 {
+                    // (1 − e^{−x})/a to second order (a < 0 going up towards the Sun).
+                    len * (1.0 - 0.5 * x)
                 } else {
-                    0.0
+                    (1.0 - decay) / a
                 };
-                acc += g.weights[k] * e[k] * (-s[k] - tau_z / mu_s).exp() * integral;
+                acc += amp[k] * integral;
             }
-            total += sig * p * acc;
+            amp[k] *= decay;
         }
-        if !len.is_finite() {
+        if sig > 0.0 {
+            total += sig * g.reference.phase(i).eval(cos) * acc;
+        }
+        if !finite {
             break;
-        }
-        for (sk, kk) in s.iter_mut().zip(&l.k) {
-            *sk += kk[i] * len;
         }
         if dz > 0.0 {
             if i == 0 {
@@ -177,12 +240,7 @@ pub fn walk(
     let mut d = d0;
     let mut w = 1.0_f64;
     let mut order: u32 = 1;
-    let update = |e: &mut [f64], z: f64, dz: f64, t: f64| {
-        let r = reference.optical_path(z, dz, t);
-        for (k, a) in g.atms.iter().enumerate() {
-            e[k] *= (-(a.optical_path(z, dz, t) - r)).exp();
-        }
-    };
+    let update = |e: &mut [f64], z: f64, dz: f64, t: f64| g.layers.carry(e, z, dz, t);
     let expected_mode = settings.expected_local_estimate;
     while order <= settings.max_depth {
         let mut score = 0.0;
