@@ -167,8 +167,8 @@ fn expected(g: &GPoints, e: &[f64], z: f64, d: DVec3, sun: DVec3) -> f64 {
         let sig = l.sigma_s[i];
         let finite = len.is_finite();
         let mut acc = 0.0;
-        for k in 0..ng {
-            let a = l.k[k][i] * slant;
+        for (ak, kg) in amp.iter_mut().zip(&l.k) {
+            let a = kg[i] * slant;
             let x = a * len;
             let decay = if finite { (-x).exp() } else { 0.0 };
             if sig > 0.0 {
@@ -184,9 +184,9 @@ fn expected(g: &GPoints, e: &[f64], z: f64, d: DVec3, sun: DVec3) -> f64 {
                 } else {
                     (1.0 - decay) / a
                 };
-                acc += amp[k] * integral;
+                acc += *ak * integral;
             }
-            amp[k] *= decay;
+            *ak *= decay;
         }
         if sig > 0.0 {
             total += sig * g.reference.phase(i).eval(cos) * acc;
