@@ -10,8 +10,10 @@
 //! elevation = 118.0       # m
 //! spp = 200000            # samples per acquisition and wavelength (maximum)
 //! target_rel_stderr = 0.002
-//! wavelength_step = 5.0   # nm, sampling of each band
+//! wavelength_step = 5.0   # nm, sampling of each band (mode = "mono")
 //! irradiance = "tsis_1"   # solar spectrum (see docs/experiment.md)
+//! mode = "ckd"            # optional: gas absorption by correlated-k (bins sample each band)
+//! [integrator]            # optional: any experiment [integrator] table (e.g. ckd_walk = "alis")
 //! [geometry]              # any experiment [geometry] table (default: plane-parallel 0–100 km)
 //! [atmosphere]            # any experiment [atmosphere] table (e.g. type = "molecular")
 //! [surface]               # any experiment [surface] table (the site's BRDF, with its source)
@@ -123,9 +125,21 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
         .get("spp")
         .and_then(|v| v.as_integer())
         .unwrap_or(200_000);
-    let step = get_f("wavelength_step").unwrap_or(5.0);
+    let mode = match site.get("mode") {
+        None => "mono",
+        Some(v) => v.as_str().ok_or("`mode` must be a string")?,
+    };
+    let step = get_f("wavelength_step");
+    if mode == "ckd" && step.is_some() {
+        return Err(
+            "`wavelength_step` is not used with mode = \"ckd\": the absorption data's bins sample each band"
+                .into(),
+        );
+    }
     let known = [
         "name",
+        "mode",
+        "integrator",
         "latitude",
         "longitude",
         "elevation",
@@ -145,15 +159,21 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
         return Err(format!("unknown key `{k}` (known: {})", known.join(", ")));
     }
     let mut t = toml::Table::new();
+    t.insert("mode".into(), toml::Value::String(mode.into()));
     t.insert("seed".into(), toml::Value::Integer(seed as i64));
     if let Some(p) = site.get("polarized") {
         t.insert("polarized".into(), p.clone());
     }
     let mut spectral = toml::Table::new();
     spectral.insert("srf".into(), toml::Value::String(acq.srf.clone()));
-    spectral.insert("wavelength_step".into(), toml::Value::Float(step));
+    if mode != "ckd" {
+        spectral.insert(
+            "wavelength_step".into(),
+            toml::Value::Float(step.unwrap_or(5.0)),
+        );
+    }
     t.insert("spectral".into(), toml::Value::Table(spectral));
-    for k in ["geometry", "atmosphere", "surface", "scene"] {
+    for k in ["geometry", "atmosphere", "surface", "scene", "integrator"] {
         if let Some(v) = site.get(k) {
             t.insert(k.into(), v.clone());
         }
