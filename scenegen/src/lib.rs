@@ -5,7 +5,8 @@
 //! Modules: [`region`] (the region file, `docs/region.md`), [`raster`] (GDAL: working frame,
 //! warping, coverage and no-data checks), [`tin`] (greedy error-bounded triangulation with
 //! spade, tiling), [`build`] (the pipeline), [`gltf_export`] (a GLB for a standard 3D viewer),
-//! [`info`] (bundle summaries), [`bench`] (the scale benchmark).
+//! [`info`] (bundle summaries), [`bench`] (the scale benchmark), [`mesh_dem`] (gridded PLY
+//! terrain meshes to DEMs).
 //! Units: metres, degrees for longitudes and latitudes.
 
 pub mod bench;
@@ -13,6 +14,7 @@ pub mod build;
 pub mod error;
 pub mod gltf_export;
 pub mod info;
+pub mod mesh_dem;
 pub mod raster;
 pub mod region;
 pub mod synth;

@@ -63,6 +63,29 @@ enum Command {
         #[arg(long, default_value_t = 50_000)]
         max_instances: usize,
     },
+    /// A gridded terrain mesh (PLY, x east / y north / z up in metres around a site) to a
+    /// GeoTIFF DEM in the site's local transverse Mercator CRS, for a region file's `[dem]`.
+    MeshToDem {
+        mesh: PathBuf,
+        /// Longitude and latitude (degrees) of the mesh's origin, e.g. `23.39,28.55`.
+        #[arg(
+            long,
+            value_delimiter = ',',
+            num_args = 1,
+            allow_hyphen_values = true,
+            required = true
+        )]
+        centre: Vec<f64>,
+        /// Output DEM (GeoTIFF).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Also write a land-cover raster of this one class code on the same grid.
+        #[arg(long, requires = "landcover_output")]
+        landcover_code: Option<u8>,
+        /// Where to write that land-cover raster (GeoTIFF).
+        #[arg(long)]
+        landcover_output: Option<PathBuf>,
+    },
     /// Scale benchmark: synthetic DEM and land cover of SIZE km at SPACING m (see BENCHMARKS.md).
     Bench {
         #[arg(long, default_value_t = 100.0)]
@@ -208,6 +231,35 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 r.instances_exported,
                 r.instances_total,
                 scenegen::info::human_bytes(r.bytes)
+            );
+            Ok(())
+        }
+        Command::MeshToDem {
+            mesh,
+            centre,
+            output,
+            landcover_code,
+            landcover_output,
+        } => {
+            if centre.len() != 2 {
+                anyhow::bail!("--centre takes LON,LAT (two numbers), got {centre:?}");
+            }
+            let lc = landcover_code.zip(landcover_output);
+            let g = scenegen::mesh_dem::mesh_to_dem(
+                &mesh,
+                centre[0],
+                centre[1],
+                &output,
+                lc.as_ref().map(|(c, p)| (*c, p.as_path())),
+            )?;
+            println!(
+                "{}: {} x {} nodes at {} m x {} m -> {}",
+                mesh.display(),
+                g.width,
+                g.height,
+                g.dx,
+                g.dy,
+                output.display()
             );
             Ok(())
         }
