@@ -30,6 +30,7 @@ pub mod measure;
 pub mod optics;
 pub mod phase;
 pub mod pics;
+pub mod pics_catalogue;
 pub mod products;
 pub mod rng;
 pub mod run;

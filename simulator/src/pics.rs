@@ -5,6 +5,7 @@
 //!
 //! ```toml
 //! name = "libya4"
+//! catalogue = "libya4"    # optional: coordinates (etc.) from the site catalogue (`pics_catalogue`)
 //! latitude = 28.55        # deg N
 //! longitude = 23.39       # deg E
 //! elevation = 118.0       # m
@@ -216,6 +217,19 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
     toml::to_string(&t).map_err(|e| e.to_string())
 }
 
+/// A site file's `catalogue = "KEY"`: the catalogued site's name, coordinates (and elevation and
+/// surface when catalogued, `pics_catalogue`), with the file's own keys on top.
+pub fn with_catalogue(mut site: toml::Table) -> Result<toml::Table, String> {
+    let Some(v) = site.remove("catalogue") else {
+        return Ok(site);
+    };
+    let key = v
+        .as_str()
+        .ok_or("`catalogue` must be a site key such as \"libya4\"")?;
+    let entry = crate::pics_catalogue::find(key)?;
+    Ok(crate::pics_catalogue::site_table(&entry, &site))
+}
+
 /// Run every acquisition; `site_path` names the site file in errors. Acquisition `k` uses seed
 /// `k`, so results do not depend on the order of other acquisitions or on threads.
 pub fn run(
@@ -223,16 +237,43 @@ pub fn run(
     acquisitions: &[Acquisition],
     progress: impl Fn(usize),
 ) -> Result<Vec<PicsRow>, ConfigError> {
-    let text = std::fs::read_to_string(site_path).map_err(|source| ConfigError::Read {
-        path: site_path.into(),
-        source,
-    })?;
+    let text = match std::fs::read_to_string(site_path) {
+        Ok(t) => t,
+        Err(source) => {
+            // A catalogue key instead of a file: say how to use it.
+            if let Ok(entry) = crate::pics_catalogue::find(&site_path.display().to_string()) {
+                return Err(ConfigError::Invalid {
+                    path: site_path.into(),
+                    key: "site".into(),
+                    message: format!(
+                        "\"{}\" is the catalogue site {} ({} N, {} E), but a run needs a surface and \
+                         an atmosphere: write a site file with `catalogue = \"{}\"` and its [surface] \
+                         and [atmosphere] tables (docs/pics.md; examples/pics/libya4_site.toml)",
+                        site_path.display(),
+                        entry.name,
+                        entry.latitude,
+                        entry.longitude,
+                        entry.key
+                    ),
+                });
+            }
+            return Err(ConfigError::Read {
+                path: site_path.into(),
+                source,
+            });
+        }
+    };
     let site: toml::Table = text
         .parse()
         .map_err(|e: toml::de::Error| ConfigError::Parse {
             path: site_path.into(),
             message: e.to_string(),
         })?;
+    let site = with_catalogue(site).map_err(|message| ConfigError::Invalid {
+        path: site_path.into(),
+        key: "catalogue".into(),
+        message,
+    })?;
     let mut out = Vec::with_capacity(acquisitions.len());
     // Keeps a 3D site's scene alive, so that every acquisition reuses it (built once).
     let mut _scene: Option<std::sync::Arc<crate::scene::Scene>> = None;

@@ -205,3 +205,45 @@ fn three_d_site_equals_the_1d_site_when_flat() {
         assert_eq!(a.sza, b.sza);
     }
 }
+
+/// The site catalogue: a site file with `catalogue = "libya4"` takes the catalogued CEOS centre
+/// (the Sun of an acquisition is the one at 28.55 N, 23.39 E), its own keys win; `--site libya4`
+/// without a file explains that a surface and an atmosphere are needed; an unknown catalogue key
+/// lists the known sites.
+#[test]
+fn catalogue_sites() {
+    let dir = tmp("catalogue");
+    let body =
+        "spp = 2000\nwavelength_step = 10.0\n[surface]\ntype = \"lambertian\"\nreflectance = 0.3\n";
+    let by_key = dir.join("by_key.toml");
+    std::fs::write(&by_key, format!("catalogue = \"Libya-4\"\n{body}")).unwrap();
+    let explicit = dir.join("explicit.toml");
+    std::fs::write(
+        &explicit,
+        format!("name = \"Libya-4\"\nlatitude = 28.55\nlongitude = 23.39\n{body}"),
+    )
+    .unwrap();
+    let acq = vec![Acquisition {
+        time_utc: "2026-06-15T09:45:00Z".into(),
+        vza: 5.0,
+        vaa: 100.0,
+        srf: "sentinel_2a-msi-4".into(),
+    }];
+    let (a, b) = (
+        run(&by_key, &acq, |_| {}).unwrap(),
+        run(&explicit, &acq, |_| {}).unwrap(),
+    );
+    assert_eq!((a[0].sza, a[0].saa), (b[0].sza, b[0].saa));
+    assert_eq!(a[0].reflectance, b[0].reflectance);
+    let e = run(std::path::Path::new("libya4"), &acq, |_| {})
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("catalogue site Libya-4") && e.contains("catalogue = \"libya4\""),
+        "{e}"
+    );
+    let bad = dir.join("bad.toml");
+    std::fs::write(&bad, format!("catalogue = \"atlantis\"\n{body}")).unwrap();
+    let e = run(&bad, &acq, |_| {}).unwrap_err().to_string();
+    assert!(e.contains("catalogue") && e.contains("libya4"), "{e}");
+}
