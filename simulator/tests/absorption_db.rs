@@ -404,3 +404,51 @@ fn bad_absorption_input_is_named() {
         assert!(e.contains(want), "expected `{want}` in: {e}");
     }
 }
+
+/// RRTMGP's shortwave k-distribution in runs (`absorption_data` = the RRTMGP gas-optics file):
+/// each wavelength takes the g-points of the RRTMGP band holding it, weighted by the band's
+/// solar source; over a white surface under an absorbing-only US standard atmosphere the run
+/// equals Σ_g w_g exp(−τ_g(1/μ0 + 1/μv)) with the column τ_g from `RrtmgpSw` (whose kernels are
+/// tested in `absorption::rrtmgp` against the v0 file and published columns). A sensor band is
+/// sampled every `wavelength_step` nm (RRTMGP bands are wider than sensor bands).
+#[test]
+fn rrtmgp_run_equals_the_closed_form() {
+    let Some(file) = shared("ckd/rrtmgp/rrtmgp-gas-sw-g224.nc") else {
+        return;
+    };
+    let rr = simulator::absorption::RrtmgpSw::open(&file).unwrap();
+    let thermo =
+        simulator::atmosphere::thermo::load("afgl_1986-us_standard", Path::new(".")).unwrap();
+    let grid: Vec<(f64, f64)> = (0..100)
+        .map(|i| (i as f64 * 1e3, (i + 1) as f64 * 1e3))
+        .collect();
+    let wl = [700.0, 940.0, 1600.0];
+    let exp = experiment(&text(&file, "afgl_1986-us_standard", &wl, "", 13));
+    let bands = rr.bands_nm();
+    let want = |w: f64| {
+        let b = bands
+            .iter()
+            .position(|&(lo, hi)| lo <= w && w < hi)
+            .unwrap();
+        let taus = rr.layer_optical_thickness(&thermo.gas, &grid, b).unwrap();
+        let weights = rr.solar_weights(b);
+        let mut out = [0.0; 2];
+        for (t, wg) in taus.iter().zip(&weights) {
+            let tau: f64 = t.iter().sum();
+            for (k, vza) in VZA.iter().enumerate() {
+                let m = 1.0 / SZA.to_radians().cos() + 1.0 / vza.to_radians().cos();
+                out[k] += wg * (-tau * m).exp();
+            }
+        }
+        out
+    };
+    assert!(want(940.0)[0] < 0.9, "{:?}", want(940.0));
+    compare("RRTMGP closed form", &exp, &wl, &want);
+    let band = experiment(
+        &text(&file, "afgl_1986-us_standard", &[665.0], "", 1).replace(
+            "wavelengths = [665.0]",
+            "srf = \"sentinel_2a-msi-4\"\nwavelength_step = 5.0",
+        ),
+    );
+    assert!(band.wavelengths.len() >= 7, "{:?}", band.wavelengths);
+}

@@ -22,6 +22,7 @@ pub mod axsdb;
 pub mod eradiate_v0;
 pub mod layers;
 pub mod profile;
+pub mod rrtmgp;
 
 pub use axsdb::{
     gauss_legendre, gauss_legendre_unit, AbsorptionTable, AxsDatabase, BoundsPolicy, CkdBin,
@@ -29,6 +30,7 @@ pub use axsdb::{
 };
 pub use eradiate_v0::{EradiateV0Ckd, V0Bin, V0Interpolation};
 pub use profile::{integrate_piecewise_linear, AtmosphereProfile, ProfileLevel};
+pub use rrtmgp::RrtmgpSw;
 
 /// Every failure of the absorption readers. Each variant names the file and the variable,
 /// coordinate or value at fault.

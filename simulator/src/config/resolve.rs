@@ -436,14 +436,18 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                         .map_err(|m| ctx.err("spectral.srf", format!("{}: {m}", fpath.display())))?
                 }
             };
-            if ckd {
+            let bins = if ckd {
+                ckd_bins(&ctx, &base, &cfg)?
+            } else {
+                None
+            };
+            if let Some(bins) = bins {
                 if cfg.spectral.wavelength_step.is_some() {
                     return Err(ctx.err(
                         "spectral.wavelength_step",
                         "is not used in mode = \"ckd\": the absorption data's bins sample the band",
                     ));
                 }
-                let bins = ckd_bins(&ctx, &base, &cfg)?;
                 let weights = srf.bin_weights(&bins);
                 let (mut w, mut wt) = (Vec::new(), Vec::new());
                 for (&(lo, hi), &x) in bins.iter().zip(&weights) {
@@ -1681,8 +1685,39 @@ fn resolve_ckd(
     if spectral.g_points.is_some() {
         return Err(ctx.err(
             "spectral.g_points",
-            "is used only with an axsdb CKD database (a directory); the eradiate v0 file has 16 fixed g-points",
+            "is used only with an axsdb CKD database (a directory); the eradiate v0 and RRTMGP files have fixed g-points",
         ));
+    }
+    if is_rrtmgp(file) {
+        let rr =
+            crate::absorption::RrtmgpSw::open(file).map_err(|e| ctx.err(key, e.to_string()))?;
+        let bands = rr.bands_nm();
+        let mut cache: Vec<Option<Vec<Vec<f64>>>> = vec![None; bands.len()];
+        let mut out = Vec::with_capacity(wavelengths.len());
+        for (iw, &wl) in wavelengths.iter().enumerate() {
+            let band = bands
+                .iter()
+                .position(|&(lo, hi)| lo <= wl && wl < hi)
+                .ok_or_else(|| no_bin(iw, wl, bands[0].0, bands[bands.len() - 1].1))?;
+            if cache[band].is_none() {
+                cache[band] = Some(
+                    rr.layer_optical_thickness(&thermo.gas, grid, band)
+                        .map_err(|e| ctx.err(key, e.to_string()))?,
+                );
+            }
+            let taus = cache[band].as_ref().expect("filled above");
+            let weights = rr.solar_weights(band);
+            out.push(
+                pick(taus.len())?
+                    .into_iter()
+                    .map(|g| {
+                        let w = if g_point.is_some() { 1.0 } else { weights[g] };
+                        (w, taus[g].iter().map(|t| t.max(0.0)).collect())
+                    })
+                    .collect(),
+            );
+        }
+        return Ok(out);
     }
     if !thermo.is_us_standard {
         return Err(ctx.err(
@@ -1729,12 +1764,22 @@ fn resolve_ckd(
     Ok(out)
 }
 
-/// `mode = "ckd"` with `spectral.srf`: the bins (lower, upper) [nm] of the absorption data.
+/// Whether a file is an RRTMGP k-distribution (it has `kmajor`).
+fn is_rrtmgp(file: &Path) -> bool {
+    file.is_file()
+        && netcdf::open(file)
+            .map(|f| f.variable("kmajor").is_some())
+            .unwrap_or(false)
+}
+
+/// `mode = "ckd"` with `spectral.srf`: the bins (lower, upper) [nm] of the absorption data, or
+/// None for RRTMGP, whose bands are too wide to sample a sensor band (the band is then sampled
+/// every `wavelength_step` nm, each wavelength with its RRTMGP band's g-points).
 fn ckd_bins(
     ctx: &Ctx,
     base: &Path,
     cfg: &ExperimentConfig,
-) -> Result<Vec<(f64, f64)>, ConfigError> {
+) -> Result<Option<Vec<(f64, f64)>>, ConfigError> {
     let key = "atmosphere.absorption_data";
     let Some(AtmosphereConfig::Molecular {
         absorption_data: Some(file),
@@ -1750,11 +1795,17 @@ fn ckd_bins(
     if path.is_dir() {
         let db =
             crate::absorption::AxsDatabase::open(&path).map_err(|e| ctx.err(key, e.to_string()))?;
-        Ok(db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect())
+        Ok(Some(
+            db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect(),
+        ))
+    } else if is_rrtmgp(&path) {
+        Ok(None)
     } else {
         let db = crate::absorption::EradiateV0Ckd::open(&path, None)
             .map_err(|e| ctx.err(key, e.to_string()))?;
-        Ok(db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect())
+        Ok(Some(
+            db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect(),
+        ))
     }
 }
 
