@@ -3,9 +3,12 @@
 //!
 //! | parameter | unit | range  | meaning                                                     |
 //! |-----------|------|--------|-------------------------------------------------------------|
-//! | `f_iso`   | —    | [0, 1] | isotropic kernel weight (the BRF at nadir/nadir)            |
-//! | `f_vol`   | —    | [0, 1] | Ross-Thick volumetric kernel weight                         |
-//! | `f_geo`   | —    | [0, 1] | Li-Sparse-Reciprocal geometric-optical kernel weight        |
+//! | `f_iso`   | —    | [0, 2] | isotropic kernel weight (the BRF at nadir/nadir)            |
+//! | `f_vol`   | —    | [−1, 1] | Ross-Thick volumetric kernel weight                        |
+//! | `f_geo`   | —    | [−1, 1] | Li-Sparse-Reciprocal geometric-optical kernel weight       |
+//!
+//! Fitted kernel weights can be slightly negative (e.g. RAMI4ATM's `rli` surface has
+//! f_vol = −0.002886); the BRF is clamped at 0 where the sum is negative.
 //!
 //! **BRF vs BRDF.** As in MODIS, the kernel model gives the *BRF* (reflectance factor)
 //!
@@ -58,11 +61,16 @@ pub struct Rtls {
 }
 
 impl Rtls {
-    /// RTLS model from its three kernel weights (dimensionless BRF weights, each in [0, 1]).
+    /// RTLS model from its three kernel weights (dimensionless BRF weights: f_iso in [0, 2],
+    /// f_vol and f_geo in [−1, 1]).
     pub fn new(f_iso: f64, f_vol: f64, f_geo: f64) -> Result<Self, String> {
-        for (name, v) in [("f_iso", f_iso), ("f_vol", f_vol), ("f_geo", f_geo)] {
-            if !(0.0..=1.0).contains(&v) {
-                return Err(format!("`{name}` = {v} must lie in [0, 1]"));
+        for (name, v, lo, hi) in [
+            ("f_iso", f_iso, 0.0, 2.0),
+            ("f_vol", f_vol, -1.0, 1.0),
+            ("f_geo", f_geo, -1.0, 1.0),
+        ] {
+            if !(lo..=hi).contains(&v) {
+                return Err(format!("`{name}` = {v} must lie in [{lo}, {hi}]"));
             }
         }
         Ok(Self {
@@ -261,9 +269,9 @@ mod tests {
     fn rejects_bad_parameters() {
         for &(i, v, g, name) in &[
             (-0.1, 0.0, 0.0, "f_iso"),
-            (1.5, 0.0, 0.0, "f_iso"),
+            (2.5, 0.0, 0.0, "f_iso"),
             (f64::NAN, 0.0, 0.0, "f_iso"),
-            (0.2, -0.01, 0.0, "f_vol"),
+            (0.2, -1.01, 0.0, "f_vol"),
             (0.2, f64::NAN, 0.0, "f_vol"),
             (0.2, 0.1, 2.0, "f_geo"),
             (0.2, 0.1, f64::NAN, "f_geo"),
@@ -274,8 +282,10 @@ mod tests {
         }
         assert_eq!(
             Rtls::new(0.2, 0.1, 2.0).unwrap_err(),
-            "`f_geo` = 2 must lie in [0, 1]"
+            "`f_geo` = 2 must lie in [-1, 1]"
         );
         assert!(Rtls::new(0.0, 0.0, 0.0).is_ok() && Rtls::new(1.0, 1.0, 1.0).is_ok());
+        // RAMI4ATM's `rli` surface (negative f_vol) is accepted.
+        assert!(Rtls::new(0.032171, -0.002886, 0.001949).is_ok());
     }
 }
