@@ -448,15 +448,28 @@ fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
 /// Run `exp` completely. `progress`: draw a progress bar on stderr.
 pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
     let bar = progress_bar(exp, progress);
-    let mut out = Vec::new();
-    for iw in 0..exp.wavelengths.len() {
-        for (im, m) in exp.measures.iter().enumerate() {
-            bar.set_message(format!("{} @ {} nm", m.id, exp.wavelengths[iw]));
-            out.push(run_measure(exp, iw, im, &bar));
-        }
-    }
+    // (wavelength, measure) tasks run concurrently as well as their blocks: a task whose round
+    // is a single block (precise CKD/ALIS walks) would otherwise leave cores idle. Each task's
+    // result depends only on its own random streams, so not on the scheduling.
+    let out = tasks(exp)
+        .into_par_iter()
+        .map(|(iw, im)| {
+            bar.set_message(format!(
+                "{} @ {} nm",
+                exp.measures[im].id, exp.wavelengths[iw]
+            ));
+            run_measure(exp, iw, im, &bar)
+        })
+        .collect();
     bar.finish_and_clear();
     out
+}
+
+/// Every (wavelength, measure) pair, wavelength-major.
+fn tasks(exp: &Experiment) -> Vec<(usize, usize)> {
+    (0..exp.wavelengths.len())
+        .flat_map(|iw| (0..exp.measures.len()).map(move |im| (iw, im)))
+        .collect()
 }
 
 /// End of the next round: the sample count at which the target should be met (the standard
@@ -685,29 +698,29 @@ pub fn run_shard(
     shards: usize,
 ) -> Result<(Vec<Option<MeasureResult>>, usize), crate::error::OutputError> {
     let bar = progress_bar(exp, progress);
-    let mut out = Vec::new();
-    let mut resumed = 0;
     let nm = exp.measures.len();
-    for iw in 0..exp.wavelengths.len() {
-        for (im, m) in exp.measures.iter().enumerate() {
+    let resumed = std::sync::atomic::AtomicUsize::new(0);
+    // Tasks run concurrently (see `run`); each stores its checkpoint as soon as it is done.
+    let out = tasks(exp)
+        .into_par_iter()
+        .map(|(iw, im)| {
+            let m = &exp.measures[im];
             let per = walks_per_sample(exp, m);
             if let Some(r) = checkpoint::load(dir, exp, iw, im) {
                 bar.inc(m.spp * per);
-                resumed += 1;
-                out.push(Some(r));
-                continue;
+                resumed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                return Ok(Some(r));
             }
             if (iw * nm + im) % shards != shard {
                 bar.inc(m.spp * per);
-                out.push(None);
-                continue;
+                return Ok(None);
             }
             bar.set_message(format!("{} @ {} nm", m.id, exp.wavelengths[iw]));
             let r = run_measure(exp, iw, im, &bar);
             checkpoint::store(dir, exp, &r)?;
-            out.push(Some(r));
-        }
-    }
+            Ok(Some(r))
+        })
+        .collect::<Result<Vec<_>, crate::error::OutputError>>()?;
     bar.finish_and_clear();
-    Ok((out, resumed))
+    Ok((out, resumed.into_inner()))
 }
