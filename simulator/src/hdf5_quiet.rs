@@ -29,9 +29,6 @@ pub fn quiet() {
         let name = c"H5Eset_auto2";
         // SAFETY: dlsym with RTLD_DEFAULT only looks a symbol up; the function, when present, has
         // the signature above in every HDF5 ≥ 1.10 (the netCDF crate requires such a build).
-        // Under the netCDF crate's library lock: HDF5 must not be entered by two threads at once
-        // (an unlocked call here raced with other threads' reads: NC_EHDFERR).
-        let _guard = netcdf_sys::libnetcdf_lock.lock();
         unsafe {
             let f = libc::dlsym(libc::RTLD_DEFAULT, name.as_ptr());
             if !f.is_null() {
