@@ -25,7 +25,6 @@ pub mod bundle;
 pub mod config;
 pub mod error;
 pub mod frame;
-pub mod hdf5_quiet;
 pub mod integrator;
 pub mod measure;
 pub mod optics;

@@ -486,7 +486,6 @@ struct ParticleTable {
 impl ParticleTable {
     fn load(file: &str) -> Self {
         let path = data_dir().join("fixtures").join(file);
-        simulator::hdf5_quiet::quiet();
         let nc = netcdf::open(&path).unwrap();
         let get = |name: &str| -> Vec<f64> {
             nc.variable(name)

@@ -476,7 +476,6 @@ fn solve3(mut m: [[f64; 3]; 3], mut r: [f64; 3]) -> [f64; 3] {
 
 fn load_reference(shared: &Path, case: &Case) -> Reference {
     let path = reference_path(shared, &case.id);
-    simulator::hdf5_quiet::quiet();
     let f = netcdf::open(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let w = values(&f, "w");
     let nw = w.len();
@@ -563,7 +562,6 @@ fn load_reference(shared: &Path, case: &Case) -> Reference {
 /// `albedo`, `phase(w, mu, i, j)`): ext = sigma_t, ssa = albedo, phase on ascending μ scaled
 /// to ∫P dμ = 2 (trapezoid), as the shared desert Aer-Core v2 file was made from its legacy one.
 fn convert_legacy(src: &Path, dst: &Path) {
-    simulator::hdf5_quiet::quiet();
     let f = netcdf::open(src).unwrap_or_else(|e| panic!("{}: {e}", src.display()));
     let w = values(&f, "w");
     let mu = values(&f, "mu");
@@ -956,7 +954,6 @@ fn aerosol_legacy_conversion() {
         &shared.join("eradiate/aerosol/legacy_spectra_particles/govaerts_2021-desert.nc"),
         &out,
     );
-    simulator::hdf5_quiet::quiet();
     let a = netcdf::open(&out).unwrap();
     let b =
         netcdf::open(shared.join("eradiate/aerosol/govaerts_2021-desert-aer_core_v2.nc")).unwrap();

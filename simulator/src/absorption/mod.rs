@@ -145,7 +145,6 @@ pub(crate) fn read_f64(var: &netcdf::Variable<'_>, path: &str) -> Result<Vec<f64
 
 /// Open a netCDF file.
 pub(crate) fn open_nc(path: &std::path::Path) -> Result<netcdf::File> {
-    crate::hdf5_quiet::quiet();
     netcdf::open(path).map_err(|source| AbsorptionError::Netcdf {
         path: path.display().to_string(),
         variable: "(file)".into(),

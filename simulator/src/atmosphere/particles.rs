@@ -292,7 +292,6 @@ impl ParticleDataset {
     /// `ext`: Aer-Core v2). `size_index` applies to libRadtran files only.
     pub fn load(path: &Path, size_index: usize) -> Result<Self, DatasetError> {
         let ps = path.display().to_string();
-        crate::hdf5_quiet::quiet();
         let file = netcdf::open(path).map_err(|source| DatasetError::Netcdf {
             path: ps.clone(),
             source,

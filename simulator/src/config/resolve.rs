@@ -1766,7 +1766,6 @@ fn resolve_ckd(
 
 /// Whether a file is an RRTMGP k-distribution (it has `kmajor`).
 fn is_rrtmgp(file: &Path) -> bool {
-    crate::hdf5_quiet::quiet();
     file.is_file()
         && netcdf::open(file)
             .map(|f| f.variable("kmajor").is_some())

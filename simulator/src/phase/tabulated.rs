@@ -301,7 +301,6 @@ impl Tabulated {
             path: ps.clone(),
             msg,
         };
-        crate::hdf5_quiet::quiet();
         let file = netcdf::open(path).map_err(nc_err)?;
         let var = |name: &str| {
             file.variable(name).ok_or_else(|| {
