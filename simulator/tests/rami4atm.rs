@@ -306,8 +306,10 @@ fn try_run_case(
     tau_scale: f64,
 ) -> Result<Ours, String> {
     let text = experiment_text(case, shared, data, spp, seed, tau_scale);
-    let exp =
-        Experiment::from_str(&text, &shared.join("rami4atm.toml")).map_err(|e| e.to_string())?;
+    let exp = {
+        let _g = netcdf_serial();
+        Experiment::from_str(&text, &shared.join("rami4atm.toml")).map_err(|e| e.to_string())?
+    };
     let t0 = Instant::now();
     let res = simulator::run::run(&exp, false);
     let seconds = t0.elapsed().as_secs_f64();
@@ -474,7 +476,18 @@ fn solve3(mut m: [[f64; 3]; 3], mut r: [f64; 3]) -> [f64; 3] {
     x
 }
 
+/// The tests of this binary run in parallel threads, and every one opens several netCDF files
+/// (references, CKD and aerosol data). Each netCDF call is locked by the netcdf crate, yet two
+/// runs of this binary crashed (SIGSEGV, NC_EHDFERR) inside HDF5 while files were opened and
+/// read concurrently; this lock keeps whole file sessions (open → read → close) apart here.
+/// The simulator itself opens its data files from one thread while resolving an experiment.
+fn netcdf_serial() -> std::sync::MutexGuard<'static, ()> {
+    static M: std::sync::Mutex<()> = std::sync::Mutex::new(());
+    M.lock().unwrap_or_else(|e| e.into_inner())
+}
+
 fn load_reference(shared: &Path, case: &Case) -> Reference {
+    let _g = netcdf_serial();
     let path = reference_path(shared, &case.id);
     let f = netcdf::open(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     let w = values(&f, "w");
@@ -562,6 +575,7 @@ fn load_reference(shared: &Path, case: &Case) -> Reference {
 /// `albedo`, `phase(w, mu, i, j)`): ext = sigma_t, ssa = albedo, phase on ascending μ scaled
 /// to ∫P dμ = 2 (trapezoid), as the shared desert Aer-Core v2 file was made from its legacy one.
 fn convert_legacy(src: &Path, dst: &Path) {
+    let _g = netcdf_serial();
     let f = netcdf::open(src).unwrap_or_else(|e| panic!("{}: {e}", src.display()));
     let w = values(&f, "w");
     let mu = values(&f, "mu");
@@ -954,6 +968,7 @@ fn aerosol_legacy_conversion() {
         &shared.join("eradiate/aerosol/legacy_spectra_particles/govaerts_2021-desert.nc"),
         &out,
     );
+    let _g = netcdf_serial();
     let a = netcdf::open(&out).unwrap();
     let b =
         netcdf::open(shared.join("eradiate/aerosol/govaerts_2021-desert-aer_core_v2.nc")).unwrap();
