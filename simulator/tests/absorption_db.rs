@@ -49,41 +49,57 @@ fn text(db: &Path, profile: &str, wavelengths: &[f64], extra: &str, seed: u64) -
     )
 }
 
-/// Σ_g w_g exp(−τ_g m) with τ_g from the database at the profile's levels (trapezoid), the
-/// O3 mole fraction scaled by `o3_factor`.
-fn closed_form(db: &AxsDatabase, prof: &AtmosphereProfile, wl: f64, o3_factor: f64) -> [f64; 2] {
-    let bin = db.bin_containing(wl).unwrap();
-    let bounds = BoundsPolicy {
+/// The run's default out-of-range policy (`atmosphere.absorption_bounds`).
+fn default_bounds() -> BoundsPolicy {
+    BoundsPolicy {
         pressure: OutOfRange::Zero,
         temperature: OutOfRange::Clamp,
         mole_fraction: OutOfRange::Error,
-    };
+    }
+}
+
+/// Column optical thickness 0–100 km of the database at `at`: k at the profile's levels
+/// (1 km apart) by the trapezoid rule, the O3 mole fraction scaled by `o3_factor`.
+fn column_tau(
+    db: &AxsDatabase,
+    prof: &AtmosphereProfile,
+    at: SpectralPoint,
+    o3_factor: f64,
+) -> f64 {
     let z = &prof.altitude_m;
     let top = z.iter().position(|&v| v >= 100e3).unwrap();
+    let mut tau = 0.0;
+    let mut prev = None;
+    for (i, &zi) in z.iter().enumerate().take(top + 1) {
+        let lvl = prof.level(i);
+        let mf: Vec<(&str, f64)> = lvl
+            .mole_fractions
+            .iter()
+            .map(|&(s, x)| (s, if s == "O3" { x * o3_factor } else { x }))
+            .collect();
+        let state = simulator::absorption::ThermoState {
+            pressure_pa: lvl.pressure_pa,
+            temperature_k: lvl.temperature_k,
+            mole_fractions: &mf,
+        };
+        let k = db
+            .absorption_coefficient(&state, at, default_bounds())
+            .unwrap();
+        if let Some((z0, k0)) = prev {
+            tau += 0.5 * (k + k0) * (zi - z0);
+        }
+        prev = Some((zi, k));
+    }
+    tau
+}
+
+/// Σ_g w_g exp(−τ_g m) with τ_g from [`column_tau`], the O3 mole fraction scaled by
+/// `o3_factor`.
+fn closed_form(db: &AxsDatabase, prof: &AtmosphereProfile, wl: f64, o3_factor: f64) -> [f64; 2] {
+    let bin = db.bin_containing(wl).unwrap();
     let mut out = [0.0; 2];
     for (g, w) in gauss_legendre_unit(16) {
-        let mut tau = 0.0;
-        let mut prev = None;
-        for (i, &zi) in z.iter().enumerate().take(top + 1) {
-            let lvl = prof.level(i);
-            let mf: Vec<(&str, f64)> = lvl
-                .mole_fractions
-                .iter()
-                .map(|&(s, x)| (s, if s == "O3" { x * o3_factor } else { x }))
-                .collect();
-            let state = simulator::absorption::ThermoState {
-                pressure_pa: lvl.pressure_pa,
-                temperature_k: lvl.temperature_k,
-                mole_fractions: &mf,
-            };
-            let k = db
-                .absorption_coefficient(&state, SpectralPoint::Ckd { bin, g }, bounds)
-                .unwrap();
-            if let Some((z0, k0)) = prev {
-                tau += 0.5 * (k + k0) * (zi - z0);
-            }
-            prev = Some((zi, k));
-        }
+        let tau = column_tau(db, prof, SpectralPoint::Ckd { bin, g }, o3_factor);
         for (k, vza) in VZA.iter().enumerate() {
             let m = 1.0 / SZA.to_radians().cos() + 1.0 / vza.to_radians().cos();
             out[k] += w * (-tau * m).exp();
@@ -286,29 +302,8 @@ fn mono_database_layers() {
     let exp = experiment(
         &text(&dbdir, &profile.display().to_string(), &wl, "", 1).replace("\"ckd\"", "\"mono\""),
     );
-    let bounds = BoundsPolicy {
-        pressure: OutOfRange::Zero,
-        temperature: OutOfRange::Clamp,
-        mole_fraction: OutOfRange::Error,
-    };
-    let z = &prof.altitude_m;
     for (iw, &w) in wl.iter().enumerate() {
-        let mut tau = 0.0;
-        let mut prev: Option<(f64, f64)> = None;
-        for (i, &zi) in z.iter().enumerate().take(101) {
-            let lvl = prof.level(i);
-            let k = db
-                .absorption_coefficient(
-                    &lvl.state(),
-                    SpectralPoint::Mono { wavelength_nm: w },
-                    bounds,
-                )
-                .unwrap();
-            if let Some((z0, k0)) = prev {
-                tau += 0.5 * (k + k0) * (zi - z0);
-            }
-            prev = Some((zi, k));
-        }
+        let tau = column_tau(&db, &prof, SpectralPoint::Mono { wavelength_nm: w }, 1.0);
         let got = exp.optics[iw].atmosphere.total_tau();
         println!("{w} nm: gas tau {got:.6e} (test {tau:.6e})");
         assert!(

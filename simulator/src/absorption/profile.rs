@@ -67,8 +67,8 @@ impl AtmosphereProfile {
     pub fn open(path: &Path) -> Result<AtmosphereProfile> {
         let ps = path.display().to_string();
         let file = open_nc(path)?;
-        let mut z = read_scaled(&file, &ps, "z", "a length (km)", metre_factor)?;
-        let mut p = read_scaled(&file, &ps, "p", "a pressure (Pa)", pascal_factor)?;
+        let z = read_scaled(&file, &ps, "z", "a length (km)", metre_factor)?;
+        let p = read_scaled(&file, &ps, "p", "a pressure (Pa)", pascal_factor)?;
         let tv = super::variable(&file, &ps, "t")?;
         let tu = units_of(&tv).unwrap_or_default();
         if !is_kelvin(&tu) {
@@ -79,8 +79,8 @@ impl AtmosphereProfile {
                 expected: "K",
             });
         }
-        let mut t = read_f64(&tv, &ps)?;
-        let mut n = match file.variable("n") {
+        let t = read_f64(&tv, &ps)?;
+        let n = match file.variable("n") {
             Some(_) => Some(read_scaled(
                 &file,
                 &ps,
@@ -146,32 +146,41 @@ impl AtmosphereProfile {
                 message: "needs at least 2 levels".into(),
             });
         }
-        if z[0] > z[1] {
-            z.reverse();
-            p.reverse();
-            t.reverse();
-            if let Some(n) = &mut n {
-                n.reverse();
-            }
-            for (_, v) in &mut x {
-                v.reverse();
-            }
-        }
-        if z.windows(2).any(|w| w[1] <= w[0]) {
-            return Err(AbsorptionError::Format {
-                path: ps,
-                variable: "z".into(),
-                message: "altitudes are not strictly monotonic".into(),
-            });
-        }
-        Ok(AtmosphereProfile {
+        let mut prof = AtmosphereProfile {
             path: ps,
             altitude_m: z,
             pressure_pa: p,
             temperature_k: t,
             number_density_m3: n,
             mole_fractions: x,
-        })
+        };
+        prof.make_ascending()
+            .map_err(|message| AbsorptionError::Format {
+                path: prof.path.clone(),
+                variable: "z".into(),
+                message,
+            })?;
+        Ok(prof)
+    }
+
+    /// Put the levels in ascending altitude (reversing every per-level array of a descending
+    /// profile); an error if the altitudes are then not strictly increasing.
+    pub fn make_ascending(&mut self) -> std::result::Result<(), String> {
+        if self.altitude_m.len() >= 2 && self.altitude_m[0] > self.altitude_m[1] {
+            self.altitude_m.reverse();
+            self.pressure_pa.reverse();
+            self.temperature_k.reverse();
+            if let Some(n) = &mut self.number_density_m3 {
+                n.reverse();
+            }
+            for (_, v) in &mut self.mole_fractions {
+                v.reverse();
+            }
+        }
+        if self.altitude_m.windows(2).any(|w| w[1] <= w[0]) {
+            return Err("altitudes are not strictly monotonic".into());
+        }
+        Ok(())
     }
 
     /// Number of levels.

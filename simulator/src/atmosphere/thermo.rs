@@ -48,7 +48,6 @@ use crate::absorption::AtmosphereProfile;
 /// Table 2a of AFGL 1986 (species common to the six profiles); CO2 and O2 are taken from it.
 const TABLE_2A: &str = include_str!("../../data/afgl_1986/table_2a.csv");
 
-const K_BOLTZMANN: f64 = 1.380_649e-23;
 const AVOGADRO: f64 = 6.022_140_76e23;
 /// Molecules per m² in one Dobson unit.
 pub const DOBSON_UNIT: f64 = 2.686_7e20;
@@ -277,20 +276,8 @@ pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, String
         number_density_m3: n,
         mole_fractions: x,
     };
-    if prof.altitude_m[0] > prof.altitude_m[1] {
-        prof.altitude_m.reverse();
-        prof.pressure_pa.reverse();
-        prof.temperature_k.reverse();
-        if let Some(n) = &mut prof.number_density_m3 {
-            n.reverse();
-        }
-        for (_, v) in &mut prof.mole_fractions {
-            v.reverse();
-        }
-    }
-    if prof.altitude_m.windows(2).any(|w| w[1] <= w[0]) {
-        return Err("altitudes `z_km` must be strictly monotonic".into());
-    }
+    prof.make_ascending()
+        .map_err(|m| format!("column `z_km`: {m}"))?;
     Ok(prof)
 }
 
@@ -446,11 +433,6 @@ fn parse_amount(s: &str) -> Result<(f64, String), String> {
     Ok((v, unit))
 }
 
-/// p / (k_B T) [m⁻³].
-pub fn ideal_gas_number_density(p_pa: f64, t_k: f64) -> f64 {
-    p_pa / (K_BOLTZMANN * t_k)
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -519,7 +501,7 @@ mod tests {
         assert_eq!(p.pressure_pa[0], 101300.0);
         assert!((p.mole_fraction("H2O").unwrap()[0] - 7.75e-3).abs() < 1e-15);
         let n = p.air_number_density();
-        assert!((n[0] / ideal_gas_number_density(101300.0, 288.2) - 1.0).abs() < 1e-12);
+        assert!((n[0] / (101300.0 / (1.380_649e-23 * 288.2)) - 1.0).abs() < 1e-12);
         for (bad, want) in [
             ("z_km,t_k\n0,288\n1,280\n", "p_pa"),
             (
