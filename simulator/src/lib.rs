@@ -39,3 +39,12 @@ pub mod solar;
 pub mod srf;
 pub mod stokes;
 pub mod sun_position;
+
+/// Hold the netCDF library for a whole file session (open, reads, close). The netcdf crate
+/// locks each call, but parallel tests that opened and read files concurrently still crashed
+/// inside HDF5 (SIGSEGV, NC_EHDFERR); every reader and writer here takes this guard for its
+/// whole session. It is the crate's own reentrant lock, so nested readers and the crate's
+/// per-call locking inside a session are fine.
+pub fn netcdf_session() -> impl Drop {
+    netcdf_sys::libnetcdf_lock.lock()
+}

@@ -360,6 +360,7 @@ pub fn write_netcdf(
         source,
     };
     {
+        let _session = crate::netcdf_session();
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         let mut inner = || -> Result<(), netcdf::Error> {
             f.add_attribute("Conventions", "CF-1.10")?;

@@ -463,6 +463,7 @@ impl AbsorptionTable {
     }
 
     fn open_with(path: &Path, warned: Arc<Mutex<HashSet<String>>>) -> Result<AbsorptionTable> {
+        let _session = crate::netcdf_session();
         let ps = path.display().to_string();
         let file = open_nc(path)?;
         let fmt = |variable: &str, message: String| AbsorptionError::Format {

@@ -90,6 +90,7 @@ fn string_at(var: &netcdf::Variable<'_>, path: &str, i: usize) -> Result<String>
 impl EradiateV0Ckd {
     /// Read the k file and, optionally, its bin-set file (for the bin bounds).
     pub fn open(path: &Path, bin_set: Option<&Path>) -> Result<EradiateV0Ckd> {
+        let _session = crate::netcdf_session();
         let ps = path.display().to_string();
         let fmt = |variable: &str, message: String| AbsorptionError::Format {
             path: ps.clone(),

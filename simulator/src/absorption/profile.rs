@@ -65,6 +65,7 @@ impl ProfileLevel<'_> {
 
 impl AtmosphereProfile {
     pub fn open(path: &Path) -> Result<AtmosphereProfile> {
+        let _session = crate::netcdf_session();
         let ps = path.display().to_string();
         let file = open_nc(path)?;
         let z = read_scaled(&file, &ps, "z", "a length (km)", metre_factor)?;

@@ -207,6 +207,7 @@ struct SubLayer {
 impl RrtmgpSw {
     /// Read the k-distribution file (errors name the file and the variable).
     pub fn open(path: &Path) -> Result<RrtmgpSw> {
+        let _session = crate::netcdf_session();
         let ps = path.display().to_string();
         let file = open_nc(path)?;
         let fmt = |variable: &str, message: String| AbsorptionError::Format {

@@ -292,6 +292,7 @@ impl ParticleDataset {
     /// `ext`: Aer-Core v2). `size_index` applies to libRadtran files only.
     pub fn load(path: &Path, size_index: usize) -> Result<Self, DatasetError> {
         let ps = path.display().to_string();
+        let _session = crate::netcdf_session();
         let file = netcdf::open(path).map_err(|source| DatasetError::Netcdf {
             path: ps.clone(),
             source,

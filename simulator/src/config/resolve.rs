@@ -1766,6 +1766,7 @@ fn resolve_ckd(
 
 /// Whether a file is an RRTMGP k-distribution (it has `kmajor`).
 fn is_rrtmgp(file: &Path) -> bool {
+    let _session = crate::netcdf_session();
     file.is_file()
         && netcdf::open(file)
             .map(|f| f.variable("kmajor").is_some())

@@ -301,6 +301,7 @@ impl Tabulated {
             path: ps.clone(),
             msg,
         };
+        let _session = crate::netcdf_session();
         let file = netcdf::open(path).map_err(nc_err)?;
         let var = |name: &str| {
             file.variable(name).ok_or_else(|| {

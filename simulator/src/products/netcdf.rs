@@ -41,6 +41,7 @@ pub fn write(
         source,
     };
     {
+        let _session = crate::netcdf_session();
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         write_into(&mut f, exp, rows)
             .and_then(|_| images.iter().try_for_each(|p| write_image(&mut f, p)))
