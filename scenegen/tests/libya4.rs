@@ -92,5 +92,51 @@ fn libya4_terrain_site_in_3d() {
         assert_eq!(a.sza, b.sza);
         assert!((x - y).abs() <= 4.5 * s + 0.005 * y, "{x} vs {y}");
     }
+
+    // The same sites under a spherical-shell atmosphere (the 3D terrain bent onto the Earth) on
+    // a winter afternoon, SZA ≈ 76°: 3D and 1D agree as above, and both are brighter than
+    // their plane-parallel values (plane-parallel air masses overestimate the slant solar path
+    // above 60–70°).
+    for f in ["libya4_site", "libya4_3d_site"] {
+        let t = std::fs::read_to_string(ex.join(format!("pics/{f}.toml")))
+            .unwrap()
+            .replace("type = \"plane_parallel\"", "type = \"spherical_shell\"");
+        std::fs::write(ex.join(format!("pics/{f}_sph.toml")), t).unwrap();
+    }
+    let late = vec![Acquisition {
+        time_utc: "2026-12-21T15:00:00Z".into(),
+        vza: 5.2,
+        vaa: 103.0,
+        srf: "sentinel_2a-msi-4".into(),
+    }];
+    let site = |f: &str| run(&ex.join(format!("pics/{f}.toml")), &late, |_| {}).unwrap()[0].clone();
+    let (s3, s1) = (site("libya4_3d_site_sph"), site("libya4_site_sph"));
+    let (p3, p1) = (site("libya4_3d_site"), site("libya4_site"));
+    assert!(s3.sza > 70.0, "sza {}", s3.sza);
+    let z = |a: (f64, f64), b: (f64, f64)| (a.0 - b.0) / (a.1 * a.1 + b.1 * b.1).sqrt();
+    println!(
+        "sza {:.2}: spherical 3D {:.5} ± {:.1e}, 1D {:.5} ± {:.1e} (3D − 1D {:+.2} σ); plane-parallel 3D {:.5}, 1D {:.5}",
+        s3.sza,
+        s3.reflectance.0,
+        s3.reflectance.1,
+        s1.reflectance.0,
+        s1.reflectance.1,
+        z(s3.reflectance, s1.reflectance),
+        p3.reflectance.0,
+        p1.reflectance.0
+    );
+    let (x, y) = (s3.reflectance, s1.reflectance);
+    assert!(
+        (x.0 - y.0).abs() <= 4.5 * (x.1 * x.1 + y.1 * y.1).sqrt() + 0.005 * y.0,
+        "spherical 3D {x:?} vs 1D {y:?}"
+    );
+    assert!(
+        z(s3.reflectance, p3.reflectance) > 4.5,
+        "3D: spherical vs plane-parallel"
+    );
+    assert!(
+        z(s1.reflectance, p1.reflectance) > 4.5,
+        "1D: spherical vs plane-parallel"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }

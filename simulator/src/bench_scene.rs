@@ -38,6 +38,7 @@ pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Res
         },
         &[],
         &[],
+        None,
     )
     .map_err(|e| anyhow::anyhow!(e))?;
     let t_scene = t0.elapsed().as_secs_f64();

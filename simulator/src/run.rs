@@ -13,10 +13,12 @@ use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
 use crate::integrator::forward_pol;
 use crate::integrator::scene_walk::{self, SceneContext};
+use crate::integrator::scene_walk_sph::{self, SphereSceneContext};
 use crate::integrator::{backward, backward_pol, backward_sph, Accum};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::rng::Stream;
+use crate::scene::Scene;
 
 /// Samples per block (the unit of parallel work and of deterministic merging).
 pub const BLOCK: u64 = 2048;
@@ -160,6 +162,28 @@ fn run_block_at(
     match method {
         Method::Scene => {
             let scene = exp.scene.as_ref().expect("scene method without a scene");
+            if let Some(shell) = &opt.shell {
+                let ctx = SphereSceneContext {
+                    shell,
+                    scene,
+                    models: &opt.scene_models,
+                    sun: exp.sun_dir,
+                    mu_norm: exp.mu_norm(),
+                    wavelength: opt.wavelength,
+                };
+                let mut acc = Accum::new(1);
+                for s in range {
+                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+                    let (a, b) = match scene_start_sph(&ctx, m, cell, &mut rng) {
+                        Some((p0, l0, d0)) => {
+                            scene_walk_sph::walk(&ctx, p0, l0, d0, &exp.integrator, &mut rng)
+                        }
+                        None => (0.0, 0.0),
+                    };
+                    acc.add(0, a, b);
+                }
+                return acc;
+            }
             let ctx = SceneContext {
                 atmosphere: &opt.atmosphere,
                 scene,
@@ -353,16 +377,22 @@ fn spherical_start(
     Some((p, l, d))
 }
 
-/// Start point and direction of a sample of a 3D-scene measure (`cell`: direction or pixel).
-fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -> (DVec3, DVec3) {
-    let z0 = ctx.start_altitude();
-    // The ray through `q` towards the sensor direction `v`, started at altitude z0.
-    let from_top = |q: DVec3, v: DVec3| (q + v * ((z0 - q.z) / v.z), -v);
+/// Where a sample of a 3D-scene measure looks (`cell`: direction or pixel), in scene
+/// coordinates (bent ones for bent scenes).
+enum SceneAim {
+    /// The ray through `point` coming from the sensor direction `view` (distant sensors).
+    Through { point: DVec3, view: DVec3 },
+    /// A ray from a camera at `origin` along `dir`.
+    From { origin: DVec3, dir: DVec3 },
+}
+
+fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> SceneAim {
+    // A point given by its altitude above local (x, y), in scene coordinates.
+    let place = |p: DVec3| scene.curvature.map_or(p, |c| c.bend(p));
     match &m.kind {
         MeasureKind::Distant {
             directions, area, ..
         } => {
-            let v = directions[cell];
             let a = area.expect("3D distant measures have an area");
             let (u1, u2) = (rng.next_f64(), rng.next_f64());
             let q = DVec3::new(
@@ -370,30 +400,76 @@ fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -
                 a.rect[1] + u2 * (a.rect[3] - a.rect[1]),
                 a.height,
             );
-            from_top(q, v)
+            SceneAim::Through {
+                point: place(q),
+                view: directions[cell],
+            }
         }
         MeasureKind::Ortho(g) => {
             let (col, row) = (cell % g.width, cell / g.width);
             let (u1, u2) = (rng.next_f64(), rng.next_f64());
             let x = g.geotransform[0] + (col as f64 + u1) * g.geotransform[1];
             let y = g.geotransform[3] + (row as f64 + u2) * g.geotransform[5];
-            let z = ctx
-                .scene
-                .ground_height(x, y)
-                .unwrap_or(ctx.scene.reference_height);
-            from_top(DVec3::new(x, y, z), g.view)
+            let point = match scene.ground_height(x, y) {
+                Some(z) => DVec3::new(x, y, z),
+                None => place(DVec3::new(x, y, scene.reference_height)),
+            };
+            SceneAim::Through {
+                point,
+                view: g.view,
+            }
         }
         MeasureKind::Perspective(c) => {
             let (col, row) = (cell % c.width, cell / c.width);
             let (u1, u2) = (rng.next_f64(), rng.next_f64());
             let x = (2.0 * (col as f64 + u1) / c.width as f64 - 1.0) * c.tan_x;
             let y = (2.0 * (row as f64 + u2) / c.height as f64 - 1.0) * c.tan_y;
-            (c.origin, (c.forward + c.right * x - c.up * y).normalize())
+            SceneAim::From {
+                origin: place(c.origin),
+                dir: (c.forward + c.right * x - c.up * y).normalize(),
+            }
         }
         _ => unreachable!(
             "the resolver allows only distant, ortho and perspective measures with a scene"
         ),
     }
+}
+
+/// Start point and direction of a sample of a 3D-scene measure in a plane-parallel atmosphere.
+fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -> (DVec3, DVec3) {
+    match scene_aim(ctx.scene, m, cell, rng) {
+        SceneAim::Through { point: q, view: v } => {
+            // Started at the altitude that sees the whole scene and atmosphere.
+            let z0 = ctx.start_altitude();
+            (q + v * ((z0 - q.z) / v.z), -v)
+        }
+        SceneAim::From { origin, dir } => (origin, dir),
+    }
+}
+
+/// Start point (planet frame), shell and direction of a sample of a 3D-scene measure in a
+/// spherical shell; `None` when the line of sight misses the atmosphere.
+fn scene_start_sph(
+    ctx: &SphereSceneContext,
+    m: &Measure,
+    cell: usize,
+    rng: &mut Stream,
+) -> Option<(DVec3, usize, DVec3)> {
+    let shell = ctx.shell;
+    let lift = DVec3::new(0.0, 0.0, shell.planet_radius);
+    let (p, d) = match scene_aim(ctx.scene, m, cell, rng) {
+        SceneAim::Through { point, view } => {
+            // Back from the aimed point to where its line of sight enters the top sphere.
+            let q = point + lift;
+            let r = shell.toa_radius();
+            let b = q.dot(view);
+            let c = (q.length() - r) * (q.length() + r);
+            (q + view * (-b + (b * b - c).max(0.0).sqrt()), -view)
+        }
+        SceneAim::From { origin, dir } => (shell.entry_point(origin + lift, dir)?, dir),
+    };
+    let l = shell.shell_at(p.length()).min(shell.shell_count() - 1);
+    Some((p, l, d))
 }
 
 /// Starting altitude and path direction of a backward sample (distant measures start at TOA).

@@ -546,6 +546,7 @@ fn terrain_is_watertight_for_distant_rays() {
         &simulator::scene::build::Background::None,
         &[],
         &[],
+        None,
     )
     .unwrap();
     let mut rng = simulator::rng::Stream::new(1, [0, 0, 0, 0]);

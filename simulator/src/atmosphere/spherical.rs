@@ -181,6 +181,26 @@ impl SphericalShell {
         }
     }
 
+    /// Optical depth from `p` (in shell `l`) along `d` over the distance `tmax` or until the ray
+    /// leaves the atmosphere (through the top or into the ground), whichever comes first.
+    pub fn optical_depth_within(&self, mut p: DVec3, mut l: usize, d: DVec3, tmax: f64) -> f64 {
+        let n = self.sigma.len() as isize;
+        let (mut tau, mut left) = (0.0, tmax);
+        loop {
+            let (t, next) = self.exit(p, d, l);
+            if t >= left {
+                return tau + self.sigma[l] * left;
+            }
+            tau += self.sigma[l] * t;
+            left -= t;
+            p += d * t;
+            if next < 0 || next >= n {
+                return tau;
+            }
+            l = next as usize;
+        }
+    }
+
     /// Transmittance from `p` to space along `d` (0 in the planet's shadow).
     #[inline]
     pub fn transmittance_to_space(&self, p: DVec3, l: usize, d: DVec3) -> f64 {

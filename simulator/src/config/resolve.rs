@@ -1075,12 +1075,6 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let scene: Option<Arc<Scene>> = match &cfg.scene {
         None => None,
         Some(sc) => {
-            if planet_radius.is_some() {
-                return Err(ctx.err(
-                    "scene",
-                    "3D scenes are rendered under plane-parallel atmospheres only",
-                ));
-            }
             if cfg.polarized {
                 return Err(ctx.err(
                     "polarized",
@@ -1093,7 +1087,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     "the Sun must be above the horizon to render a 3D scene",
                 ));
             }
-            let built = scene::build_scene_shared(sc, &base).map_err(|(k, m)| ctx.err(k, m))?;
+            // Under a spherical shell the scene is bent onto the planet (scene::curvature).
+            let bend = planet_radius.map(|radius| crate::scene::curvature::Curvature { radius });
+            let built =
+                scene::build_scene_shared(sc, &base, bend).map_err(|(k, m)| ctx.err(k, m))?;
             if cfg.atmosphere.is_some() && built.z_range[0] < ground - 1e-6 {
                 tracing::warn!(
                     "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",

@@ -12,6 +12,7 @@ use crate::bundle::{BrdfSpec, Spectrum};
 use crate::frame::direction_from_angles;
 use crate::measure::{Area, Camera, OrthoGrid};
 use crate::scene::build::{self, Background, CanopyGround, LeafCloud, LeafColumns};
+use crate::scene::curvature::Curvature;
 use crate::scene::Scene;
 
 #[derive(Clone, Debug, Deserialize)]
@@ -178,8 +179,9 @@ static CACHE: std::sync::Mutex<Vec<(String, std::sync::Weak<Scene>)>> =
 pub fn build_scene_shared(
     cfg: &SceneConfig,
     base: &Path,
+    bend: Option<Curvature>,
 ) -> Result<std::sync::Arc<Scene>, SceneErr> {
-    let key = format!("{}|{cfg:?}", base.display());
+    let key = format!("{}|{cfg:?}|{bend:?}", base.display());
     {
         let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
         cache.retain(|(_, w)| w.strong_count() > 0);
@@ -192,7 +194,7 @@ pub fn build_scene_shared(
             return Ok(s);
         }
     }
-    let s = std::sync::Arc::new(build_scene(cfg, base)?);
+    let s = std::sync::Arc::new(build_scene(cfg, base, bend)?);
     CACHE
         .lock()
         .unwrap_or_else(|e| e.into_inner())
@@ -200,8 +202,19 @@ pub fn build_scene_shared(
     Ok(s)
 }
 
-/// Build the scene of `cfg`; relative paths are taken from `base`.
-pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
+/// Build the scene of `cfg`; relative paths are taken from `base`. `bend`: bend it onto a
+/// sphere (spherical-shell atmospheres; bundles only).
+pub fn build_scene(
+    cfg: &SceneConfig,
+    base: &Path,
+    bend: Option<Curvature>,
+) -> Result<Scene, SceneErr> {
+    if bend.is_some() && !matches!(cfg, SceneConfig::Bundle { .. }) {
+        return Err((
+            "scene.type".into(),
+            "under a spherical-shell atmosphere only bundle scenes are supported (canopies are plane-parallel; use geometry.type = \"plane_parallel\")".into(),
+        ));
+    }
     match cfg {
         SceneConfig::Bundle {
             path,
@@ -247,7 +260,7 @@ pub fn build_scene(cfg: &SceneConfig, base: &Path) -> Result<Scene, SceneErr> {
                 })
                 .collect();
             let dir = base.join(path);
-            build::from_bundle(&dir, &bg, &overrides, &reqs).map_err(|m| {
+            build::from_bundle(&dir, &bg, &overrides, &reqs, bend).map_err(|m| {
                 let key = if m.starts_with("texture") || m.contains("two textures") {
                     "scene.textures"
                 } else {

@@ -23,6 +23,7 @@ pub mod backward_sph;
 pub mod forward;
 pub mod forward_pol;
 pub mod scene_walk;
+pub mod scene_walk_sph;
 
 /// Weight below which Russian roulette plays (after `rr_depth` interactions).
 pub const RR_THRESHOLD: f64 = 0.25;

@@ -38,7 +38,8 @@ use crate::config::resolve::IntegratorSettings;
 use crate::rng::Stream;
 use crate::scene::material::SurfaceModel;
 use crate::scene::world::BLACK;
-use crate::scene::Scene;
+use crate::scene::{Scene, SurfaceHit};
+use std::borrow::Cow;
 
 /// Everything a walk needs at one wavelength.
 pub struct SceneContext<'a> {
@@ -124,17 +125,8 @@ pub fn walk(
             w *= omega;
             d = sample_scattered(phase, d, rng);
         } else if let Some(h) = hit {
-            let textured;
-            let model = if h.material == BLACK {
-                &SurfaceModel::Black
-            } else if let Some(r) = scene.texture_reflectance(&h, ctx.wavelength) {
-                textured = SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian { reflectance: r }));
-                &textured
-            } else {
-                ctx.models
-                    .get(h.material as usize)
-                    .unwrap_or(&SurfaceModel::Black)
-            };
+            let model = surface_model(scene, ctx.models, ctx.wavelength, &h);
+            let model = model.as_ref();
             let wo = -d;
             let n = h.normal;
             let f = model.eval_cos(n, sun, wo);
@@ -167,6 +159,27 @@ pub fn walk(
     }
     let k = std::f64::consts::PI / sun.z;
     split.scaled(k)
+}
+
+/// The reflection model at a scene hit: black for [`BLACK`], a Lambertian from the texture
+/// where one covers a terrain hit, else the material's model.
+pub(crate) fn surface_model<'m>(
+    scene: &Scene,
+    models: &'m [SurfaceModel],
+    wavelength: f64,
+    h: &SurfaceHit,
+) -> Cow<'m, SurfaceModel> {
+    if h.material == BLACK {
+        Cow::Owned(SurfaceModel::Black)
+    } else if let Some(r) = scene.texture_reflectance(h, wavelength) {
+        Cow::Owned(SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian {
+            reflectance: r,
+        })))
+    } else {
+        models
+            .get(h.material as usize)
+            .map_or(Cow::Owned(SurfaceModel::Black), Cow::Borrowed)
+    }
 }
 
 /// Expected value, over the next collision of the flight from `p` along `d`, of the

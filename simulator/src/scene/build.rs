@@ -14,6 +14,7 @@ use std::time::Instant;
 
 use glam::{DVec3, Mat3};
 
+use super::curvature::Curvature;
 use super::instances::{Disc, InstanceBvh, InstanceTransform, TemplateGeometry};
 use super::world::{Georef, GroundPlane, MaterialRaster, Scene};
 use super::TerrainBvh;
@@ -45,6 +46,7 @@ pub fn from_bundle(
     background: &Background,
     overrides: &[(String, BrdfSpec)],
     textures: &[TextureRequest],
+    bend: Option<Curvature>,
 ) -> Result<Scene, String> {
     let t0 = Instant::now();
     let bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
@@ -108,7 +110,7 @@ pub fn from_bundle(
     let t_load = t0.elapsed().as_secs_f64();
 
     let t1 = Instant::now();
-    let terrain = TerrainBvh::new(&bundle);
+    let terrain = TerrainBvh::new(&bundle, bend);
     let render_origin = terrain.render_origin();
     let gt = m.material_raster.geotransform;
     let raster = MaterialRaster {
@@ -137,6 +139,13 @@ pub fn from_bundle(
         .instances
         .iter()
         .map(InstanceTransform::from_bundle)
+        .map(|(k, mut tr)| {
+            // Bent scenes: each instance stands at its anchor's altitude above the sphere.
+            if let Some(c) = bend {
+                tr.translation = c.bend(tr.translation);
+            }
+            (k, tr)
+        })
         .collect();
     let objects = if instances.is_empty() {
         None
@@ -146,6 +155,11 @@ pub fn from_bundle(
     let t_bvh = t1.elapsed().as_secs_f64();
 
     let mut z_range = m.extent.height_range;
+    if bend.is_some() && terrain.triangle_count() > 0 {
+        // Bent heights: the terrain's box (padded by a metre at most) bounds them.
+        let (lo, hi) = terrain.bounds();
+        z_range = [lo.z, hi.z];
+    }
     if let Some(o) = &objects {
         let (_, hi) = o.bounds();
         z_range[1] = z_range[1].max(hi.z);
@@ -173,6 +187,7 @@ pub fn from_bundle(
                 material,
                 inside: None,
                 outside: Some(extent),
+                sphere: bend,
             })
         }
     };
@@ -200,6 +215,7 @@ pub fn from_bundle(
                 .map(|t| t.bands.len() * t.width * t.height * 4)
                 .sum::<usize>(),
         periodic: None,
+        curvature: bend,
         textures: tex,
         texture_of,
         load_seconds: t_load,
@@ -503,6 +519,7 @@ pub fn canopy(
             material: (materials.len() - 1) as u16,
             inside: if periodic.is_some() { None } else { g.extent },
             outside: None,
+            sphere: None,
         }
     });
     if let Some(c) = periodic {
@@ -522,6 +539,7 @@ pub fn canopy(
         render_origin: DVec3::ZERO,
         memory_bytes,
         periodic,
+        curvature: None,
         textures: Vec::new(),
         texture_of: Vec::new(),
         load_seconds: 0.0,

@@ -10,6 +10,7 @@
 //! rounding of the stored vertices.
 
 pub mod build;
+pub mod curvature;
 pub mod instances;
 pub mod material;
 pub mod texture;
@@ -53,17 +54,27 @@ pub struct TerrainBvh {
 }
 
 impl TerrainBvh {
-    pub fn new(bundle: &Bundle) -> Self {
-        Self::from_tiles(&bundle.terrain)
+    /// The bundle's terrain, bent onto a sphere when `bend` is given ([`curvature`]).
+    pub fn new(bundle: &Bundle, bend: Option<curvature::Curvature>) -> Self {
+        Self::from_tiles_bent(&bundle.terrain, bend)
     }
 
     /// Build from terrain tiles (f32 offsets from f64 origins).
     pub fn from_tiles(terrain: &[crate::bundle::TerrainTile]) -> Self {
+        Self::from_tiles_bent(terrain, None)
+    }
+
+    /// Build from terrain tiles, every vertex bent onto a sphere (in f64) when `bend` is given.
+    pub fn from_tiles_bent(
+        terrain: &[crate::bundle::TerrainTile],
+        bend: Option<curvature::Curvature>,
+    ) -> Self {
+        let place = |q: DVec3| bend.map_or(q, |c| c.bend(q));
         let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
         for t in terrain {
             let o = DVec3::from_array(t.origin);
             for p in &t.positions {
-                let q = o + DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64);
+                let q = place(o + DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64));
                 lo = lo.min(q);
                 hi = hi.max(q);
             }
@@ -78,7 +89,7 @@ impl TerrainBvh {
             let o = DVec3::from_array(t.origin);
             let v = |i: u32| {
                 let p = t.positions[i as usize];
-                o + DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64)
+                place(o + DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
             };
             for (k, tri) in t.indices.iter().enumerate() {
                 let w = [v(tri[0]), v(tri[1]), v(tri[2])];
@@ -136,6 +147,11 @@ impl TerrainBvh {
 
     pub fn triangle_count(&self) -> usize {
         self.tris.len()
+    }
+
+    /// The terrain's bounding box (local frame, padded by about a metre).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        (self.lo, self.hi)
     }
 
     /// The render-frame origin (centre of the terrain's bounding box, local frame).

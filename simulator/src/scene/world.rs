@@ -22,6 +22,7 @@
 
 use glam::DVec3;
 
+use super::curvature::Curvature;
 use super::instances::{InstanceBvh, InstanceHit};
 use super::material::SurfaceModel;
 use super::TerrainBvh;
@@ -67,6 +68,9 @@ pub struct GroundPlane {
     pub inside: Option<[f64; 4]>,
     /// …and only outside this one (None: no hole).
     pub outside: Option<[f64; 4]>,
+    /// Bent scenes (spherical-shell atmospheres): the plane is the sphere of altitude
+    /// `altitude` ([`super::curvature`]); the rectangles apply to its points' (x, y).
+    pub sphere: Option<Curvature>,
 }
 
 fn in_rect(r: &[f64; 4], x: f64, y: f64) -> bool {
@@ -78,20 +82,40 @@ impl GroundPlane {
     /// distance and whether the ray comes from above.
     #[inline]
     fn intersect(&self, o: DVec3, d: DVec3, tmax: f64) -> Option<(f64, bool)> {
-        if d.z == 0.0 {
-            return None;
-        }
-        let t = (self.altitude - o.z) / d.z;
-        if !(t > 0.0 && t < tmax) {
-            return None;
-        }
+        let (t, from_above) = match self.sphere {
+            Some(c) => c.intersect_sphere(o, d, self.altitude, tmax)?,
+            None => {
+                if d.z == 0.0 {
+                    return None;
+                }
+                let t = (self.altitude - o.z) / d.z;
+                if !(t > 0.0 && t < tmax) {
+                    return None;
+                }
+                (t, d.z < 0.0)
+            }
+        };
         let p = o + d * t;
         if self.inside.is_some_and(|r| !in_rect(&r, p.x, p.y))
             || self.outside.is_some_and(|r| in_rect(&r, p.x, p.y))
         {
             return None;
         }
-        Some((t, d.z < 0.0))
+        Some((t, from_above))
+    }
+
+    /// Unit normal at a point of the plane, on the side `from_above` says.
+    #[inline]
+    fn normal(&self, p: DVec3, from_above: bool) -> DVec3 {
+        let up = match self.sphere {
+            Some(c) => (p + DVec3::new(0.0, 0.0, c.radius)).normalize(),
+            None => DVec3::Z,
+        };
+        if from_above {
+            up
+        } else {
+            -up
+        }
     }
 }
 
@@ -139,6 +163,10 @@ pub struct Scene {
     /// Periodic scenes: the unit cell [xmin, ymin, xmax, ymax] (local frame); rays leaving it
     /// re-enter through the opposite wall.
     pub periodic: Option<[f64; 4]>,
+    /// Bent scenes (under spherical-shell atmospheres): the sphere the scene is bent onto; the
+    /// scene's coordinates are then the bent frame of [`super::curvature`] and `z_range` holds
+    /// bent heights.
+    pub curvature: Option<Curvature>,
     /// Reflectance textures of terrain materials, and the texture of each material id.
     pub textures: Vec<super::texture::Texture>,
     pub texture_of: Vec<Option<usize>>,
@@ -340,10 +368,11 @@ impl Scene {
         }
         if let Some(g) = &self.ground {
             if let Some((t, from_above)) = g.intersect(o, d, tbest) {
+                let point = o + d * t;
                 best = Some(SurfaceHit {
                     t,
-                    point: o + d * t,
-                    normal: if from_above { DVec3::Z } else { -DVec3::Z },
+                    point,
+                    normal: g.normal(point, from_above),
                     material: if from_above { g.material } else { BLACK },
                     terrain: false,
                 });

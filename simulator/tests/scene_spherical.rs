@@ -1,0 +1,167 @@
+//! 3D scenes under spherical-shell atmospheres (`integrator/scene_walk_sph.rs`, the scene bent
+//! onto the planet by `scene/curvature.rs`).
+//!
+//! Statistical comparisons use `common::check_all` (|diff| ≤ 4.5σ + max(1e-5, 2e-4·ref), σ the
+//! combined standard error of two independent runs with different seeds).
+
+mod common;
+
+use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
+use common::{check_all, experiment, mdistant_toml, run_rows, Cmp};
+use glam::DVec3;
+use simulator::scene::build::{from_bundle, Background};
+use simulator::scene::curvature::Curvature;
+
+fn flat_plane(size: f64, h0: f64, x0: f64) -> PlaneSpec {
+    PlaneSpec {
+        x0,
+        y0: -0.5 * size,
+        size,
+        h0,
+        sx: 0.0,
+        sy: 0.0,
+        tiles: 2,
+        n: 4,
+        raster_width: 2,
+        raster: vec![0; 4],
+        materials: vec![("soil".to_string(), lambertian(0.3))],
+        frame_origin: [500_000.0, 4_000_000.0, 0.0],
+        wkt: String::new(),
+    }
+}
+
+/// A bent terrain lies on the sphere: rays hit a flat (constant-altitude) bundle 30 km from the
+/// origin at its altitude above the planet (within the chord error e²/(8R) of its 250 m quads),
+/// the background sphere at its altitude, and the normals are the local verticals.
+#[test]
+fn bent_geometry_lies_on_the_sphere() {
+    let dir = tmp("bent-geometry");
+    let b = write_plane(&dir, &flat_plane(2000.0, 120.0, 29_000.0));
+    let c = Curvature {
+        radius: 6_378_100.0,
+    };
+    let scene = from_bundle(
+        &b,
+        &Background::Flat {
+            altitude: Some(80.0),
+            brdf: Some(Box::new(lambertian(0.1))),
+        },
+        &[],
+        &[],
+        Some(c),
+    )
+    .unwrap();
+    // Chord error of the quads' triangles (250 m sides, 354 m diagonals).
+    let chord = 2.0 * 250f64.powi(2) / (8.0 * c.radius);
+    let mut rng = simulator::rng::Stream::new(7, [0, 0, 0, 0]);
+    for k in 0..200 {
+        // Rays from 5 km above, straight down the local vertical, inside and outside the
+        // terrain's square.
+        let x = 26_000.0 + 8_000.0 * rng.next_f64();
+        let y = -4_000.0 + 8_000.0 * rng.next_f64();
+        let top = c.bend(DVec3::new(x, y, 5_000.0));
+        let down = -(top + DVec3::new(0.0, 0.0, c.radius)).normalize();
+        let h = scene.intersect(top, down, f64::INFINITY).unwrap();
+        let inside = (29_000.0..31_000.0).contains(&h.point.x) && (-1000.0..1000.0).contains(&y);
+        let (alt, expect_tol) = if inside {
+            (120.0, chord + 1e-6)
+        } else {
+            (80.0, 1e-6)
+        };
+        let got = c.altitude(h.point);
+        assert!(
+            (got - alt).abs() <= expect_tol,
+            "ray {k} at ({x:.0}, {y:.0}): altitude {got} (expected {alt})"
+        );
+        assert!(
+            h.normal.dot(-down) > 1.0 - 1e-8,
+            "ray {k}: normal {:?} is not the local vertical {:?}",
+            h.normal,
+            -down
+        );
+    }
+}
+
+/// A flat one-material bundle whose background has the same material and height is a uniform
+/// sphere under the bent-scene walk: its area TOA BRF equals the 1D spherical walk's over a
+/// Lambertian surface, at small and grazing solar zenith angles, on the Earth (a 2 km terrain)
+/// and on a small planet (R = 300 km, a 20 km terrain bent by up to 0.33 km: were the terrain
+/// not bent, its edges would float above the background sphere and cast shadows on it).
+#[test]
+fn flat_bundle_on_the_sphere_equals_1d_spherical() {
+    let small = write_plane(&tmp("flat-sphere-2km"), &flat_plane(2000.0, 0.0, -1000.0));
+    let large = write_plane(
+        &tmp("flat-sphere-20km"),
+        &flat_plane(20_000.0, 0.0, -10_000.0),
+    );
+    let vza = [0.0, 40.0, 65.0, 30.0];
+    let vaa = [0.0, 90.0, 180.0, 300.0];
+    let mut errs = Vec::new();
+    for (planet, b, sza, spp) in [
+        ("planet_radius = 6378.1", &small, 30.0, 60_000u64),
+        ("planet_radius = 6378.1", &small, 84.0, 400_000),
+        (
+            "planet_radius = 300.0\ntoa_altitude = 50.0",
+            &large,
+            70.0,
+            100_000,
+        ),
+    ] {
+        let head = |seed: u64| {
+            format!(
+                "seed = {seed}\n[spectral]\nwavelengths = [550.0]\n\
+                 [geometry]\ntype = \"spherical_shell\"\n{planet}\n\
+                 [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.3\nphase = {{ type = \"hg\", g = 0.6 }}\n\
+                 [illumination]\ntype = \"directional\"\nzenith = {sza:?}\nazimuth = 30.0\n"
+            )
+        };
+        let m = mdistant_toml("toa", &vza, &vaa, spp);
+        let e3 = experiment(&format!(
+            "{}[scene]\ntype = \"bundle\"\npath = \"{}\"\n{m}target_m = [499000.0, 3999000.0, 501000.0, 4001000.0]\n",
+            head(11),
+            b.display(),
+        ));
+        let e1 = experiment(&format!(
+            "{}[surface]\ntype = \"lambertian\"\nreflectance = 0.3\n{m}",
+            head(12)
+        ));
+        let (r3, r1) = (run_rows(&e3), run_rows(&e1));
+        let cmps: Vec<Cmp> = r3
+            .iter()
+            .zip(&r1)
+            .map(|(x, y)| {
+                let (va, ea) = x.brf.unwrap();
+                let (vb, eb) = y.brf.unwrap();
+                Cmp {
+                    label: format!("vza {:?} vaa {:?}", x.vza, x.vaa),
+                    reference: vb,
+                    value: va,
+                    stderr: (ea * ea + eb * eb).sqrt(),
+                }
+            })
+            .collect();
+        let case = format!("flat bundle on the sphere = 1D ({planet}, sza {sza})");
+        if let Err(e) = check_all(&case, &cmps) {
+            errs.push(e);
+        }
+    }
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
+}
+
+/// Canopies stay plane-parallel: a clear error names the key.
+#[test]
+fn canopy_under_a_spherical_shell_is_refused() {
+    let text = "[spectral]\nwavelengths = [550.0]\n[geometry]\ntype = \"spherical_shell\"\n\
+        [illumination]\ntype = \"directional\"\nzenith = 30.0\n\
+        [scene]\ntype = \"canopy\"\n[[scene.objects]]\nleaves = \"nowhere.txt\"\n\
+        reflectance = 0.4\ntransmittance = 0.4\n\
+        [[measures]]\nid = \"toa\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0]\nazimuths = [0.0]\nspp = 16\n";
+    let err = simulator::config::Experiment::from_str(text, std::path::Path::new("."))
+        .err()
+        .map(|e| e.to_string())
+        .unwrap_or_default();
+    assert!(
+        err.contains("scene.type") && err.contains("spherical"),
+        "unexpected: {err}"
+    );
+}
