@@ -8,6 +8,7 @@
 //! | `eradiate_v0.rs`  | the older eradiate CKD file of precomputed k(z, bin, g) for one profile |
 //! | `profile.rs`      | joseki/axsdb thermophysical profiles (z, p, T, n, mole fractions)    |
 //! | `layers.rs`       | layer optical thicknesses: k at a profile's states, integrated per layer |
+//! | `cross_section.rs`| continuum absorption of one species from a σ(λ) table (e.g. O3 Chappuis) |
 //!
 //! Units follow `docs/conventions.md`: everything returned is SI (absorption coefficients in
 //! **m⁻¹**, altitudes in m, pressures in Pa, temperatures in K, number densities in m⁻³),
@@ -19,6 +20,7 @@
 //! US standard atmosphere, and axsdb CKD / monochromatic databases for any profile.
 
 pub mod axsdb;
+pub mod cross_section;
 pub mod eradiate_v0;
 pub mod layers;
 pub mod profile;

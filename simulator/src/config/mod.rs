@@ -154,9 +154,34 @@ pub enum AtmosphereConfig {
         /// Rayleigh depolarization factor; none: the value consistent with Bates' King factor.
         #[serde(default)]
         depolarization: Option<f64>,
+        /// Continuum absorbers from cross-section tables (`absorption/cross_section.rs`).
+        #[serde(default)]
+        cross_sections: Vec<CrossSectionConfig>,
     },
     /// No atmosphere (same as omitting the table).
     None {},
+}
+
+/// One `[[atmosphere.cross_sections]]` table: a species' absorption cross-section σ(λ).
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CrossSectionConfig {
+    pub species: String,
+    pub file: String,
+    /// 1-based column of σ (column 1: wavelength, nm).
+    #[serde(default = "default_xs_column")]
+    pub column: usize,
+    /// `"cm^2"` or `"m^2"` per molecule.
+    #[serde(default = "default_xs_units")]
+    pub units: String,
+}
+
+fn default_xs_column() -> usize {
+    2
+}
+
+fn default_xs_units() -> String {
+    "cm^2".into()
 }
 
 /// `atmosphere.absorption_bounds`: what an absorption database does with a state outside its

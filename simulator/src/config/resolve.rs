@@ -616,6 +616,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             depolarization,
             rescale,
             absorption_bounds,
+            cross_sections,
         }) => {
             let mut thermo = crate::atmosphere::thermo::load(profile, &base)
                 .map_err(|m| ctx.err("atmosphere.profile", m))?;
@@ -660,6 +661,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             }
             let particles =
                 resolve_particle_layers(&ctx, &base, particle_layers, &grid, &wavelengths)?;
+            let continuum =
+                resolve_cross_sections(&ctx, &base, cross_sections, &thermo, &grid, &wavelengths)?;
             let mut mono_gas: Vec<Vec<f64>> = Vec::new();
             match (ckd, absorption_data) {
                 (true, None) => {
@@ -715,7 +718,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     // Rayleigh first, then each particle layer's scattering (τ_aer·ω) and
                     // absorption (τ_aer·(1 − ω)); the phase function is the mixture weighted by
                     // the scattering optical thicknesses (plain Rayleigh without particles).
-                    let gas = mono_gas.get(iw).map_or(0.0, |t| t[j]);
+                    let gas = mono_gas.get(iw).map_or(0.0, |t| t[j]) + continuum[iw][j];
                     let (mut tau_sca, mut tau_abs) = (tau_ray, gas);
                     let mut parts = Vec::new();
                     for p in &particles {
@@ -1091,7 +1094,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             let bend = planet_radius.map(|radius| crate::scene::curvature::Curvature { radius });
             let built =
                 scene::build_scene_shared(sc, &base, bend).map_err(|(k, m)| ctx.err(k, m))?;
-            if cfg.atmosphere.is_some() && built.z_range[0] < ground - 1e-6 {
+            // (Bent scenes hold bent heights: their lowest point sags below its altitude.)
+            if cfg.atmosphere.is_some()
+                && built.curvature.is_none()
+                && built.z_range[0] < ground - 1e-6
+            {
                 tracing::warn!(
                     "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
                     built.z_range[0],
@@ -1805,6 +1812,61 @@ fn ckd_bins(
             db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect(),
         ))
     }
+}
+
+/// `atmosphere.cross_sections`: per wavelength, the continuum absorption optical thickness of
+/// every layer of `grid`, summed over the tables (`absorption/cross_section.rs`).
+fn resolve_cross_sections(
+    ctx: &Ctx,
+    base: &Path,
+    tables: &[crate::config::CrossSectionConfig],
+    thermo: &crate::atmosphere::thermo::Thermo,
+    grid: &[(f64, f64)],
+    wavelengths: &[f64],
+) -> Result<Vec<Vec<f64>>, ConfigError> {
+    use crate::absorption::cross_section::{layer_columns, CrossSection};
+    let mut tau = vec![vec![0.0; grid.len()]; wavelengths.len()];
+    for (i, t) in tables.iter().enumerate() {
+        let key = format!("atmosphere.cross_sections[{i}]");
+        let to_m2 = match t.units.as_str() {
+            "cm^2" => 1e-4,
+            "m^2" => 1.0,
+            other => {
+                return Err(ctx.err(
+                    format!("{key}.units"),
+                    format!("\"{other}\" is unknown (known: \"cm^2\", \"m^2\")"),
+                ))
+            }
+        };
+        let xs = CrossSection::read(&base.join(&t.file), t.column, to_m2)
+            .map_err(|m| ctx.err(format!("{key}.file"), m))?;
+        let cols = layer_columns(&thermo.gas, &t.species, grid)
+            .map_err(|m| ctx.err(format!("{key}.species"), m))?;
+        for (iw, &wl) in wavelengths.iter().enumerate() {
+            let sigma = xs.at(wl).ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.file"),
+                    format!(
+                        "{wl} nm lies outside the table's {}..{} nm ({})",
+                        xs.wavelength_nm[0],
+                        xs.wavelength_nm[xs.wavelength_nm.len() - 1],
+                        xs.path
+                    ),
+                )
+            })?;
+            for (j, c) in cols.iter().enumerate() {
+                tau[iw][j] += sigma * c;
+            }
+        }
+        let column: f64 = cols.iter().sum();
+        tracing::info!(
+            "{key}: {} continuum from {} (column {:.4e} m⁻² in the atmosphere)",
+            t.species,
+            xs.path,
+            column
+        );
+    }
+    Ok(tau)
 }
 
 /// `mode = "mono"` with `absorption_data`: per wavelength, the gas absorption optical thickness
