@@ -74,6 +74,24 @@ impl PlaneParallel {
         }
     }
 
+    /// The same layers without absorption: each layer's extinction is its scattering
+    /// coefficient, albedo 1, same phase functions (the reference process of spectral ALIS walks).
+    pub fn without_absorption(&self) -> PlaneParallel {
+        let mut tau = vec![0.0];
+        for (i, a) in self.albedo.iter().enumerate() {
+            let d = (self.tau[i + 1] - self.tau[i]) * a;
+            tau.push(tau[i] + d);
+        }
+        let total_tau = *tau.last().unwrap();
+        PlaneParallel {
+            z: self.z.clone(),
+            tau,
+            albedo: vec![1.0; self.albedo.len()],
+            phase: self.phase.clone(),
+            total_tau,
+        }
+    }
+
     /// Vertical optical thickness of the whole atmosphere.
     #[inline]
     pub fn total_tau(&self) -> f64 {
