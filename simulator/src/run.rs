@@ -147,7 +147,8 @@ fn run_block_alis(
 const GROUP_STREAM: u64 = 1 << 62;
 
 /// What the walks of a spectral ALIS group share: the reference atmosphere (the group's
-/// central wavelength without absorption) and the layer tables, built once per task.
+/// central wavelength's scattering with the group's least absorption) and the layer tables,
+/// built once per task.
 struct SpectralGroup {
     reference: crate::atmosphere::PlaneParallel,
     layers: crate::integrator::backward_alis::Layers,
@@ -156,9 +157,10 @@ struct SpectralGroup {
 impl SpectralGroup {
     fn new(exp: &Experiment, group: &[usize]) -> Self {
         let central = &exp.optics[group[group.len() / 2]];
-        let reference = central.atmosphere.without_absorption();
         let atms: Vec<&crate::atmosphere::PlaneParallel> =
             group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
+        let reference =
+            crate::integrator::backward_alis::group_reference(&central.atmosphere, &atms);
         let layers = crate::integrator::backward_alis::Layers::spectral(&reference, &atms);
         SpectralGroup { reference, layers }
     }

@@ -1599,14 +1599,17 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         })
         .collect::<Result<Vec<_>, ConfigError>>()?;
 
-    // Spectral ALIS: each group's reference (its central wavelength without absorption) must
-    // scatter wherever one of its wavelengths does, or the walks would miss paths.
+    // Spectral ALIS: each group's reference (its central wavelength's scattering) must scatter
+    // wherever one of its wavelengths does, or the walks would miss paths.
     if let Some(n) = integrator.spectral_alis {
         for group in crate::run::wavelength_groups_of(&wavelengths, Some(n)) {
             let central = group[group.len() / 2];
-            let reference = optics[central].atmosphere.without_absorption();
             let atms: Vec<&PlaneParallel> =
                 group.iter().map(|&iw| &optics[iw].atmosphere).collect();
+            let reference = crate::integrator::backward_alis::group_reference(
+                &optics[central].atmosphere,
+                &atms,
+            );
             if let Some(i) =
                 crate::integrator::backward_alis::Layers::unsupported_layer(&reference, &atms)
             {

@@ -116,6 +116,8 @@ pub struct Layers {
 /// Per-channel scattering of wavelength channels, layer-major (`[i·nc + c]`).
 struct Spectral {
     nc: usize,
+    /// Extinction coefficient k_c of layer i, m⁻¹ (as `Layers::k`, layer-major).
+    k: Vec<f64>,
     /// σ_s,c of layer i, m⁻¹.
     sigma: Vec<f64>,
     /// σ_s,c / σ_ref (0 where the reference does not scatter).
@@ -135,6 +137,23 @@ fn coef(t: &[(f64, f64)], i: usize) -> f64 {
     } else {
         0.0
     }
+}
+
+/// The reference atmosphere of a wavelength group: the scattering and phase functions of
+/// `central` and, per layer, the smallest absorption optical thickness of the group (so that
+/// absorption common to every wavelength acts as survival weight ω_ref, and each path factor
+/// carries only its wavelength's excess absorption).
+pub fn group_reference(central: &PlaneParallel, atms: &[&PlaneParallel]) -> PlaneParallel {
+    let n = central.layer_count();
+    let tau_abs: Vec<f64> = (0..n)
+        .map(|i| {
+            atms.iter()
+                .map(|a| a.tau_abs(i))
+                .fold(f64::INFINITY, f64::min)
+                .max(0.0)
+        })
+        .collect();
+    central.with_absorption(&tau_abs)
 }
 
 impl Layers {
@@ -198,8 +217,12 @@ impl Layers {
             }
             reps.push(r);
         }
+        let k: Vec<f64> = (0..n)
+            .flat_map(|i| l.k.iter().map(move |kc| kc[i]))
+            .collect();
         l.spectral = Some(Spectral {
             nc,
+            k,
             sigma,
             ratio,
             class,
@@ -284,6 +307,48 @@ impl Spectral {
         }
     }
 }
+
+/// `e^x` in straight-line arithmetic that the compiler can vectorize over the channels
+/// (`f64::exp` is a library call): Cody–Waite reduction `x = n·ln 2 + r`, |r| ≤ ln 2/2, the
+/// Taylor polynomial of degree 13 for `e^r` (truncation < 1e-17) and `2^n` from the exponent
+/// bits; within a few ulp of `f64::exp`. `x` is clamped to [−708, 709] (e^−708 ≈ 3e−308 stands
+/// for anything smaller: below any score's resolution).
+#[inline(always)]
+fn exp_fast(x: f64) -> f64 {
+    const SHIFT: f64 = 6_755_399_441_055_744.0; // 1.5·2^52: adding it rounds to an integer
+    const LN2_HI: f64 = 6.931_471_803_691_238e-1;
+    const LN2_LO: f64 = 1.908_214_929_270_587_7e-10;
+    let x = x.clamp(-708.0, 709.0);
+    let t = x * std::f64::consts::LOG2_E + SHIFT;
+    let n = t - SHIFT;
+    let r = (x - n * LN2_HI) - n * LN2_LO;
+    // Horner on the coefficients 1/k!, k = 13 … 0.
+    let mut p = INV_FACTORIAL[13];
+    for c in INV_FACTORIAL[..13].iter().rev() {
+        p = p * r + c;
+    }
+    let ni = (t.to_bits() as i64).wrapping_sub(SHIFT.to_bits() as i64);
+    let scale = f64::from_bits(((ni + 1023) as u64) << 52);
+    p * scale
+}
+
+/// 1/k!, k = 0 … 13.
+const INV_FACTORIAL: [f64; 14] = [
+    1.0,
+    1.0,
+    1.0 / 2.0,
+    1.0 / 6.0,
+    1.0 / 24.0,
+    1.0 / 120.0,
+    1.0 / 720.0,
+    1.0 / 5040.0,
+    1.0 / 40320.0,
+    1.0 / 362_880.0,
+    1.0 / 3_628_800.0,
+    1.0 / 39_916_800.0,
+    1.0 / 479_001_600.0,
+    1.0 / 6_227_020_800.0,
+];
 
 /// `∫₀^len e^{−a ℓ} dℓ` and `e^{−a·len}` (len may be infinite: a horizontal flight).
 #[inline]
@@ -382,10 +447,31 @@ fn expected(g: &Channels, e: &[f64], z: f64, d: DVec3, sun: DVec3, out: &mut [f6
             }
             Some(s) => {
                 s.sigma_phase(g.atms, i, cos, &mut sp);
-                for (k, ak) in amp.iter_mut().enumerate() {
-                    let (integral, decay) = layer_integral(l.k[k][i] * slant, len, finite);
-                    out[k] += sp[k] * *ak * integral;
-                    *ak *= decay;
+                let kl = &s.k[i * nc..(i + 1) * nc];
+                if finite {
+                    // Branch-free over the channels (vectorizable with `exp_fast`): the
+                    // second-order form where a·len is small, as `layer_integral`.
+                    for c in 0..nc {
+                        let a = kl[c] * slant;
+                        let x = a * len;
+                        let decay = exp_fast(-x);
+                        // (No 0/0 in the unused lane: NaNs cost microcode assists.)
+                        let small = x.abs() < 1e-6;
+                        let a_safe = if small { 1.0 } else { a };
+                        let integral = if small {
+                            len * (1.0 - 0.5 * x)
+                        } else {
+                            (1.0 - decay) / a_safe
+                        };
+                        out[c] += sp[c] * amp[c] * integral;
+                        amp[c] *= decay;
+                    }
+                } else {
+                    for (c, ak) in amp.iter_mut().enumerate() {
+                        let (integral, decay) = layer_integral(kl[c] * slant, len, finite);
+                        out[c] += sp[c] * *ak * integral;
+                        *ak *= decay;
+                    }
                 }
             }
         }
@@ -581,5 +667,21 @@ pub fn walk(
     let k = std::f64::consts::PI / mu_s;
     for (o, sp) in out.iter_mut().zip(split.iter()) {
         *o = sp.scaled(k);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn exp_fast_matches_exp() {
+        let mut worst = 0.0_f64;
+        for i in 0..=200_000 {
+            let x = -700.0 + 710.0 * i as f64 / 200_000.0;
+            let (a, b) = (super::exp_fast(x), x.exp());
+            worst = worst.max((a / b - 1.0).abs());
+        }
+        assert!(worst < 1e-15, "max relative error {worst:e}");
+        assert!(super::exp_fast(-1e6) >= 0.0 && super::exp_fast(-1e6) < 1e-300);
+        assert_eq!(super::exp_fast(0.0), 1.0);
     }
 }
