@@ -18,14 +18,16 @@
 //!   `e_c × q_c/r`.
 //!
 //! **Why each channel's estimate is unbiased.** Write channel c's scalar radiance as the Neumann
-//! series over paths x = (x_1, d_1, x_2, …): the density of the path in channel c's *analog*
-//! process is a product, per flight, of `σ_c(x_j)·e^{−τ_c(flight)}·P_c(cos Θ_j)/(4π)` (or the
-//! surface's `f_c cos θ_i`), and the score of each vertex is the next-event estimate with c's own
-//! σ_c, P_c, BRDF and solar transmittance `exp(−τ_c(z)/μ_s)`. The walk draws the same path from
-//! the reference density `k_ref e^{−τ_ref}·P_ref/(4π)` per flight (or the cosine density at the
-//! surface). The ratio of the two densities at every step is exactly the factor above
-//! (`ω_ref` in `w` times `e_c`'s update), so `w·e_c·score_c` has the expectation of channel c's
-//! series: importance sampling, unbiased whenever the reference density is positive where
+//! series over paths x = (x_1, d_1, x_2, …) from the sensor: the integrand is a product, per
+//! flight, of the transport kernel `σ_c(x_j)·e^{−τ_c(flight)}·P_c(cos Θ_j)/(4π)` (at the
+//! ground: `e^{−τ_c(flight)}·f_c cos θ_i`) times the next-event score of each vertex, with c's
+//! own σ_c, P_c, BRDF and solar transmittance `exp(−τ_c(z)/μ_s)`. The walk draws the same path
+//! from the reference density `k_ref e^{−τ_ref}·P_ref/(4π)` per flight (at the ground:
+//! `e^{−τ_ref}` times the shared cosine density). The ratio of kernel to density at every step
+//! is exactly the factor above (`ω_ref` in `w` times `e_c`'s update, or `q_c` = `r`·(q_c/r) at
+//! the ground), so `w·e_c·score_c` has the expectation of channel c's series (importance
+//! sampling; the reference's walk is the same for every c, only the weights differ): unbiased
+//! whenever the reference density is positive where
 //! channel c's is (σ_ref,i > 0 wherever some σ_c,i > 0, checked by the resolver; P_ref > 0,
 //! true of every phase model here; the surface density is shared). Russian roulette and
 //! `max_depth` act on the common weight and the order, identically for every channel, so they
@@ -42,16 +44,29 @@
 //! estimates (`local_estimate = "collision"`) saturated bands, whose signal comes from rare
 //! scattering high in the atmosphere (1380 nm), need orders of magnitude more walks.
 //!
-//! **Monochromatic groups** ([`Kind::Wavelengths`]): up to 64 neighbouring wavelengths with
-//! their own scattering (Rayleigh ∝ λ⁻⁴, aerosol extinction and phase functions) and surfaces;
-//! one score per wavelength. The reference is the group's central wavelength without absorption
-//! (k_ref = σ_ref, ω_ref = 1). Weight variance: `e_c` is not bounded by 1. Along a flight
-//! `e_c` gains `exp(−(k_c − σ_ref)ℓ)` and at a collision loses or gains `σ_c/σ_ref`; where
-//! σ_c > σ_ref (the blue end of a group) the product over n scatterings grows like
-//! (σ_c/σ_ref)^n while the flights' factors only compensate on average, so the variance grows
-//! with the scattering order and the group width. For groups a few nm wide (σ ratios within a
-//! few %) it is benign; groups tens of nm wide in an optically thick scattering atmosphere are
-//! noisier than independent walks (the tests use 40 nm groups at τ ≈ 0.5).
+//! **Monochromatic groups** ([`Kind::Wavelengths`], `integrator.spectral_walk = "alis"`): up to
+//! [`MAX_CHANNELS`] neighbouring wavelengths (`alis_group`, consecutive in the sorted list) with
+//! their own absorption, scattering (Rayleigh ∝ λ⁻⁴, aerosol extinction and phase functions) and
+//! surfaces; one score per wavelength. The reference ([`group_reference`]) has the scattering
+//! coefficients and phase functions of the group's central wavelength and, per layer, the
+//! smallest absorption of the group: absorption common to all wavelengths is survival weight
+//! (ω_ref), and `e_c` carries only the wavelength's excess absorption, so in a continuum the
+//! walk behaves like an independent one (a reference without any absorption doubled the
+//! standard errors in the O2 A-band, whose continuum absorbs 7× more than it scatters). The
+//! surface is sampled with the central wavelength's BRDF. Weight variance: `e_c` is not bounded
+//! by 1. Along a flight `e_c` gains `exp(−(k_c − k_ref)ℓ)` and at a collision `σ_c/σ_ref`;
+//! where σ_c > σ_ref (the blue end of a group) the product over n scatterings grows like
+//! (σ_c/σ_ref)^n while the flights' factors compensate only on average, so the variance grows
+//! with the scattering order and the group's spectral width. For groups a few nm wide (σ ratios
+//! within a few %) it is benign; the tests use a 40 nm group (σ_s ratio 1.45 for Rayleigh) at
+//! τ ≈ 0.5 without trouble, but groups tens of nm wide in an optically thick scattering
+//! atmosphere can be noisier than independent walks. A wavelength absorbing much more than the
+//! group's least absorbing one gets long paths of small weight: its relative error is larger than
+//! an independent walk's of equal count, which the shared walk usually more than repays.
+//!
+//! Cost: per flight and per wavelength one exponential per layer crossed (the expected
+//! estimate, vectorized over the wavelengths with [`exp_fast`]) and one phase evaluation per
+//! layer and distinct phase function (wavelengths with equal phase functions share it).
 
 use glam::DVec3;
 
@@ -370,6 +385,65 @@ fn layer_integral(a: f64, len: f64, finite: bool) -> (f64, f64) {
     (integral, decay)
 }
 
+/// One layer crossed over its whole length `len` for every wavelength: `out_c += sp_c·amp_c·
+/// (1 − e^{−a_c len})/a_c` and `amp_c ×= e^{−a_c len}`, a_c = k_c·slant (the second-order form
+/// where a_c·len is small, as [`layer_integral`]). Branch-free, so the compiler vectorizes it
+/// with [`exp_fast`]; with AVX2 (detected at run time) four wavelengths at a time. No FMA
+/// contraction either way, so the results do not depend on the instruction set.
+#[inline]
+fn layer_channels(k: &[f64], sp: &[f64], amp: &mut [f64], out: &mut [f64], slant: f64, len: f64) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::arch::is_x86_feature_detected!("avx2") {
+            // SAFETY: the CPU supports AVX2 (checked just above).
+            unsafe { layer_channels_avx2(k, sp, amp, out, slant, len) };
+            return;
+        }
+    }
+    layer_channels_body(k, sp, amp, out, slant, len);
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+unsafe fn layer_channels_avx2(
+    k: &[f64],
+    sp: &[f64],
+    amp: &mut [f64],
+    out: &mut [f64],
+    slant: f64,
+    len: f64,
+) {
+    layer_channels_body(k, sp, amp, out, slant, len);
+}
+
+#[inline(always)]
+fn layer_channels_body(
+    k: &[f64],
+    sp: &[f64],
+    amp: &mut [f64],
+    out: &mut [f64],
+    slant: f64,
+    len: f64,
+) {
+    let n = k.len().min(sp.len()).min(amp.len()).min(out.len());
+    let (k, sp, amp, out) = (&k[..n], &sp[..n], &mut amp[..n], &mut out[..n]);
+    for c in 0..n {
+        let a = k[c] * slant;
+        let x = a * len;
+        let decay = exp_fast(-x);
+        // (No 0/0 in the unused lane: NaNs cost microcode assists.)
+        let small = x.abs() < 1e-6;
+        let a_safe = if small { 1.0 } else { a };
+        let integral = if small {
+            len * (1.0 - 0.5 * x)
+        } else {
+            (1.0 - decay) / a_safe
+        };
+        out[c] += sp[c] * amp[c] * integral;
+        amp[c] *= decay;
+    }
+}
+
 /// Expected value over the next (reference) collision of the flight from altitude `z` along `d`
 /// of the next-event estimates, integrated exactly layer by layer (every factor is exponential in
 /// the distance inside a layer): per channel `∫ σ_c,L P_c,L e_c e^{−S_c(ℓ)} e^{−τ_c(z(ℓ))/μ_s} dℓ
@@ -449,23 +523,7 @@ fn expected(g: &Channels, e: &[f64], z: f64, d: DVec3, sun: DVec3, out: &mut [f6
                 s.sigma_phase(g.atms, i, cos, &mut sp);
                 let kl = &s.k[i * nc..(i + 1) * nc];
                 if finite {
-                    // Branch-free over the channels (vectorizable with `exp_fast`): the
-                    // second-order form where a·len is small, as `layer_integral`.
-                    for c in 0..nc {
-                        let a = kl[c] * slant;
-                        let x = a * len;
-                        let decay = exp_fast(-x);
-                        // (No 0/0 in the unused lane: NaNs cost microcode assists.)
-                        let small = x.abs() < 1e-6;
-                        let a_safe = if small { 1.0 } else { a };
-                        let integral = if small {
-                            len * (1.0 - 0.5 * x)
-                        } else {
-                            (1.0 - decay) / a_safe
-                        };
-                        out[c] += sp[c] * amp[c] * integral;
-                        amp[c] *= decay;
-                    }
+                    layer_channels(kl, &sp[..nc], amp, &mut out[..nc], slant, len);
                 } else {
                     for (c, ak) in amp.iter_mut().enumerate() {
                         let (integral, decay) = layer_integral(kl[c] * slant, len, finite);
