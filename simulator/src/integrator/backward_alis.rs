@@ -72,7 +72,8 @@
 //!
 //! Cost: per flight and per wavelength one exponential per layer crossed (the expected
 //! estimate, vectorized over the wavelengths with [`exp_fast`]) and one phase evaluation per
-//! layer and distinct phase function (wavelengths with equal phase functions share it).
+//! flight and distinct phase function (equal phase functions, in any layer or wavelength, share
+//! one: [`PhaseCache`]).
 
 use glam::DVec3;
 
@@ -143,11 +144,38 @@ struct Spectral {
     sigma: Vec<f64>,
     /// σ_s,c / σ_ref (0 where the reference does not scatter).
     ratio: Vec<f64>,
-    /// Phase class of channel c in layer i: channels with equal phase functions share one
-    /// evaluation (often all of them: a Rayleigh-only layer).
-    class: Vec<u8>,
-    /// Per layer, one channel of each class.
-    reps: Vec<Vec<usize>>,
+    /// Phase id of channel c in layer i: equal phase functions (in any layer and channel) share
+    /// one id and so one evaluation per direction (often all of them: Rayleigh-only layers of
+    /// one depolarization).
+    pid: Vec<u32>,
+    /// Per id, a (layer, channel) that has it.
+    reps: Vec<(usize, usize)>,
+}
+
+/// Phase function values at one cos Θ, evaluated on demand per phase id; `next` starts a new
+/// cos Θ (generation stamps, so nothing is cleared).
+pub(crate) struct PhaseCache {
+    val: Vec<f64>,
+    stamp: Vec<u32>,
+    generation: u32,
+}
+
+impl PhaseCache {
+    fn new(ids: usize) -> Self {
+        PhaseCache {
+            val: vec![0.0; ids],
+            stamp: vec![0; ids],
+            generation: 0,
+        }
+    }
+
+    fn next(&mut self) {
+        self.generation = self.generation.wrapping_add(1);
+        if self.generation == 0 {
+            self.stamp.fill(0);
+            self.generation = 1;
+        }
+    }
 }
 
 /// Scattering coefficient per layer of `t` (boundaries (z, τ) top down).
@@ -209,7 +237,7 @@ impl Layers {
     }
 
     /// Tables for wavelength channels: [`Layers::new`] plus each channel's scattering
-    /// coefficient and phase classes.
+    /// coefficient and phase ids.
     pub fn spectral(reference: &PlaneParallel, atms: &[&PlaneParallel]) -> Self {
         assert!(atms.len() <= MAX_CHANNELS);
         let mut l = Self::new(reference, atms);
@@ -217,26 +245,34 @@ impl Layers {
         let nc = atms.len();
         let mut sigma = Vec::with_capacity(n * nc);
         let mut ratio = Vec::with_capacity(n * nc);
-        let mut class = Vec::with_capacity(n * nc);
-        let mut reps = Vec::with_capacity(n);
+        let mut pid = Vec::with_capacity(n * nc);
+        let mut reps: Vec<(usize, usize)> = Vec::new();
+        // Candidates by the values at three cosines (equal functions give equal keys), then
+        // exact comparison.
+        let mut by_key: std::collections::HashMap<[u64; 3], Vec<u32>> = Default::default();
         for i in 0..n {
-            let mut r: Vec<usize> = Vec::new();
             for (c, a) in atms.iter().enumerate() {
                 let s = a.albedo(i) * l.k[c][i];
                 sigma.push(s);
                 let s_ref = l.sigma_s[i];
                 ratio.push(if s_ref > 0.0 { s / s_ref } else { 0.0 });
                 let p = a.phase(i);
-                let j = match r.iter().position(|&q| atms[q].phase(i) == p) {
-                    Some(j) => j,
+                let key = [-0.71, 0.13, 0.92].map(|x| p.eval(x).to_bits());
+                let bucket = by_key.entry(key).or_default();
+                let id = match bucket
+                    .iter()
+                    .find(|&&id| atms[reps[id as usize].1].phase(reps[id as usize].0) == p)
+                {
+                    Some(&id) => id,
                     None => {
-                        r.push(c);
-                        r.len() - 1
+                        reps.push((i, c));
+                        let id = (reps.len() - 1) as u32;
+                        bucket.push(id);
+                        id
                     }
                 };
-                class.push(j as u8);
+                pid.push(id);
             }
-            reps.push(r);
         }
         let k: Vec<f64> = (0..n)
             .flat_map(|i| l.k.iter().map(move |kc| kc[i]))
@@ -246,7 +282,7 @@ impl Layers {
             k,
             sigma,
             ratio,
-            class,
+            pid,
             reps,
         });
         l
@@ -255,14 +291,15 @@ impl Layers {
     /// The first layer (index) where a channel scatters but the reference does not: a walk
     /// sampled in that reference would miss part of the channel's paths.
     pub fn unsupported_layer(reference: &PlaneParallel, atms: &[&PlaneParallel]) -> Option<usize> {
-        let b: Vec<(f64, f64)> = reference.boundaries().collect();
-        (0..b.len() - 1).find(|&i| {
-            reference.albedo(i) * (b[i + 1].1 - b[i].1) <= 0.0
-                && atms.iter().any(|a| {
-                    let t: Vec<(f64, f64)> = a.boundaries().collect();
-                    a.albedo(i) * (t[i + 1].1 - t[i].1) > 0.0
-                })
-        })
+        let scattering = |a: &PlaneParallel| -> Vec<f64> {
+            let t: Vec<(f64, f64)> = a.boundaries().collect();
+            (0..t.len() - 1)
+                .map(|i| a.albedo(i) * (t[i + 1].1 - t[i].1))
+                .collect()
+        };
+        let r = scattering(reference);
+        let channels: Vec<Vec<f64>> = atms.iter().map(|a| scattering(a)).collect();
+        (0..r.len()).find(|&i| r[i] <= 0.0 && channels.iter().any(|c| c[i] > 0.0))
     }
 
     /// Layer index and fraction `f` (0 at the layer's top) of altitude `z`.
@@ -302,29 +339,27 @@ impl Layers {
 }
 
 impl Spectral {
-    /// `σ_c,i·P_c,i(cos)` per channel into `out` (one phase evaluation per class).
+    /// `coef_c·P_c,i(cos)` per channel into `out` (`coef`: σ_c,i or σ_c,i/σ_ref,i, layer-major),
+    /// each distinct phase function evaluated once per `cache` generation (one cos Θ).
     #[inline]
-    fn sigma_phase(&self, atms: &[&PlaneParallel], i: usize, cos: f64, out: &mut [f64]) {
-        let mut pc = [0.0_f64; MAX_CHANNELS];
-        for (j, &c) in self.reps[i].iter().enumerate() {
-            pc[j] = atms[c].phase(i).eval(cos);
-        }
+    fn times_phase(
+        &self,
+        coef: &[f64],
+        atms: &[&PlaneParallel],
+        i: usize,
+        cos: f64,
+        cache: &mut PhaseCache,
+        out: &mut [f64],
+    ) {
         let o = i * self.nc;
         for c in 0..self.nc {
-            out[c] = self.sigma[o + c] * pc[self.class[o + c] as usize];
-        }
-    }
-
-    /// `(σ_c,i/σ_ref,i)·P_c,i(cos)` per channel into `out`.
-    #[inline]
-    fn ratio_phase(&self, atms: &[&PlaneParallel], i: usize, cos: f64, out: &mut [f64]) {
-        let mut pc = [0.0_f64; MAX_CHANNELS];
-        for (j, &c) in self.reps[i].iter().enumerate() {
-            pc[j] = atms[c].phase(i).eval(cos);
-        }
-        let o = i * self.nc;
-        for c in 0..self.nc {
-            out[c] = self.ratio[o + c] * pc[self.class[o + c] as usize];
+            let id = self.pid[o + c] as usize;
+            if cache.stamp[id] != cache.generation {
+                let (li, ci) = self.reps[id];
+                cache.val[id] = atms[ci].phase(li).eval(cos);
+                cache.stamp[id] = cache.generation;
+            }
+            out[c] = coef[o + c] * cache.val[id];
         }
     }
 }
@@ -456,8 +491,17 @@ fn layer_channels_body(
 /// /(4π)` over the flight to the ground or the top (`S_c`: the channel's optical path from the
 /// flight's start). Writes the bin mean (`Σ_g w_g·…`, g-points) or one value per wavelength into
 /// `out`.
-fn expected(g: &Channels, e: &[f64], z: f64, d: DVec3, sun: DVec3, out: &mut [f64]) {
+fn expected(
+    g: &Channels,
+    e: &[f64],
+    z: f64,
+    d: DVec3,
+    sun: DVec3,
+    cache: &mut PhaseCache,
+    out: &mut [f64],
+) {
     out.fill(0.0);
+    cache.next();
     let l = g.layers;
     let n = l.sigma_s.len();
     let (toa, ground) = (l.z[0], l.z[n]);
@@ -526,7 +570,7 @@ fn expected(g: &Channels, e: &[f64], z: f64, d: DVec3, sun: DVec3, out: &mut [f6
                 }
             }
             Some(s) => {
-                s.sigma_phase(g.atms, i, cos, &mut sp);
+                s.times_phase(&s.sigma, g.atms, i, cos, cache, &mut sp);
                 let kl = &s.k[i * nc..(i + 1) * nc];
                 if finite {
                     layer_channels(kl, &sp[..nc], amp, &mut out[..nc], slant, len);
@@ -597,6 +641,7 @@ pub fn walk(
     let score = &mut score[..nout];
     let mut tmp = [0.0_f64; MAX_CHANNELS];
     let tmp = &mut tmp[..nout];
+    let mut cache = PhaseCache::new(g.layers.spectral.as_ref().map_or(0, |s| s.reps.len()));
     let mut z = z0;
     let mut d = d0;
     let mut w = 1.0_f64;
@@ -606,7 +651,7 @@ pub fn walk(
     while order <= settings.max_depth {
         score.fill(0.0);
         if expected_mode {
-            expected(g, e, z, d, sun, tmp);
+            expected(g, e, z, d, sun, &mut cache, tmp);
             for (s, x) in score.iter_mut().zip(tmp.iter()) {
                 *s += w * x;
             }
@@ -635,7 +680,8 @@ pub fn walk(
                         }
                         (Kind::Wavelengths { .. }, Some(sp)) => {
                             // w·ω_ref·(σ_c/σ_ref)·P_c/(4π)·e_c·T_c,sun per wavelength.
-                            sp.ratio_phase(g.atms, layer, cos, tmp);
+                            cache.next();
+                            sp.times_phase(&sp.ratio, g.atms, layer, cos, &mut cache, tmp);
                             let common = w * omega * inv_4pi;
                             for (k, a) in g.atms.iter().enumerate() {
                                 score[k] +=
@@ -655,7 +701,8 @@ pub fn walk(
                     // e_c × (σ_c/σ_ref)·P_c(μ)/P_ref(μ).
                     let p_ref = phase.eval(mu);
                     let mut r = [0.0_f64; MAX_CHANNELS];
-                    sp.ratio_phase(g.atms, layer, mu, &mut r);
+                    cache.next();
+                    sp.times_phase(&sp.ratio, g.atms, layer, mu, &mut cache, &mut r);
                     let inv = if p_ref > 0.0 { 1.0 / p_ref } else { 0.0 };
                     for (ek, rk) in e.iter_mut().zip(&r) {
                         *ek *= rk * inv;
