@@ -70,7 +70,7 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
     if exp.planet_radius.is_some() {
         return Method::Backward;
     }
-    if exp.integrator.alis {
+    if exp.integrator.alis || exp.integrator.spectral_alis.is_some() {
         return Method::Backward;
     }
     match (exp.integrator.kind, &m.kind) {
@@ -115,7 +115,7 @@ fn run_block_alis(
     cell: usize,
     range: std::ops::Range<u64>,
 ) -> Accum {
-    use crate::integrator::backward_alis::{self, GPoints};
+    use crate::integrator::backward_alis::{self, Channels, Kind};
     let m = &exp.measures[im];
     let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
@@ -123,29 +123,89 @@ fn run_block_alis(
     // Reference: the bin's atmosphere without gas absorption (scattering and particle
     // absorption only), so every g-point's path factor is a pure gas transmittance.
     let layers = backward_alis::Layers::new(&base.atmosphere, &atms);
-    let g = GPoints {
-        weights: &weights,
+    let g = Channels {
         atms: &atms,
         reference: &base.atmosphere,
         layers: &layers,
+        kind: Kind::GPoints {
+            weights: &weights,
+            surface: &base.surface,
+        },
     };
     let toa = atms[0].toa();
     let mut acc = Accum::new(1);
+    let mut out = [(0.0, 0.0)];
     for s in range {
         let mut rng = Stream::new(exp.seed, [iw as u64, im as u64, cell as u64, s]);
         let (z0, d0) = backward_start_altitude(toa, m, cell, &mut rng);
-        let (a, b) = backward_alis::walk(
-            &g,
-            &base.surface,
-            exp.sun_dir,
-            z0,
-            d0,
-            &exp.integrator,
-            &mut rng,
-        );
-        acc.add(0, a, b);
+        backward_alis::walk(&g, exp.sun_dir, z0, d0, &exp.integrator, &mut rng, &mut out);
+        acc.add(0, out[0].0, out[0].1);
     }
     acc
+}
+
+/// Tag of the random streams of spectral ALIS groups (keyed by the group's first wavelength
+/// index), apart from those of single wavelengths.
+const GROUP_STREAM: u64 = 1 << 62;
+
+/// What the walks of a spectral ALIS group share: the reference atmosphere (the group's
+/// central wavelength's scattering with the group's least absorption) and the layer tables,
+/// built once per task.
+struct SpectralGroup {
+    reference: crate::atmosphere::PlaneParallel,
+    layers: crate::integrator::backward_alis::Layers,
+}
+
+impl SpectralGroup {
+    fn new(exp: &Experiment, group: &[usize]) -> Self {
+        let central = &exp.optics[group[group.len() / 2]];
+        let atms: Vec<&crate::atmosphere::PlaneParallel> =
+            group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
+        let reference =
+            crate::integrator::backward_alis::group_reference(&central.atmosphere, &atms);
+        let layers = crate::integrator::backward_alis::Layers::spectral(&reference, &atms);
+        SpectralGroup { reference, layers }
+    }
+}
+
+/// A block of spectral ALIS walks: every walk carries all wavelengths of `group` (one
+/// accumulator per wavelength).
+fn run_block_spectral(
+    exp: &Experiment,
+    sg: &SpectralGroup,
+    group: &[usize],
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Vec<Accum> {
+    use crate::integrator::backward_alis::{self, Channels, Kind};
+    let m = &exp.measures[im];
+    let atms: Vec<&crate::atmosphere::PlaneParallel> =
+        group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
+    let surfaces: Vec<&crate::bsdf::Bsdf> =
+        group.iter().map(|&iw| &exp.optics[iw].surface).collect();
+    let g = Channels {
+        atms: &atms,
+        reference: &sg.reference,
+        layers: &sg.layers,
+        kind: Kind::Wavelengths {
+            surfaces: &surfaces,
+            reference_surface: &exp.optics[group[group.len() / 2]].surface,
+        },
+    };
+    let toa = sg.reference.toa();
+    let mut accs = vec![Accum::new(1); group.len()];
+    let mut out = vec![(0.0, 0.0); group.len()];
+    let key = GROUP_STREAM | group[0] as u64;
+    for s in range {
+        let mut rng = Stream::new(exp.seed, [key, im as u64, cell as u64, s]);
+        let (z0, d0) = backward_start_altitude(toa, m, cell, &mut rng);
+        backward_alis::walk(&g, exp.sun_dir, z0, d0, &exp.integrator, &mut rng, &mut out);
+        for (acc, (a, b)) in accs.iter_mut().zip(&out) {
+            acc.add(0, *a, *b);
+        }
+    }
+    accs
 }
 
 fn run_block_at(
@@ -524,27 +584,69 @@ fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
 /// Run `exp` completely. `progress`: draw a progress bar on stderr.
 pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
     let bar = progress_bar(exp, progress);
-    // (wavelength, measure) tasks run concurrently as well as their blocks: a task whose round
-    // is a single block (precise CKD/ALIS walks) would otherwise leave cores idle. Each task's
-    // result depends only on its own random streams, so not on the scheduling.
-    let out = tasks(exp)
+    // Tasks (a wavelength or a spectral ALIS group, and a measure) run concurrently as well as
+    // their blocks: a task whose round is a single block (precise CKD/ALIS walks) would
+    // otherwise leave cores idle. Each task's result depends only on its own random streams, so
+    // not on the scheduling.
+    let parts: Vec<Vec<MeasureResult>> = tasks(exp)
         .into_par_iter()
-        .map(|(iw, im)| {
-            bar.set_message(format!(
-                "{} @ {} nm",
-                exp.measures[im].id, exp.wavelengths[iw]
-            ));
-            run_measure(exp, iw, im, &bar)
+        .map(|(group, im)| {
+            bar.set_message(task_message(exp, &group, im));
+            run_task(exp, &group, im, &bar)
         })
         .collect();
     bar.finish_and_clear();
-    out
+    let mut slots: Vec<Option<MeasureResult>> = (0..exp.wavelengths.len() * exp.measures.len())
+        .map(|_| None)
+        .collect();
+    let nm = exp.measures.len();
+    for r in parts.into_iter().flatten() {
+        let k = r.wavelength * nm + r.measure;
+        slots[k] = Some(r);
+    }
+    slots
+        .into_iter()
+        .map(|r| r.expect("every (wavelength, measure) pair has a task"))
+        .collect()
 }
 
-/// Every (wavelength, measure) pair, wavelength-major.
-fn tasks(exp: &Experiment) -> Vec<(usize, usize)> {
-    (0..exp.wavelengths.len())
-        .flat_map(|iw| (0..exp.measures.len()).map(move |im| (iw, im)))
+/// The progress bar's message for a task.
+fn task_message(exp: &Experiment, group: &[usize], im: usize) -> String {
+    let id = &exp.measures[im].id;
+    match group {
+        [iw] => format!("{id} @ {} nm", exp.wavelengths[*iw]),
+        _ => format!(
+            "{id} @ {}–{} nm",
+            exp.wavelengths[group[0]],
+            exp.wavelengths[group[group.len() - 1]]
+        ),
+    }
+}
+
+/// The wavelength groups of a run: with `integrator.spectral_walk = "alis"`, runs of at most
+/// `alis_group` consecutive wavelengths of the sorted list (one walk serves a group); otherwise
+/// one wavelength each. Wavelength indices, ascending in wavelength within a group.
+pub fn wavelength_groups(exp: &Experiment) -> Vec<Vec<usize>> {
+    wavelength_groups_of(&exp.wavelengths, exp.integrator.spectral_alis)
+}
+
+/// [`wavelength_groups`] of a wavelength list and group size (None: one wavelength each).
+pub fn wavelength_groups_of(wavelengths: &[f64], group: Option<usize>) -> Vec<Vec<usize>> {
+    match group {
+        None => (0..wavelengths.len()).map(|iw| vec![iw]).collect(),
+        Some(n) => {
+            let mut order: Vec<usize> = (0..wavelengths.len()).collect();
+            order.sort_by(|&a, &b| wavelengths[a].total_cmp(&wavelengths[b]).then(a.cmp(&b)));
+            order.chunks(n.max(1)).map(|c| c.to_vec()).collect()
+        }
+    }
+}
+
+/// Every (wavelength group, measure) pair, group-major (wavelength-major without groups).
+fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
+    wavelength_groups(exp)
+        .into_iter()
+        .flat_map(|g| (0..exp.measures.len()).map(move |im| (g.clone(), im)))
         .collect()
 }
 
@@ -566,14 +668,29 @@ fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_gr
 
 /// Run one measure at one wavelength, in rounds when a target precision is set.
 pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) -> MeasureResult {
+    run_task(exp, &[iw], im, bar)
+        .pop()
+        .expect("one result per wavelength")
+}
+
+/// Run one measure at the wavelengths of `group` (one wavelength, or a spectral ALIS group whose
+/// walks serve all of them), in rounds when a target precision is set: the group stops when
+/// every wavelength meets the target (or at `spp`). One result per wavelength of the group.
+fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> Vec<MeasureResult> {
     let m = &exp.measures[im];
     let method = method_for(exp, m);
     let bs = block_size(m);
+    let spectral = exp
+        .integrator
+        .spectral_alis
+        .map(|_| SpectralGroup::new(exp, group));
+    assert!(spectral.is_some() || group.len() == 1);
+    let iw0 = group[0];
     // Rounds end on whole cycles of g-point blocks in CKD runs.
     let cycle = if exp.integrator.alis {
         1
     } else {
-        exp.optics[iw].g_states.len().max(1)
+        exp.optics[iw0].g_states.len().max(1)
     };
     let unit = bs * cycle as u64;
     let cells = m.cell_count();
@@ -582,11 +699,14 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
     } else {
         (0..cells).collect()
     };
-    let mut acc = if exp.polarized {
-        Accum::new_polarized(cells)
-    } else {
-        Accum::new(cells)
+    let new_acc = || {
+        if exp.polarized {
+            Accum::new_polarized(cells)
+        } else {
+            Accum::new(cells)
+        }
     };
+    let mut accs: Vec<Accum> = group.iter().map(|_| new_acc()).collect();
     let mut done = 0u64;
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {
@@ -596,6 +716,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             (first.div_ceil(unit) * unit).min(m.spp)
         }
     };
+    let per_walk = group.len() as u64;
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
             .iter()
@@ -605,34 +726,45 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
                 (first..last).map(move |b| (c, b))
             })
             .collect();
-        let parts: Vec<(usize, Accum)> = blocks
+        let parts: Vec<(usize, Vec<Accum>)> = blocks
             .par_iter()
             .map(|&(c, b)| {
                 let range = (b * bs).max(done)..((b + 1) * bs).min(next);
                 let n = range.end - range.start;
-                let a = run_block(exp, iw, im, c, range);
-                bar.inc(n);
+                let a = match &spectral {
+                    Some(sg) => run_block_spectral(exp, sg, group, im, c, range),
+                    None => vec![run_block(exp, iw0, im, c, range)],
+                };
+                bar.inc(n * per_walk);
                 (c, a)
             })
             .collect();
         for (c, part) in &parts {
-            if method == Method::Forward {
-                acc.merge(part);
-            } else {
-                acc.merge_cell(*c, part, 0);
+            for (acc, p) in accs.iter_mut().zip(part) {
+                if method == Method::Forward {
+                    acc.merge(p);
+                } else {
+                    acc.merge_cell(*c, p, 0);
+                }
             }
         }
         done = next;
-        // Images stop on the median pixel error, other measures on the worst cell.
-        let rel = if m.is_image() {
-            acc.median_rel_stderr()
-        } else {
-            acc.max_rel_stderr()
-        };
+        // Images stop on the median pixel error, other measures on the worst cell (the worst
+        // wavelength of a group).
+        let rel = accs
+            .iter()
+            .map(|acc| {
+                if m.is_image() {
+                    acc.median_rel_stderr()
+                } else {
+                    acc.max_rel_stderr()
+                }
+            })
+            .fold(0.0, f64::max);
         let reached = m.target_rel_stderr.is_some_and(|t| rel <= t);
         if done >= m.spp || reached {
             if reached && done < m.spp {
-                bar.inc((m.spp - done) * walks_per_sample(exp, m));
+                bar.inc((m.spp - done) * walks_per_sample(exp, m) * per_walk);
             }
             break;
         }
@@ -652,12 +784,16 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
             min_grow,
         );
     }
-    MeasureResult {
-        measure: im,
-        wavelength: iw,
-        method,
-        acc,
-    }
+    group
+        .iter()
+        .zip(accs)
+        .map(|(&iw, acc)| MeasureResult {
+            measure: im,
+            wavelength: iw,
+            method,
+            acc,
+        })
+        .collect()
 }
 
 /// Checkpoints: after each (wavelength, measure) task its sums are written to
@@ -761,11 +897,13 @@ pub fn run_resumable(
     ))
 }
 
-/// Run only the tasks (wavelength, measure) whose index `iw·measures + im` is `shard` modulo
-/// `shards`, storing each in `dir`; tasks of other shards are loaded from `dir` when present
-/// (so collecting the checkpoint files of all shards in one folder and running shard 0/1 there
-/// writes the products without recomputing anything: runs split across machines merge exactly).
-/// Returns one entry per task (`None`: another shard's task not available) and the count loaded.
+/// Run only the tasks (wavelength group, measure) whose index in [`tasks`] order (`iw·measures +
+/// im` without spectral groups) is `shard` modulo `shards`, storing each wavelength's result in
+/// `dir`; tasks of other shards are loaded from `dir` when present (so collecting the checkpoint
+/// files of all shards in one folder and running shard 0/1 there writes the products without
+/// recomputing anything: runs split across machines merge exactly). A group is loaded only when
+/// every one of its wavelengths is stored. Returns one entry per (wavelength, measure),
+/// wavelength-major (`None`: another shard's task not available), and the count loaded.
 pub fn run_shard(
     exp: &Experiment,
     progress: bool,
@@ -776,27 +914,40 @@ pub fn run_shard(
     let bar = progress_bar(exp, progress);
     let nm = exp.measures.len();
     let resumed = std::sync::atomic::AtomicUsize::new(0);
-    // Tasks run concurrently (see `run`); each stores its checkpoint as soon as it is done.
-    let out = tasks(exp)
+    // Tasks run concurrently (see `run`); each stores its checkpoints as soon as it is done.
+    let parts = tasks(exp)
         .into_par_iter()
-        .map(|(iw, im)| {
+        .enumerate()
+        .map(|(k, (group, im))| {
             let m = &exp.measures[im];
-            let per = walks_per_sample(exp, m);
-            if let Some(r) = checkpoint::load(dir, exp, iw, im) {
+            let per = walks_per_sample(exp, m) * group.len() as u64;
+            let loaded: Option<Vec<MeasureResult>> = group
+                .iter()
+                .map(|&iw| checkpoint::load(dir, exp, iw, im))
+                .collect();
+            if let Some(rs) = loaded {
                 bar.inc(m.spp * per);
-                resumed.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                return Ok(Some(r));
+                resumed.fetch_add(rs.len(), std::sync::atomic::Ordering::Relaxed);
+                return Ok(rs);
             }
-            if (iw * nm + im) % shards != shard {
+            if k % shards != shard {
                 bar.inc(m.spp * per);
-                return Ok(None);
+                return Ok(Vec::new());
             }
-            bar.set_message(format!("{} @ {} nm", m.id, exp.wavelengths[iw]));
-            let r = run_measure(exp, iw, im, &bar);
-            checkpoint::store(dir, exp, &r)?;
-            Ok(Some(r))
+            bar.set_message(task_message(exp, &group, im));
+            let rs = run_task(exp, &group, im, &bar);
+            for r in &rs {
+                checkpoint::store(dir, exp, r)?;
+            }
+            Ok(rs)
         })
-        .collect::<Result<Vec<_>, crate::error::OutputError>>()?;
+        .collect::<Result<Vec<Vec<MeasureResult>>, crate::error::OutputError>>()?;
     bar.finish_and_clear();
+    let mut out: Vec<Option<MeasureResult>> =
+        (0..exp.wavelengths.len() * nm).map(|_| None).collect();
+    for r in parts.into_iter().flatten() {
+        let k = r.wavelength * nm + r.measure;
+        out[k] = Some(r);
+    }
     Ok((out, resumed.into_inner()))
 }

@@ -63,10 +63,11 @@
 //! (plotted by `tools/plots/artdeco_plot.py`).
 
 mod common;
+use common::artdeco::{read_cumulative, shared_dir, Cumulative};
 use common::{experiment, run_rows, Cmp, K};
 
 use std::collections::BTreeSet;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 const SZA: f64 = 30.0;
 const VZA: f64 = 20.0;
@@ -74,54 +75,6 @@ const VZA: f64 = 20.0;
 const VAA: f64 = 180.0;
 const ABS_FLOOR: f64 = 1e-8;
 const REF_REL: f64 = 1e-3;
-
-fn shared_dir() -> Option<PathBuf> {
-    let p = std::env::var_os("SIMULATOR_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"))
-        .join("artdeco_o2a");
-    p.join("artdeco_lbl_nstr_32_ray_O2.dat")
-        .exists()
-        .then_some(p)
-}
-
-/// A cumulative optical-depth file: `cum[level][wavelength]`, levels from TOA (120 km) down.
-struct Cumulative {
-    wavelengths: Vec<f64>,
-    altitudes: Vec<f64>,
-    cum: Vec<Vec<f64>>,
-}
-
-fn read_cumulative(path: &Path) -> Cumulative {
-    let text = std::fs::read_to_string(path).unwrap();
-    let mut lines = text
-        .lines()
-        .filter(|l| !l.trim_start().starts_with('#') && !l.trim().is_empty());
-    let mut next_numbers = || -> Vec<f64> {
-        lines
-            .next()
-            .unwrap_or_else(|| panic!("{}: truncated", path.display()))
-            .split_whitespace()
-            .map(|x| x.parse().unwrap())
-            .collect()
-    };
-    let nwl = next_numbers()[0] as usize;
-    let nalt = next_numbers()[0] as usize;
-    let wavelengths = next_numbers();
-    assert_eq!(wavelengths.len(), nwl, "{}", path.display());
-    let (mut altitudes, mut cum) = (Vec::new(), Vec::new());
-    for _ in 0..nalt {
-        let row = next_numbers();
-        assert_eq!(row.len(), nwl + 1, "{}", path.display());
-        altitudes.push(row[0]);
-        cum.push(row[1..].to_vec());
-    }
-    Cumulative {
-        wavelengths,
-        altitudes,
-        cum,
-    }
-}
 
 struct Case {
     gas: Cumulative,
@@ -163,9 +116,7 @@ impl Case {
 
     /// Optical thickness of layer `l` (0 = the top one) at wavelength index `k`.
     fn layer(od: &Cumulative, l: usize, k: usize) -> f64 {
-        let d = od.cum[l + 1][k] - od.cum[l][k];
-        assert!(d > -1e-12, "negative layer optical thickness {d}");
-        d.max(0.0)
+        common::artdeco::layer(od, l, k)
     }
 
     fn column_gas(&self, k: usize) -> f64 {
@@ -174,18 +125,7 @@ impl Case {
 
     /// Analytic single-scattering BRF (exact for homogeneous layers over a black surface).
     fn single_scattering(&self, k: usize) -> f64 {
-        let (mu0, mu) = (SZA.to_radians().cos(), VZA.to_radians().cos());
-        let m = 1.0 / mu0 + 1.0 / mu;
-        let (mut above, mut sum) = (0.0, 0.0);
-        for l in 0..self.n_layers() {
-            let (s, a) = (Self::layer(&self.ray, l, k), Self::layer(&self.gas, l, k));
-            let e = s + a;
-            if e > 0.0 {
-                sum += s / e * (-above * m).exp() * -(-e * m).exp_m1() / m;
-            }
-            above += e;
-        }
-        rayleigh_phase() * sum / (4.0 * mu0 * mu)
+        common::artdeco::single_scattering(&self.gas, &self.ray, k, SZA, VZA, VAA)
     }
 
     /// ARTDECO's point is not self-consistent (see the header).
@@ -257,11 +197,6 @@ fn cos_scattering_angle() -> f64 {
     let view = simulator::frame::direction_from_angles(VZA.to_radians(), VAA.to_radians());
     // Incident propagation direction −sun, scattered along view.
     -sun.dot(view)
-}
-
-fn rayleigh_phase() -> f64 {
-    let c = cos_scattering_angle();
-    0.75 * (1.0 + c * c)
 }
 
 /// Q/I of single-scattered Rayleigh light (depolarization 0) in our meridian frame.

@@ -74,6 +74,34 @@ impl PlaneParallel {
         }
     }
 
+    /// The same layers and scattering with the absorption optical thickness of layer i (top
+    /// down) replaced by `tau_abs[i]` (the reference process of spectral ALIS walks); same
+    /// phase functions.
+    pub fn with_absorption(&self, tau_abs: &[f64]) -> PlaneParallel {
+        assert_eq!(tau_abs.len(), self.albedo.len());
+        let mut tau = vec![0.0];
+        let mut albedo = Vec::with_capacity(self.albedo.len());
+        for (i, a) in self.albedo.iter().enumerate() {
+            let sca = (self.tau[i + 1] - self.tau[i]) * a;
+            let ext = sca + tau_abs[i];
+            tau.push(tau[i] + ext);
+            albedo.push(if ext > 0.0 { sca / ext } else { 1.0 });
+        }
+        let total_tau = *tau.last().unwrap();
+        PlaneParallel {
+            z: self.z.clone(),
+            tau,
+            albedo,
+            phase: self.phase.clone(),
+            total_tau,
+        }
+    }
+
+    /// Absorption optical thickness of layer `i`.
+    pub fn tau_abs(&self, i: usize) -> f64 {
+        (self.tau[i + 1] - self.tau[i]) * (1.0 - self.albedo[i])
+    }
+
     /// Vertical optical thickness of the whole atmosphere.
     #[inline]
     pub fn total_tau(&self) -> f64 {

@@ -93,11 +93,19 @@ impl Bsdf {
     pub fn sample(&self, wo: DVec3, u1: f64, u2: f64) -> BsdfSample {
         let wi = sample_cosine_hemisphere(u1, u2);
         let pdf = wi.z * std::f64::consts::FRAC_1_PI;
-        let weight = match self {
+        let weight = self.sample_weight(wi, wo);
+        BsdfSample { wi, weight, pdf }
+    }
+
+    /// The weight `f_r(wi, wo)·cos θ_i / pdf(wi)` that [`Bsdf::sample`] gives a drawn `wi`.
+    /// Every model samples the same (cosine-weighted) density, so this is also the weight of a
+    /// direction drawn from another model's `sample` (spectral ALIS walks rely on it).
+    #[inline]
+    pub fn sample_weight(&self, wi: DVec3, wo: DVec3) -> f64 {
+        match self {
             Bsdf::Lambertian(m) => m.reflectance,
             _ => std::f64::consts::PI * self.eval(wi, wo),
-        };
-        BsdfSample { wi, weight, pdf }
+        }
     }
 
     /// Directional-hemispherical reflectance for light incident from `wi` (numerical quadrature,

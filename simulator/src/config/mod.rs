@@ -517,6 +517,13 @@ pub struct IntegratorConfig {
     /// "alis" (one backward walk carries every g-point of a bin).
     #[serde(default)]
     pub ckd_walk: Option<String>,
+    /// `mode = "mono"`: "independent" (default: every wavelength has its own walks) or "alis"
+    /// (one backward walk carries a group of neighbouring wavelengths).
+    #[serde(default)]
+    pub spectral_walk: Option<String>,
+    /// `spectral_walk = "alis"`: wavelengths per group (1–64, default 32).
+    #[serde(default)]
+    pub alis_group: Option<usize>,
     /// Samples per direction before the first check of `target_rel_stderr` (default 8192).
     #[serde(default)]
     pub first_check_spp: Option<u64>,

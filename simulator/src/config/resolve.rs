@@ -46,6 +46,9 @@ pub struct IntegratorSettings {
     pub expected_local_estimate: bool,
     /// CKD runs: one backward walk for all g-points of a bin (`integrator/backward_alis.rs`).
     pub alis: bool,
+    /// Monochromatic runs with `spectral_walk = "alis"`: the wavelengths per group (one backward
+    /// walk serves a group, `integrator/backward_alis.rs`); None: independent walks.
+    pub spectral_alis: Option<usize>,
     /// Samples before the first precision check (None: 4 blocks).
     pub first_check_spp: Option<u64>,
 }
@@ -1440,7 +1443,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         None | Some("cycle") => false,
         Some("alis") => {
             if !ckd {
-                return Err(ctx.err("integrator.ckd_walk", "is used only with mode = \"ckd\""));
+                return Err(ctx.err(
+                    "integrator.ckd_walk",
+                    "is used only with mode = \"ckd\" (monochromatic runs: integrator.spectral_walk = \"alis\")",
+                ));
             }
             if cfg.polarized || planet_radius.is_some() || scene.is_some() {
                 return Err(ctx.err(
@@ -1463,7 +1469,63 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             ))
         }
     };
+    let spectral_alis = match cfg.integrator.spectral_walk.as_deref() {
+        None | Some("independent") => None,
+        Some("alis") => {
+            let key = "integrator.spectral_walk";
+            if ckd {
+                return Err(ctx.err(
+                    key,
+                    "is used only with mode = \"mono\" (CKD bins: integrator.ckd_walk = \"alis\")",
+                ));
+            }
+            if cfg.polarized {
+                return Err(ctx.err(
+                    key,
+                    "\"alis\" is scalar only (polarized = true is not supported)",
+                ));
+            }
+            if planet_radius.is_some() {
+                return Err(ctx.err(
+                    key,
+                    "\"alis\" is plane-parallel only (not for spherical-shell geometry)",
+                ));
+            }
+            if scene.is_some() {
+                return Err(ctx.err(key, "\"alis\" is for 1D runs only (not with a 3D scene)"));
+            }
+            if kind == IntegratorKind::Forward {
+                return Err(ctx.err(
+                    key,
+                    "\"alis\" is a backward walk (integrator.type \"auto\" or \"backward\", not \"forward\")",
+                ));
+            }
+            Some(match cfg.integrator.alis_group {
+                None => 32,
+                Some(n) if (1..=crate::integrator::backward_alis::MAX_CHANNELS).contains(&n) => n,
+                Some(n) => {
+                    return Err(ctx.err(
+                        "integrator.alis_group",
+                        format!("{n} wavelengths per group: must lie in 1 … 64"),
+                    ))
+                }
+            })
+        }
+        Some(other) => {
+            return Err(ctx.err(
+                "integrator.spectral_walk",
+                format!("\"{other}\" is unknown (known: \"independent\", \"alis\")"),
+            ))
+        }
+    };
+    if spectral_alis.is_none() && cfg.integrator.alis_group.is_some() {
+        return Err(ctx.err(
+            "integrator.alis_group",
+            "is used only with integrator.spectral_walk = \"alis\"",
+        ));
+    }
     let integrator = IntegratorSettings {
+        spectral_alis,
         kind,
         max_depth,
         rr_depth: cfg.integrator.rr_depth.unwrap_or(5),
@@ -1541,6 +1603,32 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         })
         .collect::<Result<Vec<_>, ConfigError>>()?;
 
+    // Spectral ALIS: each group's reference (its central wavelength's scattering) must scatter
+    // wherever one of its wavelengths does, or the walks would miss paths.
+    if let Some(n) = integrator.spectral_alis {
+        for group in crate::run::wavelength_groups_of(&wavelengths, Some(n)) {
+            let central = group[group.len() / 2];
+            let atms: Vec<&PlaneParallel> =
+                group.iter().map(|&iw| &optics[iw].atmosphere).collect();
+            let reference = crate::integrator::backward_alis::group_reference(
+                &optics[central].atmosphere,
+                &atms,
+            );
+            if let Some(i) =
+                crate::integrator::backward_alis::Layers::unsupported_layer(&reference, &atms)
+            {
+                return Err(ctx.err(
+                    "integrator.spectral_walk",
+                    format!(
+                        "layer {i} (from the top) scatters at some wavelength of the group {}–{} nm but not at its reference wavelength {} nm; use smaller groups (integrator.alis_group) or \"independent\"",
+                        wavelengths[group[0]],
+                        wavelengths[group[group.len() - 1]],
+                        wavelengths[central]
+                    ),
+                ));
+            }
+        }
+    }
     // With a sensor band, `target_rel_stderr` is the target of the band-weighted result: each of
     // the N independent wavelengths may then be √N_eff times noisier, with
     // N_eff = (Σ a_k)² / Σ a_k² and a_k = w_k·E0_k (equal relative errors combine this way).

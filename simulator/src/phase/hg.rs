@@ -7,7 +7,7 @@
 //! `P(Θ) = (1 − g²) / (1 + g² − 2g cos Θ)^{3/2}` (Henyey & Greenstein 1941), mean 1 over 4π;
 //! its Legendre moments are `χ_l = g^l`. Sampled by the standard closed-form inversion.
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct HenyeyGreenstein {
     pub g: f64,
 }

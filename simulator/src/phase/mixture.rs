@@ -24,7 +24,7 @@
 use super::PhaseFunction;
 use std::sync::Arc;
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Mixture {
     /// Normalised weights (Σ = 1), each > 0.
     weights: Vec<f64>,

@@ -23,7 +23,7 @@ pub use tabulated::Tabulated;
 
 use std::sync::Arc;
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub enum PhaseFunction {
     Rayleigh(Rayleigh),
     Hg(HenyeyGreenstein),

@@ -9,7 +9,7 @@
 //! Sampling inverts the cubic CDF in closed form (Cardano; one real root since the CDF is
 //! strictly increasing).
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Rayleigh {
     pub depolarization: f64,
     /// P = a + b·μ².

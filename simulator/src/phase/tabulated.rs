@@ -26,7 +26,7 @@ use std::path::Path;
 /// Subdivisions of each file interval (linear in Θ) before the piecewise-linear-in-μ form.
 const REFINE: usize = 16;
 
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, PartialEq)]
 pub struct Tabulated {
     /// Ascending cosines of the refined grid, from −1 to 1.
     mu: Vec<f64>,

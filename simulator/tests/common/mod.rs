@@ -1,6 +1,7 @@
 //! Shared helpers of the system and benchmark tests.
 #![allow(dead_code)]
 
+pub mod artdeco;
 pub mod bundles;
 
 use std::path::{Path, PathBuf};
