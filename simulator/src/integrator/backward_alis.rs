@@ -127,6 +127,8 @@ pub struct Layers {
     z: Vec<f64>,
     sigma_s: Vec<f64>,
     k: Vec<Vec<f64>>,
+    /// The same coefficients layer-major (`[i·nc + c]`), for the vectorized layer loop.
+    k_lm: Vec<f64>,
     tau: Vec<Vec<f64>>,
     /// The reference atmosphere's extinction coefficient and optical depths.
     k_ref: Vec<f64>,
@@ -138,8 +140,6 @@ pub struct Layers {
 /// Per-channel scattering of wavelength channels, layer-major (`[i·nc + c]`).
 struct Spectral {
     nc: usize,
-    /// Extinction coefficient k_c of layer i, m⁻¹ (as `Layers::k`, layer-major).
-    k: Vec<f64>,
     /// σ_s,c of layer i, m⁻¹.
     sigma: Vec<f64>,
     /// σ_s,c / σ_ref (0 where the reference does not scatter).
@@ -225,10 +225,14 @@ impl Layers {
         }
         let k_ref = (0..n).map(|i| coef(&b, i)).collect();
         let tau_ref = b.iter().map(|x| x.1).collect();
+        let k_lm = (0..n)
+            .flat_map(|i| k.iter().map(move |kc: &Vec<f64>| kc[i]))
+            .collect();
         Layers {
             z,
             sigma_s,
             k,
+            k_lm,
             tau,
             k_ref,
             tau_ref,
@@ -274,12 +278,8 @@ impl Layers {
                 pid.push(id);
             }
         }
-        let k: Vec<f64> = (0..n)
-            .flat_map(|i| l.k.iter().map(move |kc| kc[i]))
-            .collect();
         l.spectral = Some(Spectral {
             nc,
-            k,
             sigma,
             ratio,
             pid,
@@ -489,8 +489,8 @@ fn layer_channels_body(
 /// of the next-event estimates, integrated exactly layer by layer (every factor is exponential in
 /// the distance inside a layer): per channel `∫ σ_c,L P_c,L e_c e^{−S_c(ℓ)} e^{−τ_c(z(ℓ))/μ_s} dℓ
 /// /(4π)` over the flight to the ground or the top (`S_c`: the channel's optical path from the
-/// flight's start). Writes the bin mean (`Σ_g w_g·…`, g-points) or one value per wavelength into
-/// `out`.
+/// flight's start). Writes the bin mean (`Σ_g w_g·…`, g-points) into `out[0]` or one value per
+/// wavelength into `out`; `out` holds one entry per channel (work space for g-points).
 fn expected(
     g: &Channels,
     e: &[f64],
@@ -542,7 +542,6 @@ fn expected(
     let slant = 1.0 - dz / mu_s;
     let mut sp = [0.0_f64; MAX_CHANNELS];
     let mut z = z;
-    let mut total = 0.0;
     loop {
         let (zt, zb) = (l.z[i], l.z[i + 1]);
         let len = if dz > 0.0 {
@@ -555,23 +554,29 @@ fn expected(
         let finite = len.is_finite();
         match &l.spectral {
             None => {
-                // Shared scattering: one σ_s·P per layer times the weighted sum.
+                // Shared scattering: one σ_s·P per layer for every g-point; the per-g-point
+                // integrals are summed into `out` (weights are in `amp`) and added up at the end.
                 let sig = l.sigma_s[i];
-                let mut acc = 0.0;
-                for (ak, kg) in amp.iter_mut().zip(&l.k) {
-                    let (integral, decay) = layer_integral(kg[i] * slant, len, finite);
-                    if sig > 0.0 {
-                        acc += *ak * integral;
+                let sp_i = if sig > 0.0 {
+                    sig * g.reference.phase(i).eval(cos)
+                } else {
+                    0.0
+                };
+                let kl = &l.k_lm[i * nc..(i + 1) * nc];
+                if finite {
+                    sp[..nc].fill(sp_i);
+                    layer_channels(kl, &sp[..nc], amp, &mut out[..nc], slant, len);
+                } else {
+                    for (c, ak) in amp.iter_mut().enumerate() {
+                        let (integral, decay) = layer_integral(kl[c] * slant, len, finite);
+                        out[c] += sp_i * *ak * integral;
+                        *ak *= decay;
                     }
-                    *ak *= decay;
-                }
-                if sig > 0.0 {
-                    total += sig * g.reference.phase(i).eval(cos) * acc;
                 }
             }
             Some(s) => {
                 s.times_phase(&s.sigma, g.atms, i, cos, cache, &mut sp);
-                let kl = &s.k[i * nc..(i + 1) * nc];
+                let kl = &l.k_lm[i * nc..(i + 1) * nc];
                 if finite {
                     layer_channels(kl, &sp[..nc], amp, &mut out[..nc], slant, len);
                 } else {
@@ -602,7 +607,10 @@ fn expected(
     }
     let inv_4pi = 0.25 * std::f64::consts::FRAC_1_PI;
     match &l.spectral {
-        None => out[0] = total * inv_4pi,
+        None => {
+            let total: f64 = out[..nc].iter().sum();
+            out[0] = total * inv_4pi;
+        }
         Some(_) => out.iter_mut().for_each(|x| *x *= inv_4pi),
     }
 }
@@ -639,8 +647,9 @@ pub fn walk(
     let split = &mut split[..nout];
     let mut score = [0.0_f64; MAX_CHANNELS];
     let score = &mut score[..nout];
+    // Per-channel work space of the expected estimate (its result in the first `nout`).
     let mut tmp = [0.0_f64; MAX_CHANNELS];
-    let tmp = &mut tmp[..nout];
+    let tmp = &mut tmp[..nc.max(nout)];
     let mut cache = PhaseCache::new(g.layers.spectral.as_ref().map_or(0, |s| s.reps.len()));
     let mut z = z0;
     let mut d = d0;
