@@ -514,11 +514,19 @@ fn ozone_continuum_from_cross_sections() {
     // The Chappuis band matters: τ(600 nm) ≈ 0.05 for ~345 DU.
     assert!((0.04..0.06).contains(&(sigma(600.0) * column)));
     compare("O3 continuum closed form", &exp, &wl, &want);
+    // Outside the table: an error by default, no absorption with `outside = "zero"`.
+    let with = |t: String, line: &str| t.replace("column = 3\n", &format!("column = 3\n{line}\n"));
+    let zero = experiment(&with(body("[1800.0]", "O3"), "outside = \"zero\""));
+    assert_eq!(zero.optics[0].atmosphere.total_tau(), 0.0);
     for (text, key) in [
         (body("[1800.0]", "O3"), "atmosphere.cross_sections[0].file"),
         (
             body("[600.0]", "O4"),
             "atmosphere.cross_sections[0].species",
+        ),
+        (
+            with(body("[600.0]", "O3"), "outside = \"clamp\""),
+            "atmosphere.cross_sections[0].outside",
         ),
     ] {
         let e = Experiment::from_str(&text, Path::new("x.toml"))

@@ -7,6 +7,7 @@
 //! | `file` | — | a text table: `#` comments, then rows of numbers separated by spaces, tabs or commas; column 1 the wavelength (nm, increasing) |
 //! | `column` | — | the 1-based column holding σ (default 2) |
 //! | `units` | — | `"cm^2"` (default) or `"m^2"`: σ per molecule |
+//! | `outside` | — | a wavelength outside the table: `"error"` (default) or `"zero"` (no absorption; logged once) |
 //!
 //! Model: in each layer [z_b, z_t] the absorption optical thickness is
 //! `τ = σ(λ) · ∫ x(z) n(z) dz`, with the profile's mole fraction x times air number density n
@@ -14,7 +15,8 @@
 //! [`AtmosphereProfile::column_density_m2`] and of the rescaling), and σ(λ) linear between the
 //! table's wavelengths, at the run's wavelength (the bin centre in CKD mode). The cross-section
 //! is temperature-independent and grey within a CKD bin; the absorption is added to every
-//! g-point alike. A wavelength outside the table is an error, never an extrapolation.
+//! g-point alike. A wavelength outside the table is an error, never an extrapolation, unless
+//! `outside = "zero"` says the species does not absorb there.
 //!
 //! Reference: Beer–Lambert with a column density; the shipped example table is the ozone
 //! cross-section of the Zawada et al. (2021, AMT 14, 3953) limb benchmark,

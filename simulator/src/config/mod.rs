@@ -174,6 +174,9 @@ pub struct CrossSectionConfig {
     /// `"cm^2"` or `"m^2"` per molecule.
     #[serde(default = "default_xs_units")]
     pub units: String,
+    /// A wavelength outside the table: `"error"` (default) or `"zero"` (no absorption, logged).
+    #[serde(default)]
+    pub outside: Option<String>,
 }
 
 fn default_xs_column() -> usize {

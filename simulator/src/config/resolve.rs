@@ -1926,11 +1926,26 @@ fn resolve_cross_sections(
                 ))
             }
         };
+        let zero_outside = match t.outside.as_deref() {
+            None | Some("error") => false,
+            Some("zero") => true,
+            Some(other) => {
+                return Err(ctx.err(
+                    format!("{key}.outside"),
+                    format!("\"{other}\" is unknown (known: \"error\", \"zero\")"),
+                ))
+            }
+        };
         let xs = CrossSection::read(&base.join(&t.file), t.column, to_m2)
             .map_err(|m| ctx.err(format!("{key}.file"), m))?;
         let cols = layer_columns(&thermo.gas, &t.species, grid)
             .map_err(|m| ctx.err(format!("{key}.species"), m))?;
+        let mut zeroed = Vec::new();
         for (iw, &wl) in wavelengths.iter().enumerate() {
+            if zero_outside && xs.at(wl).is_none() {
+                zeroed.push(wl);
+                continue;
+            }
             let sigma = xs.at(wl).ok_or_else(|| {
                 ctx.err(
                     format!("{key}.file"),
@@ -1945,6 +1960,16 @@ fn resolve_cross_sections(
             for (j, c) in cols.iter().enumerate() {
                 tau[iw][j] += sigma * c;
             }
+        }
+        if !zeroed.is_empty() {
+            tracing::warn!(
+                "{key}: {} wavelength(s) outside the table ({}..{} nm) get no {} absorption (`outside = \"zero\"`), e.g. {} nm",
+                zeroed.len(),
+                xs.wavelength_nm[0],
+                xs.wavelength_nm[xs.wavelength_nm.len() - 1],
+                t.species,
+                zeroed[0]
+            );
         }
         let column: f64 = cols.iter().sum();
         tracing::info!(
