@@ -366,8 +366,12 @@ impl Spectral {
 
 /// `e^x` in straight-line arithmetic that the compiler can vectorize over the channels
 /// (`f64::exp` is a library call): Cody–Waite reduction `x = n·ln 2 + r`, |r| ≤ ln 2/2, the
-/// Taylor polynomial of degree 13 for `e^r` (truncation < 1e-17) and `2^n` from the exponent
-/// bits; within a few ulp of `f64::exp`. `x` is clamped to [−708, 709] (e^−708 ≈ 3e−308 stands
+/// Taylor polynomial of degree 8 for `e^r` (truncation (ln 2/2)⁹/9! = 2.0e-10, at most 2.8e-10
+/// relative to e^r for r < 0) and
+/// `2^n` from the exponent bits. Degree 8 rather than 13 (a few ulp) saves 20 % of the ALIS run
+/// time (hyperspectral benchmark: 4.2 → 3.3 s; results change by ≤ 1.4e-11); the error, ≤ 3e-8
+/// after a hundred layers of products, is five orders of magnitude below the smallest Monte Carlo
+/// standard error we report. `x` is clamped to [−708, 709] (e^−708 ≈ 3e−308 stands
 /// for anything smaller: below any score's resolution).
 #[inline(always)]
 fn exp_fast(x: f64) -> f64 {
@@ -378,9 +382,9 @@ fn exp_fast(x: f64) -> f64 {
     let t = x * std::f64::consts::LOG2_E + SHIFT;
     let n = t - SHIFT;
     let r = (x - n * LN2_HI) - n * LN2_LO;
-    // Horner on the coefficients 1/k!, k = 13 … 0.
-    let mut p = INV_FACTORIAL[13];
-    for c in INV_FACTORIAL[..13].iter().rev() {
+    // Horner on the coefficients 1/k!, k = 8 … 0.
+    let mut p = INV_FACTORIAL[8];
+    for c in INV_FACTORIAL[..8].iter().rev() {
         p = p * r + c;
     }
     let ni = (t.to_bits() as i64).wrapping_sub(SHIFT.to_bits() as i64);
@@ -388,8 +392,8 @@ fn exp_fast(x: f64) -> f64 {
     p * scale
 }
 
-/// 1/k!, k = 0 … 13.
-const INV_FACTORIAL: [f64; 14] = [
+/// 1/k!, k = 0 … 8.
+const INV_FACTORIAL: [f64; 9] = [
     1.0,
     1.0,
     1.0 / 2.0,
@@ -399,11 +403,6 @@ const INV_FACTORIAL: [f64; 14] = [
     1.0 / 720.0,
     1.0 / 5040.0,
     1.0 / 40320.0,
-    1.0 / 362_880.0,
-    1.0 / 3_628_800.0,
-    1.0 / 39_916_800.0,
-    1.0 / 479_001_600.0,
-    1.0 / 6_227_020_800.0,
 ];
 
 /// `∫₀^len e^{−a ℓ} dℓ` and `e^{−a·len}` (len may be infinite: a horizontal flight).
@@ -800,7 +799,7 @@ mod tests {
             let (a, b) = (super::exp_fast(x), x.exp());
             worst = worst.max((a / b - 1.0).abs());
         }
-        assert!(worst < 1e-15, "max relative error {worst:e}");
+        assert!(worst < 3e-10, "max relative error {worst:e}");
         assert!(super::exp_fast(-1e6) >= 0.0 && super::exp_fast(-1e6) < 1e-300);
         assert_eq!(super::exp_fast(0.0), 1.0);
     }
