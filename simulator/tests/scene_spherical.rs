@@ -220,3 +220,47 @@ fn ortho_pixels_see_the_local_sun() {
     println!("ortho on a 300 km planet: BRF {lo:.4}..{hi:.4}, max |rel diff| {worst:.1e}");
     assert!(hi / lo > 1.1, "east–west contrast {lo}..{hi}");
 }
+
+/// A perspective camera over a bent terrain (same scene as [`ortho_pixels_see_the_local_sun`]):
+/// 3 km above the ground 8 km east of the origin, looking down, 20° field of view. Its rays are
+/// straight in the planet frame (down the origin's vertical, 1.5° off the local one there) and
+/// meet the terrain near that point: the centre pixel's BRF is ρ·(n·s)/cos 60° with n the local
+/// vertical 8 km east (±1e-3 for the facets and the ~80 m offset of the hit).
+#[test]
+fn perspective_camera_over_a_bent_terrain() {
+    let b = write_plane(
+        &tmp("camera-sphere"),
+        &PlaneSpec {
+            n: 40,
+            ..flat_plane(20_000.0, 0.0, -10_000.0)
+        },
+    );
+    let r = 300_000.0;
+    let e = experiment(&format!(
+        "seed = 3\n[spectral]\nwavelengths = [550.0]\n\
+         [geometry]\ntype = \"spherical_shell\"\nplanet_radius = 300.0\ntoa_altitude = 10.0\n\
+         [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0\n\
+         [illumination]\ntype = \"directional\"\nzenith = 60.0\nazimuth = 90.0\n\
+         [scene]\ntype = \"bundle\"\npath = \"{}\"\nbackground = {{ type = \"none\" }}\n\
+         [[measures]]\nid = \"cam\"\ntype = \"perspective\"\norigin_m = [508000.0, 4000000.0, 3000.0]\n\
+         target_m = [508000.0, 4000000.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov = 20.0\n\
+         width = 9\nheight = 9\nspp = 64\n",
+        b.display()
+    ));
+    let res = simulator::run::run(&e, false);
+    let img = &simulator::products::imagery::image_products(&e, &res)[0];
+    let sun = simulator::frame::direction_from_angles(60f64.to_radians(), 90f64.to_radians());
+    let c = Curvature { radius: r };
+    let n = (c.bend(DVec3::new(8000.0, 0.0, 0.0)) + DVec3::new(0.0, 0.0, r)).normalize();
+    let want = 0.3 * n.dot(sun) / 60f64.to_radians().cos();
+    let centre = img.brf[0][4 * 9 + 4];
+    println!("camera over a bent terrain: centre BRF {centre:.5}, local-vertical value {want:.5}");
+    assert!((centre / want - 1.0).abs() < 1e-3, "{centre} vs {want}");
+    // Flat, unbent, it would be 0.3 exactly.
+    assert!((centre - 0.3).abs() > 0.01);
+    assert!(
+        img.brf[0].iter().all(|v| (v / want - 1.0).abs() < 5e-3),
+        "{:?}",
+        img.brf[0]
+    );
+}
