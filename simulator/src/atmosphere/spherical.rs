@@ -165,24 +165,9 @@ impl SphericalShell {
         }
     }
 
-    /// Optical depth from `p` (in shell `l`) along `d` until the ray leaves the atmosphere, through
-    /// the top or into the ground.
-    pub fn optical_depth_to_exit(&self, mut p: DVec3, mut l: usize, d: DVec3) -> f64 {
-        let n = self.sigma.len() as isize;
-        let mut tau = 0.0;
-        loop {
-            let (t, next) = self.exit(p, d, l);
-            tau += self.sigma[l] * t;
-            p += d * t;
-            if next < 0 || next >= n {
-                return tau;
-            }
-            l = next as usize;
-        }
-    }
-
     /// Optical depth from `p` (in shell `l`) along `d` over the distance `tmax` or until the ray
-    /// leaves the atmosphere (through the top or into the ground), whichever comes first.
+    /// leaves the atmosphere (through the top or into the ground), whichever comes first
+    /// (`tmax = ∞`: the whole flight).
     pub fn optical_depth_within(&self, mut p: DVec3, mut l: usize, d: DVec3, tmax: f64) -> f64 {
         let n = self.sigma.len() as isize;
         let (mut tau, mut left) = (0.0, tmax);

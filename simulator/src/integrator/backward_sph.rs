@@ -24,6 +24,45 @@ use crate::rng::Stream;
 /// Collision points per flight of the stratified next-event estimate.
 pub const NEE_STRATA: usize = 4;
 
+/// Stratified estimate of the next collision's next-event estimate along the flight from `p`
+/// (shell `l`) along `d`, for a collision within optical depth `tau_end` of the start: K =
+/// [`NEE_STRATA`] collision points drawn by stratified inversion of the optical depth, each
+/// weighted by P(collision within `tau_end`)/K. Unbiased for the expectation the collision NEE
+/// estimates. `seen(q, lq)` is the Sun's transmittance (times any visibility) from a point.
+/// Returns `w·P/K·Σ ω·P(s·d)·seen/(4π)` (0 if the flight cannot collide).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn stratified_estimate(
+    shell: &SphericalShell,
+    p: DVec3,
+    l: usize,
+    d: DVec3,
+    tau_end: f64,
+    sun_dir: DVec3,
+    w: f64,
+    rng: &mut Stream,
+    seen: impl Fn(DVec3, usize) -> f64,
+) -> f64 {
+    let p_coll = -(-tau_end).exp_m1();
+    if p_coll <= 0.0 {
+        return 0.0;
+    }
+    let xi = rng.next_f64();
+    let cos = sun_dir.dot(d);
+    let mut acc = 0.0;
+    for k in 0..NEE_STRATA {
+        let u = (k as f64 + xi) / NEE_STRATA as f64;
+        let s_k = -(-u * p_coll).ln_1p();
+        if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s_k) {
+            let f = shell.albedo(lq) * shell.phase(lq).eval(cos);
+            if f > 0.0 {
+                acc += f * seen(q, lq);
+            }
+        }
+    }
+    let inv4pi = 0.25 * std::f64::consts::FRAC_1_PI;
+    w * p_coll / NEE_STRATA as f64 * acc * inv4pi
+}
+
 /// One path from `p0` (in shell `l0`) along `d0`; returns the (single, multiple) parts.
 #[allow(clippy::too_many_arguments)]
 pub fn walk(
@@ -44,28 +83,12 @@ pub fn walk(
     let inv4pi = 0.25 * std::f64::consts::FRAC_1_PI;
     while order <= settings.max_depth {
         if settings.expected_local_estimate {
-            // Stratified estimate of the next collision's NEE along this flight: K collision
-            // points drawn by stratified inversion of the flight's optical depth, each weighted
-            // by P(collision before leaving)/K. Unbiased for the expectation the collision NEE
-            // estimates; nothing is scored at the sampled collision below.
-            let tau_exit = shell.optical_depth_to_exit(p, l, d);
-            let p_coll = -(-tau_exit).exp_m1();
-            if p_coll > 0.0 {
-                let xi = rng.next_f64();
-                let cos = sun_dir.dot(d);
-                let mut acc = 0.0;
-                for k in 0..NEE_STRATA {
-                    let u = (k as f64 + xi) / NEE_STRATA as f64;
-                    let s_k = -(-u * p_coll).ln_1p();
-                    if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s_k) {
-                        let t = shell.transmittance_to_space(q, lq, sun_dir);
-                        if t > 0.0 {
-                            acc += shell.albedo(lq) * shell.phase(lq).eval(cos) * t;
-                        }
-                    }
-                }
-                split.add(order, w * p_coll / NEE_STRATA as f64 * acc * inv4pi);
-            }
+            let tau_exit = shell.optical_depth_within(p, l, d, f64::INFINITY);
+            let seen = |q: DVec3, lq: usize| shell.transmittance_to_space(q, lq, sun_dir);
+            split.add(
+                order,
+                stratified_estimate(shell, p, l, d, tau_exit, sun_dir, w, rng, seen),
+            );
         }
         let s = -rng.next_f64_open0().ln();
         match shell.fly(p, l, d, s) {

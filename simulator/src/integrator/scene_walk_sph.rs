@@ -33,7 +33,7 @@
 
 use glam::DVec3;
 
-use super::backward_sph::NEE_STRATA;
+use super::backward_sph::stratified_estimate;
 use super::scene_walk::surface_model;
 use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
@@ -114,23 +114,8 @@ pub fn walk(
         let tau_end = shell.optical_depth_within(p, l, d, t_hit);
         let mut score = 0.0;
         if settings.expected_local_estimate {
-            let p_coll = -(-tau_end).exp_m1();
-            if p_coll > 0.0 {
-                let xi = rng.next_f64();
-                let cos = sun.dot(d);
-                let mut acc = 0.0;
-                for k in 0..NEE_STRATA {
-                    let u = (k as f64 + xi) / NEE_STRATA as f64;
-                    let s_k = -(-u * p_coll).ln_1p();
-                    if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s_k) {
-                        let f = shell.albedo(lq) * shell.phase(lq).eval(cos);
-                        if f > 0.0 {
-                            acc += f * ctx.sun_seen(q, lq);
-                        }
-                    }
-                }
-                score += w * p_coll / NEE_STRATA as f64 * acc * inv_4pi;
-            }
+            let seen = |q: DVec3, lq: usize| ctx.sun_seen(q, lq);
+            score += stratified_estimate(shell, p, l, d, tau_end, sun, w, rng, seen);
         }
         let s = -rng.next_f64_open0().ln();
         let collision = if s < tau_end {
