@@ -785,11 +785,9 @@ fn single_scattering_analytic() {
 fn thread_independence(c: &Case) {
     let views: Vec<View> = test_grid().into_iter().step_by(7).collect();
     let run = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| run_views(c, &c.layers, &views, 301, 4096, Some(4096), None))
+        with_threads(threads, || {
+            run_views(c, &c.layers, &views, 301, 4096, Some(4096), None)
+        })
     };
     let (a, b) = (run(1), run(2));
     for ((v, x), y) in views.iter().zip(&a).zip(&b) {

@@ -31,7 +31,7 @@
 
 mod common;
 use common::artdeco::{layer, read_cumulative, shared_dir, single_scattering, Cumulative};
-use common::{data_dir, experiment, run_rows, K};
+use common::{data_dir, experiment, run_on_1_and_2_threads, run_rows, K};
 
 use simulator::config::Experiment;
 use simulator::products::Row;
@@ -294,14 +294,7 @@ fn thread_count_and_zero_reference_surface() {
     let text = RAYLEIGH.replace("SPP", "16384");
     let independent = run_rows(&experiment(&text));
     let exp = experiment(&grouped(&text, 5, 4));
-    let run_with = |n: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap();
-        pool.install(|| simulator::run::run(&exp, false))
-    };
-    let (one, two) = (run_with(1), run_with(2));
+    let (one, two) = run_on_1_and_2_threads(&exp);
     assert_eq!(one.len(), 10);
     for (x, y) in one.iter().zip(&two) {
         assert_eq!((x.wavelength, x.measure), (y.wavelength, y.measure));

@@ -5,7 +5,7 @@
 mod common;
 
 use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
-use common::{check_all, experiment, run_rows, Cmp};
+use common::{compare_brf_rows, experiment, run_on_1_and_2_threads, run_rows};
 use simulator::bundle::{BrdfSpec, Spectrum};
 
 fn plane(
@@ -70,30 +70,6 @@ fn distant(id: &str, vza: &[f64], vaa: &[f64], spp: u64, extra: &str) -> String 
     )
 }
 
-/// Compare two runs' BRFs direction by direction with their combined standard error.
-fn compare(
-    case: &str,
-    a: &[simulator::products::Row],
-    b: &[simulator::products::Row],
-) -> Result<(), String> {
-    assert_eq!(a.len(), b.len());
-    let cmps: Vec<Cmp> = a
-        .iter()
-        .zip(b)
-        .map(|(x, y)| {
-            let (va, ea) = x.brf.unwrap();
-            let (vb, eb) = y.brf.unwrap();
-            Cmp {
-                label: format!("vza {:?} vaa {:?}", x.vza, x.vaa),
-                reference: vb,
-                value: va,
-                stderr: (ea * ea + eb * eb).sqrt(),
-            }
-        })
-        .collect();
-    check_all(case, &cmps)
-}
-
 /// A flat bundle made of one material, with the background plane of the same material at the
 /// same height, is an infinite uniform surface: its area-averaged TOA BRF must equal the 1D
 /// surface's under the same atmosphere (Lambertian and RPV; the 3D walk traverses the terrain
@@ -147,7 +123,7 @@ fn flat_bundle_equals_1d_surface() {
             distant("area", &vza, &vaa, 100_000, "")
         ));
         let (r3, r1) = (run_rows(&e3), run_rows(&e1));
-        if let Err(e) = compare(&format!("flat bundle = 1D ({name})"), &r3, &r1) {
+        if let Err(e) = compare_brf_rows(&format!("flat bundle = 1D ({name})"), &r3, &r1) {
             errs.push(e);
         }
     }
@@ -339,7 +315,7 @@ fn expected_and_collision_estimators_agree_in_a_canopy() {
         ));
         rows.push(run_rows(&e));
     }
-    if let Err(e) = compare(
+    if let Err(e) = compare_brf_rows(
         "scene walk: expected vs collision estimators",
         &rows[0],
         &rows[1],
@@ -612,7 +588,7 @@ fn periodic_cell_equals_wide_padding() {
     };
     let periodic = run(3, "periodic_m = [-5.0, -5.0, 5.0, 5.0]");
     let padded = run(4, "[scene.padding]\ncell_m = [10.0, 10.0]\ncopies = 6");
-    if let Err(e) = compare("periodic cell = 13 × 13 padded cells", &periodic, &padded) {
+    if let Err(e) = compare_brf_rows("periodic cell = 13 × 13 padded cells", &periodic, &padded) {
         panic!("{e}");
     }
 }
@@ -640,14 +616,7 @@ fn scene_results_do_not_depend_on_threads() {
         b.display(),
         distant("area", &[0.0, 40.0], &[0.0, 200.0], 5000, "")
     ));
-    let run_with = |n: usize| {
-        let pool = rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build()
-            .unwrap();
-        pool.install(|| simulator::run::run(&e, false))
-    };
-    let (a, b) = (run_with(1), run_with(2));
+    let (a, b) = run_on_1_and_2_threads(&e);
     for (x, y) in a.iter().zip(&b) {
         assert_eq!(x.acc, y.acc, "results differ between 1 and 2 threads");
     }

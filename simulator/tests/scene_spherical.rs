@@ -7,7 +7,7 @@
 mod common;
 
 use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
-use common::{check_all, experiment, mdistant_toml, run_rows, Cmp};
+use common::{compare_brf_rows, experiment, mdistant_toml, run_rows};
 use glam::DVec3;
 use simulator::scene::build::{from_bundle, Background};
 use simulator::scene::curvature::Curvature;
@@ -126,22 +126,8 @@ fn flat_bundle_on_the_sphere_equals_1d_spherical() {
             head(12)
         ));
         let (r3, r1) = (run_rows(&e3), run_rows(&e1));
-        let cmps: Vec<Cmp> = r3
-            .iter()
-            .zip(&r1)
-            .map(|(x, y)| {
-                let (va, ea) = x.brf.unwrap();
-                let (vb, eb) = y.brf.unwrap();
-                Cmp {
-                    label: format!("vza {:?} vaa {:?}", x.vza, x.vaa),
-                    reference: vb,
-                    value: va,
-                    stderr: (ea * ea + eb * eb).sqrt(),
-                }
-            })
-            .collect();
         let case = format!("flat bundle on the sphere = 1D ({planet}, sza {sza})");
-        if let Err(e) = check_all(&case, &cmps) {
+        if let Err(e) = compare_brf_rows(&case, &r3, &r1) {
             errs.push(e);
         }
     }
@@ -166,37 +152,58 @@ fn canopy_under_a_spherical_shell_is_refused() {
     );
 }
 
-/// Ortho pixels on a bent terrain: no scattering (τ = 0), a 20 km flat Lambertian terrain on a
-/// 300 km planet, Sun at 60° from the east at the origin. Every point sees the Sun at its own
-/// local zenith angle, so a pixel's BRF is ρ·(n·s)/cos 60° with n the local vertical at the
-/// pixel (its mean over the pixel equals the centre value to (pixel/R)² ≈ 4e-5; the terrain's
-/// facets add ≤ 1e-3): the east side is brighter than the west by ~±7 %. Exercises the ortho start (terrain height under the
-/// pixel in the bent frame), the sphere's surface normals and the shells' Sun transmittance.
-#[test]
-fn ortho_pixels_see_the_local_sun() {
+/// The bent-terrain scene of the image tests: a 20 km flat Lambertian (0.3) terrain of 250 m
+/// quads on a 300 km planet, no scattering (τ = 0), Sun at 60° from the east, no background;
+/// `measure` is the `[[measures]]` table.
+fn bent_scene(name: &str, seed: u64, measure: &str) -> simulator::config::Experiment {
     // 250 m quads: a facet's normal is the local vertical at its centre, within 180 m/R = 6e-4
-    // rad of any of its points (hence the 1e-3 tolerance below).
+    // rad of any of its points (hence the 1e-3 tolerances of the tests).
     let b = write_plane(
-        &tmp("ortho-sphere"),
+        &tmp(name),
         &PlaneSpec {
             n: 40,
             ..flat_plane(20_000.0, 0.0, -10_000.0)
         },
     );
-    let r = 300_000.0;
-    let e = experiment(&format!(
-        "seed = 2\n[spectral]\nwavelengths = [550.0]\n\
-         [geometry]\ntype = \"spherical_shell\"\nplanet_radius = 300.0\ntoa_altitude = 10.0\n\
+    experiment(&format!(
+        "seed = {seed}\n[spectral]\nwavelengths = [550.0]\n\
+         [geometry]\ntype = \"spherical_shell\"\nplanet_radius = {}\ntoa_altitude = 10.0\n\
          [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0\n\
-         [illumination]\ntype = \"directional\"\nzenith = 60.0\nazimuth = 90.0\n\
-         [scene]\ntype = \"bundle\"\npath = \"{}\"\nbackground = {{ type = \"none\" }}\n\
-         [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 2000.0\nspp = 256\n",
+         [illumination]\ntype = \"directional\"\nzenith = {BENT_SZA:?}\nazimuth = 90.0\n\
+         [scene]\ntype = \"bundle\"\npath = \"{}\"\nbackground = {{ type = \"none\" }}\n{measure}",
+        BENT_R / 1e3,
         b.display()
-    ));
+    ))
+}
+
+/// Planet radius (m) and solar zenith angle (°) of [`bent_scene`].
+const BENT_R: f64 = 300_000.0;
+const BENT_SZA: f64 = 60.0;
+
+/// ρ·(n·s)/cos SZA of [`bent_scene`] at local (x, y): n the local vertical there.
+fn bent_lambertian_brf(x: f64, y: f64) -> f64 {
+    let c = Curvature { radius: BENT_R };
+    let n = (c.bend(DVec3::new(x, y, 0.0)) + DVec3::new(0.0, 0.0, BENT_R)).normalize();
+    let sun = simulator::frame::direction_from_angles(BENT_SZA.to_radians(), 90f64.to_radians());
+    0.3 * n.dot(sun) / BENT_SZA.to_radians().cos()
+}
+
+/// Ortho pixels on a bent terrain: no scattering (τ = 0), a 20 km flat Lambertian terrain on a
+/// 300 km planet, Sun at 60° from the east at the origin. Every point sees the Sun at its own
+/// local zenith angle, so a pixel's BRF is ρ·(n·s)/cos 60° with n the local vertical at the
+/// pixel (its mean over the pixel equals the centre value to (pixel/R)² ≈ 4e-5; the terrain's
+/// facets add ≤ 1e-3): the east side is brighter than the west by ~±7 %. ([`bent_scene`].) Exercises the ortho start (terrain height under the
+/// pixel in the bent frame), the sphere's surface normals and the shells' Sun transmittance.
+#[test]
+fn ortho_pixels_see_the_local_sun() {
+    let e = bent_scene(
+        "ortho-sphere",
+        2,
+        "[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 2000.0\nspp = 256\n",
+    );
     let res = simulator::run::run(&e, false);
     let img = &simulator::products::imagery::image_products(&e, &res)[0];
     let gt = img.geotransform.unwrap();
-    let sun = simulator::frame::direction_from_angles(60f64.to_radians(), 90f64.to_radians());
     let (mut lo, mut hi, mut worst) = (f64::INFINITY, 0.0_f64, 0.0_f64);
     for row in 0..img.height {
         for col in 0..img.width {
@@ -204,9 +211,7 @@ fn ortho_pixels_see_the_local_sun() {
             // Pixel centre in the local frame (the bundle's origin is 500 000, 4 000 000).
             let x = gt[0] + (col as f64 + 0.5) * gt[1] - 500_000.0;
             let y = gt[3] + (row as f64 + 0.5) * gt[5] - 4_000_000.0;
-            let c = Curvature { radius: r };
-            let n = (c.bend(DVec3::new(x, y, 0.0)) + DVec3::new(0.0, 0.0, r)).normalize();
-            let want = 0.3 * n.dot(sun) / 60f64.to_radians().cos();
+            let want = bent_lambertian_brf(x, y);
             let (got, se) = (img.brf[0][k], img.brf_stderr[0][k]);
             assert!(
                 (got - want).abs() <= 4.5 * se + 1e-3 * want,
@@ -228,31 +233,16 @@ fn ortho_pixels_see_the_local_sun() {
 /// vertical 8 km east (±1e-3 for the facets and the ~80 m offset of the hit).
 #[test]
 fn perspective_camera_over_a_bent_terrain() {
-    let b = write_plane(
-        &tmp("camera-sphere"),
-        &PlaneSpec {
-            n: 40,
-            ..flat_plane(20_000.0, 0.0, -10_000.0)
-        },
+    let e = bent_scene(
+        "camera-sphere",
+        3,
+        "[[measures]]\nid = \"cam\"\ntype = \"perspective\"\n\
+         origin_m = [508000.0, 4000000.0, 3000.0]\ntarget_m = [508000.0, 4000000.0, 0.0]\n\
+         up = [0.0, 1.0, 0.0]\nfov = 20.0\nwidth = 9\nheight = 9\nspp = 64\n",
     );
-    let r = 300_000.0;
-    let e = experiment(&format!(
-        "seed = 3\n[spectral]\nwavelengths = [550.0]\n\
-         [geometry]\ntype = \"spherical_shell\"\nplanet_radius = 300.0\ntoa_altitude = 10.0\n\
-         [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0\n\
-         [illumination]\ntype = \"directional\"\nzenith = 60.0\nazimuth = 90.0\n\
-         [scene]\ntype = \"bundle\"\npath = \"{}\"\nbackground = {{ type = \"none\" }}\n\
-         [[measures]]\nid = \"cam\"\ntype = \"perspective\"\norigin_m = [508000.0, 4000000.0, 3000.0]\n\
-         target_m = [508000.0, 4000000.0, 0.0]\nup = [0.0, 1.0, 0.0]\nfov = 20.0\n\
-         width = 9\nheight = 9\nspp = 64\n",
-        b.display()
-    ));
     let res = simulator::run::run(&e, false);
     let img = &simulator::products::imagery::image_products(&e, &res)[0];
-    let sun = simulator::frame::direction_from_angles(60f64.to_radians(), 90f64.to_radians());
-    let c = Curvature { radius: r };
-    let n = (c.bend(DVec3::new(8000.0, 0.0, 0.0)) + DVec3::new(0.0, 0.0, r)).normalize();
-    let want = 0.3 * n.dot(sun) / 60f64.to_radians().cos();
+    let want = bent_lambertian_brf(8000.0, 0.0);
     let centre = img.brf[0][4 * 9 + 4];
     println!("camera over a bent terrain: centre BRF {centre:.5}, local-vertical value {want:.5}");
     assert!((centre / want - 1.0).abs() < 1e-3, "{centre} vs {want}");

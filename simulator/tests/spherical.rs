@@ -108,20 +108,7 @@ fn earth_small_angles_equal_plane_parallel() {
         "type = \"forward\"",
         &m(2_000_000),
     )));
-    let cmps: Vec<Cmp> = sph
-        .iter()
-        .zip(&pp)
-        .map(|(s, p)| {
-            let ((a, ea), (b, eb)) = (s.brf.unwrap(), p.brf.unwrap());
-            Cmp {
-                label: format!("vza {:?} vaa {:?}", s.vza, s.vaa),
-                reference: b,
-                value: a,
-                stderr: (ea * ea + eb * eb).sqrt(),
-            }
-        })
-        .collect();
-    check_all("spherical (Earth) vs plane-parallel, SZA 10", &cmps).unwrap();
+    compare_brf_rows("spherical (Earth) vs plane-parallel, SZA 10", &sph, &pp).unwrap();
 }
 
 /// Single scattering along any line of sight, computed independently by quadrature: march along

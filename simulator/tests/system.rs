@@ -200,14 +200,7 @@ fn thread_count_independence() {
             mdistant_toml("toa", &VZA, &VAA, 10_000)
         );
         let exp = experiment(&base(atm, surf, 30.0, integrator, "", &measures));
-        let run_with = |n: usize| {
-            let pool = rayon::ThreadPoolBuilder::new()
-                .num_threads(n)
-                .build()
-                .unwrap();
-            pool.install(|| simulator::run::run(&exp, false))
-        };
-        let (a, b) = (run_with(1), run_with(2));
+        let (a, b) = run_on_1_and_2_threads(&exp);
         for (x, y) in a.iter().zip(&b) {
             assert_eq!(
                 x.acc, y.acc,

@@ -100,6 +100,47 @@ pub fn check_all(case: &str, cmps: &[Cmp]) -> Result<(), String> {
     }
 }
 
+/// `f` run in a rayon pool of `threads` threads (thread-count independence tests).
+pub fn with_threads<T: Send>(threads: usize, f: impl FnOnce() -> T + Send) -> T {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(f)
+}
+
+/// `exp` run with 1 and with 2 threads.
+pub fn run_on_1_and_2_threads(
+    exp: &Experiment,
+) -> (
+    Vec<simulator::run::MeasureResult>,
+    Vec<simulator::run::MeasureResult>,
+) {
+    let run = |n| with_threads(n, || simulator::run::run(exp, false));
+    (run(1), run(2))
+}
+
+/// [`check_all`] on the BRFs of two independent runs' rows, row by row (same measures and
+/// directions), with the combined standard error of both.
+pub fn compare_brf_rows(case: &str, a: &[Row], b: &[Row]) -> Result<(), String> {
+    assert_eq!(a.len(), b.len());
+    let cmps: Vec<Cmp> = a
+        .iter()
+        .zip(b)
+        .map(|(x, y)| {
+            let (va, ea) = x.brf.unwrap();
+            let (vb, eb) = y.brf.unwrap();
+            Cmp {
+                label: format!("vza {:?} vaa {:?}", x.vza, x.vaa),
+                reference: vb,
+                value: va,
+                stderr: (ea * ea + eb * eb).sqrt(),
+            }
+        })
+        .collect();
+    check_all(case, &cmps)
+}
+
 /// An `mdistant` measure TOML listing explicit directions.
 pub fn mdistant_toml(id: &str, vza: &[f64], vaa: &[f64], spp: u64) -> String {
     let z: Vec<String> = vza.iter().map(|v| format!("{v:?}")).collect();
