@@ -84,19 +84,21 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
 /// `b` uses g-point `b mod N_g` and its samples are weighted by `w_g·N_g`: with whole cycles of
 /// blocks (guaranteed by the round sizes) the mean is Σ_g w_g·R_g, unbiased; the pooled
 /// variance over-estimates that of the stratified mean (honest, slightly pessimistic errors).
+/// `alis_layers`: the ALIS layer tables of this bin ([`alis_layers`]), built once per task.
 fn run_block(
     exp: &Experiment,
     iw: usize,
     im: usize,
     cell: usize,
     range: std::ops::Range<u64>,
+    alis_layers: Option<&crate::integrator::backward_alis::Layers>,
 ) -> Accum {
     let base = &exp.optics[iw];
     if base.g_states.is_empty() {
         return run_block_at(exp, base, iw, im, cell, range);
     }
-    if exp.integrator.alis {
-        return run_block_alis(exp, base, iw, im, cell, range);
+    if let Some(layers) = alis_layers {
+        return run_block_alis(exp, base, layers, iw, im, cell, range);
     }
     let ng = base.g_states.len();
     let b = range.start / block_size(&exp.measures[im]);
@@ -106,10 +108,28 @@ fn run_block(
     acc
 }
 
+/// The ALIS layer tables of CKD bin `iw` in ALIS runs (None otherwise). The reference is the
+/// bin's atmosphere without gas absorption (scattering and particle absorption only), so every
+/// g-point's path factor is a pure gas transmittance.
+fn alis_layers(exp: &Experiment, iw: usize) -> Option<crate::integrator::backward_alis::Layers> {
+    let base = &exp.optics[iw];
+    if !exp.integrator.alis || base.g_states.is_empty() {
+        return None;
+    }
+    let atms: Vec<&crate::atmosphere::PlaneParallel> =
+        base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
+    Some(crate::integrator::backward_alis::Layers::new(
+        &base.atmosphere,
+        &atms,
+    ))
+}
+
 /// A block of ALIS walks: every walk carries all g-points of the bin.
+#[allow(clippy::too_many_arguments)]
 fn run_block_alis(
     exp: &Experiment,
     base: &OpticalState,
+    layers: &crate::integrator::backward_alis::Layers,
     iw: usize,
     im: usize,
     cell: usize,
@@ -120,13 +140,10 @@ fn run_block_alis(
     let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
-    // Reference: the bin's atmosphere without gas absorption (scattering and particle
-    // absorption only), so every g-point's path factor is a pure gas transmittance.
-    let layers = backward_alis::Layers::new(&base.atmosphere, &atms);
     let g = Channels {
         atms: &atms,
         reference: &base.atmosphere,
-        layers: &layers,
+        layers,
         kind: Kind::GPoints {
             weights: &weights,
             surface: &base.surface,
@@ -686,6 +703,7 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
         .map(|_| SpectralGroup::new(exp, group));
     assert!(spectral.is_some() || group.len() == 1);
     let iw0 = group[0];
+    let ckd_alis = alis_layers(exp, iw0);
     // Rounds end on whole cycles of g-point blocks in CKD runs.
     let cycle = if exp.integrator.alis {
         1
@@ -733,7 +751,7 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
                 let n = range.end - range.start;
                 let a = match &spectral {
                     Some(sg) => run_block_spectral(exp, sg, group, im, c, range),
-                    None => vec![run_block(exp, iw0, im, c, range)],
+                    None => vec![run_block(exp, iw0, im, c, range, ckd_alis.as_ref())],
                 };
                 bar.inc(n * per_walk);
                 (c, a)
