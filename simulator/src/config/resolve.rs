@@ -1942,12 +1942,12 @@ fn resolve_cross_sections(
             .map_err(|m| ctx.err(format!("{key}.species"), m))?;
         let mut zeroed = Vec::new();
         for (iw, &wl) in wavelengths.iter().enumerate() {
-            if zero_outside && xs.at(wl).is_none() {
-                zeroed.push(wl);
-                continue;
-            }
-            let sigma = xs.at(wl).ok_or_else(|| {
-                ctx.err(
+            let Some(sigma) = xs.at(wl) else {
+                if zero_outside {
+                    zeroed.push(wl);
+                    continue;
+                }
+                return Err(ctx.err(
                     format!("{key}.file"),
                     format!(
                         "{wl} nm lies outside the table's {}..{} nm ({})",
@@ -1955,8 +1955,8 @@ fn resolve_cross_sections(
                         xs.wavelength_nm[xs.wavelength_nm.len() - 1],
                         xs.path
                     ),
-                )
-            })?;
+                ));
+            };
             for (j, c) in cols.iter().enumerate() {
                 tau[iw][j] += sigma * c;
             }
