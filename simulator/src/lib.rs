@@ -17,6 +17,7 @@
 //! BRF = π·L/(E0·cos SZA) with E0 the solar irradiance normal to the beam.
 
 pub mod absorption;
+pub mod accum;
 pub mod atmosphere;
 pub mod bench;
 pub mod bench_scene;
@@ -36,6 +37,7 @@ pub mod rng;
 pub mod run;
 pub mod scene;
 pub mod solar;
+pub mod spectral;
 pub mod srf;
 pub mod stokes;
 pub mod sun_position;

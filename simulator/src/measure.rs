@@ -18,6 +18,12 @@
 
 use glam::DVec3;
 
+/// Samples per block (the unit of parallel work and of deterministic merging).
+pub const BLOCK: u64 = 2048;
+/// Samples per block of image measures (ortho, perspective): their cells are pixels, each
+/// needing far fewer samples than a direction of a distant measure.
+pub const IMAGE_BLOCK: u64 = 64;
+
 #[derive(Clone, Debug)]
 pub struct Measure {
     pub id: String,
@@ -118,6 +124,17 @@ impl Measure {
             MeasureKind::DistantFlux { .. } => "distant_flux",
             MeasureKind::Ortho(_) => "ortho",
             MeasureKind::Perspective(_) => "perspective",
+        }
+    }
+}
+
+impl Measure {
+    /// Samples per block of this measure (the unit of parallel work and of merging).
+    pub fn block_size(&self) -> u64 {
+        if self.is_image() {
+            IMAGE_BLOCK
+        } else {
+            BLOCK
         }
     }
 }

@@ -8,7 +8,8 @@ use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
 use crate::atmosphere::spherical::SphericalShell;
-use crate::config::resolve::{Experiment, IntegratorKind};
+use crate::config::resolve::Experiment;
+use crate::integrator::settings::IntegratorKind;
 use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::forward::{self, ForwardTargets};
 use crate::integrator::forward_pol;
@@ -20,48 +21,14 @@ use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::scene::Scene;
 
-/// Samples per block (the unit of parallel work and of deterministic merging).
-pub const BLOCK: u64 = 2048;
-/// Samples per block of image measures (ortho, perspective): their cells are pixels, each
-/// needing far fewer samples than a direction of a distant measure.
-pub const IMAGE_BLOCK: u64 = 64;
+pub use crate::measure::{BLOCK, IMAGE_BLOCK};
 
 /// The block size of a measure.
 pub fn block_size(m: &Measure) -> u64 {
-    if m.is_image() {
-        IMAGE_BLOCK
-    } else {
-        BLOCK
-    }
+    m.block_size()
 }
 
-/// Which walk serves a measure.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Method {
-    Forward,
-    Backward,
-    /// Backward walk through a 3D scene (`integrator::scene_walk`).
-    Scene,
-}
-
-impl Method {
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Forward => "forward",
-            Method::Backward => "backward",
-            Method::Scene => "scene",
-        }
-    }
-}
-
-/// Result of one measure at one wavelength: sums per cell.
-#[derive(Clone, Debug)]
-pub struct MeasureResult {
-    pub measure: usize,
-    pub wavelength: usize,
-    pub method: Method,
-    pub acc: Accum,
-}
+pub use crate::accum::{MeasureResult, Method};
 
 pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
     if exp.scene.is_some() {
@@ -647,17 +614,7 @@ pub fn wavelength_groups(exp: &Experiment) -> Vec<Vec<usize>> {
     wavelength_groups_of(&exp.wavelengths, exp.integrator.spectral_alis)
 }
 
-/// [`wavelength_groups`] of a wavelength list and group size (None: one wavelength each).
-pub fn wavelength_groups_of(wavelengths: &[f64], group: Option<usize>) -> Vec<Vec<usize>> {
-    match group {
-        None => (0..wavelengths.len()).map(|iw| vec![iw]).collect(),
-        Some(n) => {
-            let mut order: Vec<usize> = (0..wavelengths.len()).collect();
-            order.sort_by(|&a, &b| wavelengths[a].total_cmp(&wavelengths[b]).then(a.cmp(&b)));
-            order.chunks(n.max(1)).map(|c| c.to_vec()).collect()
-        }
-    }
-}
+pub use crate::spectral::wavelength_groups_of;
 
 /// Every (wavelength group, measure) pair, group-major (wavelength-major without groups).
 fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {

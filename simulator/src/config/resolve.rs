@@ -17,6 +17,7 @@ use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
 use crate::error::ConfigError;
 use crate::frame::direction_from_angles;
+pub use crate::integrator::settings::{IntegratorKind, IntegratorSettings};
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::phase::{HenyeyGreenstein, Mixture, PhaseFunction, Rayleigh, Tabulated};
@@ -24,34 +25,6 @@ use crate::scene::Scene;
 use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
 use crate::srf::Srf;
 use crate::sun_position::sun_position;
-
-/// Which walk serves the measures.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum IntegratorKind {
-    /// Forward for `mdistant` and `distant_flux`, backward for `radiancemeter`.
-    Auto,
-    /// Photons from the Sun with local estimates towards every direction (1D distant measures).
-    Forward,
-    /// Paths from the sensor with next-event estimation towards the Sun.
-    Backward,
-}
-
-#[derive(Clone, Debug)]
-pub struct IntegratorSettings {
-    pub kind: IntegratorKind,
-    /// Maximum scattering order counted (u32::MAX: unlimited).
-    pub max_depth: u32,
-    pub rr_depth: u32,
-    /// Score the expected local estimate along each flight (true) or at sampled collisions.
-    pub expected_local_estimate: bool,
-    /// CKD runs: one backward walk for all g-points of a bin (`integrator/backward_alis.rs`).
-    pub alis: bool,
-    /// Monochromatic runs with `spectral_walk = "alis"`: the wavelengths per group (one backward
-    /// walk serves a group, `integrator/backward_alis.rs`); None: independent walks.
-    pub spectral_alis: Option<usize>,
-    /// Samples before the first precision check (None: 4 blocks).
-    pub first_check_spp: Option<u64>,
-}
 
 /// A sensor band sampled by the run's wavelengths.
 #[derive(Clone, Debug)]
@@ -1606,7 +1579,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     // Spectral ALIS: each group's reference (its central wavelength's scattering) must scatter
     // wherever one of its wavelengths does, or the walks would miss paths.
     if let Some(n) = integrator.spectral_alis {
-        for group in crate::run::wavelength_groups_of(&wavelengths, Some(n)) {
+        for group in crate::spectral::wavelength_groups_of(&wavelengths, Some(n)) {
             let central = group[group.len() / 2];
             let atms: Vec<&PlaneParallel> =
                 group.iter().map(|&iw| &optics[iw].atmosphere).collect();
@@ -1660,7 +1633,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         }
         if ng > 1 && !integrator.alis {
             for m in &mut measures {
-                let unit = crate::run::block_size(m) * ng as u64;
+                let unit = m.block_size() * ng as u64;
                 let spp = m.spp.div_ceil(unit) * unit;
                 if spp != m.spp {
                     tracing::info!(

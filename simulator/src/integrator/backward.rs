@@ -19,7 +19,7 @@ use glam::DVec3;
 
 use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::FlightEnd;
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 

@@ -80,7 +80,7 @@ use glam::DVec3;
 use super::{roulette, OrderSplit};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::Bsdf;
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::rng::Stream;
 
 /// The most channels (g-points or wavelengths) one walk carries.

@@ -20,7 +20,7 @@ use super::{sample_scattered, RR_THRESHOLD};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::atmosphere::FlightEnd;
 use crate::bsdf::Bsdf;
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::frame::basis_around;
 use crate::optics::OpticalState;
 use crate::phase::PhaseFunction;

@@ -17,7 +17,7 @@ use glam::DVec3;
 use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::bsdf::Bsdf;
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::frame::basis_around;
 use crate::rng::Stream;
 

@@ -26,7 +26,7 @@ use super::{roulette, sample_scattered, Accum};
 use crate::atmosphere::FlightEnd;
 #[allow(unused_imports)]
 use crate::atmosphere::PlaneParallel;
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 

@@ -19,7 +19,7 @@ use glam::DVec3;
 use super::forward::ForwardTargets;
 use super::{sample_scattered, Accum, RR_THRESHOLD};
 use crate::atmosphere::FlightEnd;
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::stokes::{any_perpendicular, meridian_axis, rotate_to, scatter, PhaseMatrix, Stokes};

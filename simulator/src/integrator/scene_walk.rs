@@ -34,7 +34,7 @@ use glam::DVec3;
 use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::{Bsdf, Lambertian};
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::rng::Stream;
 use crate::scene::material::SurfaceModel;
 use crate::scene::world::BLACK;

@@ -37,7 +37,7 @@ use super::backward_sph::stratified_estimate;
 use super::scene_walk::surface_model;
 use super::{roulette, sample_scattered, OrderSplit};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
-use crate::config::resolve::IntegratorSettings;
+use super::settings::IntegratorSettings;
 use crate::rng::Stream;
 use crate::scene::material::SurfaceModel;
 use crate::scene::Scene;

@@ -17,7 +17,7 @@ use super::image::{write_geotiff, write_quicklook_png, ImageBand};
 use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::measure::MeasureKind;
-use crate::run::MeasureResult;
+use crate::accum::MeasureResult;
 
 /// One image measure's results, per wavelength.
 #[derive(Clone, Debug)]

@@ -20,7 +20,7 @@ use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::frame::angles_from_direction;
 use crate::measure::MeasureKind;
-use crate::run::MeasureResult;
+use crate::accum::MeasureResult;
 
 /// One output row: one measure, wavelength and direction.
 #[derive(Clone, Debug)]
