@@ -36,6 +36,7 @@ pub mod products;
 pub mod rng;
 pub mod run;
 pub mod scene;
+pub mod sensor;
 pub mod solar;
 pub mod spectral;
 pub mod srf;

@@ -7,19 +7,21 @@ use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
 
-use crate::atmosphere::spherical::SphericalShell;
 use crate::config::resolve::Experiment;
+use crate::integrator::backward::{self, Adjoint, AtSensor};
+use crate::integrator::forward::{self, ForwardTargets, Photon};
+use crate::integrator::geometry::layers::Layers;
+use crate::integrator::geometry::scene_layers::SceneInLayers;
+use crate::integrator::geometry::scene_shells::SceneInShells;
+use crate::integrator::geometry::shells::Shells;
+use crate::integrator::geometry::Geometry;
 use crate::integrator::settings::IntegratorKind;
-use crate::frame::sample_cosine_hemisphere;
-use crate::integrator::forward::{self, ForwardTargets};
-use crate::integrator::forward_pol;
-use crate::integrator::scene_walk::{self, SceneContext};
-use crate::integrator::scene_walk_sph::{self, SphereSceneContext};
-use crate::integrator::{backward, backward_pol, backward_sph, Accum};
+use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
+use crate::integrator::Accum;
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::rng::Stream;
-use crate::scene::Scene;
+use crate::sensor;
 
 pub use crate::measure::{BLOCK, IMAGE_BLOCK};
 
@@ -121,7 +123,7 @@ fn run_block_alis(
     let mut out = [(0.0, 0.0)];
     for s in range {
         let mut rng = Stream::new(exp.seed, [iw as u64, im as u64, cell as u64, s]);
-        let (z0, d0) = backward_start_altitude(toa, m, cell, &mut rng);
+        let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
         backward_alis::walk(&g, exp.sun_dir, z0, d0, &exp.integrator, &mut rng, &mut out);
         acc.add(0, out[0].0, out[0].1);
     }
@@ -183,7 +185,7 @@ fn run_block_spectral(
     let key = GROUP_STREAM | group[0] as u64;
     for s in range {
         let mut rng = Stream::new(exp.seed, [key, im as u64, cell as u64, s]);
-        let (z0, d0) = backward_start_altitude(toa, m, cell, &mut rng);
+        let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
         backward_alis::walk(&g, exp.sun_dir, z0, d0, &exp.integrator, &mut rng, &mut out);
         for (acc, (a, b)) in accs.iter_mut().zip(&out) {
             acc.add(0, *a, *b);
@@ -200,14 +202,55 @@ fn run_block_at(
     cell: usize,
     range: std::ops::Range<u64>,
 ) -> Accum {
+    if exp.polarized {
+        run_block_with::<StokesPhoton, MuellerPath>(exp, opt, iw, im, cell, range)
+    } else {
+        run_block_with::<Scalar, Scalar>(exp, opt, iw, im, cell, range)
+    }
+}
+
+/// A block of one measure at one optical state, with photon weight `F` for forward walks and
+/// path weight `B` for backward walks (the one place where the estimator, the geometry and the
+/// weight are chosen; everything below is monomorphised).
+fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
+    exp: &Experiment,
+    opt: &OpticalState,
+    iw: usize,
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Accum {
     let m = &exp.measures[im];
-    let method = method_for(exp, m);
     let ids = [iw as u64, im as u64, cell as u64];
-    match method {
+    let settings = &exp.integrator;
+    let stream = |s: u64| Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+    let hint = || sensor::frame_azimuth(m, cell);
+    match method_for(exp, m) {
+        Method::Forward => {
+            let (dirs, flux_tau, hints) = sensor::forward_targets(m, opt);
+            let targets = ForwardTargets {
+                directions: &dirs,
+                flux_tau,
+                azimuth_hints: &hints,
+            };
+            let mut acc = F::accum(m.cell_count());
+            forward::run_block::<F>(
+                &opt.atmosphere,
+                &opt.surface,
+                exp.sun_dir,
+                &targets,
+                settings,
+                exp.seed,
+                ids,
+                range,
+                &mut acc,
+            );
+            acc
+        }
         Method::Scene => {
             let scene = exp.scene.as_ref().expect("scene method without a scene");
             if let Some(shell) = &opt.shell {
-                let ctx = SphereSceneContext {
+                let g = SceneInShells {
                     shell,
                     scene,
                     models: &opt.scene_models,
@@ -215,324 +258,71 @@ fn run_block_at(
                     mu_norm: exp.mu_norm(),
                     wavelength: opt.wavelength,
                 };
-                let mut acc = Accum::new(1);
-                for s in range {
-                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
-                    let (a, b) = match scene_start_sph(&ctx, m, cell, &mut rng) {
-                        Some((p0, l0, d0)) => {
-                            scene_walk_sph::walk(&ctx, p0, l0, d0, &exp.integrator, &mut rng)
-                        }
-                        None => (0.0, 0.0),
-                    };
-                    acc.add(0, a, b);
-                }
-                return acc;
-            }
-            let ctx = SceneContext {
-                atmosphere: &opt.atmosphere,
-                scene,
-                models: &opt.scene_models,
-                sun: exp.sun_dir,
-                wavelength: opt.wavelength,
-            };
-            let mut acc = Accum::new(1);
-            for s in range {
-                let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
-                let (o, d) = scene_start(&ctx, m, cell, &mut rng);
-                let (a, b) = scene_walk::walk(&ctx, o, d, &exp.integrator, &mut rng);
-                acc.add(0, a, b);
-            }
-            acc
-        }
-        Method::Forward => {
-            let (dirs, flux_tau, hints): (&[DVec3], Option<f64>, Vec<f64>) = match &m.kind {
-                MeasureKind::Distant {
-                    directions, vaa, ..
-                } => (
-                    directions,
-                    None,
-                    vaa.iter().map(|a| a.to_radians()).collect(),
-                ),
-                MeasureKind::DistantFlux { altitude } => (
-                    &[],
-                    Some(opt.atmosphere.tau_at_altitude(*altitude)),
-                    Vec::new(),
-                ),
-                MeasureKind::Radiancemeter { .. }
-                | MeasureKind::Ortho(_)
-                | MeasureKind::Perspective(_) => {
-                    unreachable!(
-                        "resolver forbids forward radiancemeters; images use the scene walk"
-                    )
-                }
-            };
-            let targets = ForwardTargets {
-                directions: dirs,
-                flux_tau,
-                azimuth_hints: &hints,
-            };
-            if exp.polarized {
-                let mut acc = Accum::new_polarized(m.cell_count());
-                forward_pol::run_block(
-                    opt,
-                    exp.sun_dir,
-                    &targets,
-                    &exp.integrator,
-                    exp.seed,
-                    ids,
-                    range,
-                    &mut acc,
-                );
-                acc
+                backward_block::<_, B>(&g, settings, range, stream, |rng| {
+                    sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d))
+                }, hint)
             } else {
-                let mut acc = Accum::new(m.cell_count());
-                forward::run_block(
-                    opt,
-                    exp.sun_dir,
-                    &targets,
-                    &exp.integrator,
-                    exp.seed,
-                    ids,
-                    range,
-                    &mut acc,
-                );
-                acc
+                let g = SceneInLayers {
+                    atmosphere: &opt.atmosphere,
+                    scene,
+                    models: &opt.scene_models,
+                    sun: exp.sun_dir,
+                    wavelength: opt.wavelength,
+                };
+                backward_block::<_, B>(&g, settings, range, stream, |rng| {
+                    Some(sensor::scene_start(&g, m, cell, rng))
+                }, hint)
             }
         }
         Method::Backward => {
-            let mut acc = Accum::new(1);
-            let frame_hint = |m: &Measure| match &m.kind {
-                MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
-                MeasureKind::Radiancemeter { frame_azimuth, .. } => *frame_azimuth,
-                MeasureKind::DistantFlux { .. } => 0.0,
-                MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
-            };
-            if let (true, Some(shell)) = (exp.polarized, &opt.shell) {
-                let mut acc = Accum::new_polarized(1);
-                let mu_norm = exp.mu_norm();
-                for s in range {
-                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
-                    let x = match spherical_start(shell, m, cell, &mut rng) {
-                        Some((p0, l0, d0)) => {
-                            // The sensor frame is the meridian frame at the target's vertical.
-                            let e1 = crate::stokes::meridian_axis(-d0, frame_hint(m));
-                            backward_pol::walk_spherical(
-                                shell,
-                                &opt.surface,
-                                exp.sun_dir,
-                                mu_norm,
-                                p0,
-                                l0,
-                                d0,
-                                e1,
-                                &exp.integrator,
-                                &mut rng,
-                            )
-                        }
-                        None => [0.0; 5],
-                    };
-                    acc.add_stokes(0, x[0], x[1], x[2], x[3], x[4]);
-                }
-                return acc;
-            }
             if let Some(shell) = &opt.shell {
-                let mu_norm = exp.mu_norm();
-                for s in range {
-                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
-                    let (a, b) = match spherical_start(shell, m, cell, &mut rng) {
-                        Some((p0, l0, d0)) => backward_sph::walk(
-                            shell,
-                            &opt.surface,
-                            exp.sun_dir,
-                            mu_norm,
-                            p0,
-                            l0,
-                            d0,
-                            &exp.integrator,
-                            &mut rng,
-                        ),
-                        None => (0.0, 0.0),
-                    };
-                    acc.add(0, a, b);
-                }
-                return acc;
+                let g = Shells {
+                    shell,
+                    surface: &opt.surface,
+                    sun: exp.sun_dir,
+                    mu_norm: exp.mu_norm(),
+                };
+                backward_block::<_, B>(&g, settings, range, stream, |rng| {
+                    sensor::spherical_start(shell, m, cell, rng).map(|(p, l, d)| ((p, l), d))
+                }, hint)
+            } else {
+                let g = Layers {
+                    atmosphere: &opt.atmosphere,
+                    surface: &opt.surface,
+                    sun: exp.sun_dir,
+                };
+                backward_block::<_, B>(&g, settings, range, stream, |rng| {
+                    Some(sensor::backward_start(opt, m, cell, rng))
+                }, hint)
             }
-            if exp.polarized {
-                let mut acc = Accum::new_polarized(1);
-                for s in range {
-                    let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
-                    let (tau0, d0) = backward_start(opt, m, cell, &mut rng);
-                    let e1 = crate::stokes::meridian_axis(-d0, frame_hint(m));
-                    let x = backward_pol::walk(
-                        opt,
-                        exp.sun_dir,
-                        tau0,
-                        d0,
-                        e1,
-                        &exp.integrator,
-                        &mut rng,
-                    );
-                    acc.add_stokes(0, x[0], x[1], x[2], x[3], x[4]);
-                }
-                return acc;
-            }
-            for s in range {
-                let mut rng = Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
-                let (tau0, d0) = backward_start(opt, m, cell, &mut rng);
-                let (a, b) = backward::walk(opt, exp.sun_dir, tau0, d0, &exp.integrator, &mut rng);
-                acc.add(0, a, b);
-            }
-            acc
         }
     }
 }
 
-/// Starting point, shell and path direction of a backward sample in a spherical shell (planet
-/// centred; the target point is at (0, 0, R_ground)); `None` when the line of sight misses the
-/// atmosphere.
-fn spherical_start(
-    shell: &SphericalShell,
-    m: &Measure,
-    cell: usize,
-    rng: &mut Stream,
-) -> Option<(DVec3, usize, DVec3)> {
-    let rg = shell.ground_radius();
-    let target = DVec3::new(0.0, 0.0, rg);
-    let (p, d) = match &m.kind {
-        MeasureKind::Distant { directions, .. } => {
-            // The line of sight through the target, entered from TOA.
-            let v = directions[cell];
-            let r = shell.toa_radius();
-            let b = target.dot(v);
-            let t = -b + (b * b - (rg * rg - r * r)).sqrt();
-            (target + v * t, -v)
-        }
-        MeasureKind::Radiancemeter { origin, look, .. } => {
-            let p = DVec3::new(origin.x, origin.y, shell.planet_radius + origin.z);
-            (shell.entry_point(p, *look)?, *look)
-        }
-        MeasureKind::DistantFlux { altitude } => {
-            let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
-            (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), -up)
-        }
-        MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
-    };
-    let l = shell.shell_at(p.length()).min(shell.shell_count() - 1);
-    Some((p, l, d))
-}
-
-/// Where a sample of a 3D-scene measure looks (`cell`: direction or pixel), in scene
-/// coordinates (bent ones for bent scenes).
-enum SceneAim {
-    /// The ray through `point` coming from the sensor direction `view` (distant sensors).
-    Through { point: DVec3, view: DVec3 },
-    /// A ray from a camera at `origin` along `dir`.
-    From { origin: DVec3, dir: DVec3 },
-}
-
-fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> SceneAim {
-    // A point given by its altitude above local (x, y), in scene coordinates.
-    let place = |p: DVec3| scene.curvature.map_or(p, |c| c.bend(p));
-    match &m.kind {
-        MeasureKind::Distant {
-            directions, area, ..
-        } => {
-            let a = area.expect("3D distant measures have an area");
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
-            let q = DVec3::new(
-                a.rect[0] + u1 * (a.rect[2] - a.rect[0]),
-                a.rect[1] + u2 * (a.rect[3] - a.rect[1]),
-                a.height,
-            );
-            SceneAim::Through {
-                point: place(q),
-                view: directions[cell],
+/// Backward walks of one cell: each sample's stream, its start (None: the line of sight misses
+/// the medium, a zero sample) and the weight at the sensor.
+fn backward_block<G: Geometry, W: Adjoint + AtSensor>(
+    g: &G,
+    settings: &crate::integrator::settings::IntegratorSettings,
+    range: std::ops::Range<u64>,
+    stream: impl Fn(u64) -> Stream,
+    start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
+    frame_azimuth: impl Fn() -> f64,
+) -> Accum {
+    let mut acc = W::accum(1);
+    let k = g.normalization();
+    for s in range {
+        let mut rng = stream(s);
+        let t = match start(&mut rng) {
+            Some((p0, d0)) => {
+                let w = W::at_sensor(d0, &frame_azimuth);
+                backward::walk(g, p0, d0, w, settings, &mut rng)
             }
-        }
-        MeasureKind::Ortho(g) => {
-            let (col, row) = (cell % g.width, cell / g.width);
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
-            let x = g.geotransform[0] + (col as f64 + u1) * g.geotransform[1];
-            let y = g.geotransform[3] + (row as f64 + u2) * g.geotransform[5];
-            let point = match scene.ground_height(x, y) {
-                Some(z) => DVec3::new(x, y, z),
-                None => place(DVec3::new(x, y, scene.reference_height)),
-            };
-            SceneAim::Through {
-                point,
-                view: g.view,
-            }
-        }
-        MeasureKind::Perspective(c) => {
-            let (col, row) = (cell % c.width, cell / c.width);
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
-            let x = (2.0 * (col as f64 + u1) / c.width as f64 - 1.0) * c.tan_x;
-            let y = (2.0 * (row as f64 + u2) / c.height as f64 - 1.0) * c.tan_y;
-            SceneAim::From {
-                origin: place(c.origin),
-                dir: (c.forward + c.right * x - c.up * y).normalize(),
-            }
-        }
-        _ => unreachable!(
-            "the resolver allows only distant, ortho and perspective measures with a scene"
-        ),
+            None => W::zero_tally(),
+        };
+        W::record(&mut acc, 0, &t, k);
     }
-}
-
-/// Start point and direction of a sample of a 3D-scene measure in a plane-parallel atmosphere.
-fn scene_start(ctx: &SceneContext, m: &Measure, cell: usize, rng: &mut Stream) -> (DVec3, DVec3) {
-    match scene_aim(ctx.scene, m, cell, rng) {
-        SceneAim::Through { point: q, view: v } => {
-            // Started at the altitude that sees the whole scene and atmosphere.
-            let z0 = ctx.start_altitude();
-            (q + v * ((z0 - q.z) / v.z), -v)
-        }
-        SceneAim::From { origin, dir } => (origin, dir),
-    }
-}
-
-/// Start point (planet frame), shell and direction of a sample of a 3D-scene measure in a
-/// spherical shell; `None` when the line of sight misses the atmosphere.
-fn scene_start_sph(
-    ctx: &SphereSceneContext,
-    m: &Measure,
-    cell: usize,
-    rng: &mut Stream,
-) -> Option<(DVec3, usize, DVec3)> {
-    let shell = ctx.shell;
-    let lift = DVec3::new(0.0, 0.0, shell.planet_radius);
-    let (p, d) = match scene_aim(ctx.scene, m, cell, rng) {
-        SceneAim::Through { point, view } => {
-            // Back from the aimed point to where its line of sight enters the top sphere.
-            let q = point + lift;
-            let r = shell.toa_radius();
-            let b = q.dot(view);
-            let c = (q.length() - r) * (q.length() + r);
-            (q + view * (-b + (b * b - c).max(0.0).sqrt()), -view)
-        }
-        SceneAim::From { origin, dir } => (shell.entry_point(origin + lift, dir)?, dir),
-    };
-    let l = shell.shell_at(p.length()).min(shell.shell_count() - 1);
-    Some((p, l, d))
-}
-
-/// Starting altitude and path direction of a backward sample (distant measures start at TOA).
-fn backward_start_altitude(toa: f64, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
-    match &m.kind {
-        MeasureKind::Distant { directions, .. } => (toa, -directions[cell]),
-        MeasureKind::Radiancemeter { origin, look, .. } => (origin.z, *look),
-        MeasureKind::DistantFlux { altitude } => {
-            let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
-            (*altitude, -up)
-        }
-        MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
-    }
-}
-
-/// Starting optical depth and path direction of a backward sample.
-fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
-    let (z, d) = backward_start_altitude(opt.atmosphere.toa(), m, cell, rng);
-    (opt.atmosphere.tau_at_altitude(z), d)
+    acc
 }
 
 /// Walks a measure costs per sample index (a forward walk serves every direction).

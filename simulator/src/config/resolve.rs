@@ -1054,12 +1054,6 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let scene: Option<Arc<Scene>> = match &cfg.scene {
         None => None,
         Some(sc) => {
-            if cfg.polarized {
-                return Err(ctx.err(
-                    "polarized",
-                    "3D scenes are rendered with scalar transport only (set polarized = false)",
-                ));
-            }
             if sun_dir.z <= 1e-6 {
                 return Err(ctx.err(
                     "illumination.zenith",

@@ -1,95 +1,196 @@
-//! Backward (adjoint) walk from a sensor with next-event estimation towards the Sun.
+//! The backward (adjoint) estimator: paths leave the sensor, and at every interaction the
+//! radiance scattered towards the sensor by the directly transmitted sunlight is added
+//! (next-event estimation). One function, generic over the path [`Weight`] (scalar or Mueller
+//! matrix) and the [`Geometry`] (plane-parallel layers, spherical shells, a 3D scene inside
+//! either), monomorphised for each pair.
 //!
-//! A path starts at the sensor's optical depth τ₀ travelling along the looking direction `d`
-//! (opposite to the light). At every interaction the radiance scattered towards the sensor by
-//! the directly transmitted sunlight is added:
-//! * collision at τ in a layer of albedo ω: `w·ω·P(s·d)/(4π)·E0·e^{−τ/μ_s}` with `s` the unit
-//!   vector towards the Sun (light propagating along −s scatters into −d: cos Θ = s·d);
-//! * ground: `w·f_r(s, −d)·E0·μ_s·e^{−τ*/μ_s}`.
+//! * collision with single-scattering albedo ω: `w·ω·P(s·d)/(4π)·T_sun·V` (polarized: the
+//!   unpolarized sunlight scattered through `F` into the path's frame, [`Adjoint`]);
+//! * surface hit: `w·f(s, −d)·cos θ_s·T_sun·V`.
 //!
-//! By default the collision's estimate is replaced by its expectation over the collision
-//! position along the flight (exact, layer by layer; see the forward walk), so nothing is scored
-//! at the sampled collision; `integrator.local_estimate = "collision"` scores there instead.
+//! By default (`integrator.local_estimate = "expected"`) the collision's estimate is replaced by
+//! its expectation over the next collision's position along each flight, which the geometry
+//! provides ([`Geometry::flight`]); nothing is then scored at sampled collisions. `"collision"`
+//! scores there instead (a cross-check; both are unbiased).
 //!
-//! The path then continues in a direction drawn from the phase function (reciprocal) or the
-//! BRDF sampler. A sample is `π·L/(E0 μ_s)`. The sky has no diffuse source above TOA and the
-//! direct solar beam (a delta in direction) is never seen by the sensor.
+//! The path continues in a direction drawn from the phase function (reciprocal) or the surface's
+//! sampler. Absorption multiplies the weight by ω (survival biasing); Russian roulette after
+//! `rr_depth` orders ([`survives`]); orders beyond `max_depth` are not counted. A sample is
+//! `π·L/(E0·μ)` split into single scattering (first interaction) and the rest. The sky has no
+//! diffuse source above TOA and the direct solar beam (a delta in direction) is never seen.
 
 use glam::DVec3;
 
-use super::{roulette, sample_scattered, OrderSplit};
-use crate::atmosphere::FlightEnd;
+use super::geometry::{Event, Geometry};
 use super::settings::IntegratorSettings;
-use crate::optics::OpticalState;
+use super::surface::SurfaceAt;
+use super::weight::{survives, MuellerPath, OrderSplit, Scalar, Weight, INV_4PI};
 use crate::rng::Stream;
 
-/// One path from (τ₀, d₀); returns the (single, multiple) parts of `π·L/(E0 μ_s)`.
-pub fn walk(
-    opt: &OpticalState,
-    sun_dir: DVec3,
-    tau0: f64,
+/// How a weight scores sunlight arriving at a path vertex.
+pub trait Adjoint: Weight {
+    /// Add `k·w·acc` for an accumulation of scattering `acc` (`ω·P·T`, or matrices) at a
+    /// flight along `d`.
+    fn see_sun_volume(&self, t: &mut Self::Tally, order: u32, acc: &Self::Phase, d: DVec3, sun: DVec3, k: f64);
+    /// Add the sunlight reflected by `surface` into the path arriving along `d`; `visible()`
+    /// (the Sun's transmittance times visibility, possibly a shadow ray) is called only where
+    /// the surface reflects sunlight at all.
+    fn see_sun_surface(
+        &self,
+        t: &mut Self::Tally,
+        order: u32,
+        surface: &SurfaceAt,
+        d: DVec3,
+        sun: DVec3,
+        visible: impl FnOnce() -> f64,
+    );
+}
+
+impl Adjoint for Scalar {
+    #[inline]
+    fn see_sun_volume(&self, t: &mut OrderSplit, order: u32, acc: &f64, _: DVec3, _: DVec3, k: f64) {
+        t.add(order, self.0 * acc * k);
+    }
+    #[inline]
+    fn see_sun_surface(
+        &self,
+        t: &mut OrderSplit,
+        order: u32,
+        surface: &SurfaceAt,
+        d: DVec3,
+        sun: DVec3,
+        visible: impl FnOnce() -> f64,
+    ) {
+        let f = surface.eval_cos(sun, -d);
+        if f > 0.0 {
+            let v = visible();
+            if v > 0.0 {
+                t.add(order, self.0 * f * v);
+            }
+        }
+    }
+}
+
+impl Adjoint for MuellerPath {
+    #[inline]
+    fn see_sun_volume(
+        &self,
+        t: &mut [f64; 5],
+        order: u32,
+        acc: &crate::stokes::PhaseMatrix,
+        d: DVec3,
+        sun: DVec3,
+        k: f64,
+    ) {
+        self.see_sun(t, order, acc, d, sun, k);
+    }
+    #[inline]
+    fn see_sun_surface(
+        &self,
+        t: &mut [f64; 5],
+        order: u32,
+        surface: &SurfaceAt,
+        d: DVec3,
+        sun: DVec3,
+        visible: impl FnOnce() -> f64,
+    ) {
+        let wo = -d;
+        match surface.matrix(sun, wo) {
+            Some(m) if m.a1 > 0.0 => {
+                let c = surface.cos(sun);
+                if c > 0.0 {
+                    let v = visible();
+                    if v > 0.0 {
+                        self.see_sun(t, order, &m, d, sun, c * v);
+                    }
+                }
+            }
+            Some(_) => {}
+            None => {
+                let f = surface.eval_cos(sun, wo);
+                if f > 0.0 {
+                    let v = visible();
+                    if v > 0.0 {
+                        self.see_unpolarized(t, order, f * v);
+                    }
+                }
+            }
+        }
+    }
+}
+
+/// The weight a backward path starts with at the sensor.
+pub trait AtSensor: Weight {
+    /// For a path leaving the sensor along `d0`; polarized weights take the meridian frame of
+    /// `−d0`, fixed for vertical views by the azimuth `frame_azimuth()` (radians).
+    fn at_sensor(d0: DVec3, frame_azimuth: impl Fn() -> f64) -> Self;
+}
+
+impl AtSensor for Scalar {
+    #[inline]
+    fn at_sensor(_: DVec3, _: impl Fn() -> f64) -> Self {
+        Scalar(1.0)
+    }
+}
+
+impl AtSensor for MuellerPath {
+    #[inline]
+    fn at_sensor(d0: DVec3, frame_azimuth: impl Fn() -> f64) -> Self {
+        MuellerPath::at_sensor(crate::stokes::meridian_axis(-d0, frame_azimuth()))
+    }
+}
+
+/// One path from `start` along `d0` carrying `w`; returns its tally, which times
+/// [`Geometry::normalization`] is `π·L/(E0·μ)`.
+pub fn walk<G: Geometry, W: Adjoint>(
+    g: &G,
+    start: G::Pos,
     d0: DVec3,
+    mut w: W,
     settings: &IntegratorSettings,
     rng: &mut Stream,
-) -> (f64, f64) {
-    let atm = &opt.atmosphere;
-    let total = atm.total_tau();
-    let mu_s = sun_dir.z;
-    let t_sun_ground = (-total / mu_s).exp();
-    let mut split = OrderSplit::default();
-    let mut d = d0;
-    let mut tau = tau0;
-    let mut w = 1.0_f64;
+) -> W::Tally {
+    let sun = g.sun();
+    let expected = settings.expected_local_estimate;
+    let mut tally = W::zero_tally();
+    let (mut pos, mut d) = (start, d0);
     let mut order: u32 = 1;
-    let inv_mu_s = 1.0 / mu_s;
     while order <= settings.max_depth {
-        if settings.expected_local_estimate {
-            // Expected next-event estimate of the next collision, exact along the flight.
-            let cos = sun_dir.dot(d);
-            let mut acc = 0.0;
-            atm.flight_integrals(tau, d.z, inv_mu_s, |l, i| {
-                acc += atm.albedo(l) * atm.phase(l).eval(cos) * i;
-            });
-            split.add(order, w * acc * (0.25 * std::f64::consts::FRAC_1_PI));
+        let mut acc = W::zero_phase();
+        let event = g.flight::<W>(pos, d, expected.then_some(&mut acc), rng);
+        if expected && W::phase_intensity(&acc) > 0.0 {
+            w.see_sun_volume(&mut tally, order, &acc, d, sun, INV_4PI);
         }
-        let s = -rng.next_f64_open0().ln();
-        match atm.fly(tau, d.z, s) {
-            FlightEnd::Escape => break,
-            FlightEnd::Surface => {
-                tau = total;
-                let wo = -d;
-                let f = opt.surface.eval(sun_dir, wo);
-                split.add(order, w * f * mu_s * t_sun_ground);
-                let smp = opt.surface.sample(wo, rng.next_f64(), rng.next_f64());
-                w *= smp.weight;
-                d = smp.wi;
-            }
-            FlightEnd::Collision(t) => {
-                tau = t;
-                let layer = atm.layer_at_tau(t);
-                let omega = atm.albedo(layer);
-                let phase = atm.phase(layer);
-                if !settings.expected_local_estimate {
-                    split.add(
-                        order,
-                        w * omega
-                            * phase.eval(sun_dir.dot(d))
-                            * (0.25 * std::f64::consts::FRAC_1_PI)
-                            * (-tau / mu_s).exp(),
-                    );
+        match event {
+            Event::Escape => break,
+            Event::Collision { pos: p, omega, phase } => {
+                pos = p;
+                if !expected && omega > 0.0 {
+                    let t = g.sun_at(p);
+                    if t > 0.0 {
+                        let mut a = W::zero_phase();
+                        W::accumulate(&mut a, phase, sun.dot(d), omega, t);
+                        w.see_sun_volume(&mut tally, order, &a, d, sun, INV_4PI);
+                    }
                 }
-                w *= omega;
-                d = sample_scattered(phase, d, rng);
+                d = w.scatter(phase, omega, d, rng);
+            }
+            Event::Surface(h) => {
+                let surface = g.surface(&h);
+                w.see_sun_surface(&mut tally, order, &surface, d, sun, || g.sun_at_surface(&h));
+                match w.reflect(&surface, d, rng) {
+                    Some(d2) => {
+                        pos = g.leave(&h, d2);
+                        d = d2;
+                    }
+                    None => break,
+                }
             }
         }
         order += 1;
-        if w <= 0.0 {
-            break;
-        }
-        if order > settings.rr_depth && !roulette(&mut w, rng.next_f64()) {
+        if !survives(&mut w, order, settings.rr_depth, rng) {
             break;
         }
     }
-    let k = std::f64::consts::PI / mu_s;
-    split.scaled(k)
+    tally
 }

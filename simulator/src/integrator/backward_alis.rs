@@ -77,7 +77,7 @@
 
 use glam::DVec3;
 
-use super::{roulette, OrderSplit};
+use super::weight::{survives, OrderSplit, Scalar};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::Bsdf;
 use super::settings::IntegratorSettings;
@@ -776,12 +776,11 @@ pub fn walk(
             sp.add(order, *s);
         }
         order += 1;
-        if w <= 0.0 {
+        let mut sw = Scalar(w);
+        if !survives(&mut sw, order, settings.rr_depth, rng) {
             break;
         }
-        if order > settings.rr_depth && !roulette(&mut w, rng.next_f64()) {
-            break;
-        }
+        w = sw.0;
     }
     let k = std::f64::consts::PI / mu_s;
     for (o, sp) in out.iter_mut().zip(split.iter()) {

@@ -1,34 +1,38 @@
-//! Forward (photon) walk with local estimates towards many directions at once.
+//! The forward (photon) estimator with local estimates towards many directions at once, in
+//! plane-parallel layers over a flat surface; generic over the photon's [`Weight`] (scalar or
+//! Stokes vector), monomorphised for each.
 //!
 //! A photon enters at TOA along the solar beam carrying weight 1, which stands for the power
 //! `E0·cos SZA / N` per unit horizontal area. Contributions to the BRF in direction `v`
 //! (`μ_v = v_z > 0`):
 //! * collision at optical depth τ in a layer of albedo ω: `w·ω·P(cos Θ)·e^{−τ/μ_v} / (4 μ_v)`,
-//!   with cos Θ = d·v (d the photon's direction before scattering);
-//! * reflection at the ground, for a photon arriving along `d`: `w·π·f_r(−d, v)·e^{−τ*/μ_v}`.
+//!   with cos Θ = d·v (d the photon's direction before scattering); polarized: the photon's
+//!   Stokes vector scattered through `F(Θ)` into `v` and rotated into `v`'s meridian frame;
+//! * reflection at the ground, for a photon arriving along `d`: `w·π·f_r(−d, v)·e^{−τ*/μ_v}`
+//!   (polarizing surfaces: their reflection matrix, like a scattering).
 //!
 //! Variance reduction: by default (`integrator.local_estimate = "expected"`) the local estimate
 //! of the next collision is replaced by its expectation over the collision position along the
-//! flight, integrated exactly layer by layer ([`PlaneParallel::flight_integrals`]); the walk then
-//! samples the collision as usual but scores nothing there. Single scattering thus carries no
-//! Monte Carlo noise at all, and higher orders lose the noise of the last flight. With
-//! `"collision"` the classic point estimate at the sampled collision is used (a cross-check).
-//! Likewise the ground contribution is added as its expected value at each downward
-//! flight, `w·e^{−(τ*−τ)/|d_z|}·π f_r·e^{−τ*/μ_v}`, instead of only when the sampled flight
-//! reaches the ground (unbiased since E[1_hit·X] = P(hit)·X); likewise the upward flux through a
-//! level is the expected crossing `w·e^{−(τ−τ_L)/d_z}` of every upward flight from below it.
+//! flight, integrated exactly layer by layer ([`PlaneParallel::flight_integrals`]; the frame and
+//! Θ_v do not change along a flight, only the scalar factor does); the walk then samples the
+//! collision as usual but scores nothing there. Single scattering thus carries no Monte Carlo
+//! noise at all. `"collision"` scores at the sampled collision (a cross-check). Likewise the
+//! ground contribution is added as its expected value at each downward flight,
+//! `w·e^{−(τ*−τ)/|d_z|}·π f_r·e^{−τ*/μ_v}`, and the upward flux through a level as the expected
+//! crossing `w·e^{−(τ−τ_L)/d_z}` of every upward flight from below it (intensity only).
 //! Derivation: Marchuk et al. (1980), "The Monte Carlo methods in atmospheric optics", ch. 2;
 //! Mayer (2009), "Radiative transfer in the cloudy atmosphere", EPJ Conf. 1, 75–99.
 
 use glam::DVec3;
 
-use super::{roulette, sample_scattered, Accum};
-use crate::atmosphere::FlightEnd;
-#[allow(unused_imports)]
-use crate::atmosphere::PlaneParallel;
 use super::settings::IntegratorSettings;
-use crate::optics::OpticalState;
+use super::surface::SurfaceAt;
+use super::weight::{survives, OrderSplit, Scalar, StokesPhoton, StokesTally, Weight};
+use crate::accum::Accum;
+use crate::atmosphere::{FlightEnd, PlaneParallel};
+use crate::bsdf::Bsdf;
 use crate::rng::Stream;
+use crate::stokes::meridian_axis;
 
 /// What a forward walk scores.
 pub struct ForwardTargets<'a> {
@@ -40,37 +44,148 @@ pub struct ForwardTargets<'a> {
     pub azimuth_hints: &'a [f64],
 }
 
-/// Scratch buffers of one walk (per direction: single and multiple parts), reused across walks.
-pub struct Scratch {
-    single: Vec<f64>,
-    multiple: Vec<f64>,
+/// How a photon scores towards a direction `v` (frame axis `e_v`).
+pub trait Photon: Weight {
+    /// An unpolarized photon of unit weight entering along `d`.
+    fn entering(d: DVec3) -> Self;
+    /// `acc` (ω·P or ω·F times transmittance integrals) scattered into `v`, times `im/4`.
+    #[allow(clippy::too_many_arguments)]
+    fn local_estimate(&self, t: &mut Self::Tally, order: u32, acc: &Self::Phase, d: DVec3, v: DVec3, e_v: DVec3, im: f64);
+    /// Reflection at the ground into `v` of a photon arriving along `d`, reaching the ground
+    /// with probability `p_hit`, seen through transmittance·π `t_ground`.
+    #[allow(clippy::too_many_arguments)]
+    fn ground_estimate(
+        &self,
+        t: &mut Self::Tally,
+        order: u32,
+        surface: &Bsdf,
+        d: DVec3,
+        v: DVec3,
+        e_v: DVec3,
+        p_hit: f64,
+        t_ground: f64,
+    );
+    /// Add intensity `x` (flux measures).
+    fn add_intensity(t: &mut Self::Tally, order: u32, x: f64);
+}
+
+impl Photon for Scalar {
+    fn entering(_: DVec3) -> Self {
+        Scalar(1.0)
+    }
+    #[inline]
+    fn local_estimate(&self, t: &mut OrderSplit, order: u32, acc: &f64, _: DVec3, _: DVec3, _: DVec3, im: f64) {
+        t.add(order, self.0 * 0.25 * im * acc);
+    }
+    #[inline]
+    fn ground_estimate(
+        &self,
+        t: &mut OrderSplit,
+        order: u32,
+        surface: &Bsdf,
+        d: DVec3,
+        v: DVec3,
+        _: DVec3,
+        p_hit: f64,
+        t_ground: f64,
+    ) {
+        let f = surface.eval(-d, v);
+        if f > 0.0 {
+            t.add(order, self.0 * p_hit * f * t_ground);
+        }
+    }
+    #[inline]
+    fn add_intensity(t: &mut OrderSplit, order: u32, x: f64) {
+        t.add(order, x);
+    }
+}
+
+impl Photon for StokesPhoton {
+    fn entering(d: DVec3) -> Self {
+        StokesPhoton::unpolarized(d)
+    }
+    #[inline]
+    fn local_estimate(
+        &self,
+        t: &mut StokesTally,
+        order: u32,
+        acc: &crate::stokes::PhaseMatrix,
+        d: DVec3,
+        v: DVec3,
+        e_v: DVec3,
+        im: f64,
+    ) {
+        self.send(t, order, acc, d, v, e_v, 0.25 * im);
+    }
+    #[inline]
+    fn ground_estimate(
+        &self,
+        t: &mut StokesTally,
+        order: u32,
+        surface: &Bsdf,
+        d: DVec3,
+        v: DVec3,
+        e_v: DVec3,
+        p_hit: f64,
+        t_ground: f64,
+    ) {
+        match surface.matrix(-d, v) {
+            Some(m) if m.a1 > 0.0 => self.send(t, order, &m, d, v, e_v, p_hit * t_ground),
+            Some(_) => {}
+            None => {
+                let f = surface.eval(-d, v);
+                if f > 0.0 {
+                    Self::add_intensity(t, order, self.s[0] * p_hit * f * t_ground);
+                }
+            }
+        }
+    }
+    #[inline]
+    fn add_intensity(t: &mut StokesTally, order: u32, x: f64) {
+        t[if order == 1 { 0 } else { 1 }] += x;
+    }
+}
+
+/// Per-direction constants and the scores of one walk, reused across walks.
+pub struct Scratch<W: Weight> {
+    tally: Vec<W::Tally>,
     inv_mu: Vec<f64>,
     /// e^{−τ*/μ_v}·π: ground-to-TOA transmittance factor per direction.
     t_ground: Vec<f64>,
+    /// Meridian axis e_θ of each direction (polarized runs).
+    e_theta: Vec<DVec3>,
 }
 
-impl Scratch {
-    pub fn new(opt: &OpticalState, targets: &ForwardTargets) -> Self {
+impl<W: Weight> Scratch<W> {
+    pub fn new(atmosphere: &PlaneParallel, targets: &ForwardTargets) -> Self {
         let n = targets.directions.len().max(1);
         let inv_mu: Vec<f64> = targets.directions.iter().map(|v| 1.0 / v.z).collect();
-        let tt = opt.atmosphere.total_tau();
+        let tt = atmosphere.total_tau();
         let t_ground = inv_mu
             .iter()
             .map(|im| (-tt * im).exp() * std::f64::consts::PI)
             .collect();
+        let e_theta = targets
+            .directions
+            .iter()
+            .enumerate()
+            .map(|(k, v)| meridian_axis(*v, targets.azimuth_hints.get(k).copied().unwrap_or(0.0)))
+            .collect();
         Self {
-            single: vec![0.0; n],
-            multiple: vec![0.0; n],
+            tally: vec![W::zero_tally(); n],
             inv_mu,
             t_ground,
+            e_theta,
         }
     }
 }
 
+/// Run photons `samples` of one stream family and add one sample per cell per photon to `acc`
+/// (made by [`Weight::accum`]).
 #[allow(clippy::too_many_arguments)]
-/// Run photons `samples` of one stream family and add one sample per cell per photon to `acc`.
-pub fn run_block(
-    opt: &OpticalState,
+pub fn run_block<W: Photon>(
+    atmosphere: &PlaneParallel,
+    surface: &Bsdf,
     sun_dir: DVec3,
     targets: &ForwardTargets,
     settings: &IntegratorSettings,
@@ -79,75 +194,68 @@ pub fn run_block(
     samples: std::ops::Range<u64>,
     acc: &mut Accum,
 ) {
-    let mut scratch = Scratch::new(opt, targets);
+    let mut scratch = Scratch::<W>::new(atmosphere, targets);
     for s in samples {
         let mut rng = Stream::new(seed, [ids[0], ids[1], ids[2], s]);
-        walk(opt, sun_dir, targets, settings, &mut rng, &mut scratch);
-        let cells = scratch.single.len();
-        for c in 0..cells {
-            acc.add(c, scratch.single[c], scratch.multiple[c]);
+        walk::<W>(atmosphere, surface, sun_dir, targets, settings, &mut rng, &mut scratch);
+        for (c, t) in scratch.tally.iter().enumerate() {
+            W::record(acc, c, t, 1.0);
         }
     }
 }
 
-#[inline]
-fn score(scratch: &mut Scratch, order: u32, cell: usize, v: f64) {
-    if order == 1 {
-        scratch.single[cell] += v;
-    } else {
-        scratch.multiple[cell] += v;
-    }
-}
-
-/// One photon history; results in `scratch.single` / `scratch.multiple`.
-pub fn walk(
-    opt: &OpticalState,
+/// One photon history; results in `scratch.tally`.
+pub fn walk<W: Photon>(
+    atm: &PlaneParallel,
+    surface: &Bsdf,
     sun_dir: DVec3,
     targets: &ForwardTargets,
     settings: &IntegratorSettings,
     rng: &mut Stream,
-    scratch: &mut Scratch,
+    scratch: &mut Scratch<W>,
 ) {
-    scratch.single.iter_mut().for_each(|x| *x = 0.0);
-    scratch.multiple.iter_mut().for_each(|x| *x = 0.0);
-    let atm = &opt.atmosphere;
+    scratch.tally.iter_mut().for_each(|x| *x = W::zero_tally());
     let total = atm.total_tau();
     let dirs = targets.directions;
     let mut d = -sun_dir;
+    let mut w = W::entering(d);
     let mut tau = 0.0_f64;
-    let mut w = 1.0_f64;
     // Order of the next interaction (1 = first).
     let mut order: u32 = 1;
+    let ground = SurfaceAt::Flat {
+        bsdf: surface,
+        frame: None,
+    };
     loop {
-        // Expected-value scores of this flight.
-        if d.z < 0.0 && !dirs.is_empty() && order <= settings.max_depth {
-            let p_hit = (-(total - tau) / (-d.z)).exp();
-            let wi = -d;
-            for (k, v) in dirs.iter().enumerate() {
-                let f = opt.surface.eval(wi, *v);
-                if f > 0.0 {
-                    score(scratch, order, k, w * p_hit * f * scratch.t_ground[k]);
+        if order <= settings.max_depth && !dirs.is_empty() {
+            // Expected-value scores of this flight.
+            if d.z < 0.0 {
+                let p_hit = (-(total - tau) / (-d.z)).exp();
+                for (k, v) in dirs.iter().enumerate() {
+                    let (tg, e) = (scratch.t_ground[k], scratch.e_theta[k]);
+                    w.ground_estimate(&mut scratch.tally[k], order, surface, d, *v, e, p_hit, tg);
                 }
             }
-        }
-        if settings.expected_local_estimate && order <= settings.max_depth && !dirs.is_empty() {
-            // Expected value of the next collision's local estimates (exact along the flight).
-            for (k, v) in dirs.iter().enumerate() {
-                let im = scratch.inv_mu[k];
-                let cos = d.dot(*v);
-                let mut acc = 0.0;
-                atm.flight_integrals(tau, d.z, im, |l, i| {
-                    acc += atm.albedo(l) * atm.phase(l).eval(cos) * i;
-                });
-                if acc > 0.0 {
-                    score(scratch, order, k, w * 0.25 * im * acc);
+            if settings.expected_local_estimate {
+                // Expected value of the next collision's local estimates (exact along the flight).
+                for (k, v) in dirs.iter().enumerate() {
+                    let im = scratch.inv_mu[k];
+                    let cos = d.dot(*v);
+                    let mut acc = W::zero_phase();
+                    atm.flight_integrals(tau, d.z, im, |l, i| {
+                        W::accumulate(&mut acc, atm.phase(l), cos, atm.albedo(l), i);
+                    });
+                    if W::phase_intensity(&acc) > 0.0 {
+                        let e = scratch.e_theta[k];
+                        w.local_estimate(&mut scratch.tally[k], order, &acc, d, *v, e, im);
+                    }
                 }
             }
         }
         if let Some(tl) = targets.flux_tau {
             if d.z > 0.0 && tau >= tl && order > 1 {
-                let v = w * (-(tau - tl) / d.z).exp();
-                score(scratch, order - 1, 0, v);
+                let x = w.intensity() * (-(tau - tl) / d.z).exp();
+                W::add_intensity(&mut scratch.tally[0], order - 1, x);
             }
         }
         if order > settings.max_depth {
@@ -158,36 +266,30 @@ pub fn walk(
             FlightEnd::Escape => break,
             FlightEnd::Surface => {
                 tau = total;
-                let smp = opt.surface.sample(-d, rng.next_f64(), rng.next_f64());
-                w *= smp.weight;
-                d = smp.wi;
+                match w.reflect(&ground, d, rng) {
+                    Some(d2) => d = d2,
+                    None => break,
+                }
             }
             FlightEnd::Collision(t) => {
                 tau = t;
                 let layer = atm.layer_at_tau(t);
                 let omega = atm.albedo(layer);
                 let phase = atm.phase(layer);
-                if !settings.expected_local_estimate {
-                    let c = w * omega * 0.25;
+                if !settings.expected_local_estimate && order <= settings.max_depth {
                     for (k, v) in dirs.iter().enumerate() {
                         let im = scratch.inv_mu[k];
-                        score(
-                            scratch,
-                            order,
-                            k,
-                            c * phase.eval(d.dot(*v)) * (-tau * im).exp() * im,
-                        );
+                        let mut acc = W::zero_phase();
+                        W::accumulate(&mut acc, phase, d.dot(*v), omega, (-tau * im).exp());
+                        let e = scratch.e_theta[k];
+                        w.local_estimate(&mut scratch.tally[k], order, &acc, d, *v, e, im);
                     }
                 }
-                w *= omega;
-                d = sample_scattered(phase, d, rng);
+                d = w.scatter(phase, omega, d, rng);
             }
         }
         order += 1;
-        if w <= 0.0 {
-            break;
-        }
-        if order > settings.rr_depth && !roulette(&mut w, rng.next_f64()) {
+        if !survives(&mut w, order, settings.rr_depth, rng) {
             break;
         }
     }

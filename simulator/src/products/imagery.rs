@@ -6,6 +6,9 @@
 //!   `ID_radiance_stderr.tif` — Float32 GeoTIFFs in the scene's CRS (a bundle's working CRS;
 //!   none for canopies) with the pixel-corner geotransform, one band per wavelength (band `k`
 //!   is `exp.wavelengths[k]`), NaN as nodata;
+//! * polarized runs, ortho measures also: `ID_q.tif`, `ID_u.tif` (BRF-normalised Stokes Q and U,
+//!   `π·Q/(E0 cos SZA)`, in the meridian frame of the view direction, `stokes.rs`), `ID_dolp.tif`
+//!   and `ID_dolp_stderr.tif` (degree of linear polarization √(Q²+U²)/I and its standard error);
 //! * both: `ID.png`, a quicklook of the BRF (true colour when wavelengths near 660/550/440 nm
 //!   were simulated, grey otherwise; see `products::image`).
 //!
@@ -41,6 +44,18 @@ pub struct ImageProduct {
     pub n_samples: Vec<u64>,
     /// View angles of an ortho image, degrees.
     pub view: Option<(f64, f64)>,
+    /// Polarized runs: per wavelength and pixel, BRF-normalised Q and U, the degree of linear
+    /// polarization and its standard error.
+    pub stokes: Option<ImageStokes>,
+}
+
+/// The polarization images of a polarized run, `[wavelength][pixel]`.
+#[derive(Clone, Debug)]
+pub struct ImageStokes {
+    pub q: Vec<Vec<f64>>,
+    pub u: Vec<Vec<f64>>,
+    pub dolp: Vec<Vec<f64>>,
+    pub dolp_stderr: Vec<Vec<f64>>,
 }
 
 /// Collect the image measures' results.
@@ -88,9 +103,15 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                     brf_single: blank.clone(),
                     brf_multiple: blank.clone(),
                     radiance: blank.clone(),
-                    radiance_stderr: blank,
+                    radiance_stderr: blank.clone(),
                     n_samples: vec![0; nw],
                     view,
+                    stokes: exp.polarized.then(|| ImageStokes {
+                        q: blank.clone(),
+                        u: blank.clone(),
+                        dolp: blank.clone(),
+                        dolp_stderr: blank.clone(),
+                    }),
                 });
                 out.len() - 1
             }
@@ -106,6 +127,13 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
             p.brf_multiple[iw][c] = r.acc.mean_stderr(c, 2).0;
             p.radiance[iw][c] = t * to_rad;
             p.radiance_stderr[iw][c] = e * to_rad;
+            if let (Some(st), true) = (p.stokes.as_mut(), r.acc.is_polarized()) {
+                st.q[iw][c] = r.acc.mean_stderr(c, crate::integrator::Q).0;
+                st.u[iw][c] = r.acc.mean_stderr(c, crate::integrator::U).0;
+                let (d, de) = super::dolp(&r.acc, c);
+                st.dolp[iw][c] = d;
+                st.dolp_stderr[iw][c] = de;
+            }
         }
         p.n_samples[iw] = r.acc.n.iter().copied().min().unwrap_or(0);
     }
@@ -143,7 +171,7 @@ pub fn write_files(
             meta.push(("view_zenith_deg".into(), format!("{vza}")));
             meta.push(("view_azimuth_deg".into(), format!("{vaa}")));
         }
-        let sets: [(&str, &Vec<Vec<f64>>, &str, &str); 4] = [
+        let mut sets: Vec<(&str, &Vec<Vec<f64>>, &str, &str)> = vec![
             ("brf", &p.brf, "1", "bidirectional reflectance factor"),
             (
                 "brf_stderr",
@@ -159,6 +187,19 @@ pub fn write_files(
                 "standard error of the radiance",
             ),
         ];
+        if let Some(st) = &p.stokes {
+            sets.extend([
+                ("q", &st.q, "1", "Stokes Q (BRF-normalised, meridian frame of the view)"),
+                ("u", &st.u, "1", "Stokes U (BRF-normalised, meridian frame of the view)"),
+                ("dolp", &st.dolp, "1", "degree of linear polarization"),
+                (
+                    "dolp_stderr",
+                    &st.dolp_stderr,
+                    "1",
+                    "standard error of the degree of linear polarization",
+                ),
+            ]);
+        }
         for (name, data, units, long) in sets {
             let bands: Vec<ImageBand> = exp
                 .wavelengths

@@ -49,7 +49,7 @@ pub struct Row {
 
 /// Degree of linear polarization and its standard error (delta method with the estimated
 /// covariances of the means of I, Q, U).
-fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
+pub(crate) fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
     use crate::integrator::{Q, TOTAL, U};
     let (i, ei) = acc.mean_stderr(c, TOTAL);
     let (q, eq) = acc.mean_stderr(c, Q);

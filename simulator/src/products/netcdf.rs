@@ -12,7 +12,7 @@
 //!   `ID_n_samples` on `(wavelength)`;
 //! * `ortho` / `perspective` images: dimensions `ID_y`, `ID_x`; ortho images have coordinates
 //!   `ID_x(ID_x)`, `ID_y(ID_y)` (pixel centres in the scene's CRS, m) and the CRS's WKT as the
-//!   attribute `crs_wkt`; data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`, `ID_brf_multiple`,
+//!   attribute `crs_wkt`; polarized runs add `ID_q`, `ID_u`, `ID_dolp`, `ID_dolp_stderr`; data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`, `ID_brf_multiple`,
 //!   `ID_radiance`, `ID_radiance_stderr` on `(wavelength, ID_y, ID_x)` (row 0 = north / top);
 //!   `ID_n_samples(wavelength)` samples per pixel.
 //!
@@ -403,7 +403,7 @@ fn write_image(
             v.put_values(&data, ..)?;
         }
     }
-    let sets: [(&str, &Vec<Vec<f64>>, &str, &str); 6] = [
+    let mut sets: Vec<(&str, &Vec<Vec<f64>>, &str, &str)> = vec![
         (
             "brf",
             &p.brf,
@@ -431,6 +431,14 @@ fn write_image(
             "standard error of radiance",
         ),
     ];
+    if let Some(st) = &p.stokes {
+        sets.extend([
+            ("q", &st.q, "1", "Stokes Q pi Q / (E0 cos SZA), meridian frame of the view"),
+            ("u", &st.u, "1", "Stokes U pi U / (E0 cos SZA), meridian frame of the view"),
+            ("dolp", &st.dolp, "1", "degree of linear polarization"),
+            ("dolp_stderr", &st.dolp_stderr, "1", "standard error of dolp"),
+        ]);
+    }
     for (name, data, units, long) in sets {
         let flat: Vec<f64> = data.iter().flatten().copied().collect();
         let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dy, &dx])?;

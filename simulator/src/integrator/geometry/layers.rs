@@ -1,0 +1,84 @@
+//! Plane-parallel layers over a flat surface; positions are optical depths τ from TOA.
+//!
+//! Flights are sampled exactly ([`PlaneParallel::fly`]); the Sun's transmittance to depth τ is
+//! `exp(−τ/μ_s)`; the expected estimate of a flight's next collision is integrated exactly,
+//! layer by layer ([`PlaneParallel::flight_integrals`]: Marchuk et al. 1980, ch. 2).
+
+use glam::DVec3;
+
+use super::{Event, Geometry};
+use crate::atmosphere::{FlightEnd, PlaneParallel};
+use crate::bsdf::Bsdf;
+use crate::integrator::surface::SurfaceAt;
+use crate::integrator::weight::Weight;
+use crate::rng::Stream;
+
+pub struct Layers<'a> {
+    pub atmosphere: &'a PlaneParallel,
+    pub surface: &'a Bsdf,
+    /// Unit vector towards the Sun (`z > 0`).
+    pub sun: DVec3,
+}
+
+impl Geometry for Layers<'_> {
+    type Pos = f64;
+    type Hit = ();
+
+    #[inline]
+    fn sun(&self) -> DVec3 {
+        self.sun
+    }
+    fn normalization(&self) -> f64 {
+        std::f64::consts::PI / self.sun.z
+    }
+
+    #[inline]
+    fn flight<W: Weight>(
+        &self,
+        tau: f64,
+        d: DVec3,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Event<'_, f64, ()> {
+        let atm = self.atmosphere;
+        if let Some(acc) = acc {
+            let cos = self.sun.dot(d);
+            atm.flight_integrals(tau, d.z, 1.0 / self.sun.z, |l, i| {
+                W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), i);
+            });
+        }
+        let s = -rng.next_f64_open0().ln();
+        match atm.fly(tau, d.z, s) {
+            FlightEnd::Escape => Event::Escape,
+            FlightEnd::Surface => Event::Surface(()),
+            FlightEnd::Collision(t) => {
+                let layer = atm.layer_at_tau(t);
+                Event::Collision {
+                    pos: t,
+                    omega: atm.albedo(layer),
+                    phase: atm.phase(layer),
+                }
+            }
+        }
+    }
+
+    #[inline]
+    fn sun_at(&self, tau: f64) -> f64 {
+        (-tau / self.sun.z).exp()
+    }
+    #[inline]
+    fn surface(&self, _: &()) -> SurfaceAt<'_> {
+        SurfaceAt::Flat {
+            bsdf: self.surface,
+            frame: None,
+        }
+    }
+    #[inline]
+    fn sun_at_surface(&self, _: &()) -> f64 {
+        (-self.atmosphere.total_tau() / self.sun.z).exp()
+    }
+    #[inline]
+    fn leave(&self, _: &(), _: DVec3) -> f64 {
+        self.atmosphere.total_tau()
+    }
+}

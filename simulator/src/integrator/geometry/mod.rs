@@ -1,0 +1,120 @@
+//! The media a backward path crosses, as a type: the [`backward`](super::backward) estimator is
+//! generic over [`Geometry`] and monomorphised for each.
+//!
+//! | geometry | position | surface |
+//! |---|---|---|
+//! | [`layers::Layers`] | optical depth τ from TOA (plane-parallel layers) | flat [`Bsdf`](crate::bsdf::Bsdf) |
+//! | [`shells::Shells`] | planet-centred point and shell index (spherical shells) | the ground sphere's BRDF in the local vertical's frame |
+//! | [`scene_layers::SceneInLayers`] | scene point (m) under plane-parallel layers | scene materials at BVH hits |
+//! | [`scene_shells::SceneInShells`] | planet-centred point and shell of a scene bent onto the planet | scene materials at BVH hits |
+//!
+//! A geometry samples flights exactly (optical depths summed layer by layer or shell by shell),
+//! knows the Sun's transmittance (and the scene's visibility) from any point, and gives the
+//! *expected* next-event estimate of a flight's next collision: exactly along the flight where
+//! that has a closed form (layers above any geometry), otherwise by stratified or forced
+//! collision points with their shadow rays (unbiased either way).
+
+pub mod layers;
+pub mod scene_layers;
+pub mod scene_shells;
+pub mod shells;
+
+use glam::DVec3;
+
+use super::surface::SurfaceAt;
+use super::weight::Weight;
+use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
+use crate::phase::PhaseFunction;
+use crate::rng::Stream;
+
+/// How a flight ends.
+pub enum Event<'a, P, H> {
+    /// The path leaves the medium (through its top, or is lost below it).
+    Escape,
+    /// A collision in the atmosphere at `pos`, in a layer of albedo `omega`.
+    Collision {
+        pos: P,
+        omega: f64,
+        phase: &'a PhaseFunction,
+    },
+    /// The path reaches a surface.
+    Surface(H),
+}
+
+/// A medium with its surfaces, seen by the backward estimator.
+pub trait Geometry {
+    /// A path position.
+    type Pos: Copy;
+    /// A surface hit.
+    type Hit;
+
+    /// Unit vector towards the Sun.
+    fn sun(&self) -> DVec3;
+    /// The factor that turns a path's score into `π·L/(E0·μ)` (μ: cos SZA of the target).
+    fn normalization(&self) -> f64;
+
+    /// Sample the flight from `pos` along `d`: one random number for the free path, drawn
+    /// after the expected estimate. With `acc`, first add to it the expected value over the
+    /// flight's next collision of `ω·P(s·d)·T_sun·V` (without 1/4π), via
+    /// [`Weight::accumulate`] (it may draw random numbers of its own).
+    fn flight<W: Weight>(
+        &self,
+        pos: Self::Pos,
+        d: DVec3,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Event<'_, Self::Pos, Self::Hit>;
+
+    /// The Sun's transmittance times the scene's visibility at an atmospheric point.
+    fn sun_at(&self, pos: Self::Pos) -> f64;
+    /// The surface at a hit.
+    fn surface(&self, hit: &Self::Hit) -> SurfaceAt<'_>;
+    /// The Sun's transmittance times visibility (a shadow ray) at a hit.
+    fn sun_at_surface(&self, hit: &Self::Hit) -> f64;
+    /// Where a path leaving a hit along `d` starts.
+    fn leave(&self, hit: &Self::Hit, d: DVec3) -> Self::Pos;
+}
+
+/// Collision points per flight of the stratified next-event estimate in spherical shells.
+pub const NEE_STRATA: usize = 4;
+
+/// Stratified estimate of the next collision's next-event estimate along the flight from `p`
+/// (shell `l`) along `d`, for a collision within optical depth `tau_end` of the start: K =
+/// [`NEE_STRATA`] collision points drawn by stratified inversion of the optical depth (one
+/// random number), each weighted by P(collision within `tau_end`)/K. Unbiased for the
+/// expectation the collision NEE estimates. `seen(q, lq)` is the Sun's transmittance (times
+/// any visibility) from a point. Adds `P/K·Σ ω·P(s·d)·seen` to `acc` (nothing, and no random
+/// number, when the flight cannot collide).
+#[allow(clippy::too_many_arguments)]
+pub(crate) fn stratified_estimate<W: Weight>(
+    shell: &SphericalShell,
+    p: DVec3,
+    l: usize,
+    d: DVec3,
+    tau_end: f64,
+    sun: DVec3,
+    acc: &mut W::Phase,
+    rng: &mut Stream,
+    seen: impl Fn(DVec3, usize) -> f64,
+) {
+    let p_coll = -(-tau_end).exp_m1();
+    if p_coll <= 0.0 {
+        return;
+    }
+    let xi = rng.next_f64();
+    let cos = sun.dot(d);
+    let k = p_coll / NEE_STRATA as f64;
+    for j in 0..NEE_STRATA {
+        let u = (j as f64 + xi) / NEE_STRATA as f64;
+        let s_j = -(-u * p_coll).ln_1p();
+        if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s_j) {
+            let omega = shell.albedo(lq);
+            if omega > 0.0 {
+                let t = seen(q, lq);
+                if t > 0.0 {
+                    W::accumulate(acc, shell.phase(lq), cos, omega, t * k);
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,236 @@
+//! A 3D scene inside plane-parallel layers.
+//!
+//! Positions are metres in the scene's local frame (x east, y north, z = altitude); the
+//! atmosphere is horizontally homogeneous, so the free path of a ray is sampled exactly by
+//! marching its layers ([`PlaneParallel::march`]) and the Sun's transmittance to a point at
+//! altitude z is `exp(−τ(z)/μ_s)`. Each flight:
+//!
+//! 1. queries the scene for its closest hit (only when the ray can reach the scene's top);
+//! 2. draws an optical path; a collision before the hit is an atmospheric event, else the path
+//!    reaches the hit, or leaves through the top, or falls below the atmosphere without meeting
+//!    any geometry (lost);
+//! 3. next-event estimates at atmospheric points below the scene's top and at surfaces need a
+//!    shadow ray (visibility `V`).
+//!
+//! Expected estimate of a flight's next collision ([`expected_atmospheric`]): exact, layer by
+//! layer, for the part of the flight above the scene's top (no geometry can shadow it), and one
+//! forced collision with its shadow ray for the part below the top (unbiased, one shadow ray per
+//! flight).
+
+use std::borrow::Cow;
+
+use glam::DVec3;
+
+use super::{Event, Geometry};
+use crate::atmosphere::PlaneParallel;
+use crate::bsdf::{Bsdf, Lambertian};
+use crate::integrator::surface::SurfaceAt;
+use crate::integrator::weight::Weight;
+use crate::rng::Stream;
+use crate::scene::material::SurfaceModel;
+use crate::scene::world::BLACK;
+use crate::scene::{Scene, SurfaceHit};
+
+pub struct SceneInLayers<'a> {
+    pub atmosphere: &'a PlaneParallel,
+    pub scene: &'a Scene,
+    /// Material models at this wavelength, indexed by material id.
+    pub models: &'a [SurfaceModel],
+    /// Unit vector towards the Sun (`z > 0`).
+    pub sun: DVec3,
+    /// nm (for reflectance textures).
+    pub wavelength: f64,
+}
+
+impl SceneInLayers<'_> {
+    /// Direct solar transmittance from altitude `z` to TOA.
+    #[inline]
+    fn t_sun(&self, z: f64) -> f64 {
+        (-self.atmosphere.tau_at_altitude(z) / self.sun.z).exp()
+    }
+
+    /// Altitude above which a path starts so that it sees the whole scene and atmosphere.
+    pub fn start_altitude(&self) -> f64 {
+        self.atmosphere.toa().max(self.scene.z_range[1] + 1.0)
+    }
+}
+
+/// The reflection model at a scene hit: black for [`BLACK`], a Lambertian from the texture
+/// where one covers a terrain hit, else the material's model.
+pub(crate) fn surface_model<'m>(
+    scene: &Scene,
+    models: &'m [SurfaceModel],
+    wavelength: f64,
+    h: &SurfaceHit,
+) -> Cow<'m, SurfaceModel> {
+    if h.material == BLACK {
+        Cow::Owned(SurfaceModel::Black)
+    } else if let Some(r) = scene.texture_reflectance(h, wavelength) {
+        Cow::Owned(SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian {
+            reflectance: r,
+        })))
+    } else {
+        models
+            .get(h.material as usize)
+            .map_or(Cow::Owned(SurfaceModel::Black), Cow::Borrowed)
+    }
+}
+
+impl Geometry for SceneInLayers<'_> {
+    type Pos = DVec3;
+    type Hit = SurfaceHit;
+
+    #[inline]
+    fn sun(&self) -> DVec3 {
+        self.sun
+    }
+    fn normalization(&self) -> f64 {
+        std::f64::consts::PI / self.sun.z
+    }
+
+    fn flight<W: Weight>(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Event<'_, DVec3, SurfaceHit> {
+        let atm = self.atmosphere;
+        let top = self.scene.z_range[1];
+        let has_atm = atm.total_tau() > 0.0;
+        // Distance at which the ray comes down to the scene's top (0 if already below).
+        let reach = if p.z <= top {
+            0.0
+        } else if d.z < 0.0 {
+            (p.z - top) / -d.z
+        } else {
+            f64::INFINITY
+        };
+        let hit = if reach.is_finite() {
+            self.scene.intersect(p, d, f64::INFINITY)
+        } else {
+            None
+        };
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        if let (Some(acc), true) = (acc, has_atm) {
+            self.expected_atmospheric::<W>(p, d, reach, t_hit, acc, rng);
+        }
+        let s = -rng.next_f64_open0().ln();
+        let t_coll = if has_atm {
+            atm.march(p.z, d.z, s, t_hit)
+        } else {
+            None
+        };
+        if let Some(t) = t_coll {
+            let q = self.scene.wrap_point(p + d * t);
+            let layer = atm.layer_at_altitude(q.z);
+            Event::Collision {
+                pos: q,
+                omega: atm.albedo(layer),
+                phase: atm.phase(layer),
+            }
+        } else if let Some(h) = hit {
+            Event::Surface(h)
+        } else {
+            Event::Escape
+        }
+    }
+
+    #[inline]
+    fn sun_at(&self, p: DVec3) -> f64 {
+        if p.z > self.scene.z_range[1] || !self.scene.occluded(p, self.sun, f64::INFINITY) {
+            self.t_sun(p.z)
+        } else {
+            0.0
+        }
+    }
+    #[inline]
+    fn surface(&self, h: &SurfaceHit) -> SurfaceAt<'_> {
+        SurfaceAt::Scene {
+            model: surface_model(self.scene, self.models, self.wavelength, h),
+            n: h.normal,
+        }
+    }
+    #[inline]
+    fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {
+        let start = self.scene.offset(h.point, h.normal, self.sun);
+        if self.scene.occluded(start, self.sun, f64::INFINITY) {
+            0.0
+        } else {
+            self.t_sun(h.point.z)
+        }
+    }
+    #[inline]
+    fn leave(&self, h: &SurfaceHit, d: DVec3) -> DVec3 {
+        self.scene.offset(h.point, h.normal, d)
+    }
+}
+
+impl SceneInLayers<'_> {
+    /// Expected value, over the next collision of the flight from `p` along `d`, of the
+    /// atmospheric next-event estimate `ω P(s·d) T_sun V` (without the 1/4π), for a flight whose
+    /// first geometry hit is at `t_hit` and which comes below the scene's top at `reach`:
+    /// * above the scene's top no geometry blocks the Sun, so that part of the flight is
+    ///   integrated exactly, layer by layer (`flight_integrals_within`);
+    /// * below the top (until the geometry hit) one point is drawn from the collision density
+    ///   restricted to that segment and scored with its shadow ray, weighted by the probability
+    ///   of a collision in the segment (forced collision: unbiased, one shadow ray per flight).
+    fn expected_atmospheric<W: Weight>(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        reach: f64,
+        t_hit: f64,
+        acc: &mut W::Phase,
+        rng: &mut Stream,
+    ) {
+        let atm = self.atmosphere;
+        let sun = self.sun;
+        let top = self.scene.z_range[1];
+        let cos = sun.dot(d);
+        // Part above the top: a flight starting above it, or one that climbs out of the scene
+        // without hitting anything first.
+        let exits_up = d.z > 0.0 && p.z <= top && t_hit >= (top - p.z) / d.z;
+        if p.z > top || exits_up {
+            let tau_p = atm.tau_at_altitude(p.z);
+            let tau_top = atm.tau_at_altitude(top);
+            atm.flight_integrals_within(tau_p, d.z, 1.0 / sun.z, 0.0, tau_top, |l, i| {
+                W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), i);
+            });
+        }
+        // Part below the top: [t_a, t_b].
+        if reach.is_finite() {
+            let t_a = reach;
+            let t_leave = if d.z > 0.0 && p.z <= top {
+                (top - p.z) / d.z
+            } else if d.z < 0.0 {
+                (p.z - atm.ground()) / -d.z
+            } else {
+                f64::INFINITY
+            };
+            let t_b = t_hit.min(t_leave);
+            if t_b > t_a {
+                let s_a = atm.optical_path(p.z, d.z, t_a);
+                let s_ab = if t_b.is_finite() {
+                    atm.optical_path(p.z + t_a * d.z, d.z, t_b - t_a)
+                } else {
+                    f64::INFINITY
+                };
+                // Probability of a collision inside the segment.
+                let p_seg = (-s_a).exp() * -(-s_ab).exp_m1();
+                if p_seg > 0.0 {
+                    let u = rng.next_f64();
+                    let s_star = s_a - (-u * -(-s_ab).exp_m1()).ln_1p();
+                    if let Some(t) = atm.march(p.z, d.z, s_star, f64::INFINITY) {
+                        let q = p + d * t.min(t_b);
+                        let l = atm.layer_at_altitude(q.z);
+                        let omega = atm.albedo(l);
+                        if omega > 0.0 && !self.scene.occluded(q, sun, f64::INFINITY) {
+                            W::accumulate(acc, atm.phase(l), cos, omega, p_seg * self.t_sun(q.z));
+                        }
+                    }
+                }
+            }
+        }
+    }
+}

@@ -1,0 +1,148 @@
+//! A 3D scene inside spherical shells.
+//!
+//! The scene has been bent onto the planet when it was built ([`crate::scene::curvature`]):
+//! its coordinates are the planet-centred frame of [`SphericalShell`] shifted by the planet
+//! radius R along z, so a path is one straight line in both and no mapping is needed beyond
+//! adding or removing `(0, 0, R)`. Positions here are planet-centred (m, f64); the scene is
+//! queried at `p − (0, 0, R)`. Each flight:
+//!
+//! 1. queries the scene for its closest hit (terrain, objects, the background sphere); the
+//!    optical depth τ_e of the flight up to that hit, or to where it leaves the atmosphere, is
+//!    summed exactly shell by shell;
+//! 2. draws an optical path `s`; `s < τ_e` is a collision in the atmosphere
+//!    ([`SphericalShell::fly`]), else the path reaches the hit (or leaves: through the top, or
+//!    into the ground sphere outside all geometry, then it is lost, as under plane layers);
+//! 3. next-event estimates use the exact chord transmittance through the shells (zero in the
+//!    Earth's shadow) times the scene's visibility (a shadow ray).
+//!
+//! The expected estimate of a flight's next collision uses
+//! [`NEE_STRATA`](super::NEE_STRATA) stratified collision points restricted to the flight before
+//! its surface hit, each with its shadow ray, as in [`shells`](super::shells).
+//!
+//! Validation (`tests/scene_spherical.rs`): a flat one-material bundle with the same background
+//! is a uniform sphere and equals the 1D spherical walk at every solar zenith angle.
+
+use glam::DVec3;
+
+use super::scene_layers::surface_model;
+use super::{stratified_estimate, Event, Geometry};
+use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
+use crate::integrator::surface::SurfaceAt;
+use crate::integrator::weight::Weight;
+use crate::rng::Stream;
+use crate::scene::material::SurfaceModel;
+use crate::scene::{Scene, SurfaceHit};
+
+pub struct SceneInShells<'a> {
+    pub shell: &'a SphericalShell,
+    /// A scene bent onto the shell's planet (`scene.curvature` is the planet radius).
+    pub scene: &'a Scene,
+    /// Material models at this wavelength, indexed by material id.
+    pub models: &'a [SurfaceModel],
+    /// Unit vector towards the Sun, planet frame.
+    pub sun: DVec3,
+    /// cos SZA at the scene's origin (normalises samples to BRF).
+    pub mu_norm: f64,
+    /// nm (for reflectance textures).
+    pub wavelength: f64,
+}
+
+impl SceneInShells<'_> {
+    /// The planet frame's offset of the scene frame: `p_scene = p − lift`.
+    #[inline]
+    pub fn lift(&self) -> DVec3 {
+        DVec3::new(0.0, 0.0, self.shell.planet_radius)
+    }
+
+    /// Direct solar transmittance times the scene's visibility from planet point `p` (shell
+    /// `l`).
+    #[inline]
+    fn sun_seen(&self, p: DVec3, l: usize) -> f64 {
+        let t = self.shell.transmittance_to_space(p, l, self.sun);
+        if t > 0.0
+            && self
+                .scene
+                .occluded(p - self.lift(), self.sun, f64::INFINITY)
+        {
+            0.0
+        } else {
+            t
+        }
+    }
+
+    /// Shell of a planet point reached through the scene (clamped to the atmosphere).
+    #[inline]
+    fn shell_of(&self, p: DVec3) -> usize {
+        self.shell
+            .shell_at(p.length())
+            .min(self.shell.shell_count() - 1)
+    }
+}
+
+impl Geometry for SceneInShells<'_> {
+    type Pos = (DVec3, usize);
+    type Hit = SurfaceHit;
+
+    #[inline]
+    fn sun(&self) -> DVec3 {
+        self.sun
+    }
+    fn normalization(&self) -> f64 {
+        std::f64::consts::PI / self.mu_norm
+    }
+
+    fn flight<W: Weight>(
+        &self,
+        (p, l): (DVec3, usize),
+        d: DVec3,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Event<'_, (DVec3, usize), SurfaceHit> {
+        let shell = self.shell;
+        let hit = self.scene.intersect(p - self.lift(), d, f64::INFINITY);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        let tau_end = shell.optical_depth_within(p, l, d, t_hit);
+        if let Some(acc) = acc {
+            let seen = |q: DVec3, lq: usize| self.sun_seen(q, lq);
+            stratified_estimate::<W>(shell, p, l, d, tau_end, self.sun, acc, rng, seen);
+        }
+        let s = -rng.next_f64_open0().ln();
+        if s < tau_end {
+            // (Rounding at the very end of the flight: treated as reaching its end.)
+            if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s) {
+                return Event::Collision {
+                    pos: (q, lq),
+                    omega: shell.albedo(lq),
+                    phase: shell.phase(lq),
+                };
+            }
+        }
+        match hit {
+            Some(h) => Event::Surface(h),
+            // Leaves through the top, or into the ground sphere outside all geometry (lost).
+            None => Event::Escape,
+        }
+    }
+
+    #[inline]
+    fn sun_at(&self, (p, l): (DVec3, usize)) -> f64 {
+        self.sun_seen(p, l)
+    }
+    #[inline]
+    fn surface(&self, h: &SurfaceHit) -> SurfaceAt<'_> {
+        SurfaceAt::Scene {
+            model: surface_model(self.scene, self.models, self.wavelength, h),
+            n: h.normal,
+        }
+    }
+    #[inline]
+    fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {
+        let q = self.scene.offset(h.point, h.normal, self.sun) + self.lift();
+        self.sun_seen(q, self.shell_of(q))
+    }
+    #[inline]
+    fn leave(&self, h: &SurfaceHit, d: DVec3) -> (DVec3, usize) {
+        let p = self.scene.offset(h.point, h.normal, d) + self.lift();
+        (p, self.shell_of(p))
+    }
+}

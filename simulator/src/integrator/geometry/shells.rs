@@ -1,0 +1,91 @@
+//! Spherical shells over the ground sphere, in planet-centred coordinates (m).
+//!
+//! Flights cross shells exactly ([`SphericalShell::fly`]); the Sun's transmittance to a point
+//! is the exact chord sum through the shells, zero when the Sun is below the local horizon of
+//! the ray (Earth's shadow), so points lit at twilight (SZA > 90° at the target) are handled.
+//! The expected estimate of a flight's next collision has no closed form here: it is estimated
+//! from [`NEE_STRATA`](super::NEE_STRATA) stratified collision points
+//! ([`stratified_estimate`](super::stratified_estimate)). The ground's normal is the local
+//! vertical; BRDFs are evaluated in its frame.
+
+use glam::DVec3;
+
+use super::{stratified_estimate, Event, Geometry};
+use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
+use crate::bsdf::Bsdf;
+use crate::integrator::surface::{Frame, SurfaceAt};
+use crate::integrator::weight::Weight;
+use crate::rng::Stream;
+
+pub struct Shells<'a> {
+    pub shell: &'a SphericalShell,
+    pub surface: &'a Bsdf,
+    /// Unit vector towards the Sun, planet frame.
+    pub sun: DVec3,
+    /// cos SZA at the target (1 when the Sun is down): normalises samples to BRF.
+    pub mu_norm: f64,
+}
+
+impl Geometry for Shells<'_> {
+    type Pos = (DVec3, usize);
+    /// The ground point.
+    type Hit = DVec3;
+
+    #[inline]
+    fn sun(&self) -> DVec3 {
+        self.sun
+    }
+    fn normalization(&self) -> f64 {
+        std::f64::consts::PI / self.mu_norm
+    }
+
+    #[inline]
+    fn flight<W: Weight>(
+        &self,
+        (p, l): (DVec3, usize),
+        d: DVec3,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Event<'_, (DVec3, usize), DVec3> {
+        let shell = self.shell;
+        if let Some(acc) = acc {
+            let tau_exit = shell.optical_depth_within(p, l, d, f64::INFINITY);
+            let seen = |q: DVec3, lq: usize| shell.transmittance_to_space(q, lq, self.sun);
+            stratified_estimate::<W>(shell, p, l, d, tau_exit, self.sun, acc, rng, seen);
+        }
+        let s = -rng.next_f64_open0().ln();
+        match shell.fly(p, l, d, s) {
+            ShellEnd::Escape => Event::Escape,
+            ShellEnd::Surface(q) => Event::Surface(q),
+            ShellEnd::Collision(q, lq) => Event::Collision {
+                pos: (q, lq),
+                omega: shell.albedo(lq),
+                phase: shell.phase(lq),
+            },
+        }
+    }
+
+    #[inline]
+    fn sun_at(&self, (p, l): (DVec3, usize)) -> f64 {
+        self.shell.transmittance_to_space(p, l, self.sun)
+    }
+    #[inline]
+    fn surface(&self, q: &DVec3) -> SurfaceAt<'_> {
+        SurfaceAt::Flat {
+            bsdf: self.surface,
+            frame: Some(Frame::around(*q / q.length())),
+        }
+    }
+    #[inline]
+    fn sun_at_surface(&self, q: &DVec3) -> f64 {
+        if self.sun.dot(*q) > 0.0 {
+            self.shell.transmittance_to_space(*q, 0, self.sun)
+        } else {
+            0.0
+        }
+    }
+    #[inline]
+    fn leave(&self, q: &DVec3, _: DVec3) -> (DVec3, usize) {
+        (*q, 0)
+    }
+}

@@ -1,0 +1,131 @@
+//! The surface a path meets, seen by the estimators: one type for the flat lower boundary of 1D
+//! atmospheres (a [`Bsdf`] in the frame of the local vertical) and the materials of 3D scenes (a
+//! [`SurfaceModel`] at a hit with normal `n`).
+//!
+//! Directions are world unit vectors: `wo` towards the viewer (the side the path arrives from),
+//! `wi` towards the light. Random numbers: a flat surface draws two per bounce, a scene material
+//! three (leaves choose their side with the third), as the walks always did.
+
+use std::borrow::Cow;
+
+use glam::DVec3;
+
+use crate::bsdf::Bsdf;
+use crate::frame::basis_around;
+use crate::rng::Stream;
+use crate::scene::material::{SurfaceModel, SurfaceSample};
+use crate::stokes::PhaseMatrix;
+
+/// A local frame `(t, b, n)` of a surface point.
+#[derive(Clone, Copy, Debug)]
+pub struct Frame {
+    pub t: DVec3,
+    pub b: DVec3,
+    pub n: DVec3,
+}
+
+impl Frame {
+    /// The frame about the unit normal `n`.
+    pub fn around(n: DVec3) -> Self {
+        let (t, b) = basis_around(n);
+        Frame { t, b, n }
+    }
+    #[inline]
+    pub fn local(&self, v: DVec3) -> DVec3 {
+        DVec3::new(v.dot(self.t), v.dot(self.b), v.dot(self.n))
+    }
+    #[inline]
+    pub fn world(&self, v: DVec3) -> DVec3 {
+        self.t * v.x + self.b * v.y + self.n * v.z
+    }
+}
+
+/// A surface at a path vertex.
+pub enum SurfaceAt<'a> {
+    /// The lower boundary of a 1D atmosphere; `frame` None: the world frame is the local one
+    /// (plane-parallel), else the frame of the local vertical (spherical shells).
+    Flat {
+        bsdf: &'a Bsdf,
+        frame: Option<Frame>,
+    },
+    /// A scene material at a hit whose normal `n` faces the arriving path.
+    Scene {
+        model: Cow<'a, SurfaceModel>,
+        n: DVec3,
+    },
+}
+
+impl SurfaceAt<'_> {
+    /// `f(wi, wo)·cos θ_i` (0 for light from below the surface; leaves: either side).
+    #[inline]
+    pub fn eval_cos(&self, wi: DVec3, wo: DVec3) -> f64 {
+        match self {
+            SurfaceAt::Flat { bsdf, frame: None } => {
+                if wi.z <= 0.0 {
+                    return 0.0;
+                }
+                bsdf.eval(wi, wo) * wi.z
+            }
+            SurfaceAt::Flat {
+                bsdf,
+                frame: Some(f),
+            } => {
+                let ci = wi.dot(f.n);
+                if ci <= 0.0 {
+                    return 0.0;
+                }
+                bsdf.eval(f.local(wi), f.local(wo)) * ci
+            }
+            SurfaceAt::Scene { model, n } => model.eval_cos(*n, wi, wo),
+        }
+    }
+
+    /// The reflection matrix of a polarizing surface (ocean) in the scattering-plane frame of
+    /// light going from `−wi` to `wo`, times nothing (its `a1` is the BRDF); `None` for
+    /// depolarizing surfaces.
+    #[inline]
+    pub fn matrix(&self, wi: DVec3, wo: DVec3) -> Option<PhaseMatrix> {
+        match self {
+            SurfaceAt::Flat { bsdf, frame: None } => bsdf.matrix(wi, wo),
+            SurfaceAt::Flat {
+                bsdf,
+                frame: Some(f),
+            } => bsdf.matrix(f.local(wi), f.local(wo)),
+            SurfaceAt::Scene { model, n } => match model.as_ref() {
+                SurfaceModel::Opaque(b @ Bsdf::Ocean(_)) => {
+                    let f = Frame::around(*n);
+                    b.matrix(f.local(wi), f.local(wo))
+                }
+                _ => None,
+            },
+        }
+    }
+
+    /// The cosine of `wi` with the surface normal (the factor [`SurfaceAt::matrix`] lacks).
+    #[inline]
+    pub fn cos(&self, wi: DVec3) -> f64 {
+        match self {
+            SurfaceAt::Flat { frame: None, .. } => wi.z,
+            SurfaceAt::Flat { frame: Some(f), .. } => wi.dot(f.n),
+            SurfaceAt::Scene { n, .. } => wi.dot(*n),
+        }
+    }
+
+    /// Draw the next direction towards the light given `wo`; `None` when the surface absorbs.
+    #[inline]
+    pub fn sample(&self, wo: DVec3, rng: &mut Stream) -> Option<SurfaceSample> {
+        match self {
+            SurfaceAt::Flat { bsdf, frame } => {
+                let wo_l = frame.map_or(wo, |f| f.local(wo));
+                let s = bsdf.sample(wo_l, rng.next_f64(), rng.next_f64());
+                Some(SurfaceSample {
+                    wi: frame.map_or(s.wi, |f| f.world(s.wi)),
+                    weight: s.weight,
+                })
+            }
+            SurfaceAt::Scene { model, n } => {
+                model.sample(*n, wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()])
+            }
+        }
+    }
+}

@@ -1,0 +1,460 @@
+//! The weight a path carries, as a type: the estimators ([`forward`](super::forward),
+//! [`backward`](super::backward)) are generic over it and monomorphised, so polarization costs
+//! nothing in scalar runs and needs no walk of its own.
+//!
+//! | type | estimator | state | tally per cell |
+//! |---|---|---|---|
+//! | [`Scalar`] | both | `w` (intensity weight) | (single, multiple) |
+//! | [`StokesPhoton`] | forward | Stokes vector `S` and its frame axis `e1` | (I single, I multiple, Q, U, V) |
+//! | [`MuellerPath`] | backward | 4×4 path matrix `T` and the segment's frame axis `e1` | (I single, I multiple, Q, U, V) |
+//!
+//! Conventions (Stokes frames, phase matrices) are those of [`crate::stokes`]. Every weight
+//! draws a new direction after a collision from the phase function `a1 = P11` and a uniform
+//! azimuth, and multiplies itself by `ω·F(Θ)/a1(Θ)` (scalar: `ω`): unbiased, since the scattered
+//! intensity's density is `(F·S)_I/4π` and the sampling density `a1·I/4π`. Surface bounces draw
+//! from the surface's sampler: depolarizing surfaces keep the intensity only, polarizing ones
+//! (the ocean) apply their reflection matrix in the plane of incidence like a scattering.
+//!
+//! The *sun* is unpolarized: next-event estimates scatter `(1, 0, 0, 0)` into the path.
+//!
+//! Each weight also says what an expected estimate accumulates along a flight
+//! ([`Weight::Phase`]): `ω·P(cos Θ)` (scalar, one phase-function evaluation) or `ω·F(Θ)` (a phase
+//! matrix), each times the geometry's transmittance integral.
+
+use glam::{DMat4, DVec3, DVec4};
+
+use super::surface::SurfaceAt;
+use super::RR_THRESHOLD;
+use crate::accum::Accum;
+use crate::phase::PhaseFunction;
+use crate::rng::Stream;
+use crate::stokes::{any_perpendicular, rotate_to, scatter, PhaseMatrix};
+
+/// 1/(4π).
+pub(crate) const INV_4PI: f64 = 0.25 * std::f64::consts::FRAC_1_PI;
+
+/// What every path weight does: scatter, reflect, die by roulette, and say how a flight's
+/// expected estimate accumulates phase functions.
+pub trait Weight: Sized {
+    /// Per-flight accumulation of `ω·P` (or `ω·F`) times transmittance integrals.
+    type Phase: Copy;
+    /// One path's scores for one cell.
+    type Tally: Copy;
+
+    fn zero_phase() -> Self::Phase;
+    fn zero_tally() -> Self::Tally;
+    /// `acc += ω·P(cos)·k` (scalar) or `ω·F(cos)·k`.
+    fn accumulate(acc: &mut Self::Phase, phase: &PhaseFunction, cos: f64, omega: f64, k: f64);
+    /// The intensity part of an accumulation (> 0 when there is something to score).
+    fn phase_intensity(acc: &Self::Phase) -> f64;
+    /// `acc·k`.
+    fn scale_phase(acc: Self::Phase, k: f64) -> Self::Phase;
+
+    /// The path's intensity weight (roulette acts on it).
+    fn intensity(&self) -> f64;
+    /// Scale the weight so that its intensity becomes `target` (it is `i` now).
+    fn rescale_to(&mut self, target: f64, i: f64);
+
+    /// Scatter at a collision along `d` with single-scattering albedo `omega`: returns the new
+    /// direction (two random numbers, from `a1`).
+    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3;
+
+    /// Bounce off `surface` arriving along `d`: returns the new direction, `None` when the
+    /// surface absorbs the path.
+    fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3>;
+
+    /// Add the tally of one path, each score times `k`, to `cell` of `acc`.
+    fn record(acc: &mut Accum, cell: usize, t: &Self::Tally, k: f64);
+    /// A fresh accumulator of `cells` cells for this weight.
+    fn accum(cells: usize) -> Accum;
+}
+
+/// Russian roulette on the intensity: after `rr_depth` orders a path whose intensity is below
+/// [`RR_THRESHOLD`] survives with probability `I/RR_THRESHOLD` and is rescaled to the threshold.
+/// One random number per call (whatever the intensity), so scalar and polarized paths stay in
+/// step. Returns false when the path ends.
+#[inline]
+pub(crate) fn survives<W: Weight>(w: &mut W, order: u32, rr_depth: u32, rng: &mut Stream) -> bool {
+    let i = w.intensity();
+    if i <= 0.0 {
+        return false;
+    }
+    if order > rr_depth {
+        let u = rng.next_f64();
+        if i < RR_THRESHOLD {
+            if u < i / RR_THRESHOLD {
+                w.rescale_to(RR_THRESHOLD, i);
+            } else {
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// A new propagation direction after scattering along `d`: cos Θ from the phase function, a
+/// uniform azimuth about `d` (two random numbers).
+#[inline]
+pub(crate) fn sample_scattered(phase: &PhaseFunction, d: DVec3, rng: &mut Stream) -> DVec3 {
+    let mu = phase.sample_cos(rng.next_f64());
+    let phi = std::f64::consts::TAU * rng.next_f64();
+    crate::frame::rotate_about(d, mu, phi)
+}
+
+/// Scores of a scalar path split by scattering order: the first interaction is single
+/// scattering, every later one multiple.
+#[derive(Clone, Copy, Debug, Default)]
+pub struct OrderSplit {
+    pub single: f64,
+    pub multiple: f64,
+}
+
+impl OrderSplit {
+    #[inline]
+    pub fn add(&mut self, order: u32, v: f64) {
+        if order == 1 {
+            self.single += v;
+        } else {
+            self.multiple += v;
+        }
+    }
+
+    /// (single, multiple), each multiplied by `k`.
+    #[inline]
+    pub fn scaled(&self, k: f64) -> (f64, f64) {
+        (self.single * k, self.multiple * k)
+    }
+}
+
+/// The scalar weight (unpolarized transport).
+#[derive(Clone, Copy, Debug)]
+pub struct Scalar(pub f64);
+
+impl Weight for Scalar {
+    type Phase = f64;
+    type Tally = OrderSplit;
+
+    #[inline]
+    fn zero_phase() -> f64 {
+        0.0
+    }
+    #[inline]
+    fn zero_tally() -> OrderSplit {
+        OrderSplit::default()
+    }
+    #[inline]
+    fn accumulate(acc: &mut f64, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
+        *acc += omega * phase.eval(cos) * k;
+    }
+    #[inline]
+    fn phase_intensity(acc: &f64) -> f64 {
+        *acc
+    }
+    #[inline]
+    fn scale_phase(acc: f64, k: f64) -> f64 {
+        acc * k
+    }
+    #[inline]
+    fn intensity(&self) -> f64 {
+        self.0
+    }
+    #[inline]
+    fn rescale_to(&mut self, target: f64, _: f64) {
+        self.0 = target;
+    }
+    #[inline]
+    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+        self.0 *= omega;
+        sample_scattered(phase, d, rng)
+    }
+    #[inline]
+    fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
+        let s = surface.sample(-d, rng)?;
+        self.0 *= s.weight;
+        Some(s.wi)
+    }
+    #[inline]
+    fn record(acc: &mut Accum, cell: usize, t: &OrderSplit, k: f64) {
+        acc.add(cell, t.single * k, t.multiple * k);
+    }
+    fn accum(cells: usize) -> Accum {
+        Accum::new(cells)
+    }
+}
+
+/// (I single, I multiple, Q, U, V) of one polarized path.
+pub type StokesTally = [f64; 5];
+
+#[inline]
+fn record_stokes(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
+    let x = t.map(|v| v * k);
+    acc.add_stokes(cell, x[0], x[1], x[2], x[3], x[4]);
+}
+
+/// Accumulated phase matrices start at zero.
+const ZERO_MATRIX: PhaseMatrix = PhaseMatrix {
+    a1: 0.0,
+    b1: 0.0,
+    a2: 0.0,
+    a3: 0.0,
+    b2: 0.0,
+    a4: 0.0,
+};
+
+/// A photon's Stokes vector `S` (its first component is the intensity weight) travelling with
+/// frame axis `e1` (forward estimator).
+#[derive(Clone, Copy, Debug)]
+pub struct StokesPhoton {
+    pub s: [f64; 4],
+    pub e1: DVec3,
+}
+
+impl StokesPhoton {
+    /// An unpolarized photon of unit weight travelling along `d`.
+    pub fn unpolarized(d: DVec3) -> Self {
+        StokesPhoton {
+            s: [1.0, 0.0, 0.0, 0.0],
+            e1: any_perpendicular(d),
+        }
+    }
+
+    /// Add `k·(F·S scattered from d into v, in v's frame with axis e_v)` to `t`.
+    #[inline]
+    pub fn send(&self, t: &mut StokesTally, order: u32, f: &PhaseMatrix, d: DVec3, v: DVec3, e_v: DVec3, k: f64) {
+        let (sv, lv) = scatter(self.s, d, self.e1, v, f);
+        let sm = rotate_to(sv, v, lv, e_v);
+        add_stokes(t, order, [sm[0] * k, sm[1] * k, sm[2] * k, sm[3] * k]);
+    }
+}
+
+#[inline]
+fn add_stokes(t: &mut StokesTally, order: u32, s: [f64; 4]) {
+    t[if order == 1 { 0 } else { 1 }] += s[0];
+    t[2] += s[1];
+    t[3] += s[2];
+    t[4] += s[3];
+}
+
+impl Weight for StokesPhoton {
+    type Phase = PhaseMatrix;
+    type Tally = StokesTally;
+
+    #[inline]
+    fn zero_phase() -> PhaseMatrix {
+        ZERO_MATRIX
+    }
+    #[inline]
+    fn zero_tally() -> StokesTally {
+        [0.0; 5]
+    }
+    #[inline]
+    fn accumulate(acc: &mut PhaseMatrix, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
+        acc.add(&phase.matrix(cos).scaled(omega * k));
+    }
+    #[inline]
+    fn phase_intensity(acc: &PhaseMatrix) -> f64 {
+        acc.a1
+    }
+    #[inline]
+    fn scale_phase(acc: PhaseMatrix, k: f64) -> PhaseMatrix {
+        acc.scaled(k)
+    }
+    #[inline]
+    fn intensity(&self) -> f64 {
+        self.s[0]
+    }
+    #[inline]
+    fn rescale_to(&mut self, target: f64, i: f64) {
+        let k = target / i;
+        self.s = self.s.map(|x| x * k);
+    }
+    #[inline]
+    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+        let d2 = sample_scattered(phase, d, rng);
+        let f = phase.matrix(d.dot(d2));
+        let (s2, l2) = scatter(self.s, d, self.e1, d2, &f);
+        let k = omega / f.a1;
+        self.s = s2.map(|x| x * k);
+        self.e1 = l2;
+        d2
+    }
+    #[inline]
+    fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
+        let smp = surface.sample(-d, rng)?;
+        // Light goes from −(−d) = d into wi: `matrix(towards the light, outgoing)`.
+        match surface.matrix(-d, smp.wi) {
+            Some(m) if m.a1 > 0.0 => {
+                // Light arrives along d, leaves along wi (forward: the photon's own direction).
+                let (s2, l2) = scatter(self.s, d, self.e1, smp.wi, &m);
+                let k = smp.weight / m.a1;
+                self.s = s2.map(|x| x * k);
+                self.e1 = l2;
+            }
+            Some(_) => return None,
+            None => {
+                self.s = [self.s[0] * smp.weight, 0.0, 0.0, 0.0];
+                self.e1 = any_perpendicular(smp.wi);
+            }
+        }
+        Some(smp.wi)
+    }
+    fn record(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
+        record_stokes(acc, cell, t, k);
+    }
+    fn accum(cells: usize) -> Accum {
+        Accum::new_polarized(cells)
+    }
+}
+
+/// Mueller matrix of a phase matrix (row-major layout in the docs; glam is column-major).
+#[inline]
+fn mueller(f: &PhaseMatrix) -> DMat4 {
+    DMat4::from_cols(
+        DVec4::new(f.a1, f.b1, 0.0, 0.0),
+        DVec4::new(f.b1, f.a2, 0.0, 0.0),
+        DVec4::new(0.0, 0.0, f.a3, -f.b2),
+        DVec4::new(0.0, 0.0, f.b2, f.a4),
+    )
+}
+
+/// Rotation of Stokes vectors from first axis `from` to first axis `to` (both ⊥ `w`).
+#[inline]
+fn rotation(w: DVec3, from: DVec3, to: DVec3) -> DMat4 {
+    let (c, s) = (to.dot(from), to.dot(w.cross(from)));
+    let (c2, s2) = (c * c - s * s, 2.0 * c * s);
+    DMat4::from_cols(
+        DVec4::new(1.0, 0.0, 0.0, 0.0),
+        DVec4::new(0.0, c2, -s2, 0.0),
+        DVec4::new(0.0, s2, c2, 0.0),
+        DVec4::new(0.0, 0.0, 0.0, 1.0),
+    )
+}
+
+/// Scattering-plane frame for light going from propagation direction `w_in` to `w_out`:
+/// (perpendicular axis r, parallel axis of the incoming light, parallel axis of the outgoing).
+#[inline]
+fn plane(w_in: DVec3, w_out: DVec3, fallback: DVec3) -> (DVec3, DVec3, DVec3) {
+    let mut r = w_in.cross(w_out);
+    let len = r.length();
+    if len < 1e-12 {
+        r = w_out.cross(fallback).normalize();
+    } else {
+        r /= len;
+    }
+    (r, r.cross(w_in), r.cross(w_out))
+}
+
+/// The backward (adjoint) polarized weight: `T` maps a Stokes vector of light arriving along
+/// the current path segment (in that segment's frame, first axis `e1`) to the Stokes vector
+/// measured by the sensor (meridian frame of the direction towards the sensor). At a collision
+/// along `d` the new path direction `d'` is drawn from `a1`, and `T ← T·R(l_out → e1)·F(Θ)·ω/a1`,
+/// the scattering-plane frame being that of light going from `−d'` to `−d`; the new segment's
+/// frame axis is `l_in`.
+#[derive(Clone, Copy, Debug)]
+pub struct MuellerPath {
+    pub t: DMat4,
+    pub e1: DVec3,
+}
+
+impl MuellerPath {
+    /// A path leaving the sensor whose frame has first axis `e1` (⊥ the path direction).
+    pub fn at_sensor(e1: DVec3) -> Self {
+        MuellerPath {
+            t: DMat4::IDENTITY,
+            e1,
+        }
+    }
+
+    /// Score `k·T·R·(F·(1,0,0,0))`: unpolarized sunlight arriving along `−sun` scattered through
+    /// `f` into the path (which leaves the interaction along `−d`).
+    #[inline]
+    pub fn see_sun(&self, t: &mut StokesTally, order: u32, f: &PhaseMatrix, d: DVec3, sun: DVec3, k: f64) {
+        let w_out = -d;
+        let (_, _, l_out) = plane(-sun, w_out, self.e1);
+        let sv = DVec4::new(f.a1, f.b1, 0.0, 0.0);
+        let s = self.t * (rotation(w_out, l_out, self.e1) * sv) * k;
+        add_stokes(t, order, [s.x, s.y, s.z, s.w]);
+    }
+
+    /// Score `k·T·(1,0,0,0)·i`: unpolarized light of intensity `i` arriving along the path.
+    #[inline]
+    pub fn see_unpolarized(&self, t: &mut StokesTally, order: u32, i: f64) {
+        let s = self.t.col(0) * i;
+        add_stokes(t, order, [s.x, s.y, s.z, s.w]);
+    }
+}
+
+impl Weight for MuellerPath {
+    type Phase = PhaseMatrix;
+    type Tally = StokesTally;
+
+    #[inline]
+    fn zero_phase() -> PhaseMatrix {
+        ZERO_MATRIX
+    }
+    #[inline]
+    fn zero_tally() -> StokesTally {
+        [0.0; 5]
+    }
+    #[inline]
+    fn accumulate(acc: &mut PhaseMatrix, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
+        acc.add(&phase.matrix(cos).scaled(omega * k));
+    }
+    #[inline]
+    fn phase_intensity(acc: &PhaseMatrix) -> f64 {
+        acc.a1
+    }
+    #[inline]
+    fn scale_phase(acc: PhaseMatrix, k: f64) -> PhaseMatrix {
+        acc.scaled(k)
+    }
+    #[inline]
+    fn intensity(&self) -> f64 {
+        // A product of Mueller matrices has T00 ≥ |T0j|: the path's intensity weight.
+        self.t.col(0).x
+    }
+    #[inline]
+    fn rescale_to(&mut self, target: f64, i: f64) {
+        self.t *= target / i;
+    }
+    #[inline]
+    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+        let d2 = sample_scattered(phase, d, rng);
+        let f = phase.matrix(d.dot(d2));
+        let (_, l_in, l_out) = plane(-d2, -d, self.e1);
+        self.t = self.t * rotation(-d, l_out, self.e1) * mueller(&f) * (omega / f.a1);
+        self.e1 = l_in;
+        d2
+    }
+    #[inline]
+    fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
+        let w_out = -d;
+        let smp = surface.sample(w_out, rng)?;
+        let d2 = smp.wi;
+        match surface.matrix(d2, w_out) {
+            Some(m) if m.a1 > 0.0 => {
+                let (_, l_in, l_out) = plane(-d2, w_out, self.e1);
+                self.t = self.t * rotation(w_out, l_out, self.e1) * mueller(&m) * (smp.weight / m.a1);
+                self.e1 = l_in;
+            }
+            Some(_) => return None,
+            None => {
+                // Depolarizer: only the first column of T survives.
+                self.t = DMat4::from_cols(
+                    self.t.col(0) * smp.weight,
+                    DVec4::ZERO,
+                    DVec4::ZERO,
+                    DVec4::ZERO,
+                );
+                self.e1 = any_perpendicular(d2);
+            }
+        }
+        Some(d2)
+    }
+    fn record(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
+        record_stokes(acc, cell, t, k);
+    }
+    fn accum(cells: usize) -> Accum {
+        Accum::new_polarized(cells)
+    }
+}
