@@ -5,11 +5,13 @@
 //! ```text
 //! experiment.toml ─► config (serde, raw) ─► resolve() ─► Experiment (validated runtime types)
 //!                                                         │
-//!                 per wavelength: OpticalState (atmosphere optics, surface BRDF)
+//!     per wavelength: OpticalState (atmosphere, shells, surface BRDF, scene materials)
 //!                                                         │
-//!                      integrator (forward or backward walks) ─► Film (sums, sums of squares)
+//!   run (schedule, checkpoints) ─► sensor (start rays) ─► integrator (the transport core:
+//!   forward and backward estimators, generic over weight and geometry) ─► Accum (sums,
+//!   sums of squares per cell)
 //!                                                         │
-//!                                    products (BRF, standard errors) ─► CSV, netCDF
+//!               products (BRF, Stokes, standard errors) ─► CSV, netCDF, GeoTIFF, PNG
 //! ```
 //!
 //! Units and conventions are written once in `docs/conventions.md`: SI inside except where a

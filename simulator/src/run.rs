@@ -16,7 +16,8 @@ use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::geometry::Geometry;
 use crate::integrator::settings::IntegratorKind;
-use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
+use crate::integrator::backward_alis::{ChannelPath, ReferenceLayers};
+use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton, Weight};
 use crate::integrator::Accum;
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
@@ -104,7 +105,7 @@ fn run_block_alis(
     cell: usize,
     range: std::ops::Range<u64>,
 ) -> Accum {
-    use crate::integrator::backward_alis::{self, Channels, Kind};
+    use crate::integrator::backward_alis::{Channels, Kind};
     let m = &exp.measures[im];
     let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
@@ -119,13 +120,18 @@ fn run_block_alis(
         },
     };
     let toa = atms[0].toa();
+    let geometry = ReferenceLayers {
+        channels: &g,
+        sun: exp.sun_dir,
+    };
+    let k = Geometry::<ChannelPath>::light(&geometry).normalization;
     let mut acc = Accum::new(1);
-    let mut out = [(0.0, 0.0)];
     for s in range {
         let mut rng = Stream::new(exp.seed, [iw as u64, im as u64, cell as u64, s]);
         let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
-        backward_alis::walk(&g, exp.sun_dir, z0, d0, &exp.integrator, &mut rng, &mut out);
-        acc.add(0, out[0].0, out[0].1);
+        let w = ChannelPath::new(&g);
+        let t = backward::walk(&geometry, z0, d0, w, &exp.integrator, &mut rng);
+        ChannelPath::record(&mut acc, 0, &t, k);
     }
     acc
 }
@@ -164,7 +170,7 @@ fn run_block_spectral(
     cell: usize,
     range: std::ops::Range<u64>,
 ) -> Vec<Accum> {
-    use crate::integrator::backward_alis::{self, Channels, Kind};
+    use crate::integrator::backward_alis::{Channels, Kind};
     let m = &exp.measures[im];
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
@@ -180,18 +186,28 @@ fn run_block_spectral(
         },
     };
     let toa = sg.reference.toa();
-    let mut accs = vec![Accum::new(1); group.len()];
-    let mut out = vec![(0.0, 0.0); group.len()];
+    let geometry = ReferenceLayers {
+        channels: &g,
+        sun: exp.sun_dir,
+    };
+    let k = Geometry::<ChannelPath>::light(&geometry).normalization;
+    // One cell per wavelength of the group, split into one accumulator each at the end.
+    let mut all = Accum::new(group.len());
     let key = GROUP_STREAM | group[0] as u64;
     for s in range {
         let mut rng = Stream::new(exp.seed, [key, im as u64, cell as u64, s]);
         let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
-        backward_alis::walk(&g, exp.sun_dir, z0, d0, &exp.integrator, &mut rng, &mut out);
-        for (acc, (a, b)) in accs.iter_mut().zip(&out) {
-            acc.add(0, *a, *b);
-        }
+        let w = ChannelPath::new(&g);
+        let t = backward::walk(&geometry, z0, d0, w, &exp.integrator, &mut rng);
+        ChannelPath::record(&mut all, 0, &t, k);
     }
-    accs
+    (0..group.len())
+        .map(|c| {
+            let mut a = Accum::new(1);
+            a.merge_cell(0, &all, c);
+            a
+        })
+        .collect()
 }
 
 fn run_block_at(
@@ -301,7 +317,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
 
 /// Backward walks of one cell: each sample's stream, its start (None: the line of sight misses
 /// the medium, a zero sample) and the weight at the sensor.
-fn backward_block<G: Geometry, W: Adjoint + AtSensor>(
+fn backward_block<G: Geometry<W>, W: Adjoint + AtSensor>(
     g: &G,
     settings: &crate::integrator::settings::IntegratorSettings,
     range: std::ops::Range<u64>,
@@ -310,7 +326,7 @@ fn backward_block<G: Geometry, W: Adjoint + AtSensor>(
     frame_azimuth: impl Fn() -> f64,
 ) -> Accum {
     let mut acc = W::accum(1);
-    let k = g.normalization();
+    let k = g.light().normalization;
     for s in range {
         let mut rng = stream(s);
         let t = match start(&mut rng) {

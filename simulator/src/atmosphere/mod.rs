@@ -1,4 +1,8 @@
-//! One-dimensional atmospheres: plane-parallel homogeneous layers.
+//! One-dimensional atmospheres: a stack of layers, each homogeneous inside, built from
+//! homogeneous, layered or molecular configurations (Rayleigh air of a thermophysical profile
+//! with gas absorption from CKD, monochromatic or cross-section data, and particle layers:
+//! [`molecular`], [`particles`], [`thermo`]), used as plane-parallel layers ([`PlaneParallel`])
+//! or as spherical shells ([`spherical`]).
 //!
 //! Optical depth τ is counted **downwards from the top of the atmosphere** (τ = 0 at TOA,
 //! τ = τ_total at the ground), in f64. In a plane-parallel medium the radiation field depends on

@@ -129,7 +129,8 @@ pub enum AtmosphereConfig {
     },
     /// Plane-parallel layers, each homogeneous.
     Layered { layers: Vec<LayerConfig> },
-    /// Rayleigh-scattering air from a thermophysical profile (no gas absorption yet).
+    /// Rayleigh-scattering air from a thermophysical profile, with gas absorption (`[absorption]`,
+    /// cross sections) and particle layers.
     Molecular {
         #[serde(default = "default_profile")]
         profile: String,

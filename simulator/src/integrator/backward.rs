@@ -141,8 +141,8 @@ impl AtSensor for MuellerPath {
 }
 
 /// One path from `start` along `d0` carrying `w`; returns its tally, which times
-/// [`Geometry::normalization`] is `π·L/(E0·μ)`.
-pub fn walk<G: Geometry, W: Adjoint>(
+/// [`Light::normalization`](super::geometry::Light) is `π·L/(E0·μ)`.
+pub fn walk<G: Geometry<W>, W: Adjoint>(
     g: &G,
     start: G::Pos,
     d0: DVec3,
@@ -150,14 +150,14 @@ pub fn walk<G: Geometry, W: Adjoint>(
     settings: &IntegratorSettings,
     rng: &mut Stream,
 ) -> W::Tally {
-    let sun = g.sun();
+    let sun = g.light().sun;
     let expected = settings.expected_local_estimate;
     let mut tally = W::zero_tally();
     let (mut pos, mut d) = (start, d0);
     let mut order: u32 = 1;
     while order <= settings.max_depth {
         let mut acc = W::zero_phase();
-        let event = g.flight::<W>(pos, d, expected.then_some(&mut acc), rng);
+        let event = g.flight(pos, d, &mut w, expected.then_some(&mut acc), rng);
         if expected && W::phase_intensity(&acc) > 0.0 {
             w.see_sun_volume(&mut tally, order, &acc, d, sun, INV_4PI);
         }
@@ -166,10 +166,9 @@ pub fn walk<G: Geometry, W: Adjoint>(
             Event::Collision { pos: p, omega, phase } => {
                 pos = p;
                 if !expected && omega > 0.0 {
-                    let t = g.sun_at(p);
-                    if t > 0.0 {
-                        let mut a = W::zero_phase();
-                        W::accumulate(&mut a, phase, sun.dot(d), omega, t);
+                    let mut a = W::zero_phase();
+                    g.collision_estimate(p, omega, phase, d, &mut w, &mut a);
+                    if W::phase_intensity(&a) > 0.0 {
                         w.see_sun_volume(&mut tally, order, &a, d, sun, INV_4PI);
                     }
                 }

@@ -77,10 +77,14 @@
 
 use glam::DVec3;
 
-use super::weight::{survives, OrderSplit, Scalar};
+use super::backward::Adjoint;
+use super::geometry::{Event, Geometry, Light};
+use super::surface::SurfaceAt;
+use super::weight::{OrderSplit, Weight};
+use crate::accum::Accum;
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::Bsdf;
-use super::settings::IntegratorSettings;
+use crate::phase::PhaseFunction;
 use crate::rng::Stream;
 
 /// The most channels (g-points or wavelengths) one walk carries.
@@ -488,8 +492,9 @@ fn layer_channels_body(
 /// of the next-event estimates, integrated exactly layer by layer (every factor is exponential in
 /// the distance inside a layer): per channel `∫ σ_c,L P_c,L e_c e^{−S_c(ℓ)} e^{−τ_c(z(ℓ))/μ_s} dℓ
 /// /(4π)` over the flight to the ground or the top (`S_c`: the channel's optical path from the
-/// flight's start). Writes the bin mean (`Σ_g w_g·…`, g-points) into `out[0]` or one value per
-/// wavelength into `out`; `out` holds one entry per channel (work space for g-points).
+/// flight's start), without the 1/(4π) (the estimator applies it). Writes the bin mean
+/// (`Σ_g w_g·…`, g-points) into `out[0]` or one value per wavelength into `out`; `out` holds one
+/// entry per channel (work space for g-points).
 fn expected(
     g: &Channels,
     e: &[f64],
@@ -604,187 +609,295 @@ fn expected(
             i += 1;
         }
     }
-    let inv_4pi = 0.25 * std::f64::consts::FRAC_1_PI;
-    match &l.spectral {
-        None => {
-            let total: f64 = out[..nc].iter().sum();
-            out[0] = total * inv_4pi;
-        }
-        Some(_) => out.iter_mut().for_each(|x| *x *= inv_4pi),
+    if l.spectral.is_none() {
+        let total: f64 = out[..nc].iter().sum();
+        out[0] = total;
     }
 }
 
-/// One path from altitude `z0` along `d0`; writes the (single, multiple) parts of
-/// `π·L/(E0 μ_s)` into `out`: the bin mean for g-points (`out[0]`), one per wavelength otherwise
-/// (`out.len()` = [`Channels::outputs`]).
-#[allow(clippy::too_many_arguments)]
-pub fn walk(
-    g: &Channels,
-    sun: DVec3,
-    z0: f64,
-    d0: DVec3,
-    settings: &IntegratorSettings,
-    rng: &mut Stream,
-    out: &mut [(f64, f64)],
-) {
-    let nc = g.atms.len();
-    let nout = g.outputs();
-    assert!(nc <= MAX_CHANNELS && out.len() == nout);
-    let reference = g.reference;
-    let ground = reference.ground();
-    let mu_s = sun.z;
-    let inv_4pi = 0.25 * std::f64::consts::FRAC_1_PI;
-    // Per channel: the path factor e_c and the Sun's transmittance at the ground.
-    let mut e = [1.0_f64; MAX_CHANNELS];
-    let e = &mut e[..nc];
-    let mut t_ground = [0.0_f64; MAX_CHANNELS];
-    for (t, a) in t_ground.iter_mut().zip(g.atms) {
-        *t = (-a.total_tau() / mu_s).exp();
+/// The reference atmosphere of a walk over channels `g`, as a geometry of the backward
+/// estimator: positions are altitudes (m); free paths are sampled in the reference
+/// ([`PlaneParallel::march`]); every flight carries the channels' path factors
+/// ([`Layers::carry`]) and records the layer of its collision in the weight; the expected
+/// estimate is integrated per channel ([`expected`]).
+pub struct ReferenceLayers<'a> {
+    pub channels: &'a Channels<'a>,
+    /// Unit vector towards the Sun (`z > 0`).
+    pub sun: DVec3,
+}
+
+/// The weight of a walk over channels: the common weight `w` (reference albedos, surface weights,
+/// roulette) and one path factor `e_c` per channel.
+pub struct ChannelPath<'a> {
+    w: f64,
+    e: [f64; MAX_CHANNELS],
+    g: &'a Channels<'a>,
+    /// Layer of the last collision (set by the flight, used by the scattering).
+    layer: usize,
+    cache: PhaseCache,
+}
+
+impl<'a> ChannelPath<'a> {
+    /// A path of unit weight leaving the sensor.
+    pub fn new(g: &'a Channels<'a>) -> Self {
+        assert!(g.atms.len() <= MAX_CHANNELS);
+        ChannelPath {
+            w: 1.0,
+            e: [1.0; MAX_CHANNELS],
+            g,
+            layer: 0,
+            cache: PhaseCache::new(g.layers.spectral.as_ref().map_or(0, |s| s.reps.len())),
+        }
     }
-    let t_ground = &t_ground[..nc];
-    let mut split = [OrderSplit::default(); MAX_CHANNELS];
-    let split = &mut split[..nout];
-    let mut score = [0.0_f64; MAX_CHANNELS];
-    let score = &mut score[..nout];
-    // Per-channel work space of the expected estimate (its result in the first `nout`).
-    let mut tmp = [0.0_f64; MAX_CHANNELS];
-    let tmp = &mut tmp[..nc.max(nout)];
-    let mut cache = PhaseCache::new(g.layers.spectral.as_ref().map_or(0, |s| s.reps.len()));
-    let mut z = z0;
-    let mut d = d0;
-    let mut w = 1.0_f64;
-    let mut order: u32 = 1;
-    let update = |e: &mut [f64], z: f64, dz: f64, t: f64| g.layers.carry(e, z, dz, t);
-    let expected_mode = settings.expected_local_estimate;
-    while order <= settings.max_depth {
-        score.fill(0.0);
-        if expected_mode {
-            expected(g, e, z, d, sun, &mut cache, tmp);
-            for (s, x) in score.iter_mut().zip(tmp.iter()) {
-                *s += w * x;
+}
+
+/// Per-output scores (the bin mean, or one per wavelength) of one path.
+pub type ChannelTally = [OrderSplit; MAX_CHANNELS];
+
+impl Weight for ChannelPath<'_> {
+    /// Per output: the flight's expected `Σ σ_c P_c e_c T_c` (or at a collision).
+    type Phase = [f64; MAX_CHANNELS];
+    type Tally = ChannelTally;
+
+    #[inline]
+    fn zero_phase() -> Self::Phase {
+        [0.0; MAX_CHANNELS]
+    }
+    #[inline]
+    fn zero_tally() -> ChannelTally {
+        [OrderSplit::default(); MAX_CHANNELS]
+    }
+    /// Grey scattering (the same `ω·P·k` in every output); the channels' own scattering is
+    /// accumulated by [`ReferenceLayers`].
+    #[inline]
+    fn accumulate(acc: &mut Self::Phase, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
+        let x = omega * phase.eval(cos) * k;
+        acc.iter_mut().for_each(|a| *a += x);
+    }
+    #[inline]
+    fn phase_intensity(acc: &Self::Phase) -> f64 {
+        if acc.iter().any(|x| *x != 0.0) {
+            1.0
+        } else {
+            0.0
+        }
+    }
+    #[inline]
+    fn intensity(&self) -> f64 {
+        self.w
+    }
+    #[inline]
+    fn rescale_to(&mut self, target: f64, _: f64) {
+        self.w = target;
+    }
+    #[inline]
+    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+        self.w *= omega;
+        // A new direction from the reference phase function (as `sample_scattered`).
+        let mu = phase.sample_cos(rng.next_f64());
+        let phi = std::f64::consts::TAU * rng.next_f64();
+        let g = self.g;
+        if let Some(sp) = &g.layers.spectral {
+            // e_c × (σ_c/σ_ref)·P_c(μ)/P_ref(μ).
+            let p_ref = phase.eval(mu);
+            let mut r = [0.0_f64; MAX_CHANNELS];
+            self.cache.next();
+            sp.times_phase(&sp.ratio, g.atms, self.layer, mu, &mut self.cache, &mut r);
+            let inv = if p_ref > 0.0 { 1.0 / p_ref } else { 0.0 };
+            for (ek, rk) in self.e[..g.atms.len()].iter_mut().zip(&r) {
+                *ek *= rk * inv;
             }
         }
+        crate::frame::rotate_about(d, mu, phi)
+    }
+    #[inline]
+    fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
+        let wo = -d;
+        // The reference surface draws; every model samples the same (cosine) density, so
+        // channel c's own weight is q_c.
+        let smp = surface.sample(wo, rng)?;
+        match self.g.kind {
+            Kind::GPoints { .. } => self.w *= smp.weight,
+            Kind::Wavelengths { surfaces, .. } => {
+                let mut q = [0.0_f64; MAX_CHANNELS];
+                let mut q_max = 0.0_f64;
+                for (qk, sf) in q.iter_mut().zip(surfaces.iter()) {
+                    *qk = sf.sample_weight(smp.wi, wo);
+                    q_max = q_max.max(*qk);
+                }
+                let r = if smp.weight > 0.0 { smp.weight } else { q_max };
+                if r > 0.0 {
+                    for (ek, qk) in self.e[..surfaces.len()].iter_mut().zip(&q) {
+                        *ek *= qk / r;
+                    }
+                }
+                self.w *= r;
+            }
+        }
+        Some(smp.wi)
+    }
+    /// ALIS accumulators have one cell per output (`cell` must be 0).
+    fn record(acc: &mut Accum, cell: usize, t: &ChannelTally, k: f64) {
+        debug_assert_eq!(cell, 0);
+        for (c, tc) in t.iter().take(acc.n.len()).enumerate() {
+            let (a, b) = tc.scaled(k);
+            acc.add(c, a, b);
+        }
+    }
+    fn accum(cells: usize) -> Accum {
+        Accum::new(cells)
+    }
+}
+
+impl Adjoint for ChannelPath<'_> {
+    #[inline]
+    fn see_sun_volume(&self, t: &mut ChannelTally, order: u32, acc: &Self::Phase, _: DVec3, _: DVec3, k: f64) {
+        for (tc, a) in t[..self.g.outputs()].iter_mut().zip(acc) {
+            tc.add(order, self.w * a * k);
+        }
+    }
+    /// Each channel's own surface and solar transmittance (`surface` is the reference one,
+    /// `visible` the reference's transmittance: not used).
+    fn see_sun_surface(
+        &self,
+        t: &mut ChannelTally,
+        order: u32,
+        _: &SurfaceAt,
+        d: DVec3,
+        sun: DVec3,
+        _: impl FnOnce() -> f64,
+    ) {
+        let wo = -d;
+        let mu_s = sun.z;
+        let g = self.g;
+        match g.kind {
+            Kind::GPoints { weights, surface } => {
+                let f = surface.eval(sun, wo) * mu_s;
+                let acc: f64 = weights
+                    .iter()
+                    .zip(self.e.iter())
+                    .zip(g.atms)
+                    .map(|((wk, ek), a)| wk * ek * (-a.total_tau() / mu_s).exp())
+                    .sum();
+                t[0].add(order, self.w * f * acc);
+            }
+            Kind::Wavelengths { surfaces, .. } => {
+                for (k, (sf, a)) in surfaces.iter().zip(g.atms).enumerate() {
+                    let tg = (-a.total_tau() / mu_s).exp();
+                    t[k].add(order, self.w * sf.eval(sun, wo) * mu_s * self.e[k] * tg);
+                }
+            }
+        }
+    }
+}
+
+impl<'a> Geometry<ChannelPath<'a>> for ReferenceLayers<'a> {
+    type Pos = f64;
+    type Hit = ();
+
+    fn light(&self) -> Light {
+        Light::new(self.sun, self.sun.z)
+    }
+
+    fn flight(
+        &self,
+        z: f64,
+        d: DVec3,
+        w: &mut ChannelPath<'a>,
+        acc: Option<&mut [f64; MAX_CHANNELS]>,
+        rng: &mut Stream,
+    ) -> Event<'_, f64, ()> {
+        let g = self.channels;
+        let nc = g.atms.len();
+        if let Some(acc) = acc {
+            let mut tmp = [0.0_f64; MAX_CHANNELS];
+            expected(g, &w.e[..nc], z, d, self.sun, &mut w.cache, &mut tmp[..nc.max(g.outputs())]);
+            acc[..g.outputs()].copy_from_slice(&tmp[..g.outputs()]);
+        }
+        let reference = g.reference;
         let s = -rng.next_f64_open0().ln();
         match reference.march(z, d.z, s, f64::INFINITY) {
             Some(t) => {
-                update(e, z, d.z, t);
-                z += t * d.z;
-                let layer = reference.layer_at_altitude(z);
-                let omega = reference.albedo(layer);
-                let phase = reference.phase(layer);
-                if !expected_mode {
-                    let cos = sun.dot(d);
-                    match (&g.kind, &g.layers.spectral) {
-                        (Kind::GPoints { weights, .. }, _) => {
-                            let common = w * omega * phase.eval(cos) * inv_4pi;
-                            let acc: f64 = g
-                                .atms
-                                .iter()
-                                .zip(weights.iter())
-                                .zip(e.iter())
-                                .map(|((a, wk), ek)| wk * ek * (-a.tau_at_altitude(z) / mu_s).exp())
-                                .sum();
-                            score[0] += common * acc;
-                        }
-                        (Kind::Wavelengths { .. }, Some(sp)) => {
-                            // w·ω_ref·(σ_c/σ_ref)·P_c/(4π)·e_c·T_c,sun per wavelength.
-                            cache.next();
-                            sp.times_phase(&sp.ratio, g.atms, layer, cos, &mut cache, tmp);
-                            let common = w * omega * inv_4pi;
-                            for (k, a) in g.atms.iter().enumerate() {
-                                score[k] +=
-                                    common * tmp[k] * e[k] * (-a.tau_at_altitude(z) / mu_s).exp();
-                            }
-                        }
-                        (Kind::Wavelengths { .. }, None) => {
-                            unreachable!("wavelength channels need Layers::spectral")
-                        }
-                    }
+                g.layers.carry(&mut w.e[..nc], z, d.z, t);
+                let z2 = z + t * d.z;
+                let layer = reference.layer_at_altitude(z2);
+                w.layer = layer;
+                Event::Collision {
+                    pos: z2,
+                    omega: reference.albedo(layer),
+                    phase: reference.phase(layer),
                 }
-                w *= omega;
-                // A new direction from the reference phase function (as `sample_scattered`).
-                let mu = phase.sample_cos(rng.next_f64());
-                let phi = std::f64::consts::TAU * rng.next_f64();
-                if let Some(sp) = &g.layers.spectral {
-                    // e_c × (σ_c/σ_ref)·P_c(μ)/P_ref(μ).
-                    let p_ref = phase.eval(mu);
-                    let mut r = [0.0_f64; MAX_CHANNELS];
-                    cache.next();
-                    sp.times_phase(&sp.ratio, g.atms, layer, mu, &mut cache, &mut r);
-                    let inv = if p_ref > 0.0 { 1.0 / p_ref } else { 0.0 };
-                    for (ek, rk) in e.iter_mut().zip(&r) {
-                        *ek *= rk * inv;
-                    }
-                }
-                d = crate::frame::rotate_about(d, mu, phi);
             }
             None if d.z < 0.0 => {
                 // Down to the ground without a collision.
-                let t = (z - ground) / -d.z;
-                update(e, z, d.z, t);
-                z = ground;
-                let wo = -d;
-                match g.kind {
-                    Kind::GPoints { weights, surface } => {
-                        let f = surface.eval(sun, wo) * mu_s;
-                        let acc: f64 = weights
-                            .iter()
-                            .zip(e.iter())
-                            .zip(t_ground)
-                            .map(|((wk, ek), tk)| wk * ek * tk)
-                            .sum();
-                        score[0] += w * f * acc;
-                        let smp = surface.sample(wo, rng.next_f64(), rng.next_f64());
-                        w *= smp.weight;
-                        d = smp.wi;
-                    }
-                    Kind::Wavelengths {
-                        surfaces,
-                        reference_surface,
-                    } => {
-                        for (k, sf) in surfaces.iter().enumerate() {
-                            score[k] += w * sf.eval(sun, wo) * mu_s * e[k] * t_ground[k];
-                        }
-                        let smp = reference_surface.sample(wo, rng.next_f64(), rng.next_f64());
-                        // Every model samples the same density: channel c's weight is q_c.
-                        let mut q = [0.0_f64; MAX_CHANNELS];
-                        let mut q_max = 0.0_f64;
-                        for (qk, sf) in q.iter_mut().zip(surfaces.iter()) {
-                            *qk = sf.sample_weight(smp.wi, wo);
-                            q_max = q_max.max(*qk);
-                        }
-                        let r = if smp.weight > 0.0 { smp.weight } else { q_max };
-                        if r > 0.0 {
-                            for (ek, qk) in e.iter_mut().zip(&q) {
-                                *ek *= qk / r;
-                            }
-                        }
-                        w *= r;
-                        d = smp.wi;
-                    }
-                }
+                let t = (z - reference.ground()) / -d.z;
+                g.layers.carry(&mut w.e[..nc], z, d.z, t);
+                Event::Surface(())
             }
-            None => {
-                // Leaves through the top: its expected estimate still counts.
-                for (sp, s) in split.iter_mut().zip(score.iter()) {
-                    sp.add(order, *s);
-                }
-                break;
-            }
+            None => Event::Escape,
         }
-        for (sp, s) in split.iter_mut().zip(score.iter()) {
-            sp.add(order, *s);
-        }
-        order += 1;
-        let mut sw = Scalar(w);
-        if !survives(&mut sw, order, settings.rr_depth, rng) {
-            break;
-        }
-        w = sw.0;
     }
-    let k = std::f64::consts::PI / mu_s;
-    for (o, sp) in out.iter_mut().zip(split.iter()) {
-        *o = sp.scaled(k);
+
+    /// Per output: `ω_ref·(σ_c/σ_ref)·P_c·e_c·T_c,sun` (wavelengths) or
+    /// `ω·P·Σ_g w_g·e_g·T_g,sun` (g-points) at altitude `z`.
+    fn collision_estimate(
+        &self,
+        z: f64,
+        omega: f64,
+        phase: &PhaseFunction,
+        d: DVec3,
+        w: &mut ChannelPath<'a>,
+        acc: &mut [f64; MAX_CHANNELS],
+    ) {
+        let g = self.channels;
+        let mu_s = self.sun.z;
+        let cos = self.sun.dot(d);
+        match (&g.kind, &g.layers.spectral) {
+            (Kind::GPoints { weights, .. }, _) => {
+                let s: f64 = g
+                    .atms
+                    .iter()
+                    .zip(weights.iter())
+                    .zip(w.e.iter())
+                    .map(|((a, wk), ek)| wk * ek * (-a.tau_at_altitude(z) / mu_s).exp())
+                    .sum();
+                acc[0] = omega * phase.eval(cos) * s;
+            }
+            (Kind::Wavelengths { .. }, Some(sp)) => {
+                let mut tmp = [0.0_f64; MAX_CHANNELS];
+                w.cache.next();
+                sp.times_phase(&sp.ratio, g.atms, w.layer, cos, &mut w.cache, &mut tmp);
+                for (k, a) in g.atms.iter().enumerate() {
+                    acc[k] = omega * tmp[k] * w.e[k] * (-a.tau_at_altitude(z) / mu_s).exp();
+                }
+            }
+            (Kind::Wavelengths { .. }, None) => {
+                unreachable!("wavelength channels need Layers::spectral")
+            }
+        }
+    }
+
+    #[inline]
+    fn sun_at(&self, z: f64) -> f64 {
+        (-self.channels.reference.tau_at_altitude(z) / self.sun.z).exp()
+    }
+    #[inline]
+    fn surface(&self, _: &()) -> SurfaceAt<'_> {
+        let bsdf = match self.channels.kind {
+            Kind::GPoints { surface, .. } => surface,
+            Kind::Wavelengths {
+                reference_surface, ..
+            } => reference_surface,
+        };
+        SurfaceAt::Flat { bsdf, frame: None }
+    }
+    #[inline]
+    fn sun_at_surface(&self, _: &()) -> f64 {
+        (-self.channels.reference.total_tau() / self.sun.z).exp()
+    }
+    #[inline]
+    fn leave(&self, _: &(), _: DVec3) -> f64 {
+        self.channels.reference.ground()
     }
 }
 

@@ -47,8 +47,6 @@ pub trait Weight: Sized {
     fn accumulate(acc: &mut Self::Phase, phase: &PhaseFunction, cos: f64, omega: f64, k: f64);
     /// The intensity part of an accumulation (> 0 when there is something to score).
     fn phase_intensity(acc: &Self::Phase) -> f64;
-    /// `acc·k`.
-    fn scale_phase(acc: Self::Phase, k: f64) -> Self::Phase;
 
     /// The path's intensity weight (roulette acts on it).
     fn intensity(&self) -> f64;
@@ -151,10 +149,6 @@ impl Weight for Scalar {
         *acc
     }
     #[inline]
-    fn scale_phase(acc: f64, k: f64) -> f64 {
-        acc * k
-    }
-    #[inline]
     fn intensity(&self) -> f64 {
         self.0
     }
@@ -185,11 +179,44 @@ impl Weight for Scalar {
 /// (I single, I multiple, Q, U, V) of one polarized path.
 pub type StokesTally = [f64; 5];
 
-#[inline]
-fn record_stokes(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
-    let x = t.map(|v| v * k);
-    acc.add_stokes(cell, x[0], x[1], x[2], x[3], x[4]);
+/// The parts of [`Weight`] shared by both polarized weights: phase matrices accumulate, Stokes
+/// tallies record.
+macro_rules! polarized_phase {
+    () => {
+        type Phase = PhaseMatrix;
+        type Tally = StokesTally;
+
+        #[inline]
+        fn zero_phase() -> PhaseMatrix {
+            ZERO_MATRIX
+        }
+        #[inline]
+        fn zero_tally() -> StokesTally {
+            [0.0; 5]
+        }
+        #[inline]
+        fn accumulate(acc: &mut PhaseMatrix, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
+            acc.add(&phase.matrix(cos).scaled(omega * k));
+        }
+        #[inline]
+        fn phase_intensity(acc: &PhaseMatrix) -> f64 {
+            acc.a1
+        }
+    };
 }
+
+macro_rules! polarized_tally {
+    () => {
+        fn record(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
+            let x = t.map(|v| v * k);
+            acc.add_stokes(cell, x[0], x[1], x[2], x[3], x[4]);
+        }
+        fn accum(cells: usize) -> Accum {
+            Accum::new_polarized(cells)
+        }
+    };
+}
+
 
 /// Accumulated phase matrices start at zero.
 const ZERO_MATRIX: PhaseMatrix = PhaseMatrix {
@@ -236,29 +263,7 @@ fn add_stokes(t: &mut StokesTally, order: u32, s: [f64; 4]) {
 }
 
 impl Weight for StokesPhoton {
-    type Phase = PhaseMatrix;
-    type Tally = StokesTally;
-
-    #[inline]
-    fn zero_phase() -> PhaseMatrix {
-        ZERO_MATRIX
-    }
-    #[inline]
-    fn zero_tally() -> StokesTally {
-        [0.0; 5]
-    }
-    #[inline]
-    fn accumulate(acc: &mut PhaseMatrix, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
-        acc.add(&phase.matrix(cos).scaled(omega * k));
-    }
-    #[inline]
-    fn phase_intensity(acc: &PhaseMatrix) -> f64 {
-        acc.a1
-    }
-    #[inline]
-    fn scale_phase(acc: PhaseMatrix, k: f64) -> PhaseMatrix {
-        acc.scaled(k)
-    }
+    polarized_phase!();
     #[inline]
     fn intensity(&self) -> f64 {
         self.s[0]
@@ -298,12 +303,7 @@ impl Weight for StokesPhoton {
         }
         Some(smp.wi)
     }
-    fn record(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
-        record_stokes(acc, cell, t, k);
-    }
-    fn accum(cells: usize) -> Accum {
-        Accum::new_polarized(cells)
-    }
+    polarized_tally!();
 }
 
 /// Mueller matrix of a phase matrix (row-major layout in the docs; glam is column-major).
@@ -385,29 +385,7 @@ impl MuellerPath {
 }
 
 impl Weight for MuellerPath {
-    type Phase = PhaseMatrix;
-    type Tally = StokesTally;
-
-    #[inline]
-    fn zero_phase() -> PhaseMatrix {
-        ZERO_MATRIX
-    }
-    #[inline]
-    fn zero_tally() -> StokesTally {
-        [0.0; 5]
-    }
-    #[inline]
-    fn accumulate(acc: &mut PhaseMatrix, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
-        acc.add(&phase.matrix(cos).scaled(omega * k));
-    }
-    #[inline]
-    fn phase_intensity(acc: &PhaseMatrix) -> f64 {
-        acc.a1
-    }
-    #[inline]
-    fn scale_phase(acc: PhaseMatrix, k: f64) -> PhaseMatrix {
-        acc.scaled(k)
-    }
+    polarized_phase!();
     #[inline]
     fn intensity(&self) -> f64 {
         // A product of Mueller matrices has T00 ≥ |T0j|: the path's intensity weight.
@@ -451,10 +429,5 @@ impl Weight for MuellerPath {
         }
         Some(d2)
     }
-    fn record(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
-        record_stokes(acc, cell, t, k);
-    }
-    fn accum(cells: usize) -> Accum {
-        Accum::new_polarized(cells)
-    }
+    polarized_tally!();
 }

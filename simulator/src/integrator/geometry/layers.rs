@@ -6,7 +6,7 @@
 
 use glam::DVec3;
 
-use super::{Event, Geometry};
+use super::{Event, Geometry, Light};
 use crate::atmosphere::{FlightEnd, PlaneParallel};
 use crate::bsdf::Bsdf;
 use crate::integrator::surface::SurfaceAt;
@@ -20,23 +20,20 @@ pub struct Layers<'a> {
     pub sun: DVec3,
 }
 
-impl Geometry for Layers<'_> {
+impl<W: Weight> Geometry<W> for Layers<'_> {
     type Pos = f64;
     type Hit = ();
 
-    #[inline]
-    fn sun(&self) -> DVec3 {
-        self.sun
-    }
-    fn normalization(&self) -> f64 {
-        std::f64::consts::PI / self.sun.z
+    fn light(&self) -> Light {
+        Light::new(self.sun, self.sun.z)
     }
 
     #[inline]
-    fn flight<W: Weight>(
+    fn flight(
         &self,
         tau: f64,
         d: DVec3,
+        _: &mut W,
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, f64, ()> {

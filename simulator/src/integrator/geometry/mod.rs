@@ -41,29 +41,67 @@ pub enum Event<'a, P, H> {
     Surface(H),
 }
 
-/// A medium with its surfaces, seen by the backward estimator.
-pub trait Geometry {
+/// The Sun of a geometry: its direction and the normalization of scores.
+#[derive(Clone, Copy, Debug)]
+pub struct Light {
+    /// Unit vector towards the Sun.
+    pub sun: DVec3,
+    /// The factor that turns a path's score into `π·L/(E0·μ)`: π/μ, μ the cosine of the solar
+    /// zenith angle at the target (1 when the Sun is down there).
+    pub normalization: f64,
+}
+
+impl Light {
+    pub fn new(sun: DVec3, mu: f64) -> Self {
+        Light {
+            sun,
+            normalization: std::f64::consts::PI / mu,
+        }
+    }
+}
+
+/// A medium with its surfaces, seen by the backward estimator carrying weight `W`. The
+/// geometries of this folder serve every weight; a weight with its own medium (the spectral
+/// channels of [`backward_alis`](super::backward_alis)) implements it for itself only.
+pub trait Geometry<W: Weight> {
     /// A path position.
     type Pos: Copy;
     /// A surface hit.
     type Hit;
 
-    /// Unit vector towards the Sun.
-    fn sun(&self) -> DVec3;
-    /// The factor that turns a path's score into `π·L/(E0·μ)` (μ: cos SZA of the target).
-    fn normalization(&self) -> f64;
+    /// The Sun as this geometry sees it.
+    fn light(&self) -> Light;
 
     /// Sample the flight from `pos` along `d`: one random number for the free path, drawn
     /// after the expected estimate. With `acc`, first add to it the expected value over the
     /// flight's next collision of `ω·P(s·d)·T_sun·V` (without 1/4π), via
-    /// [`Weight::accumulate`] (it may draw random numbers of its own).
-    fn flight<W: Weight>(
+    /// [`Weight::accumulate`] (it may draw random numbers of its own). `w` is the path's weight
+    /// (a geometry may carry weights along the flight).
+    fn flight(
         &self,
         pos: Self::Pos,
         d: DVec3,
+        w: &mut W,
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, Self::Pos, Self::Hit>;
+
+    /// Add to `acc` the next-event estimate (`ω·P(s·d)·T_sun·V`, without 1/4π) of a sampled
+    /// collision at `pos` (used with `local_estimate = "collision"`).
+    fn collision_estimate(
+        &self,
+        pos: Self::Pos,
+        omega: f64,
+        phase: &PhaseFunction,
+        d: DVec3,
+        _w: &mut W,
+        acc: &mut W::Phase,
+    ) {
+        let t = self.sun_at(pos);
+        if t > 0.0 {
+            W::accumulate(acc, phase, self.light().sun.dot(d), omega, t);
+        }
+    }
 
     /// The Sun's transmittance times the scene's visibility at an atmospheric point.
     fn sun_at(&self, pos: Self::Pos) -> f64;

@@ -21,7 +21,7 @@ use std::borrow::Cow;
 
 use glam::DVec3;
 
-use super::{Event, Geometry};
+use super::{Event, Geometry, Light};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::{Bsdf, Lambertian};
 use crate::integrator::surface::SurfaceAt;
@@ -55,15 +55,15 @@ impl SceneInLayers<'_> {
     }
 }
 
-/// The reflection model at a scene hit: black for [`BLACK`], a Lambertian from the texture
-/// where one covers a terrain hit, else the material's model.
-pub(crate) fn surface_model<'m>(
+/// The surface at a scene hit: black for [`BLACK`], a Lambertian from the texture where one
+/// covers a terrain hit, else the material's model.
+pub(crate) fn scene_surface<'m>(
     scene: &Scene,
     models: &'m [SurfaceModel],
     wavelength: f64,
     h: &SurfaceHit,
-) -> Cow<'m, SurfaceModel> {
-    if h.material == BLACK {
+) -> SurfaceAt<'m> {
+    let model = if h.material == BLACK {
         Cow::Owned(SurfaceModel::Black)
     } else if let Some(r) = scene.texture_reflectance(h, wavelength) {
         Cow::Owned(SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian {
@@ -73,25 +73,26 @@ pub(crate) fn surface_model<'m>(
         models
             .get(h.material as usize)
             .map_or(Cow::Owned(SurfaceModel::Black), Cow::Borrowed)
+    };
+    SurfaceAt::Scene {
+        model,
+        n: h.normal,
     }
 }
 
-impl Geometry for SceneInLayers<'_> {
+impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
     type Pos = DVec3;
     type Hit = SurfaceHit;
 
-    #[inline]
-    fn sun(&self) -> DVec3 {
-        self.sun
-    }
-    fn normalization(&self) -> f64 {
-        std::f64::consts::PI / self.sun.z
+    fn light(&self) -> Light {
+        Light::new(self.sun, self.sun.z)
     }
 
-    fn flight<W: Weight>(
+    fn flight(
         &self,
         p: DVec3,
         d: DVec3,
+        _: &mut W,
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, DVec3, SurfaceHit> {
@@ -146,10 +147,7 @@ impl Geometry for SceneInLayers<'_> {
     }
     #[inline]
     fn surface(&self, h: &SurfaceHit) -> SurfaceAt<'_> {
-        SurfaceAt::Scene {
-            model: surface_model(self.scene, self.models, self.wavelength, h),
-            n: h.normal,
-        }
+        scene_surface(self.scene, self.models, self.wavelength, h)
     }
     #[inline]
     fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {

@@ -24,8 +24,8 @@
 
 use glam::DVec3;
 
-use super::scene_layers::surface_model;
-use super::{stratified_estimate, Event, Geometry};
+use super::scene_layers::scene_surface;
+use super::{stratified_estimate, Event, Geometry, Light};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::integrator::surface::SurfaceAt;
 use crate::integrator::weight::Weight;
@@ -79,22 +79,19 @@ impl SceneInShells<'_> {
     }
 }
 
-impl Geometry for SceneInShells<'_> {
+impl<W: Weight> Geometry<W> for SceneInShells<'_> {
     type Pos = (DVec3, usize);
     type Hit = SurfaceHit;
 
-    #[inline]
-    fn sun(&self) -> DVec3 {
-        self.sun
-    }
-    fn normalization(&self) -> f64 {
-        std::f64::consts::PI / self.mu_norm
+    fn light(&self) -> Light {
+        Light::new(self.sun, self.mu_norm)
     }
 
-    fn flight<W: Weight>(
+    fn flight(
         &self,
         (p, l): (DVec3, usize),
         d: DVec3,
+        _: &mut W,
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, (DVec3, usize), SurfaceHit> {
@@ -130,10 +127,7 @@ impl Geometry for SceneInShells<'_> {
     }
     #[inline]
     fn surface(&self, h: &SurfaceHit) -> SurfaceAt<'_> {
-        SurfaceAt::Scene {
-            model: surface_model(self.scene, self.models, self.wavelength, h),
-            n: h.normal,
-        }
+        scene_surface(self.scene, self.models, self.wavelength, h)
     }
     #[inline]
     fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {

@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use super::{stratified_estimate, Event, Geometry};
+use super::{stratified_estimate, Event, Geometry, Light};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::bsdf::Bsdf;
 use crate::integrator::surface::{Frame, SurfaceAt};
@@ -26,24 +26,21 @@ pub struct Shells<'a> {
     pub mu_norm: f64,
 }
 
-impl Geometry for Shells<'_> {
+impl<W: Weight> Geometry<W> for Shells<'_> {
     type Pos = (DVec3, usize);
     /// The ground point.
     type Hit = DVec3;
 
-    #[inline]
-    fn sun(&self) -> DVec3 {
-        self.sun
-    }
-    fn normalization(&self) -> f64 {
-        std::f64::consts::PI / self.mu_norm
+    fn light(&self) -> Light {
+        Light::new(self.sun, self.mu_norm)
     }
 
     #[inline]
-    fn flight<W: Weight>(
+    fn flight(
         &self,
         (p, l): (DVec3, usize),
         d: DVec3,
+        _: &mut W,
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, (DVec3, usize), DVec3> {
