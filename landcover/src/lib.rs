@@ -13,8 +13,8 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use bundle::{BrdfSpec, Material, Spectrum, NO_MATERIAL};
 use serde::Deserialize;
-use simulator::bundle::{BrdfSpec, Material, Spectrum, NO_MATERIAL};
 
 const MATERIALS_TOML: &str = include_str!("../data/materials.toml");
 const BUILTIN: &[(&str, &str)] = &[

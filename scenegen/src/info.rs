@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use simulator::bundle::{BrdfSpec, Bundle, NO_MATERIAL};
+use bundle::{BrdfSpec, Bundle, NO_MATERIAL};
 
 use crate::ScenegenError;
 

@@ -18,7 +18,7 @@ use super::curvature::Curvature;
 use super::instances::{Disc, InstanceBvh, InstanceTransform, TemplateGeometry};
 use super::world::{Georef, GroundPlane, MaterialRaster, Scene};
 use super::TerrainBvh;
-use crate::bundle::{BrdfSpec, Bundle};
+use bundle::{BrdfSpec, Bundle};
 
 /// Where to put the background around a bundle's terrain.
 #[derive(Clone, Debug)]

@@ -26,8 +26,8 @@
 use glam::DVec3;
 
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
-use crate::bundle::BrdfSpec;
 use crate::frame::{basis_around, sample_cosine_hemisphere};
+use bundle::BrdfSpec;
 
 /// The reflection model of one material at one wavelength.
 #[derive(Clone, Debug)]
@@ -54,7 +54,7 @@ fn to_local(v: DVec3, n: DVec3, t: DVec3, b: DVec3) -> DVec3 {
 impl SurfaceModel {
     /// Build the model of `spec` at `wavelength_nm`; the error says which parameter is wrong.
     pub fn from_spec(spec: &BrdfSpec, wavelength_nm: f64) -> Result<Self, String> {
-        let at = |s: &crate::bundle::Spectrum| s.at(wavelength_nm);
+        let at = |s: &bundle::Spectrum| s.at(wavelength_nm);
         Ok(match spec {
             BrdfSpec::Lambertian { reflectance } => {
                 SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian::new(at(reflectance))?))
@@ -180,7 +180,7 @@ impl SurfaceModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bundle::Spectrum;
+    use bundle::Spectrum;
 
     /// The sampler's weight equals `eval_cos/pdf` on average: E[weight·g(wi)] = ∫ f·|cos|·g dω
     /// for a test function g, checked by quadrature for a leaf and an RPV surface on a tilted

@@ -17,7 +17,9 @@
 //! resolves only about 1 cm, relative to a tile origin it resolves well under 1 mm.
 //! Binary buffers are little-endian and tightly packed; byte offsets are given in the manifest.
 //!
-//! This module needs no GDAL: georeferencing is carried as WKT and a geotransform.
+//! This crate needs no GDAL and no netCDF: georeferencing is carried as WKT and a geotransform.
+//! Its users: `scenegen` (writer), `landcover` (the BRDF vocabulary), `simulator` (reader;
+//! re-exported there as `simulator::bundle`).
 
 mod io;
 mod manifest;
@@ -55,4 +57,13 @@ pub enum BundleError {
     Corrupt { path: PathBuf, message: String },
     #[error("output directory {} already exists (use --force to replace it)", path.display())]
     Exists { path: PathBuf },
+}
+
+/// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is not available.
+/// Used by the benchmarks that write (`scenegen bench`) and load (`simulate bench-scene`) bundles.
+pub fn peak_rss_bytes() -> Option<u64> {
+    let s = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
 }
