@@ -660,6 +660,7 @@ fn u32s(b: &[u8]) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{BrdfSpec, Spectrum};
 
     fn sample() -> Bundle {
         let manifest = Manifest {

@@ -18,12 +18,14 @@
 //! Binary buffers are little-endian and tightly packed; byte offsets are given in the manifest.
 //!
 //! This crate needs no GDAL and no netCDF: georeferencing is carried as WKT and a geotransform.
-//! Its users: `scenegen` (writer), `landcover` (the BRDF vocabulary), `simulator` (reader;
-//! re-exported there as `simulator::bundle`).
+//! Its users: `scenegen` (writer), `landcover` (the BRDF vocabulary and ranges), `simulator`
+//! (reader; re-exported there as `simulator::bundle`).
 
+mod brdf;
 mod io;
 mod manifest;
 
+pub use brdf::*;
 pub use io::{Bundle, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES};
 pub use manifest::*;
 

@@ -4,6 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::brdf::BrdfSpec;
+
 /// Top level of `manifest.toml`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -135,120 +137,6 @@ pub struct Material {
     /// Where the parameters come from.
     #[serde(default)]
     pub source: String,
-}
-
-/// A reflectance-like quantity: one value at every wavelength, or a table (linear interpolation,
-/// constant beyond the ends).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum Spectrum {
-    Constant(f64),
-    Table {
-        wavelengths_nm: Vec<f64>,
-        values: Vec<f64>,
-    },
-}
-
-impl Spectrum {
-    /// Value at `wavelength_nm`.
-    pub fn at(&self, wavelength_nm: f64) -> f64 {
-        match self {
-            Spectrum::Constant(v) => *v,
-            Spectrum::Table {
-                wavelengths_nm: w,
-                values: v,
-            } => {
-                if w.is_empty() {
-                    return f64::NAN;
-                }
-                if wavelength_nm <= w[0] {
-                    return v[0];
-                }
-                if wavelength_nm >= w[w.len() - 1] {
-                    return v[v.len() - 1];
-                }
-                let i = w.partition_point(|&x| x <= wavelength_nm) - 1;
-                let t = (wavelength_nm - w[i]) / (w[i + 1] - w[i]);
-                v[i] + t * (v[i + 1] - v[i])
-            }
-        }
-    }
-
-    /// Checks: same lengths, increasing wavelengths, values finite. Returns a message.
-    pub fn validate(&self) -> Result<(), String> {
-        match self {
-            Spectrum::Constant(v) if !v.is_finite() => Err(format!("value {v} is not finite")),
-            Spectrum::Constant(_) => Ok(()),
-            Spectrum::Table {
-                wavelengths_nm: w,
-                values: v,
-            } => {
-                if w.is_empty() || w.len() != v.len() {
-                    return Err(format!(
-                        "wavelengths_nm ({}) and values ({}) must be non-empty and of equal length",
-                        w.len(),
-                        v.len()
-                    ));
-                }
-                if w.windows(2).any(|p| p[1] <= p[0]) {
-                    return Err("wavelengths_nm must increase".into());
-                }
-                if v.iter().any(|x| !x.is_finite()) {
-                    return Err("values must be finite".into());
-                }
-                Ok(())
-            }
-        }
-    }
-}
-
-/// BRDF of a material, named as in the simulator's surface models (`docs/experiment.md`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum BrdfSpec {
-    /// Lambertian, hemispherical reflectance in [0, 1].
-    Lambertian { reflectance: Spectrum },
-    /// Two-sided leaf: Lambertian reflection and transmission (reflectance + transmittance ≤ 1).
-    BiLambertian {
-        reflectance: Spectrum,
-        transmittance: Spectrum,
-    },
-    /// Rahman–Pinty–Verstraete.
-    Rpv {
-        rho_0: Spectrum,
-        k: Spectrum,
-        g: Spectrum,
-        #[serde(default)]
-        rho_c: Option<Spectrum>,
-    },
-    /// Ross-Thick Li-Sparse (MODIS kernels).
-    Rtls {
-        f_iso: Spectrum,
-        f_vol: Spectrum,
-        f_geo: Spectrum,
-    },
-    /// Hapke (parameters as the simulator's `hapke` surface; `theta` in degrees).
-    Hapke {
-        w: Spectrum,
-        b: Spectrum,
-        c: Spectrum,
-        theta: Spectrum,
-        #[serde(rename = "B_0")]
-        b_0: Spectrum,
-        h: Spectrum,
-    },
-    /// Rough water surface (Cox–Munk, Fresnel; wind speed in m/s).
-    Ocean {
-        wind_speed: Spectrum,
-        #[serde(default)]
-        refractive_index: Option<Spectrum>,
-        #[serde(default = "yes")]
-        shadowing: bool,
-    },
-}
-
-fn yes() -> bool {
-    true
 }
 
 /// A template mesh stored once in `templates.bin`.

@@ -53,6 +53,8 @@ fn to_local(v: DVec3, n: DVec3, t: DVec3, b: DVec3) -> DVec3 {
 
 impl SurfaceModel {
     /// Build the model of `spec` at `wavelength_nm`; the error says which parameter is wrong.
+    /// The ranges are those of `bundle::BRDF_PARAM_RANGES` (checked by the models'
+    /// constructors), so a spec that passes `BrdfSpec::validate` builds at every wavelength.
     pub fn from_spec(spec: &BrdfSpec, wavelength_nm: f64) -> Result<Self, String> {
         let at = |s: &bundle::Spectrum| s.at(wavelength_nm);
         Ok(match spec {
@@ -64,9 +66,13 @@ impl SurfaceModel {
                 transmittance,
             } => {
                 let (r, t) = (at(reflectance), at(transmittance));
-                if !(0.0..=1.0).contains(&r) || !(0.0..=1.0).contains(&t) || r + t > 1.0 {
+                // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`).
+                bundle::check_param("bi_lambertian", "reflectance", "reflectance", r)?;
+                bundle::check_param("bi_lambertian", "transmittance", "transmittance", t)?;
+                if r + t > bundle::BI_LAMBERTIAN_MAX_SUM {
                     return Err(format!(
-                        "bi_lambertian reflectance {r} and transmittance {t} at {wavelength_nm} nm must be in [0, 1] with a sum ≤ 1"
+                        "bi_lambertian: the sum `reflectance` + `transmittance` = {r} + {t} at {wavelength_nm} nm must not exceed {}",
+                        bundle::BI_LAMBERTIAN_MAX_SUM
                     ));
                 }
                 SurfaceModel::Leaf {
