@@ -17,6 +17,12 @@
 //! resolves only about 1 cm, relative to a tile origin it resolves well under 1 mm.
 //! Binary buffers are little-endian and tightly packed; byte offsets are given in the manifest.
 //!
+//! Material ids: the raster's bytes and the templates' per-triangle bytes are the `index` of a
+//! `[[materials]]` entry (unique, 0–254, not necessarily contiguous or in order; 255 in the
+//! raster means "no material"). [`Bundle::open`] and [`Bundle::write`] refuse an id without an
+//! entry, naming the file and the pixel or triangle count of each such id, and any material
+//! whose BRDF parameters lie outside [`BRDF_PARAM_RANGES`].
+//!
 //! This crate needs no GDAL and no netCDF: georeferencing is carried as WKT and a geotransform.
 //! Its users: `scenegen` (writer), `landcover` (the BRDF vocabulary and ranges), `simulator`
 //! (reader; re-exported there as `simulator::bundle`).
@@ -59,6 +65,49 @@ pub enum BundleError {
     Corrupt { path: PathBuf, message: String },
     #[error("output directory {} already exists (use --force to replace it)", path.display())]
     Exists { path: PathBuf },
+    /// A material of the manifest whose BRDF parameters are out of range or malformed.
+    #[error("{}: material `{name}` (index {index}): {source}", path.display())]
+    Brdf {
+        path: PathBuf,
+        index: u8,
+        name: String,
+        source: BrdfError,
+    },
+    /// Ids used by the material raster (`materials.u8`, counted in pixels) or by template
+    /// triangles (`templates.bin`, counted in triangles) that have no `[[materials]]` entry.
+    #[error("{}: {} material id(s) not in the manifest's material table: {}; the table has {}",
+        path.display(), ids.len(), format_id_counts(ids, counted), format_known(known))]
+    UnknownMaterialIds {
+        path: PathBuf,
+        /// "pixel" or "triangle".
+        counted: &'static str,
+        /// (id, count), by id.
+        ids: Vec<(u8, u64)>,
+        /// The manifest's indices, sorted.
+        known: Vec<u8>,
+    },
+}
+
+fn format_id_counts(ids: &[(u8, u64)], counted: &str) -> String {
+    ids.iter()
+        .map(|(id, n)| format!("{id} ({n} {counted}{})", if *n == 1 { "" } else { "s" }))
+        .collect::<Vec<_>>()
+        .join(", ")
+}
+
+fn format_known(known: &[u8]) -> String {
+    if known.is_empty() {
+        "no materials".into()
+    } else {
+        format!(
+            "ids {}",
+            known
+                .iter()
+                .map(|i| i.to_string())
+                .collect::<Vec<_>>()
+                .join(", ")
+        )
+    }
 }
 
 /// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is not available.

@@ -54,6 +54,8 @@ impl ScenegenError {
                     | B::Manifest { .. }
                     | B::Version { .. }
                     | B::Corrupt { .. }
+                    | B::Brdf { .. }
+                    | B::UnknownMaterialIds { .. }
             ),
             ScenegenError::Gdal { .. } | ScenegenError::Internal(_) => false,
         }
