@@ -36,7 +36,7 @@ pub struct TemplateMesh {
     pub source: String,
     pub positions: Vec<[f32; 3]>,
     pub indices: Vec<[u32; 3]>,
-    /// Per triangle, an index into the bundle's material table.
+    /// Per triangle, a material id (the `index` of a manifest material).
     pub materials: Vec<u8>,
 }
 

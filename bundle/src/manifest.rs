@@ -19,7 +19,7 @@ pub struct Manifest {
     pub extent: Extent,
     pub terrain: Terrain,
     pub material_raster: MaterialRaster,
-    /// Material table; the material raster and template triangles index it.
+    /// Material table; the material raster and template triangles hold its entries' `index`.
     pub materials: Vec<Material>,
     #[serde(default)]
     pub templates: Vec<Template>,
@@ -119,7 +119,8 @@ pub struct MaterialRaster {
     pub geotransform: [f64; 6],
     /// How the land cover was resampled onto this grid ("mode" or "nearest").
     pub resampling: String,
-    /// Pixels per material index (index = position in the list), for summaries.
+    /// Pixels per material id (the raster's value, a material's `index`; entry 255 counts cells
+    /// without a material), for summaries.
     pub histogram: Vec<u64>,
 }
 
@@ -127,7 +128,8 @@ pub struct MaterialRaster {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
-    /// Index used by the raster and template triangles (0..=254).
+    /// The material id used by the raster and template triangles: unique, 0..=254, not
+    /// necessarily contiguous or in list order.
     pub index: u8,
     pub name: String,
     pub brdf: BrdfSpec,
@@ -152,7 +154,7 @@ pub struct Template {
     pub positions_offset: u64,
     /// Byte offset of `triangle_count` × [u32; 3] indices.
     pub indices_offset: u64,
-    /// Byte offset of `triangle_count` × u8 material indices (into the bundle's table).
+    /// Byte offset of `triangle_count` × u8 material ids (the `index` of a manifest material).
     pub materials_offset: u64,
     pub vertex_count: u64,
     pub triangle_count: u64,
