@@ -9,12 +9,16 @@
 //!
 //! A class code with no mapping is an error listing every such code with its pixel count, unless
 //! a fallback material is given.
+//!
+//! BRDF parameters are checked against the one range table of the bundle format
+//! (`bundle::BRDF_PARAM_RANGES`, also used by `simulate`), so a scheme cannot hold a material the
+//! simulator would refuse. This crate depends on `bundle` only (no GDAL, no netCDF).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use bundle::{BrdfSpec, Material, NO_MATERIAL};
 use serde::Deserialize;
-use simulator::bundle::{BrdfSpec, Material, Spectrum, NO_MATERIAL};
 
 const MATERIALS_TOML: &str = include_str!("../data/materials.toml");
 const BUILTIN: &[(&str, &str)] = &[
@@ -250,8 +254,27 @@ impl Scheme {
             }
         }
         for (name, m) in &self.materials {
-            validate_brdf(&m.brdf)
-                .map_err(|e| inv(format!("materials.{name}.brdf.{}", e.0), e.1))?;
+            validate_brdf(&m.brdf).map_err(|(param, message)| {
+                let users: Vec<String> = self
+                    .classes
+                    .iter()
+                    .filter(|c| c.material == *name)
+                    .map(|c| format!("{} `{}`", c.code, c.name))
+                    .collect();
+                let used = if users.is_empty() {
+                    format!("material `{name}`, used by no class")
+                } else {
+                    format!(
+                        "material `{name}` of class{} {}",
+                        if users.len() == 1 { "" } else { "es" },
+                        users.join(", ")
+                    )
+                };
+                inv(
+                    format!("materials.{name}.brdf.{param}"),
+                    format!("{message} ({used})"),
+                )
+            })?;
         }
         for (i, r) in self.population.iter().enumerate() {
             validate_rule(r).map_err(|(k, m)| inv(format!("population[{i}].{k}"), m))?;
@@ -277,73 +300,14 @@ pub fn validate_rule(r: &PopulationRule) -> Result<(), (String, String)> {
     Ok(())
 }
 
-/// Checks ranges of a BRDF's parameters; returns (parameter, message).
+/// Checks a BRDF against the shared range table (`bundle::BRDF_PARAM_RANGES`, see
+/// [`BrdfSpec::validate`]); returns (the first offending parameter, a message naming every
+/// violation with its value and allowed range).
 pub fn validate_brdf(b: &BrdfSpec) -> Result<(), (String, String)> {
-    let check = |name: &str, s: &Spectrum, lo: f64, hi: f64| -> Result<(), (String, String)> {
-        s.validate().map_err(|m| (name.to_string(), m))?;
-        let vals: Vec<f64> = match s {
-            Spectrum::Constant(v) => vec![*v],
-            Spectrum::Table { values, .. } => values.clone(),
-        };
-        if let Some(v) = vals.iter().find(|v| !(**v >= lo && **v <= hi)) {
-            return Err((name.to_string(), format!("value {v} outside [{lo}, {hi}]")));
-        }
-        Ok(())
-    };
-    match b {
-        BrdfSpec::Lambertian { reflectance } => check("reflectance", reflectance, 0.0, 1.0),
-        BrdfSpec::BiLambertian {
-            reflectance,
-            transmittance,
-        } => {
-            check("reflectance", reflectance, 0.0, 1.0)?;
-            check("transmittance", transmittance, 0.0, 1.0)
-        }
-        BrdfSpec::Rpv { rho_0, k, g, rho_c } => {
-            check("rho_0", rho_0, 0.0, 10.0)?;
-            check("k", k, 0.0, 10.0)?;
-            check("g", g, -1.0, 1.0)?;
-            if let Some(c) = rho_c {
-                check("rho_c", c, 0.0, 10.0)?;
-            }
-            Ok(())
-        }
-        BrdfSpec::Rtls {
-            f_iso,
-            f_vol,
-            f_geo,
-        } => {
-            check("f_iso", f_iso, -10.0, 10.0)?;
-            check("f_vol", f_vol, -10.0, 10.0)?;
-            check("f_geo", f_geo, -10.0, 10.0)
-        }
-        BrdfSpec::Hapke {
-            w,
-            b,
-            c,
-            theta,
-            b_0,
-            h,
-        } => {
-            check("w", w, 0.0, 1.0)?;
-            check("b", b, 0.0, 1.0)?;
-            check("c", c, 0.0, 1.0)?;
-            check("theta", theta, 0.0, 90.0)?;
-            check("B_0", b_0, 0.0, 1.0)?;
-            check("h", h, 0.0, 1.0)
-        }
-        BrdfSpec::Ocean {
-            wind_speed,
-            refractive_index,
-            ..
-        } => {
-            check("wind_speed", wind_speed, 0.0, 40.0)?;
-            if let Some(n) = refractive_index {
-                check("refractive_index", n, 1.0, 3.0)?;
-            }
-            Ok(())
-        }
-    }
+    b.validate().map_err(|e| {
+        let param = e.violations.first().map_or("", |v| v.param());
+        (param.to_string(), e.to_string())
+    })
 }
 
 /// The material table of a scene and the code → index lookup.
@@ -599,5 +563,43 @@ mod tests {
             Scheme::load("worldcover"),
             Err(SchemeError::UnknownScheme { .. })
         ));
+    }
+
+    /// Rationale: schemes and `simulate` share one range table (`bundle::BRDF_PARAM_RANGES`);
+    /// RPV k = 5 was accepted here (k ≤ 10) but refused by the simulator (k ≤ 2), so scenegen
+    /// could write bundles that `simulate` refuses. The scheme must be refused at load, naming
+    /// the file, the class, the material, the parameter, its value and the allowed range.
+    #[test]
+    fn rpv_k_outside_the_simulators_range_is_refused_naming_class_and_parameter() {
+        let p = Path::new("crops.toml");
+        let text = |k: f64| {
+            format!(
+                "name = \"crops\"\nclasses = [{{ code = 40, name = \"cropland\", material = \"crop\" }}]\n\
+                 [materials.crop]\nbrdf = {{ type = \"rpv\", rho_0 = 0.1, k = {k}, g = -0.1 }}\n"
+            )
+        };
+        let e = Scheme::from_str(&text(5.0), p).unwrap_err();
+        let msg = e.to_string();
+        for needle in [
+            "crops.toml",
+            "materials.crop.brdf.k",
+            "class 40 `cropland`",
+            "`k` = 5",
+            "[0, 2]",
+        ] {
+            assert!(msg.contains(needle), "`{needle}` not in: {msg}");
+        }
+        // The upper end of the shared range is accepted.
+        Scheme::from_str(&text(2.0), p).unwrap();
+        // A tabulated spectrum is checked at every wavelength.
+        let e = Scheme::from_str(
+            &text(0.5).replace(
+                "k = 0.5",
+                "k = { wavelengths_nm = [400.0, 800.0], values = [0.9, 2.5] }",
+            ),
+            p,
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("`k` = 2.5 at 800 nm"), "{e}");
     }
 }

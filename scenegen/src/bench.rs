@@ -15,7 +15,7 @@ use crate::info::human_bytes;
 use crate::synth;
 
 /// Peak resident memory of this process (VmHWM), bytes (shared with `simulate bench-scene`).
-pub use simulator::bench_scene::peak_rss_bytes;
+pub use bundle::peak_rss_bytes;
 
 fn dir_size(p: &Path) -> u64 {
     std::fs::read_dir(p)
@@ -73,7 +73,7 @@ fn run_build(
         serde_json::from_str(line).map_err(|e| ScenegenError::Internal(e.to_string()))?;
     let peak = stats["peak_rss_bytes"].as_u64().unwrap_or(0);
     let t1 = Instant::now();
-    simulator::bundle::Bundle::open(out)?;
+    bundle::Bundle::open(out)?;
     let load_s = t1.elapsed().as_secs_f64();
     Ok(Row {
         case,

@@ -13,11 +13,11 @@ use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
+use bundle::{Bundle, Manifest, TemplateMesh};
 use indicatif::{ProgressBar, ProgressStyle};
 use landcover::{MaterialDef, MaterialMap, Scheme};
 use rayon::prelude::*;
 use sha2::{Digest, Sha256};
-use simulator::bundle::{self, Bundle, Manifest, TemplateMesh};
 use tiles::{Catalogue, PlacedInstance, PlacementRule};
 
 use crate::error::{input, ScenegenError};

@@ -26,7 +26,7 @@ pub enum ScenegenError {
     #[error(transparent)]
     Tile(#[from] tiles::TileError),
     #[error(transparent)]
-    Bundle(#[from] simulator::bundle::BundleError),
+    Bundle(#[from] bundle::BundleError),
     /// A GDAL call that failed on something this program made (not a user's file).
     #[error("GDAL: {what}: {source}")]
     Gdal {
@@ -40,7 +40,7 @@ pub enum ScenegenError {
 impl ScenegenError {
     /// True for errors caused by the user's input (exit code 2).
     pub fn is_bad_input(&self) -> bool {
-        use simulator::bundle::BundleError as B;
+        use bundle::BundleError as B;
         match self {
             ScenegenError::ReadRegion { .. }
             | ScenegenError::Region { .. }
@@ -54,6 +54,8 @@ impl ScenegenError {
                     | B::Manifest { .. }
                     | B::Version { .. }
                     | B::Corrupt { .. }
+                    | B::Brdf { .. }
+                    | B::UnknownMaterialIds { .. }
             ),
             ScenegenError::Gdal { .. } | ScenegenError::Internal(_) => false,
         }

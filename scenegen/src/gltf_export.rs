@@ -15,9 +15,9 @@
 use std::io::Write;
 use std::path::Path;
 
+use bundle::{BrdfSpec, Bundle, NO_MATERIAL};
 use image::ImageEncoder;
 use serde_json::{json, Value};
-use simulator::bundle::{BrdfSpec, Bundle, NO_MATERIAL};
 
 use crate::ScenegenError;
 
@@ -268,7 +268,7 @@ pub fn export(
     }
     write().map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        ScenegenError::Bundle(simulator::bundle::BundleError::Write {
+        ScenegenError::Bundle(bundle::BundleError::Write {
             path: out.into(),
             source: e,
         })

@@ -5,7 +5,7 @@
 use std::fmt::Write as _;
 use std::path::Path;
 
-use simulator::bundle::{BrdfSpec, Bundle, NO_MATERIAL};
+use bundle::{Bundle, NO_MATERIAL};
 
 use crate::ScenegenError;
 
@@ -82,14 +82,7 @@ pub fn summary(dir: &Path) -> Result<String, ScenegenError> {
     let _ = writeln!(w, "materials ({}):", m.materials.len());
     for mat in &m.materials {
         let n = r.histogram.get(mat.index as usize).copied().unwrap_or(0);
-        let kind = match &mat.brdf {
-            BrdfSpec::Lambertian { .. } => "lambertian",
-            BrdfSpec::BiLambertian { .. } => "bi_lambertian",
-            BrdfSpec::Rpv { .. } => "rpv",
-            BrdfSpec::Rtls { .. } => "rtls",
-            BrdfSpec::Hapke { .. } => "hapke",
-            BrdfSpec::Ocean { .. } => "ocean",
-        };
+        let kind = mat.brdf.type_name();
         let codes = if mat.class_codes.is_empty() {
             "template material".to_string()
         } else {

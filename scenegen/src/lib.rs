@@ -1,5 +1,5 @@
 //! `scenegen`: from a DEM and a land-cover raster (any GDAL-readable raster, any CRS) to a scene
-//! bundle (`simulator::bundle`, documented in `docs/bundle.md`) with an error-bounded terrain
+//! bundle (`bundle` crate, documented in `docs/bundle.md`) with an error-bounded terrain
 //! TIN split into tiles, an 8-bit material-index raster, and instanced 3D tile templates.
 //!
 //! Modules: [`region`] (the region file, `docs/region.md`), [`raster`] (GDAL: working frame,

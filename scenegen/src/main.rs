@@ -212,7 +212,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::Info { bundle, verify } => {
             print!("{}", scenegen::info::summary(&bundle)?);
             if verify {
-                simulator::bundle::Bundle::verify(&bundle).map_err(ScenegenError::from)?;
+                bundle::Bundle::verify(&bundle).map_err(ScenegenError::from)?;
                 println!("verify: every file matches its SHA-256");
             }
             Ok(())

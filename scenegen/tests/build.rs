@@ -7,10 +7,10 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
+use bundle::{Bundle, NO_MATERIAL};
 use scenegen::raster::{self, WorkingFrame};
 use scenegen::region::Region;
 use scenegen::synth::write_geotiff;
-use simulator::bundle::{Bundle, NO_MATERIAL};
 
 const LON: f64 = 5.7;
 const LAT: f64 = 45.2;
@@ -224,7 +224,7 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
     );
 
     // (2) Watertight.
-    let key = |t: &simulator::bundle::TerrainTile, i: u32| {
+    let key = |t: &bundle::TerrainTile, i: u32| {
         let q = t.positions[i as usize];
         [
             (t.origin[0] + q[0] as f64).to_bits(),

@@ -60,7 +60,7 @@ fn libya4_terrain_site_in_3d() {
         },
     )
     .unwrap();
-    let b = simulator::bundle::Bundle::open(&out.join("bundle")).unwrap();
+    let b = bundle::Bundle::open(&out.join("bundle")).unwrap();
     let m = &b.manifest;
     println!(
         "bundle: {} x {} DEM nodes, heights {:?}",

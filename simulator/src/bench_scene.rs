@@ -16,13 +16,7 @@ use crate::config::Experiment;
 use crate::frame::direction_from_angles;
 use crate::scene::build::{from_bundle, Background};
 
-/// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is not available.
-pub fn peak_rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
-}
+pub use bundle::peak_rss_bytes;
 
 fn peak_rss_mib() -> f64 {
     peak_rss_bytes().unwrap_or(0) as f64 / 1048576.0

@@ -24,7 +24,9 @@ pub mod atmosphere;
 pub mod bench;
 pub mod bench_scene;
 pub mod bsdf;
-pub mod bundle;
+/// The scene-bundle format, now its own crate (`bundle/`); re-exported so that
+/// `simulator::bundle::…` and `crate::bundle::…` keep working.
+pub use bundle;
 pub mod config;
 pub mod error;
 pub mod frame;

@@ -1,6 +1,8 @@
 //! The `simulate` binary end to end: products on disk, and bad input rejected with exit code 2
 //! and a message that names the file and the key (regression tests for the error contract).
 
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
@@ -200,6 +202,68 @@ fn bad_input_is_a_clear_error() {
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2));
     assert!(err.contains("/no/such/experiment.toml"), "{err}");
+}
+
+/// A bundle whose material raster holds ids without a `[[materials]]` entry is bad input
+/// (exit 2): the message names the experiment, `materials.u8`, each unknown id with its pixel
+/// count, and the ids the table has — instead of drawing those cells with another material.
+#[test]
+fn bundle_with_unknown_material_ids_is_refused() {
+    use common::bundles::{lambertian, write_plane_with_indices, PlaneSpec};
+    let dir = tmpdir("unknown-ids");
+    let spec = PlaneSpec {
+        x0: -200.0,
+        y0: -200.0,
+        size: 400.0,
+        h0: 0.0,
+        sx: 0.0,
+        sy: 0.0,
+        tiles: 1,
+        n: 2,
+        raster_width: 2,
+        raster: vec![4, 4, 7, 4],
+        materials: vec![
+            ("grass".into(), lambertian(0.2)),
+            ("soil".into(), lambertian(0.3)),
+        ],
+        frame_origin: [500_000.0, 4_000_000.0, 0.0],
+        wkt: String::new(),
+    };
+    let b = write_plane_with_indices(&dir, &spec, &[4, 7]);
+    // ids 9 (3 pixels) and 200 (1 pixel) have no material; the writer refuses them, so edit
+    // the file (same size: only the ids are checked, not the digests).
+    std::fs::write(b.join("materials.u8"), [9u8, 9, 200, 9]).unwrap();
+    let exp = dir.join("exp.toml");
+    std::fs::write(
+        &exp,
+        format!(
+            "[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[scene]\ntype = \"bundle\"\npath = \"{}\"\n[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 100.0\nspp = 4\n",
+            b.display()
+        ),
+    )
+    .unwrap();
+    let o = bin()
+        .args([
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            dir.join("out").to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    for needle in [
+        "exp.toml",
+        "materials.u8",
+        "9 (3 pixels)",
+        "200 (1 pixel)",
+        "ids 4, 7",
+    ] {
+        assert!(err.contains(needle), "`{needle}` not in: {err}");
+    }
+    assert!(!err.contains("panicked"), "{err}");
 }
 
 /// An output folder that cannot be created is a runtime failure (exit 1) naming the path.

@@ -4,9 +4,9 @@
 
 mod common;
 
-use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
+use bundle::{BrdfSpec, Spectrum};
+use common::bundles::{lambertian, tmp, write_plane, write_plane_with_indices, PlaneSpec};
 use common::{compare_brf_rows, experiment, run_on_1_and_2_threads, run_rows};
-use simulator::bundle::{BrdfSpec, Spectrum};
 
 fn plane(
     size: f64,
@@ -174,6 +174,74 @@ fn selector_and_ortho_pixels_are_exact() {
     // Georeferencing: the grid covers the raster, north-up, in working-CRS coordinates.
     let gt = img.geotransform.unwrap();
     assert_eq!(gt, [499_800.0, 100.0, 0.0, 4_000_200.0, 0.0, -100.0]);
+}
+
+/// Material ids are the manifest's `index`, not positions in its list: a manifest listing
+/// `dark` (index 5), `bright` (index 2) and `grey` (index 0), with raster cells holding 5, 2 and
+/// 0, must show each cell's own material (exact per-pixel BRF as in the selector test). Read
+/// by position, id 0 would be `dark`, id 2 `grey` and id 5 nothing. The default background
+/// takes the most frequent id's material (id 2, `bright`).
+#[test]
+fn non_contiguous_material_indices_select_the_right_material() {
+    let dir = tmp("sparse-ids");
+    let rw = 4;
+    let ids = [5u8, 2, 0];
+    #[rustfmt::skip]
+    let raster: Vec<u8> = vec![
+        5, 2, 0, 2,
+        2, 5, 2, 0,
+        0, 2, 5, 2,
+        2, 0, 2, 5,
+    ];
+    let b = write_plane_with_indices(
+        &dir,
+        &plane(
+            400.0,
+            rw,
+            raster.clone(),
+            vec![
+                ("dark".into(), lambertian(0.1)),
+                ("bright".into(), lambertian(0.6)),
+                ("grey".into(), lambertian(0.3)),
+            ],
+        ),
+        &ids,
+    );
+    let reflectance = |id: u8| match id {
+        5 => 0.1,
+        2 => 0.6,
+        0 => 0.3,
+        _ => unreachable!(),
+    };
+    let run = |background: &str, window: &str| {
+        let e = experiment(&format!(
+            "seed = 1\n[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[scene]\ntype = \"bundle\"\npath = \"{}\"\n{background}[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 100.0\nspp = 64\n{window}",
+            b.display()
+        ));
+        let res = simulator::run::run(&e, false);
+        simulator::products::imagery::image_products(&e, &res).remove(0)
+    };
+    let img = run("background = { type = \"none\" }\n", "");
+    assert_eq!((img.width, img.height), (4, 4));
+    for (k, &id) in raster.iter().enumerate() {
+        let (got, want) = (img.brf[0][k], reflectance(id));
+        assert!(
+            (got - want).abs() < 1e-9,
+            "pixel {k}: BRF {got}, want {want} (id {id})"
+        );
+    }
+    // The default background is the most frequent id's material, at the terrain's height:
+    // id 2 (8 of 16 cells) is `bright`. Image a window east of the raster, all background.
+    let counts = ids.map(|id| raster.iter().filter(|&&v| v == id).count());
+    assert_eq!(counts, [4, 8, 4]);
+    let img = run(
+        "",
+        "window_m = [500400.0, 3999800.0, 500800.0, 4000200.0]\n",
+    );
+    assert_eq!((img.width, img.height), (4, 4));
+    for (k, got) in img.brf[0].iter().enumerate() {
+        assert!((got - 0.6).abs() < 1e-9, "background pixel {k}: BRF {got}");
+    }
 }
 
 /// Self-intersection on a tilted terrain 40 km from the frame origin: with no atmosphere and no

@@ -3,13 +3,15 @@
 //! (SHOE), a two-parameter double Henyey–Greenstein particle phase function and Hapke's
 //! macroscopic-roughness correction (no coherent-backscatter term, no porosity factor).
 //!
+//! Ranges are those of the shared table `bundle::BRDF_PARAM_RANGES`, which [`Hapke::new`] checks.
+//!
 //! | parameter   | unit | range   | meaning                                                      |
 //! |-------------|------|---------|--------------------------------------------------------------|
 //! | `w`         | —    | [0, 1]  | single-scattering albedo of the particles                    |
 //! | `b`         | —    | [0, 1)  | shape (asymmetry magnitude) of each HG lobe                   |
 //! | `c`         | —    | [0, 1]  | weight of the *backward* lobe (1 − c weights the forward one) |
-//! | `theta_deg` | deg  | [0, 90) | mean slope angle θ̄ of the macroscopic roughness             |
-//! | `b_0`       | —    | [0, 1]  | SHOE amplitude B₀                                            |
+//! | `theta_deg` | deg  | [0, 90) | mean slope angle θ̄ of the macroscopic roughness (key `theta`) |
+//! | `b_0`       | —    | [0, 1]  | SHOE amplitude B₀ (key `B_0`)                                 |
 //! | `h`         | —    | [0, 1]  | SHOE angular width h (h = 0 switches the opposition peak off) |
 //!
 //! **BRF vs BRDF.** Hapke's *bidirectional reflectance* `r` (radiance per unit irradiance on a
@@ -85,26 +87,22 @@ pub struct Hapke {
     chi: f64,
 }
 
-fn check(name: &str, v: f64, lo: f64, hi: f64, open_hi: bool) -> Result<(), String> {
-    let ok = v >= lo && if open_hi { v < hi } else { v <= hi };
-    if ok {
-        Ok(())
-    } else {
-        let r = if open_hi { ')' } else { ']' };
-        Err(format!("`{name}` = {v} must lie in [{lo}, {hi}{r}"))
-    }
+/// Checks against the shared range table (`bundle::BRDF_PARAM_RANGES`, the ranges above); the
+/// message names the parameter by its key in experiment files and bundles (`theta`, `B_0`).
+fn check(key: &str, v: f64) -> Result<(), String> {
+    bundle::check_param("hapke", key, key, v)
 }
 
 impl Hapke {
     /// Hapke model from single-scattering albedo `w`, phase-function parameters `b`, `c`, mean
     /// slope `theta_deg` (degrees), SHOE amplitude `b_0` and width `h` (see the module header).
     pub fn new(w: f64, b: f64, c: f64, theta_deg: f64, b_0: f64, h: f64) -> Result<Self, String> {
-        check("w", w, 0.0, 1.0, false)?;
-        check("b", b, 0.0, 1.0, true)?;
-        check("c", c, 0.0, 1.0, false)?;
-        check("theta_deg", theta_deg, 0.0, 90.0, true)?;
-        check("b_0", b_0, 0.0, 1.0, false)?;
-        check("h", h, 0.0, 1.0, false)?;
+        check("w", w)?;
+        check("b", b)?;
+        check("c", c)?;
+        check("theta", theta_deg)?;
+        check("B_0", b_0)?;
+        check("h", h)?;
         let gamma = (1.0 - w).sqrt();
         let tan_tb = theta_deg.to_radians().tan();
         Ok(Self {
@@ -416,7 +414,8 @@ mod tests {
         }
     }
 
-    /// Constructors reject out-of-range and NaN parameters, naming the parameter.
+    /// Constructors reject out-of-range and NaN parameters, naming the parameter by its key in
+    /// experiment files and bundles (`theta`, `B_0`).
     #[test]
     fn rejects_bad_parameters() {
         let ok = (0.5, 0.3, 0.4, 15.0, 0.8, 0.06);
@@ -427,10 +426,10 @@ mod tests {
             (1, -0.2, "b"),
             (2, 1.5, "c"),
             (2, -0.5, "c"),
-            (3, 90.0, "theta_deg"),
-            (3, -1.0, "theta_deg"),
-            (4, 1.2, "b_0"),
-            (4, -0.1, "b_0"),
+            (3, 90.0, "theta"),
+            (3, -1.0, "theta"),
+            (4, 1.2, "B_0"),
+            (4, -0.1, "B_0"),
             (5, 1.5, "h"),
             (5, -0.01, "h"),
             (0, f64::INFINITY, "w"),
@@ -445,13 +444,13 @@ mod tests {
             let e = build(k, v).unwrap_err();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
-        for (k, name) in ["w", "b", "c", "theta_deg", "b_0", "h"].iter().enumerate() {
+        for (k, name) in ["w", "b", "c", "theta", "B_0", "h"].iter().enumerate() {
             let e = build(k, f64::NAN).unwrap_err();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
         assert_eq!(
             build(3, 95.0).unwrap_err(),
-            "`theta_deg` = 95 must lie in [0, 90)"
+            "`theta` = 95 deg must lie in [0, 90)"
         );
         assert!(Hapke::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0).is_ok());
         assert!(Hapke::new(1.0, 0.99, 1.0, 89.0, 1.0, 1.0).is_ok());

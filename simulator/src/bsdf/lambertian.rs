@@ -1,5 +1,7 @@
 //! Lambertian (perfectly diffuse) reflection.
 //!
+//! Ranges are those of the shared table `bundle::BRDF_PARAM_RANGES`, which [`Lambertian::new`] checks.
+//!
 //! | parameter     | unit | range  | meaning                                   |
 //! |---------------|------|--------|-------------------------------------------|
 //! | `reflectance` | —    | [0, 1] | hemispherical reflectance ρ (= the BRF)   |
@@ -15,9 +17,8 @@ pub struct Lambertian {
 
 impl Lambertian {
     pub fn new(reflectance: f64) -> Result<Self, String> {
-        if !(0.0..=1.0).contains(&reflectance) {
-            return Err(format!("`reflectance` = {reflectance} must lie in [0, 1]"));
-        }
+        // Range from the shared table (`bundle::BRDF_PARAM_RANGES`).
+        bundle::check_param("lambertian", "reflectance", "reflectance", reflectance)?;
         Ok(Self { reflectance })
     }
 

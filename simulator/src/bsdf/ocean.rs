@@ -1,6 +1,8 @@
 //! Rough ocean surface: Cox–Munk isotropic slope distribution, Fresnel reflection, Smith
 //! shadowing — the reflection model of Mishchenko & Travis (1997) used by IPRT case A6.
 //!
+//! Ranges are those of the shared table `bundle::BRDF_PARAM_RANGES`, which [`Ocean::new`] checks.
+//!
 //! | parameter          | unit | range       | default | meaning                                   |
 //! |--------------------|------|-------------|---------|-------------------------------------------|
 //! | `wind_speed`       | m/s  | [0, 40]     | —       | 10 m wind speed W                         |
@@ -61,16 +63,14 @@ pub fn erfc(x: f64) -> f64 {
 
 impl Ocean {
     pub fn new(wind_speed: f64, refractive_index: f64, shadowing: bool) -> Result<Self, String> {
-        if !(0.0..=40.0).contains(&wind_speed) {
-            return Err(format!(
-                "`wind_speed` = {wind_speed} m/s must lie in [0, 40]"
-            ));
-        }
-        if !(1.0..=3.0).contains(&refractive_index) {
-            return Err(format!(
-                "`refractive_index` = {refractive_index} must lie in [1, 3]"
-            ));
-        }
+        // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`, as above).
+        bundle::check_param("ocean", "wind_speed", "wind_speed", wind_speed)?;
+        bundle::check_param(
+            "ocean",
+            "refractive_index",
+            "refractive_index",
+            refractive_index,
+        )?;
         Ok(Self {
             wind_speed,
             refractive_index,

@@ -1,6 +1,8 @@
 //! Rahman–Pinty–Verstraete (RPV) reflection model, four-parameter form with the hot-spot
 //! parameter `ρ_c` (as in Eradiate's `rpv` BSDF and the RAMI benchmark).
 //!
+//! Ranges are those of the shared table `bundle::BRDF_PARAM_RANGES`, which [`Rpv::new`] checks.
+//!
 //! | parameter | unit | range     | meaning                                                        |
 //! |-----------|------|-----------|----------------------------------------------------------------|
 //! | `rho_0`   | —    | [0, 1]    | amplitude ρ₀ (a BRF level: the BRF is ρ₀ when the shape terms are 1) |
@@ -59,26 +61,19 @@ pub struct Rpv {
 }
 
 /// Checks that `v` is a number in `[lo, hi]` (open ends where `open_*`), naming the parameter.
-fn check(name: &str, v: f64, lo: f64, hi: f64, open_lo: bool, open_hi: bool) -> Result<(), String> {
-    let ok_lo = if open_lo { v > lo } else { v >= lo };
-    let ok_hi = if open_hi { v < hi } else { v <= hi };
-    if ok_lo && ok_hi {
-        Ok(())
-    } else {
-        let l = if open_lo { '(' } else { '[' };
-        let r = if open_hi { ')' } else { ']' };
-        Err(format!("`{name}` = {v} must lie in {l}{lo}, {hi}{r}"))
-    }
+/// Checks against the shared range table (`bundle::BRDF_PARAM_RANGES`, the ranges above).
+fn check(name: &str, v: f64) -> Result<(), String> {
+    bundle::check_param("rpv", name, name, v)
 }
 
 impl Rpv {
     /// RPV with amplitude `rho_0`, exponent `k`, HG asymmetry `g` and hot-spot parameter `rho_c`
     /// (all dimensionless; see the module header for ranges).
     pub fn new(rho_0: f64, k: f64, g: f64, rho_c: f64) -> Result<Self, String> {
-        check("rho_0", rho_0, 0.0, 1.0, false, false)?;
-        check("k", k, 0.0, 2.0, false, false)?;
-        check("g", g, -1.0, 1.0, true, true)?;
-        check("rho_c", rho_c, 0.0, 1.0, false, false)?;
+        check("rho_0", rho_0)?;
+        check("k", k)?;
+        check("g", g)?;
+        check("rho_c", rho_c)?;
         Ok(Self {
             rho_0,
             k,

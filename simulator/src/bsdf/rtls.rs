@@ -1,6 +1,8 @@
 //! Ross-Thick Li-Sparse-Reciprocal (RTLS) kernel-driven model, as in the MODIS BRDF/albedo
 //! product (MCD43) with the fixed crown shape `h/b = 2`, `b/r = 1`.
 //!
+//! Ranges are those of the shared table `bundle::BRDF_PARAM_RANGES`, which [`Rtls::new`] checks.
+//!
 //! | parameter | unit | range  | meaning                                                     |
 //! |-----------|------|--------|-------------------------------------------------------------|
 //! | `f_iso`   | —    | [0, 2] | isotropic kernel weight (the BRF at nadir/nadir)            |
@@ -64,14 +66,9 @@ impl Rtls {
     /// RTLS model from its three kernel weights (dimensionless BRF weights: f_iso in [0, 2],
     /// f_vol and f_geo in [−1, 1]).
     pub fn new(f_iso: f64, f_vol: f64, f_geo: f64) -> Result<Self, String> {
-        for (name, v, lo, hi) in [
-            ("f_iso", f_iso, 0.0, 2.0),
-            ("f_vol", f_vol, -1.0, 1.0),
-            ("f_geo", f_geo, -1.0, 1.0),
-        ] {
-            if !(lo..=hi).contains(&v) {
-                return Err(format!("`{name}` = {v} must lie in [{lo}, {hi}]"));
-            }
+        // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`, as above).
+        for (name, v) in [("f_iso", f_iso), ("f_vol", f_vol), ("f_geo", f_geo)] {
+            bundle::check_param("rtls", name, name, v)?;
         }
         Ok(Self {
             f_iso,

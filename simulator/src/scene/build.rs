@@ -18,7 +18,7 @@ use super::curvature::Curvature;
 use super::instances::{Disc, InstanceBvh, InstanceTransform, TemplateGeometry};
 use super::world::{Georef, GroundPlane, MaterialRaster, Scene};
 use super::TerrainBvh;
-use crate::bundle::{BrdfSpec, Bundle};
+use bundle::{BrdfSpec, Bundle};
 
 /// Where to put the background around a bundle's terrain.
 #[derive(Clone, Debug)]
@@ -58,12 +58,28 @@ pub fn from_bundle(
         m.extent.max[0] - origin.x,
         m.extent.max[1] - origin.y,
     ];
+    // The scene's material ids are positions in the manifest's table; the raster and the
+    // template triangles hold the manifest's `index` of each material (any unique 0–254, not
+    // necessarily contiguous). `Bundle::open` has checked that every id used has a material and
+    // that every BRDF is within `bundle::BRDF_PARAM_RANGES`.
     let mut materials: Vec<(String, BrdfSpec)> = m
         .materials
         .iter()
         .map(|x| (x.name.clone(), x.brdf.clone()))
         .collect();
+    let mut scene_id = [u8::MAX; 256];
+    for (pos, x) in m.materials.iter().enumerate() {
+        scene_id[x.index as usize] = pos as u8; // ≤ 254: at most 255 distinct indices 0–254
+    }
+    scene_id[bundle::NO_MATERIAL as usize] = bundle::NO_MATERIAL;
+    let identity = m
+        .materials
+        .iter()
+        .enumerate()
+        .all(|(pos, x)| x.index as usize == pos);
     for (name, spec) in overrides {
+        spec.validate()
+            .map_err(|e| format!("material `{name}` (override): {e}"))?;
         match materials.iter_mut().find(|(n, _)| n == name) {
             Some(slot) => slot.1 = spec.clone(),
             None => {
@@ -113,6 +129,12 @@ pub fn from_bundle(
     let terrain = TerrainBvh::new(&bundle, bend);
     let render_origin = terrain.render_origin();
     let gt = m.material_raster.geotransform;
+    let mut data = bundle.material_raster.clone();
+    if !identity {
+        for v in &mut data {
+            *v = scene_id[*v as usize];
+        }
+    }
     let raster = MaterialRaster {
         width: m.material_raster.width as usize,
         height: m.material_raster.height as usize,
@@ -124,7 +146,7 @@ pub fn from_bundle(
             gt[4],
             gt[5],
         ],
-        data: bundle.material_raster.clone(),
+        data,
     };
     if raster.width == 0 || raster.height == 0 || raster.data.len() != raster.width * raster.height
     {
@@ -133,7 +155,17 @@ pub fn from_bundle(
     let templates: Vec<TemplateGeometry> = bundle
         .templates
         .iter()
-        .map(TemplateGeometry::from_mesh)
+        .map(|t| {
+            if identity {
+                TemplateGeometry::from_mesh(t)
+            } else {
+                let mut t = t.clone();
+                for v in &mut t.materials {
+                    *v = scene_id[*v as usize];
+                }
+                TemplateGeometry::from_mesh(&t)
+            }
+        })
         .collect();
     let instances: Vec<(u32, InstanceTransform)> = bundle
         .instances
@@ -169,15 +201,19 @@ pub fn from_bundle(
         Background::Flat { altitude, brdf } => {
             let material = match brdf {
                 Some(spec) => {
+                    spec.validate()
+                        .map_err(|e| format!("background material: {e}"))?;
                     materials.push(("background".into(), (**spec).clone()));
                     (materials.len() - 1) as u16
                 }
                 None => {
+                    // The most frequent material of the raster (the histogram counts pixels
+                    // per manifest index); the first material if the raster has none.
                     let h = &m.material_raster.histogram;
                     (0..h.len().min(255))
+                        .filter(|&i| scene_id[i] != u8::MAX && h[i] > 0)
                         .max_by_key(|&i| h[i])
-                        .unwrap_or(0)
-                        .min(materials.len().saturating_sub(1)) as u16
+                        .map_or(0, |i| scene_id[i]) as u16
                 }
             };
             let altitude = altitude.unwrap_or(m.extent.height_range[0]);

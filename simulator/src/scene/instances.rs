@@ -94,7 +94,7 @@ pub enum TemplateGeometry {
 
 impl TemplateGeometry {
     /// The triangles of a bundle template (materials widened to `u16`).
-    pub fn from_mesh(mesh: &crate::bundle::TemplateMesh) -> Self {
+    pub fn from_mesh(mesh: &bundle::TemplateMesh) -> Self {
         TemplateGeometry::Triangles {
             positions: mesh.positions.clone(),
             indices: mesh.indices.clone(),
@@ -120,7 +120,7 @@ pub struct InstanceTransform {
 
 impl InstanceTransform {
     /// (template id, transform) of a bundle instance (`linear` is column-major there too).
-    pub fn from_bundle(inst: &crate::bundle::Instance) -> (u32, Self) {
+    pub fn from_bundle(inst: &bundle::Instance) -> (u32, Self) {
         (
             inst.template,
             InstanceTransform {

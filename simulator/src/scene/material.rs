@@ -26,8 +26,8 @@
 use glam::DVec3;
 
 use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
-use crate::bundle::BrdfSpec;
 use crate::frame::{basis_around, sample_cosine_hemisphere};
+use bundle::BrdfSpec;
 
 /// The reflection model of one material at one wavelength.
 #[derive(Clone, Debug)]
@@ -53,8 +53,10 @@ fn to_local(v: DVec3, n: DVec3, t: DVec3, b: DVec3) -> DVec3 {
 
 impl SurfaceModel {
     /// Build the model of `spec` at `wavelength_nm`; the error says which parameter is wrong.
+    /// The ranges are those of `bundle::BRDF_PARAM_RANGES` (checked by the models'
+    /// constructors), so a spec that passes `BrdfSpec::validate` builds at every wavelength.
     pub fn from_spec(spec: &BrdfSpec, wavelength_nm: f64) -> Result<Self, String> {
-        let at = |s: &crate::bundle::Spectrum| s.at(wavelength_nm);
+        let at = |s: &bundle::Spectrum| s.at(wavelength_nm);
         Ok(match spec {
             BrdfSpec::Lambertian { reflectance } => {
                 SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian::new(at(reflectance))?))
@@ -64,9 +66,13 @@ impl SurfaceModel {
                 transmittance,
             } => {
                 let (r, t) = (at(reflectance), at(transmittance));
-                if !(0.0..=1.0).contains(&r) || !(0.0..=1.0).contains(&t) || r + t > 1.0 {
+                // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`).
+                bundle::check_param("bi_lambertian", "reflectance", "reflectance", r)?;
+                bundle::check_param("bi_lambertian", "transmittance", "transmittance", t)?;
+                if r + t > bundle::BI_LAMBERTIAN_MAX_SUM {
                     return Err(format!(
-                        "bi_lambertian reflectance {r} and transmittance {t} at {wavelength_nm} nm must be in [0, 1] with a sum ≤ 1"
+                        "bi_lambertian: the sum `reflectance` + `transmittance` = {r} + {t} at {wavelength_nm} nm must not exceed {}",
+                        bundle::BI_LAMBERTIAN_MAX_SUM
                     ));
                 }
                 SurfaceModel::Leaf {
@@ -180,7 +186,7 @@ impl SurfaceModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bundle::Spectrum;
+    use bundle::Spectrum;
 
     /// The sampler's weight equals `eval_cos/pdf` on average: E[weight·g(wi)] = ∫ f·|cos|·g dω
     /// for a test function g, checked by quadrature for a leaf and an RPV surface on a tilted

@@ -24,7 +24,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::triangle::Triangle;
 use obvhs::{bvh2::builder::build_bvh2, bvh2::Bvh2, BvhBuildParams};
 
-use crate::bundle::Bundle;
+use bundle::Bundle;
 
 /// A hit on the terrain.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -60,13 +60,13 @@ impl TerrainBvh {
     }
 
     /// Build from terrain tiles (f32 offsets from f64 origins).
-    pub fn from_tiles(terrain: &[crate::bundle::TerrainTile]) -> Self {
+    pub fn from_tiles(terrain: &[bundle::TerrainTile]) -> Self {
         Self::from_tiles_bent(terrain, None)
     }
 
     /// Build from terrain tiles, every vertex bent onto a sphere (in f64) when `bend` is given.
     pub fn from_tiles_bent(
-        terrain: &[crate::bundle::TerrainTile],
+        terrain: &[bundle::TerrainTile],
         bend: Option<curvature::Curvature>,
     ) -> Self {
         let place = |q: DVec3| bend.map_or(q, |c| c.bend(q));
@@ -267,7 +267,7 @@ fn moller_trumbore(o: DVec3, d: DVec3, v: &[DVec3; 3]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::bundle::TerrainTile;
+    use bundle::TerrainTile;
 
     /// A bundle with a tilted plane z = 300 + 0.1·x + 0.05·y made of two tiles far from the origin
     /// (x ≈ 40 km), each tile a grid of triangles in f32 offsets from its f64 origin.

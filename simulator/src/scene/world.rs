@@ -26,7 +26,7 @@ use super::curvature::Curvature;
 use super::instances::{InstanceBvh, InstanceHit};
 use super::material::SurfaceModel;
 use super::TerrainBvh;
-use crate::bundle::BrdfSpec;
+use bundle::BrdfSpec;
 
 /// Material id of a black (absorbing) surface, outside the material table.
 pub const BLACK: u16 = u16::MAX;
@@ -52,7 +52,7 @@ impl MaterialRaster {
         let c = (col.max(0.0) as usize).min(self.width - 1);
         let r = (row.max(0.0) as usize).min(self.height - 1);
         match self.data[r * self.width + c] {
-            crate::bundle::NO_MATERIAL => BLACK,
+            bundle::NO_MATERIAL => BLACK,
             v => v as u16,
         }
     }

@@ -4,7 +4,7 @@
 
 use std::path::{Path, PathBuf};
 
-use simulator::bundle::*;
+use bundle::*;
 
 pub fn tmp(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("sim-scene-{}-{name}", std::process::id()));
@@ -43,6 +43,14 @@ pub fn lambertian(r: f64) -> BrdfSpec {
 pub const UTM31N_EPSG: u32 = 32631;
 
 pub fn write_plane(dir: &Path, p: &PlaneSpec) -> PathBuf {
+    let indices: Vec<u8> = (0..p.materials.len() as u8).collect();
+    write_plane_with_indices(dir, p, &indices)
+}
+
+/// [`write_plane`] with the manifest `index` of each material given (the ids the raster
+/// holds), e.g. non-contiguous ones.
+pub fn write_plane_with_indices(dir: &Path, p: &PlaneSpec, indices: &[u8]) -> PathBuf {
+    assert_eq!(indices.len(), p.materials.len());
     let h = |x: f64, y: f64| p.h0 + p.sx * x + p.sy * y;
     let tsize = p.size / p.tiles as f64;
     let mut terrain = Vec::new();
@@ -137,7 +145,7 @@ pub fn write_plane(dir: &Path, p: &PlaneSpec) -> PathBuf {
             .iter()
             .enumerate()
             .map(|(i, (name, brdf))| Material {
-                index: i as u8,
+                index: indices[i],
                 name: name.clone(),
                 brdf: brdf.clone(),
                 class_codes: vec![i as u32],

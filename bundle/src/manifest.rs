@@ -4,6 +4,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::brdf::BrdfSpec;
+
 /// Top level of `manifest.toml`.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -17,7 +19,7 @@ pub struct Manifest {
     pub extent: Extent,
     pub terrain: Terrain,
     pub material_raster: MaterialRaster,
-    /// Material table; the material raster and template triangles index it.
+    /// Material table; the material raster and template triangles hold its entries' `index`.
     pub materials: Vec<Material>,
     #[serde(default)]
     pub templates: Vec<Template>,
@@ -117,7 +119,8 @@ pub struct MaterialRaster {
     pub geotransform: [f64; 6],
     /// How the land cover was resampled onto this grid ("mode" or "nearest").
     pub resampling: String,
-    /// Pixels per material index (index = position in the list), for summaries.
+    /// Pixels per material id (the raster's value, a material's `index`; entry 255 counts cells
+    /// without a material), for summaries.
     pub histogram: Vec<u64>,
 }
 
@@ -125,7 +128,8 @@ pub struct MaterialRaster {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Material {
-    /// Index used by the raster and template triangles (0..=254).
+    /// The material id used by the raster and template triangles: unique, 0..=254, not
+    /// necessarily contiguous or in list order.
     pub index: u8,
     pub name: String,
     pub brdf: BrdfSpec,
@@ -135,120 +139,6 @@ pub struct Material {
     /// Where the parameters come from.
     #[serde(default)]
     pub source: String,
-}
-
-/// A reflectance-like quantity: one value at every wavelength, or a table (linear interpolation,
-/// constant beyond the ends).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(untagged)]
-pub enum Spectrum {
-    Constant(f64),
-    Table {
-        wavelengths_nm: Vec<f64>,
-        values: Vec<f64>,
-    },
-}
-
-impl Spectrum {
-    /// Value at `wavelength_nm`.
-    pub fn at(&self, wavelength_nm: f64) -> f64 {
-        match self {
-            Spectrum::Constant(v) => *v,
-            Spectrum::Table {
-                wavelengths_nm: w,
-                values: v,
-            } => {
-                if w.is_empty() {
-                    return f64::NAN;
-                }
-                if wavelength_nm <= w[0] {
-                    return v[0];
-                }
-                if wavelength_nm >= w[w.len() - 1] {
-                    return v[v.len() - 1];
-                }
-                let i = w.partition_point(|&x| x <= wavelength_nm) - 1;
-                let t = (wavelength_nm - w[i]) / (w[i + 1] - w[i]);
-                v[i] + t * (v[i + 1] - v[i])
-            }
-        }
-    }
-
-    /// Checks: same lengths, increasing wavelengths, values finite. Returns a message.
-    pub fn validate(&self) -> Result<(), String> {
-        match self {
-            Spectrum::Constant(v) if !v.is_finite() => Err(format!("value {v} is not finite")),
-            Spectrum::Constant(_) => Ok(()),
-            Spectrum::Table {
-                wavelengths_nm: w,
-                values: v,
-            } => {
-                if w.is_empty() || w.len() != v.len() {
-                    return Err(format!(
-                        "wavelengths_nm ({}) and values ({}) must be non-empty and of equal length",
-                        w.len(),
-                        v.len()
-                    ));
-                }
-                if w.windows(2).any(|p| p[1] <= p[0]) {
-                    return Err("wavelengths_nm must increase".into());
-                }
-                if v.iter().any(|x| !x.is_finite()) {
-                    return Err("values must be finite".into());
-                }
-                Ok(())
-            }
-        }
-    }
-}
-
-/// BRDF of a material, named as in the simulator's surface models (`docs/experiment.md`).
-#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum BrdfSpec {
-    /// Lambertian, hemispherical reflectance in [0, 1].
-    Lambertian { reflectance: Spectrum },
-    /// Two-sided leaf: Lambertian reflection and transmission (reflectance + transmittance ≤ 1).
-    BiLambertian {
-        reflectance: Spectrum,
-        transmittance: Spectrum,
-    },
-    /// Rahman–Pinty–Verstraete.
-    Rpv {
-        rho_0: Spectrum,
-        k: Spectrum,
-        g: Spectrum,
-        #[serde(default)]
-        rho_c: Option<Spectrum>,
-    },
-    /// Ross-Thick Li-Sparse (MODIS kernels).
-    Rtls {
-        f_iso: Spectrum,
-        f_vol: Spectrum,
-        f_geo: Spectrum,
-    },
-    /// Hapke (parameters as the simulator's `hapke` surface; `theta` in degrees).
-    Hapke {
-        w: Spectrum,
-        b: Spectrum,
-        c: Spectrum,
-        theta: Spectrum,
-        #[serde(rename = "B_0")]
-        b_0: Spectrum,
-        h: Spectrum,
-    },
-    /// Rough water surface (Cox–Munk, Fresnel; wind speed in m/s).
-    Ocean {
-        wind_speed: Spectrum,
-        #[serde(default)]
-        refractive_index: Option<Spectrum>,
-        #[serde(default = "yes")]
-        shadowing: bool,
-    },
-}
-
-fn yes() -> bool {
-    true
 }
 
 /// A template mesh stored once in `templates.bin`.
@@ -264,7 +154,7 @@ pub struct Template {
     pub positions_offset: u64,
     /// Byte offset of `triangle_count` × [u32; 3] indices.
     pub indices_offset: u64,
-    /// Byte offset of `triangle_count` × u8 material indices (into the bundle's table).
+    /// Byte offset of `triangle_count` × u8 material ids (the `index` of a manifest material).
     pub materials_offset: u64,
     pub vertex_count: u64,
     pub triangle_count: u64,

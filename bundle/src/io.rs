@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 use sha2::{Digest, Sha256};
 
 use super::manifest::*;
-use super::{BundleError, FORMAT_NAME, FORMAT_VERSION};
+use super::{BundleError, FORMAT_NAME, FORMAT_VERSION, NO_MATERIAL};
 
 /// Bytes of one record of `instances.bin`: translation [f64; 3] (local frame, metres), linear
 /// part [f32; 9] (column-major 3×3: rotation × scale, template frame → local frame), template id
@@ -36,7 +36,7 @@ pub struct TemplateMesh {
     pub source: String,
     pub positions: Vec<[f32; 3]>,
     pub indices: Vec<[u32; 3]>,
-    /// Per triangle, an index into the bundle's material table.
+    /// Per triangle, a material id (the `index` of a manifest material).
     pub materials: Vec<u8>,
 }
 
@@ -290,7 +290,8 @@ impl Bundle {
             hist[v as usize] += 1;
         }
         let last = hist.iter().rposition(|&c| c > 0).map_or(0, |i| i + 1);
-        hist.truncate(last.max(m.materials.len()));
+        let table_end = m.materials.iter().map(|x| x.index as usize + 1).max();
+        hist.truncate(last.max(table_end.unwrap_or(0)));
         m.material_raster.histogram = hist;
         digests.push(f.finish(MATERIALS_FILE)?);
 
@@ -390,7 +391,14 @@ impl Bundle {
                 self.templates.len()
             )));
         }
-        Ok(())
+        // Refuse to write what a reader would refuse.
+        check_material_table(&self.manifest.materials, &dir.join(MANIFEST_FILE))?;
+        check_material_ids(
+            &self.manifest.materials,
+            &self.material_raster,
+            &self.templates,
+            dir,
+        )
     }
 
     /// Read and validate `dir/manifest.toml` only (for summaries).
@@ -615,6 +623,8 @@ impl Bundle {
                 ),
             });
         }
+        check_material_table(&manifest.materials, &dir.join(MANIFEST_FILE))?;
+        check_material_ids(&manifest.materials, &material_raster, &templates, dir)?;
         Ok(Bundle {
             manifest,
             terrain,
@@ -645,6 +655,91 @@ impl Bundle {
     }
 }
 
+/// Checks the material table of a manifest (`path` names it): indices unique and below
+/// [`NO_MATERIAL`], every BRDF within [`crate::BRDF_PARAM_RANGES`].
+pub(crate) fn check_material_table(materials: &[Material], path: &Path) -> Result<(), BundleError> {
+    let mut seen: [Option<usize>; 256] = [None; 256];
+    for (k, m) in materials.iter().enumerate() {
+        if m.index == NO_MATERIAL {
+            return Err(BundleError::Manifest {
+                path: path.into(),
+                message: format!(
+                    "materials[{k}] (`{}`): index {NO_MATERIAL} is reserved for \"no material\" (use 0–254)",
+                    m.name
+                ),
+            });
+        }
+        if let Some(j) = seen[m.index as usize].replace(k) {
+            return Err(BundleError::Manifest {
+                path: path.into(),
+                message: format!(
+                    "materials[{k}] (`{}`) and materials[{j}] (`{}`) have the same index {}",
+                    m.name, materials[j].name, m.index
+                ),
+            });
+        }
+        m.brdf.validate().map_err(|source| BundleError::Brdf {
+            path: path.into(),
+            index: m.index,
+            name: m.name.clone(),
+            source,
+        })?;
+    }
+    Ok(())
+}
+
+/// Checks that every id of the material raster (but [`NO_MATERIAL`]) and of the template
+/// triangles is the index of a material; the error names `dir/materials.u8` or
+/// `dir/templates.bin` and counts the pixels or triangles of each unknown id.
+pub(crate) fn check_material_ids(
+    materials: &[Material],
+    raster: &[u8],
+    templates: &[TemplateMesh],
+    dir: &Path,
+) -> Result<(), BundleError> {
+    let mut known = [false; 256];
+    for m in materials {
+        known[m.index as usize] = true;
+    }
+    let unknown = |counts: &[u64; 256], skip_no_material: bool| -> Vec<(u8, u64)> {
+        (0..256)
+            .filter(|&i| counts[i] > 0 && !known[i] && !(skip_no_material && i == 255))
+            .map(|i| (i as u8, counts[i]))
+            .collect()
+    };
+    let mut known_ids: Vec<u8> = materials.iter().map(|m| m.index).collect();
+    known_ids.sort_unstable();
+    let mut counts = [0u64; 256];
+    for &v in raster {
+        counts[v as usize] += 1;
+    }
+    let ids = unknown(&counts, true);
+    if !ids.is_empty() {
+        return Err(BundleError::UnknownMaterialIds {
+            path: dir.join(MATERIALS_FILE),
+            counted: "pixel",
+            ids,
+            known: known_ids,
+        });
+    }
+    let mut counts = [0u64; 256];
+    for t in templates {
+        for &v in &t.materials {
+            counts[v as usize] += 1;
+        }
+    }
+    let ids = unknown(&counts, false);
+    if !ids.is_empty() {
+        return Err(BundleError::UnknownMaterialIds {
+            path: dir.join(TEMPLATES_FILE),
+            counted: "triangle",
+            ids,
+            known: known_ids,
+        });
+    }
+    Ok(())
+}
+
 fn f32s(b: &[u8]) -> Vec<f32> {
     b.chunks_exact(4)
         .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
@@ -660,6 +755,7 @@ fn u32s(b: &[u8]) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::{BrdfSpec, Spectrum};
 
     fn sample() -> Bundle {
         let manifest = Manifest {
@@ -848,6 +944,129 @@ mod tests {
         assert!(b.write(&dir, false).is_err());
         assert_eq!(std::fs::read_dir(&parent).unwrap().count(), 0);
         std::fs::remove_dir_all(&parent).unwrap();
+    }
+
+    fn tmpdir(name: &str) -> PathBuf {
+        let dir = std::env::temp_dir().join(format!("bundle-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        dir
+    }
+
+    /// `sample()` with the material indices 3 (grass) and 9 (leaf) instead of 0 and 1.
+    fn sparse_sample() -> Bundle {
+        let mut b = sample();
+        b.manifest.materials[0].index = 3;
+        b.manifest.materials[1].index = 9;
+        b.material_raster = vec![3, 9, 255, 3];
+        b.templates[0].materials = vec![9];
+        b
+    }
+
+    /// Rationale: material ids are the manifest's `index`, not positions in its list; a table
+    /// with gaps (3 and 9) must round-trip, with the histogram counted per index.
+    #[test]
+    fn non_contiguous_material_indices_round_trip() {
+        let dir = tmpdir("sparse");
+        let b = sparse_sample();
+        let written = b.write(&dir, false).unwrap();
+        let back = Bundle::open(&dir).unwrap();
+        assert_eq!(back.material_raster, b.material_raster);
+        assert_eq!(back.templates[0].materials, vec![9]);
+        let h = &written.material_raster.histogram;
+        assert_eq!((h[3], h[9], h[255]), (2, 1, 1));
+        // Only the index counts: listing 9 before 3 changes nothing.
+        let mut b2 = b.clone();
+        b2.manifest.materials.reverse();
+        b2.write(&dir, true).unwrap();
+        Bundle::open(&dir).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rationale: an id in materials.u8 or templates.bin without a `[[materials]]` entry would
+    /// be drawn with some other material (or read past the table); readers must refuse it,
+    /// naming the file, each unknown id and its pixel or triangle count, and the writer must
+    /// not produce such a bundle.
+    #[test]
+    fn unknown_material_ids_are_refused_with_counts() {
+        let dir = tmpdir("unknown-ids");
+        sparse_sample().write(&dir, false).unwrap();
+        // Raster: ids 7 (2 pixels) and 12 (1 pixel) have no material; 255 is "no material".
+        std::fs::write(dir.join("materials.u8"), [3u8, 7, 7, 12]).unwrap();
+        let e = Bundle::open(&dir).unwrap_err();
+        match &e {
+            BundleError::UnknownMaterialIds { path, ids, .. } => {
+                assert_eq!(path, &dir.join("materials.u8"));
+                assert_eq!(ids, &vec![(7, 2), (12, 1)]);
+            }
+            other => panic!("{other}"),
+        }
+        let msg = e.to_string();
+        for needle in ["materials.u8", "7 (2 pixels)", "12 (1 pixel)", "ids 3, 9"] {
+            assert!(msg.contains(needle), "`{needle}` not in: {msg}");
+        }
+        // Templates: flip the triangle's material byte to 4.
+        std::fs::write(dir.join("materials.u8"), [3u8, 9, 255, 3]).unwrap();
+        let m = Bundle::read_manifest(&dir).unwrap();
+        let t = dir.join("templates.bin");
+        let mut bytes = std::fs::read(&t).unwrap();
+        bytes[m.templates[0].materials_offset as usize] = 4;
+        std::fs::write(&t, bytes).unwrap();
+        let msg = Bundle::open(&dir).unwrap_err().to_string();
+        assert!(
+            msg.contains("templates.bin") && msg.contains("4 (1 triangle)"),
+            "{msg}"
+        );
+        // The writer refuses both.
+        let mut b = sparse_sample();
+        b.material_raster[1] = 0;
+        let msg = b.write(&dir, true).unwrap_err().to_string();
+        assert!(
+            msg.contains("materials.u8") && msg.contains("0 (1 pixel)"),
+            "{msg}"
+        );
+        let mut b = sparse_sample();
+        b.templates[0].materials[0] = 255;
+        let msg = b.write(&dir, true).unwrap_err().to_string();
+        assert!(
+            msg.contains("templates.bin") && msg.contains("255 (1 triangle)"),
+            "{msg}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rationale: the material table itself must be usable: unique indices below 255, and BRDF
+    /// parameters within the shared range table (what `simulate` accepts).
+    #[test]
+    fn bad_material_tables_are_refused() {
+        let dir = tmpdir("bad-table");
+        let mut b = sparse_sample();
+        b.manifest.materials[1].index = 3;
+        let msg = b.write(&dir, false).unwrap_err().to_string();
+        assert!(msg.contains("same index 3"), "{msg}");
+        let mut b = sparse_sample();
+        b.manifest.materials[0].index = 255;
+        let msg = b.write(&dir, false).unwrap_err().to_string();
+        assert!(msg.contains("reserved"), "{msg}");
+        // A manifest edited to RPV k = 5 is refused at open, naming material and parameter.
+        sparse_sample().write(&dir, false).unwrap();
+        let mpath = dir.join("manifest.toml");
+        let text = std::fs::read_to_string(&mpath).unwrap();
+        let mut m: Manifest = toml::from_str(&text).unwrap();
+        m.materials[0].brdf = BrdfSpec::Rpv {
+            rho_0: Spectrum::Constant(0.1),
+            k: Spectrum::Constant(5.0),
+            g: Spectrum::Constant(0.0),
+            rho_c: None,
+        };
+        std::fs::write(&mpath, toml::to_string(&m).unwrap()).unwrap();
+        let msg = Bundle::open(&dir).unwrap_err().to_string();
+        assert!(
+            msg.contains("manifest.toml")
+                && msg.contains("material `grass` (index 3)")
+                && msg.contains("`k` = 5 must lie in [0, 2]"),
+            "{msg}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]
