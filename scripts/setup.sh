@@ -27,6 +27,13 @@ if ! command -v cargo >/dev/null 2>&1; then
     exit 1
 fi
 
+# fmt and clippy run in CI (.ci/run); rustup toolchains may lack them.
+if command -v rustup >/dev/null 2>&1; then
+    for c in rustfmt clippy; do
+        rustup component list --installed 2>/dev/null | grep -q "^$c" || rustup component add "$c" >/dev/null 2>&1 || echo "setup: could not add the $c component" >&2
+    done
+fi
+
 echo "setup: fetching crates and building (release)"
 cargo fetch --locked 2>/dev/null || cargo fetch
 cargo build --release --workspace --bins

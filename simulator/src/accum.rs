@@ -211,4 +211,3 @@ pub struct MeasureResult {
     pub method: Method,
     pub acc: Accum,
 }
-

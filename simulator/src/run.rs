@@ -9,6 +9,7 @@ use rayon::prelude::*;
 
 use crate::config::resolve::Experiment;
 use crate::integrator::backward::{self, Adjoint, AtSensor};
+use crate::integrator::backward_alis::{ChannelPath, ReferenceLayers};
 use crate::integrator::forward::{self, ForwardTargets, Photon};
 use crate::integrator::geometry::layers::Layers;
 use crate::integrator::geometry::scene_layers::SceneInLayers;
@@ -16,7 +17,6 @@ use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::geometry::Geometry;
 use crate::integrator::settings::IntegratorKind;
-use crate::integrator::backward_alis::{ChannelPath, ReferenceLayers};
 use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton, Weight};
 use crate::integrator::Accum;
 use crate::measure::{Measure, MeasureKind};
@@ -274,9 +274,14 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     mu_norm: exp.mu_norm(),
                     wavelength: opt.wavelength,
                 };
-                backward_block::<_, B>(&g, settings, range, stream, |rng| {
-                    sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d))
-                }, hint)
+                backward_block::<_, B>(
+                    &g,
+                    settings,
+                    range,
+                    stream,
+                    |rng| sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
+                    hint,
+                )
             } else {
                 let g = SceneInLayers {
                     atmosphere: &opt.atmosphere,
@@ -285,9 +290,14 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     sun: exp.sun_dir,
                     wavelength: opt.wavelength,
                 };
-                backward_block::<_, B>(&g, settings, range, stream, |rng| {
-                    Some(sensor::scene_start(&g, m, cell, rng))
-                }, hint)
+                backward_block::<_, B>(
+                    &g,
+                    settings,
+                    range,
+                    stream,
+                    |rng| Some(sensor::scene_start(&g, m, cell, rng)),
+                    hint,
+                )
             }
         }
         Method::Backward => {
@@ -298,18 +308,28 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     sun: exp.sun_dir,
                     mu_norm: exp.mu_norm(),
                 };
-                backward_block::<_, B>(&g, settings, range, stream, |rng| {
-                    sensor::spherical_start(shell, m, cell, rng).map(|(p, l, d)| ((p, l), d))
-                }, hint)
+                backward_block::<_, B>(
+                    &g,
+                    settings,
+                    range,
+                    stream,
+                    |rng| sensor::spherical_start(shell, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
+                    hint,
+                )
             } else {
                 let g = Layers {
                     atmosphere: &opt.atmosphere,
                     surface: &opt.surface,
                     sun: exp.sun_dir,
                 };
-                backward_block::<_, B>(&g, settings, range, stream, |rng| {
-                    Some(sensor::backward_start(opt, m, cell, rng))
-                }, hint)
+                backward_block::<_, B>(
+                    &g,
+                    settings,
+                    range,
+                    stream,
+                    |rng| Some(sensor::backward_start(opt, m, cell, rng)),
+                    hint,
+                )
             }
         }
     }

@@ -147,7 +147,12 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
 }
 
 /// Start point and direction of a sample of a 3D-scene measure in a plane-parallel atmosphere.
-pub fn scene_start(ctx: &SceneInLayers, m: &Measure, cell: usize, rng: &mut Stream) -> (DVec3, DVec3) {
+pub fn scene_start(
+    ctx: &SceneInLayers,
+    m: &Measure,
+    cell: usize,
+    rng: &mut Stream,
+) -> (DVec3, DVec3) {
     match scene_aim(ctx.scene, m, cell, rng) {
         SceneAim::Through { point: q, view: v } => {
             // Started at the altitude that sees the whole scene and atmosphere.
@@ -184,7 +189,12 @@ pub fn scene_start_sph(
 }
 
 /// Starting altitude and path direction of a backward sample (distant measures start at TOA).
-pub fn backward_start_altitude(toa: f64, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
+pub fn backward_start_altitude(
+    toa: f64,
+    m: &Measure,
+    cell: usize,
+    rng: &mut Stream,
+) -> (f64, DVec3) {
     match &m.kind {
         MeasureKind::Distant { directions, .. } => (toa, -directions[cell]),
         MeasureKind::Radiancemeter { origin, look, .. } => (origin.z, *look),
@@ -197,8 +207,12 @@ pub fn backward_start_altitude(toa: f64, m: &Measure, cell: usize, rng: &mut Str
 }
 
 /// Starting optical depth and path direction of a backward sample.
-pub fn backward_start(opt: &OpticalState, m: &Measure, cell: usize, rng: &mut Stream) -> (f64, DVec3) {
+pub fn backward_start(
+    opt: &OpticalState,
+    m: &Measure,
+    cell: usize,
+    rng: &mut Stream,
+) -> (f64, DVec3) {
     let (z, d) = backward_start_altitude(opt.atmosphere.toa(), m, cell, rng);
     (opt.atmosphere.tau_at_altitude(z), d)
 }
-

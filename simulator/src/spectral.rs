@@ -12,4 +12,3 @@ pub fn wavelength_groups_of(wavelengths: &[f64], group: Option<usize>) -> Vec<Ve
         }
     }
 }
-

@@ -56,7 +56,12 @@ fn edges(src: &Path) -> BTreeMap<(String, String), BTreeSet<String>> {
         if rel.starts_with("bin") || rel == Path::new("lib.rs") {
             continue;
         }
-        let first = rel.components().next().unwrap().as_os_str().to_string_lossy();
+        let first = rel
+            .components()
+            .next()
+            .unwrap()
+            .as_os_str()
+            .to_string_lossy();
         let module = first.trim_end_matches(".rs").to_string();
         let text = without_tests(&std::fs::read_to_string(&f).unwrap());
         for (i, _) in text.match_indices("crate::") {

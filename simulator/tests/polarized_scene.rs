@@ -93,7 +93,10 @@ fn flat_bundle_equals_1d_polarized_walk() {
             head(22)
         ));
         let (r3, r1) = (run_rows(&e3), run_rows(&e1));
-        assert!(r3.iter().all(|r| r.method == "scene"), "3D rows use the scene walk");
+        assert!(
+            r3.iter().all(|r| r.method == "scene"),
+            "3D rows use the scene walk"
+        );
         // The Rayleigh layer polarizes: |Q| is a sizeable fraction of I off nadir.
         let q_max = r1
             .iter()
@@ -138,7 +141,10 @@ fn polarized_ortho_writes_stokes_bands() {
     let res = simulator::run::run(&e3, false);
     let imgs = simulator::products::imagery::image_products(&e3, &res);
     let img = &imgs[0];
-    let st = img.stokes.as_ref().expect("polarized images carry Q, U, DoLP");
+    let st = img
+        .stokes
+        .as_ref()
+        .expect("polarized images carry Q, U, DoLP");
     let written = simulator::products::imagery::write_files(&out, &e3, img)
         .unwrap()
         .0;
@@ -156,10 +162,18 @@ fn polarized_ortho_writes_stokes_bands() {
         for (k, w) in want.iter().enumerate() {
             let band = ds.rasterband(k + 1).unwrap();
             let buf = band
-                .read_as::<f32>((0, 0), (img.width, img.height), (img.width, img.height), None)
+                .read_as::<f32>(
+                    (0, 0),
+                    (img.width, img.height),
+                    (img.width, img.height),
+                    None,
+                )
                 .unwrap();
             for (g, v) in buf.data().iter().zip(w) {
-                assert!((*g as f64 - v).abs() <= 1e-6 * v.abs().max(1e-3), "{name}: {g} vs {v}");
+                assert!(
+                    (*g as f64 - v).abs() <= 1e-6 * v.abs().max(1e-3),
+                    "{name}: {g} vs {v}"
+                );
             }
         }
     }

@@ -31,7 +31,15 @@ use crate::rng::Stream;
 pub trait Adjoint: Weight {
     /// Add `k·w·acc` for an accumulation of scattering `acc` (`ω·P·T`, or matrices) at a
     /// flight along `d`.
-    fn see_sun_volume(&self, t: &mut Self::Tally, order: u32, acc: &Self::Phase, d: DVec3, sun: DVec3, k: f64);
+    fn see_sun_volume(
+        &self,
+        t: &mut Self::Tally,
+        order: u32,
+        acc: &Self::Phase,
+        d: DVec3,
+        sun: DVec3,
+        k: f64,
+    );
     /// Add the sunlight reflected by `surface` into the path arriving along `d`; `visible()`
     /// (the Sun's transmittance times visibility, possibly a shadow ray) is called only where
     /// the surface reflects sunlight at all.
@@ -48,7 +56,15 @@ pub trait Adjoint: Weight {
 
 impl Adjoint for Scalar {
     #[inline]
-    fn see_sun_volume(&self, t: &mut OrderSplit, order: u32, acc: &f64, _: DVec3, _: DVec3, k: f64) {
+    fn see_sun_volume(
+        &self,
+        t: &mut OrderSplit,
+        order: u32,
+        acc: &f64,
+        _: DVec3,
+        _: DVec3,
+        k: f64,
+    ) {
         t.add(order, self.0 * acc * k);
     }
     #[inline]
@@ -163,7 +179,11 @@ pub fn walk<G: Geometry<W>, W: Adjoint>(
         }
         match event {
             Event::Escape => break,
-            Event::Collision { pos: p, omega, phase } => {
+            Event::Collision {
+                pos: p,
+                omega,
+                phase,
+            } => {
                 pos = p;
                 if !expected && omega > 0.0 {
                     let mut a = W::zero_phase();

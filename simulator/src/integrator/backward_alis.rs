@@ -751,7 +751,15 @@ impl Weight for ChannelPath<'_> {
 
 impl Adjoint for ChannelPath<'_> {
     #[inline]
-    fn see_sun_volume(&self, t: &mut ChannelTally, order: u32, acc: &Self::Phase, _: DVec3, _: DVec3, k: f64) {
+    fn see_sun_volume(
+        &self,
+        t: &mut ChannelTally,
+        order: u32,
+        acc: &Self::Phase,
+        _: DVec3,
+        _: DVec3,
+        k: f64,
+    ) {
         for (tc, a) in t[..self.g.outputs()].iter_mut().zip(acc) {
             tc.add(order, self.w * a * k);
         }
@@ -811,7 +819,15 @@ impl<'a> Geometry<ChannelPath<'a>> for ReferenceLayers<'a> {
         let nc = g.atms.len();
         if let Some(acc) = acc {
             let mut tmp = [0.0_f64; MAX_CHANNELS];
-            expected(g, &w.e[..nc], z, d, self.sun, &mut w.cache, &mut tmp[..nc.max(g.outputs())]);
+            expected(
+                g,
+                &w.e[..nc],
+                z,
+                d,
+                self.sun,
+                &mut w.cache,
+                &mut tmp[..nc.max(g.outputs())],
+            );
             acc[..g.outputs()].copy_from_slice(&tmp[..g.outputs()]);
         }
         let reference = g.reference;

@@ -27,7 +27,7 @@ use glam::DVec3;
 
 use super::settings::IntegratorSettings;
 use super::surface::SurfaceAt;
-use super::weight::{survives, OrderSplit, Scalar, StokesPhoton, StokesTally, Weight};
+use super::weight::{survives, OrderSplit, Scalar, StokesPhoton, StokesTally, Toward, Weight};
 use crate::accum::Accum;
 use crate::atmosphere::{FlightEnd, PlaneParallel};
 use crate::bsdf::Bsdf;
@@ -48,10 +48,17 @@ pub struct ForwardTargets<'a> {
 pub trait Photon: Weight {
     /// An unpolarized photon of unit weight entering along `d`.
     fn entering(d: DVec3) -> Self;
-    /// `acc` (ω·P or ω·F times transmittance integrals) scattered into `v`, times `im/4`.
-    #[allow(clippy::too_many_arguments)]
-    fn local_estimate(&self, t: &mut Self::Tally, order: u32, acc: &Self::Phase, d: DVec3, v: DVec3, e_v: DVec3, im: f64);
-    /// Reflection at the ground into `v` of a photon arriving along `d`, reaching the ground
+    /// `acc` (ω·P or ω·F times transmittance integrals) scattered into `to`, times `im/4`.
+    fn local_estimate(
+        &self,
+        t: &mut Self::Tally,
+        order: u32,
+        acc: &Self::Phase,
+        d: DVec3,
+        to: Toward,
+        im: f64,
+    );
+    /// Reflection at the ground into `to` of a photon arriving along `d`, reaching the ground
     /// with probability `p_hit`, seen through transmittance·π `t_ground`.
     #[allow(clippy::too_many_arguments)]
     fn ground_estimate(
@@ -60,8 +67,7 @@ pub trait Photon: Weight {
         order: u32,
         surface: &Bsdf,
         d: DVec3,
-        v: DVec3,
-        e_v: DVec3,
+        to: Toward,
         p_hit: f64,
         t_ground: f64,
     );
@@ -74,7 +80,15 @@ impl Photon for Scalar {
         Scalar(1.0)
     }
     #[inline]
-    fn local_estimate(&self, t: &mut OrderSplit, order: u32, acc: &f64, _: DVec3, _: DVec3, _: DVec3, im: f64) {
+    fn local_estimate(
+        &self,
+        t: &mut OrderSplit,
+        order: u32,
+        acc: &f64,
+        _: DVec3,
+        _: Toward,
+        im: f64,
+    ) {
         t.add(order, self.0 * 0.25 * im * acc);
     }
     #[inline]
@@ -84,12 +98,11 @@ impl Photon for Scalar {
         order: u32,
         surface: &Bsdf,
         d: DVec3,
-        v: DVec3,
-        _: DVec3,
+        to: Toward,
         p_hit: f64,
         t_ground: f64,
     ) {
-        let f = surface.eval(-d, v);
+        let f = surface.eval(-d, to.v);
         if f > 0.0 {
             t.add(order, self.0 * p_hit * f * t_ground);
         }
@@ -111,11 +124,10 @@ impl Photon for StokesPhoton {
         order: u32,
         acc: &crate::stokes::PhaseMatrix,
         d: DVec3,
-        v: DVec3,
-        e_v: DVec3,
+        to: Toward,
         im: f64,
     ) {
-        self.send(t, order, acc, d, v, e_v, 0.25 * im);
+        self.send(t, order, acc, d, to, 0.25 * im);
     }
     #[inline]
     fn ground_estimate(
@@ -124,16 +136,15 @@ impl Photon for StokesPhoton {
         order: u32,
         surface: &Bsdf,
         d: DVec3,
-        v: DVec3,
-        e_v: DVec3,
+        to: Toward,
         p_hit: f64,
         t_ground: f64,
     ) {
-        match surface.matrix(-d, v) {
-            Some(m) if m.a1 > 0.0 => self.send(t, order, &m, d, v, e_v, p_hit * t_ground),
+        match surface.matrix(-d, to.v) {
+            Some(m) if m.a1 > 0.0 => self.send(t, order, &m, d, to, p_hit * t_ground),
             Some(_) => {}
             None => {
-                let f = surface.eval(-d, v);
+                let f = surface.eval(-d, to.v);
                 if f > 0.0 {
                     Self::add_intensity(t, order, self.s[0] * p_hit * f * t_ground);
                 }
@@ -197,7 +208,15 @@ pub fn run_block<W: Photon>(
     let mut scratch = Scratch::<W>::new(atmosphere, targets);
     for s in samples {
         let mut rng = Stream::new(seed, [ids[0], ids[1], ids[2], s]);
-        walk::<W>(atmosphere, surface, sun_dir, targets, settings, &mut rng, &mut scratch);
+        walk::<W>(
+            atmosphere,
+            surface,
+            sun_dir,
+            targets,
+            settings,
+            &mut rng,
+            &mut scratch,
+        );
         for (c, t) in scratch.tally.iter().enumerate() {
             W::record(acc, c, t, 1.0);
         }
@@ -232,8 +251,12 @@ pub fn walk<W: Photon>(
             if d.z < 0.0 {
                 let p_hit = (-(total - tau) / (-d.z)).exp();
                 for (k, v) in dirs.iter().enumerate() {
-                    let (tg, e) = (scratch.t_ground[k], scratch.e_theta[k]);
-                    w.ground_estimate(&mut scratch.tally[k], order, surface, d, *v, e, p_hit, tg);
+                    let to = Toward {
+                        v: *v,
+                        e_v: scratch.e_theta[k],
+                    };
+                    let tg = scratch.t_ground[k];
+                    w.ground_estimate(&mut scratch.tally[k], order, surface, d, to, p_hit, tg);
                 }
             }
             if settings.expected_local_estimate {
@@ -246,8 +269,11 @@ pub fn walk<W: Photon>(
                         W::accumulate(&mut acc, atm.phase(l), cos, atm.albedo(l), i);
                     });
                     if W::phase_intensity(&acc) > 0.0 {
-                        let e = scratch.e_theta[k];
-                        w.local_estimate(&mut scratch.tally[k], order, &acc, d, *v, e, im);
+                        let to = Toward {
+                            v: *v,
+                            e_v: scratch.e_theta[k],
+                        };
+                        w.local_estimate(&mut scratch.tally[k], order, &acc, d, to, im);
                     }
                 }
             }
@@ -281,8 +307,11 @@ pub fn walk<W: Photon>(
                         let im = scratch.inv_mu[k];
                         let mut acc = W::zero_phase();
                         W::accumulate(&mut acc, phase, d.dot(*v), omega, (-tau * im).exp());
-                        let e = scratch.e_theta[k];
-                        w.local_estimate(&mut scratch.tally[k], order, &acc, d, *v, e, im);
+                        let to = Toward {
+                            v: *v,
+                            e_v: scratch.e_theta[k],
+                        };
+                        w.local_estimate(&mut scratch.tally[k], order, &acc, d, to, im);
                     }
                 }
                 d = w.scatter(phase, omega, d, rng);

@@ -28,4 +28,3 @@ pub struct IntegratorSettings {
     /// Samples before the first precision check (None: 4 blocks).
     pub first_check_spp: Option<u64>,
 }
-

@@ -217,7 +217,6 @@ macro_rules! polarized_tally {
     };
 }
 
-
 /// Accumulated phase matrices start at zero.
 const ZERO_MATRIX: PhaseMatrix = PhaseMatrix {
     a1: 0.0,
@@ -227,6 +226,14 @@ const ZERO_MATRIX: PhaseMatrix = PhaseMatrix {
     b2: 0.0,
     a4: 0.0,
 };
+
+/// A direction a forward photon scores towards: `v` (towards the sensor) and the first axis
+/// `e_v` of its Stokes frame.
+#[derive(Clone, Copy, Debug)]
+pub struct Toward {
+    pub v: DVec3,
+    pub e_v: DVec3,
+}
 
 /// A photon's Stokes vector `S` (its first component is the intensity weight) travelling with
 /// frame axis `e1` (forward estimator).
@@ -245,11 +252,19 @@ impl StokesPhoton {
         }
     }
 
-    /// Add `k·(F·S scattered from d into v, in v's frame with axis e_v)` to `t`.
+    /// Add `k·(F·S scattered from d into to.v, in to.v's frame with axis to.e_v)` to `t`.
     #[inline]
-    pub fn send(&self, t: &mut StokesTally, order: u32, f: &PhaseMatrix, d: DVec3, v: DVec3, e_v: DVec3, k: f64) {
-        let (sv, lv) = scatter(self.s, d, self.e1, v, f);
-        let sm = rotate_to(sv, v, lv, e_v);
+    pub fn send(
+        &self,
+        t: &mut StokesTally,
+        order: u32,
+        f: &PhaseMatrix,
+        d: DVec3,
+        to: Toward,
+        k: f64,
+    ) {
+        let (sv, lv) = scatter(self.s, d, self.e1, to.v, f);
+        let sm = rotate_to(sv, to.v, lv, to.e_v);
         add_stokes(t, order, [sm[0] * k, sm[1] * k, sm[2] * k, sm[3] * k]);
     }
 }
@@ -368,7 +383,15 @@ impl MuellerPath {
     /// Score `k·T·R·(F·(1,0,0,0))`: unpolarized sunlight arriving along `−sun` scattered through
     /// `f` into the path (which leaves the interaction along `−d`).
     #[inline]
-    pub fn see_sun(&self, t: &mut StokesTally, order: u32, f: &PhaseMatrix, d: DVec3, sun: DVec3, k: f64) {
+    pub fn see_sun(
+        &self,
+        t: &mut StokesTally,
+        order: u32,
+        f: &PhaseMatrix,
+        d: DVec3,
+        sun: DVec3,
+        k: f64,
+    ) {
         let w_out = -d;
         let (_, _, l_out) = plane(-sun, w_out, self.e1);
         let sv = DVec4::new(f.a1, f.b1, 0.0, 0.0);
@@ -412,7 +435,8 @@ impl Weight for MuellerPath {
         match surface.matrix(d2, w_out) {
             Some(m) if m.a1 > 0.0 => {
                 let (_, l_in, l_out) = plane(-d2, w_out, self.e1);
-                self.t = self.t * rotation(w_out, l_out, self.e1) * mueller(&m) * (smp.weight / m.a1);
+                self.t =
+                    self.t * rotation(w_out, l_out, self.e1) * mueller(&m) * (smp.weight / m.a1);
                 self.e1 = l_in;
             }
             Some(_) => return None,

@@ -17,10 +17,10 @@
 use std::path::{Path, PathBuf};
 
 use super::image::{write_geotiff, write_quicklook_png, ImageBand};
+use crate::accum::MeasureResult;
 use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::measure::MeasureKind;
-use crate::accum::MeasureResult;
 
 /// One image measure's results, per wavelength.
 #[derive(Clone, Debug)]
@@ -189,8 +189,18 @@ pub fn write_files(
         ];
         if let Some(st) = &p.stokes {
             sets.extend([
-                ("q", &st.q, "1", "Stokes Q (BRF-normalised, meridian frame of the view)"),
-                ("u", &st.u, "1", "Stokes U (BRF-normalised, meridian frame of the view)"),
+                (
+                    "q",
+                    &st.q,
+                    "1",
+                    "Stokes Q (BRF-normalised, meridian frame of the view)",
+                ),
+                (
+                    "u",
+                    &st.u,
+                    "1",
+                    "Stokes U (BRF-normalised, meridian frame of the view)",
+                ),
                 ("dolp", &st.dolp, "1", "degree of linear polarization"),
                 (
                     "dolp_stderr",

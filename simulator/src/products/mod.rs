@@ -16,11 +16,11 @@ pub mod netcdf;
 
 use std::path::Path;
 
+use crate::accum::MeasureResult;
 use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::frame::angles_from_direction;
 use crate::measure::MeasureKind;
-use crate::accum::MeasureResult;
 
 /// One output row: one measure, wavelength and direction.
 #[derive(Clone, Debug)]

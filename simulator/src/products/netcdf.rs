@@ -433,10 +433,25 @@ fn write_image(
     ];
     if let Some(st) = &p.stokes {
         sets.extend([
-            ("q", &st.q, "1", "Stokes Q pi Q / (E0 cos SZA), meridian frame of the view"),
-            ("u", &st.u, "1", "Stokes U pi U / (E0 cos SZA), meridian frame of the view"),
+            (
+                "q",
+                &st.q,
+                "1",
+                "Stokes Q pi Q / (E0 cos SZA), meridian frame of the view",
+            ),
+            (
+                "u",
+                &st.u,
+                "1",
+                "Stokes U pi U / (E0 cos SZA), meridian frame of the view",
+            ),
             ("dolp", &st.dolp, "1", "degree of linear polarization"),
-            ("dolp_stderr", &st.dolp_stderr, "1", "standard error of dolp"),
+            (
+                "dolp_stderr",
+                &st.dolp_stderr,
+                "1",
+                "standard error of dolp",
+            ),
         ]);
     }
     for (name, data, units, long) in sets {

@@ -74,10 +74,7 @@ pub(crate) fn scene_surface<'m>(
             .get(h.material as usize)
             .map_or(Cow::Owned(SurfaceModel::Black), Cow::Borrowed)
     };
-    SurfaceAt::Scene {
-        model,
-        n: h.normal,
-    }
+    SurfaceAt::Scene { model, n: h.normal }
 }
 
 impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
