@@ -317,11 +317,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     hint,
                 )
             } else {
-                let g = Layers {
-                    atmosphere: &opt.atmosphere,
-                    surface: &opt.surface,
-                    sun: exp.sun_dir,
-                };
+                let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir);
                 backward_block::<_, B>(
                     &g,
                     settings,

@@ -14,10 +14,23 @@ use crate::integrator::weight::Weight;
 use crate::rng::Stream;
 
 pub struct Layers<'a> {
-    pub atmosphere: &'a PlaneParallel,
-    pub surface: &'a Bsdf,
+    atmosphere: &'a PlaneParallel,
+    surface: &'a Bsdf,
     /// Unit vector towards the Sun (`z > 0`).
-    pub sun: DVec3,
+    sun: DVec3,
+    /// The Sun's transmittance to the ground, `exp(−τ*/μ_s)`.
+    t_sun_ground: f64,
+}
+
+impl<'a> Layers<'a> {
+    pub fn new(atmosphere: &'a PlaneParallel, surface: &'a Bsdf, sun: DVec3) -> Self {
+        Layers {
+            atmosphere,
+            surface,
+            sun,
+            t_sun_ground: (-atmosphere.total_tau() / sun.z).exp(),
+        }
+    }
 }
 
 impl<W: Weight> Geometry<W> for Layers<'_> {
@@ -72,7 +85,7 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
     }
     #[inline]
     fn sun_at_surface(&self, _: &()) -> f64 {
-        (-self.atmosphere.total_tau() / self.sun.z).exp()
+        self.t_sun_ground
     }
     #[inline]
     fn leave(&self, _: &(), _: DVec3) -> f64 {
