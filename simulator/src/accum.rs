@@ -189,7 +189,7 @@ impl Accum {
 pub enum Method {
     Forward,
     Backward,
-    /// Backward walk through a 3D scene (`integrator::scene_walk`).
+    /// Backward walk through a 3D scene (`integrator::backward` over a scene geometry).
     Scene,
 }
 

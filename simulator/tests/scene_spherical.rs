@@ -1,4 +1,4 @@
-//! 3D scenes under spherical-shell atmospheres (`integrator/scene_walk_sph.rs`, the scene bent
+//! 3D scenes under spherical-shell atmospheres (`integrator/geometry/scene_shells.rs`, the scene bent
 //! onto the planet by `scene/curvature.rs`).
 //!
 //! Statistical comparisons use `common::check_all` (|diff| ≤ 4.5σ + max(1e-5, 2e-4·ref), σ the
