@@ -10,9 +10,13 @@
 //!   (solid-angle measure). All models sample the cosine-weighted hemisphere: their BRDFs are
 //!   smooth, so the weight `π·f_r` stays bounded, and eval/pdf/sample agree by construction.
 //!
-//! Adding a model: its file here with a doc header (parameters, units, reference), a variant
-//! in [`Bsdf`], and a variant in the config's `SurfaceConfig` (see CONTRIBUTING.md).
+//! Adding a model touches three files, all in this folder (see CONTRIBUTING.md): its file
+//! (doc header with parameters, units, ranges and reference; its constructor checking the
+//! ranges against `bundle::BRDF_PARAM_RANGES`; its tests),
+//! a variant of [`Bsdf`] here, and a variant of [`SurfaceConfig`] with its arm in
+//! [`SurfaceConfig::resolve`] (`config.rs`).
 
+pub mod config;
 pub mod hapke;
 pub mod lambertian;
 pub mod ocean;
@@ -21,6 +25,7 @@ pub mod rtls;
 
 use glam::DVec3;
 
+pub use config::SurfaceConfig;
 pub use hapke::Hapke;
 pub use lambertian::Lambertian;
 pub use ocean::Ocean;
