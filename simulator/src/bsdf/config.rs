@@ -5,7 +5,7 @@
 
 use serde::Deserialize;
 
-use super::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
+use super::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, RtlsHotspot};
 use crate::error::{ConfigCtx, ConfigError};
 use crate::spectral::SpectralValue;
 
@@ -26,6 +26,15 @@ pub enum SurfaceConfig {
         f_iso: SpectralValue,
         f_vol: SpectralValue,
         f_geo: SpectralValue,
+    },
+    /// RTLS with the Maignan et al. (2004) hot-spot factor (`rtls_hotspot.rs`).
+    RtlsHotspot {
+        f_iso: SpectralValue,
+        f_vol: SpectralValue,
+        f_geo: SpectralValue,
+        /// degrees.
+        #[serde(default = "default_xi0")]
+        xi0: SpectralValue,
     },
     Hapke {
         w: SpectralValue,
@@ -50,6 +59,10 @@ pub enum SurfaceConfig {
 
 fn yes() -> bool {
     true
+}
+
+fn default_xi0() -> SpectralValue {
+    SpectralValue::Scalar(super::rtls_hotspot::DEFAULT_XI0_DEG)
 }
 
 /// Any finite number: the model's constructor checks the range and names the parameter.
@@ -103,6 +116,24 @@ impl SurfaceConfig {
                 let c = spectral("f_geo", f_geo)?;
                 (0..nw)
                     .map(|i| Ok(Bsdf::Rtls(Rtls::new(a[i], b[i], c[i]).map_err(model)?)))
+                    .collect::<Result<_, ConfigError>>()?
+            }
+            SurfaceConfig::RtlsHotspot {
+                f_iso,
+                f_vol,
+                f_geo,
+                xi0,
+            } => {
+                let a = spectral("f_iso", f_iso)?;
+                let b = spectral("f_vol", f_vol)?;
+                let c = spectral("f_geo", f_geo)?;
+                let x = spectral("xi0", xi0)?;
+                (0..nw)
+                    .map(|i| {
+                        Ok(Bsdf::RtlsHotspot(
+                            RtlsHotspot::new(a[i], b[i], c[i], x[i]).map_err(model)?,
+                        ))
+                    })
                     .collect::<Result<_, ConfigError>>()?
             }
             SurfaceConfig::Ocean {

@@ -22,6 +22,7 @@ pub mod lambertian;
 pub mod ocean;
 pub mod rpv;
 pub mod rtls;
+pub mod rtls_hotspot;
 
 use glam::DVec3;
 
@@ -31,6 +32,7 @@ pub use lambertian::Lambertian;
 pub use ocean::Ocean;
 pub use rpv::Rpv;
 pub use rtls::Rtls;
+pub use rtls_hotspot::RtlsHotspot;
 
 use crate::frame::sample_cosine_hemisphere;
 
@@ -51,6 +53,8 @@ pub enum Bsdf {
     Lambertian(Lambertian),
     Rpv(Rpv),
     Rtls(Rtls),
+    /// RTLS with the Maignan et al. (2004) hot spot.
+    RtlsHotspot(RtlsHotspot),
     Hapke(Hapke),
     Ocean(Ocean),
 }
@@ -66,6 +70,7 @@ impl Bsdf {
             Bsdf::Lambertian(m) => m.eval(wi, wo),
             Bsdf::Rpv(m) => m.eval(wi, wo),
             Bsdf::Rtls(m) => m.eval(wi, wo),
+            Bsdf::RtlsHotspot(m) => m.eval(wi, wo),
             Bsdf::Hapke(m) => m.eval(wi, wo),
             Bsdf::Ocean(m) => m.eval(wi, wo),
         }
@@ -176,6 +181,7 @@ mod tests {
             Bsdf::Lambertian(Lambertian::new(0.3).unwrap()),
             Bsdf::Rpv(Rpv::new(0.2, 0.8, -0.2, 0.2).unwrap()),
             Bsdf::Rtls(Rtls::new(0.2, 0.05, 0.03).unwrap()),
+            Bsdf::RtlsHotspot(RtlsHotspot::new(0.2, 0.05, 0.03, 1.5).unwrap()),
             Bsdf::Hapke(Hapke::new(0.5, 0.3, 0.4, 15.0, 0.8, 0.06).unwrap()),
         ]
     }
