@@ -30,6 +30,7 @@ pub use bundle;
 pub mod config;
 pub mod error;
 pub mod frame;
+pub mod illumination;
 pub mod integrator;
 pub mod measure;
 pub mod optics;

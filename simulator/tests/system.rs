@@ -125,6 +125,77 @@ fn no_atmosphere_equals_bare_surface() {
     assert!((a - 0.3).abs() < 1e-12, "{a}");
 }
 
+/// RTLS-H (Ross-Li with the Maignan et al. 2004 hot spot) over a bare surface: with no
+/// atmosphere, or one of zero optical depth, the TOA BRF is the surface BRF π·f_r at the
+/// sensor geometry, by both walks, within the z-test of `check_all`. The views include the exact
+/// hot spot (view = Sun, ξ = 0), where the factor doubles the Ross scattering term and the
+/// reference is also the closed form f_iso + f_vol·(π/4)(2 sec θ − 1) + f_geo·(sec²θ − sec θ),
+/// views at ξ ≈ ξ0 and 3ξ0 from it, and views far from it.
+#[test]
+fn rtls_hotspot_bare_surface() {
+    use simulator::frame::direction_from_angles;
+    let (f_iso, f_vol, f_geo, sza) = (0.25, 0.12, 0.04, 30.0f64);
+    let surf = format!(
+        "type = \"rtls_hotspot\"\nf_iso = {f_iso}\nf_vol = {f_vol}\nf_geo = {f_geo}\nxi0 = 1.5"
+    );
+    // The Sun's azimuth in `base` is 40°.
+    let vza = [30.0, 31.5, 34.5, 0.0, 45.0, 60.0, 30.0];
+    let vaa = [40.0, 40.0, 40.0, 0.0, 130.0, 300.0, 220.0];
+    let sec = 1.0 / sza.to_radians().cos();
+    let hot_spot =
+        f_iso + f_vol * std::f64::consts::FRAC_PI_4 * (2.0 * sec - 1.0) + f_geo * (sec * sec - sec);
+    let mut errs = Vec::new();
+    for atm in [
+        "",
+        "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0",
+    ] {
+        for integrator in ["forward", "backward"] {
+            let exp = experiment(&base(
+                atm,
+                &surf,
+                sza,
+                integrator,
+                "",
+                &mdistant_toml("toa", &vza, &vaa, 1000),
+            ));
+            let bsdf = &exp.optics[0].surface;
+            let rows = run_rows(&exp);
+            let mut cmps = Vec::new();
+            for (r, (z, a)) in rows.iter().zip(vza.iter().zip(vaa)) {
+                let v = direction_from_angles(z.to_radians(), a.to_radians());
+                let (value, stderr) = r.brf.unwrap();
+                cmps.push(Cmp {
+                    label: format!("vza {z} vaa {a}"),
+                    reference: std::f64::consts::PI * bsdf.eval(exp.sun_dir, v),
+                    value,
+                    stderr,
+                });
+            }
+            cmps.push(Cmp {
+                label: "hot spot, closed form".into(),
+                reference: hot_spot,
+                ..cmps[0].clone()
+            });
+            let case = format!(
+                "RTLS-H, {} [{integrator}]",
+                if atm.is_empty() {
+                    "no atmosphere"
+                } else {
+                    "τ = 0"
+                }
+            );
+            println!(
+                "{case}: hot spot BRF {:.6} (closed form {hot_spot:.6}), 3ξ0 away {:.6}, forward {:.6}",
+                cmps[0].value, cmps[2].value, cmps[6].value
+            );
+            if let Err(e) = check_all(&case, &cmps) {
+                errs.push(e);
+            }
+        }
+    }
+    assert!(errs.is_empty(), "{}", errs.join("\n"));
+}
+
 /// Single scattering in closed form: with `max_depth = 1`, a homogeneous layer (τ, ω, P) over a
 /// Lambertian ground ρ gives BRF = ω P(Θ) / (4(μ0+μ)) · (1 − e^{−τ(1/μ0+1/μ)}) + ρ e^{−τ(1/μ0+1/μ)}
 /// (Chandrasekhar 1950; Liou 2002 §6.3), and the `brf_single` column of a full run equals the same

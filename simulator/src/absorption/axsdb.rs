@@ -119,8 +119,10 @@ impl DatabaseKind {
     }
 }
 
-/// What to do with a state outside a table's grid.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+/// What to do with a state outside a table's grid (`atmosphere.absorption_bounds` values:
+/// `"error"`, `"clamp"`, `"zero"`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum OutOfRange {
     /// Return [`AbsorptionError::OutOfRange`] (coordinate, value, range).
     #[default]

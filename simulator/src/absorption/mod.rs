@@ -9,6 +9,7 @@
 //! | `profile.rs`      | joseki/axsdb thermophysical profiles (z, p, T, n, mole fractions)    |
 //! | `layers.rs`       | layer optical thicknesses: k at a profile's states, integrated per layer |
 //! | `cross_section.rs`| continuum absorption of one species from a σ(λ) table (e.g. O3 Chappuis) |
+//! | `config.rs`       | the experiment file's absorption keys, resolved into layer optical thicknesses |
 //!
 //! Units follow `docs/conventions.md`: everything returned is SI (absorption coefficients in
 //! **m⁻¹**, altitudes in m, pressures in Pa, temperatures in K, number densities in m⁻³),
@@ -20,6 +21,7 @@
 //! US standard atmosphere, and axsdb CKD / monochromatic databases for any profile.
 
 pub mod axsdb;
+pub mod config;
 pub mod cross_section;
 pub mod eradiate_v0;
 pub mod layers;

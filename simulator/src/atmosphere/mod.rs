@@ -14,6 +14,7 @@
 //! thickness `tau_abs` (both vertical, dimensionless) and a phase function. The single-scattering
 //! albedo is `tau_sca / (tau_sca + tau_abs)`.
 
+pub mod config;
 pub mod molecular;
 pub mod particles;
 pub mod spherical;

@@ -10,22 +10,29 @@
 //!   (solid-angle measure). All models sample the cosine-weighted hemisphere: their BRDFs are
 //!   smooth, so the weight `π·f_r` stays bounded, and eval/pdf/sample agree by construction.
 //!
-//! Adding a model: its file here with a doc header (parameters, units, reference), a variant
-//! in [`Bsdf`], and a variant in the config's `SurfaceConfig` (see CONTRIBUTING.md).
+//! Adding a model touches three files, all in this folder (see CONTRIBUTING.md): its file
+//! (doc header with parameters, units, ranges and reference; its constructor checking the
+//! ranges against `bundle::BRDF_PARAM_RANGES`; its tests),
+//! a variant of [`Bsdf`] here, and a variant of [`SurfaceConfig`] with its arm in
+//! [`SurfaceConfig::resolve`] (`config.rs`).
 
+pub mod config;
 pub mod hapke;
 pub mod lambertian;
 pub mod ocean;
 pub mod rpv;
 pub mod rtls;
+pub mod rtls_hotspot;
 
 use glam::DVec3;
 
+pub use config::SurfaceConfig;
 pub use hapke::Hapke;
 pub use lambertian::Lambertian;
 pub use ocean::Ocean;
 pub use rpv::Rpv;
 pub use rtls::Rtls;
+pub use rtls_hotspot::RtlsHotspot;
 
 use crate::frame::sample_cosine_hemisphere;
 
@@ -46,6 +53,8 @@ pub enum Bsdf {
     Lambertian(Lambertian),
     Rpv(Rpv),
     Rtls(Rtls),
+    /// RTLS with the Maignan et al. (2004) hot spot.
+    RtlsHotspot(RtlsHotspot),
     Hapke(Hapke),
     Ocean(Ocean),
 }
@@ -61,6 +70,7 @@ impl Bsdf {
             Bsdf::Lambertian(m) => m.eval(wi, wo),
             Bsdf::Rpv(m) => m.eval(wi, wo),
             Bsdf::Rtls(m) => m.eval(wi, wo),
+            Bsdf::RtlsHotspot(m) => m.eval(wi, wo),
             Bsdf::Hapke(m) => m.eval(wi, wo),
             Bsdf::Ocean(m) => m.eval(wi, wo),
         }
@@ -129,6 +139,39 @@ impl Bsdf {
 }
 
 #[cfg(test)]
+pub(crate) mod test_support {
+    use glam::DVec3;
+
+    /// The 0.1 % upper quantile of χ² with 99 degrees of freedom.
+    pub const CHI2_99_DOF_999: f64 = 148.2;
+
+    /// χ² of directions drawn by `draw(u1, u2)` against the cosine-weighted hemisphere density
+    /// that every model samples (`Bsdf::pdf`): 10×10 cells equal in probability (sin²θ and φ
+    /// in 10 bins each), 100 000 draws from a fixed stream; 99 degrees of freedom.
+    pub fn chi2_cosine(mut draw: impl FnMut(f64, f64) -> DVec3) -> f64 {
+        let mut rng = crate::rng::Stream::new(1234, [1, 2, 3, 4]);
+        let n = 10;
+        let mut counts = vec![0u32; n * n];
+        let total = 100_000;
+        for _ in 0..total {
+            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+            let d = draw(u1, u2);
+            assert!(d.z > 0.0 && (d.length() - 1.0).abs() < 1e-12, "{d}");
+            let s2 = 1.0 - d.z * d.z;
+            let mut phi = d.y.atan2(d.x);
+            if phi < 0.0 {
+                phi += std::f64::consts::TAU;
+            }
+            let i = ((s2 * n as f64) as usize).min(n - 1);
+            let j = ((phi / std::f64::consts::TAU * n as f64) as usize).min(n - 1);
+            counts[i * n + j] += 1;
+        }
+        let e = total as f64 / (n * n) as f64;
+        counts.iter().map(|&c| (c as f64 - e).powi(2) / e).sum()
+    }
+}
+
+#[cfg(test)]
 mod tests {
     use super::*;
     use crate::frame::direction_from_angles;
@@ -138,6 +181,7 @@ mod tests {
             Bsdf::Lambertian(Lambertian::new(0.3).unwrap()),
             Bsdf::Rpv(Rpv::new(0.2, 0.8, -0.2, 0.2).unwrap()),
             Bsdf::Rtls(Rtls::new(0.2, 0.05, 0.03).unwrap()),
+            Bsdf::RtlsHotspot(RtlsHotspot::new(0.2, 0.05, 0.03, 1.5).unwrap()),
             Bsdf::Hapke(Hapke::new(0.5, 0.3, 0.4, 15.0, 0.8, 0.06).unwrap()),
         ]
     }
@@ -161,31 +205,12 @@ mod tests {
         }
     }
 
-    /// χ² test of the cosine-weighted hemisphere sampler shared by all models: 10×10 cells
-    /// equal in probability, 100 000 samples from a fixed stream; χ² with 99 d.o.f. must be
-    /// below its 0.1 % quantile (148.2).
+    /// χ² test of the cosine-weighted hemisphere sampler shared by all models (see
+    /// [`test_support::chi2_cosine`]).
     #[test]
     fn chi2_cosine_sampling() {
-        let mut rng = crate::rng::Stream::new(1234, [1, 2, 3, 4]);
-        let n = 10;
-        let mut counts = vec![0u32; n * n];
-        let total = 100_000;
-        for _ in 0..total {
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
-            let d = sample_cosine_hemisphere(u1, u2);
-            // Cells equal in probability: sin²θ in n bins, φ in n bins.
-            let s2 = 1.0 - d.z * d.z;
-            let mut phi = d.y.atan2(d.x);
-            if phi < 0.0 {
-                phi += std::f64::consts::TAU;
-            }
-            let i = ((s2 * n as f64) as usize).min(n - 1);
-            let j = ((phi / std::f64::consts::TAU * n as f64) as usize).min(n - 1);
-            counts[i * n + j] += 1;
-        }
-        let e = total as f64 / (n * n) as f64;
-        let chi2: f64 = counts.iter().map(|&c| (c as f64 - e).powi(2) / e).sum();
-        assert!(chi2 < 148.2, "chi2 = {chi2}");
+        let chi2 = test_support::chi2_cosine(sample_cosine_hemisphere);
+        assert!(chi2 < test_support::CHI2_99_DOF_999, "chi2 = {chi2}");
     }
 
     /// Energy conservation: directional albedo ≤ 1 for every model at several incidences.

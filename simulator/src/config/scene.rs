@@ -1,6 +1,6 @@
-//! The `[scene]` table of an experiment (raw serde types) and the resolution of scenes and of
-//! the image measures that need one. Coordinates in the experiment file are the scene's own:
-//! a bundle's working CRS (easting, northing, height in m), a canopy's frame (m).
+//! The `[scene]` table of an experiment (raw serde types) and the resolution of scenes; the
+//! measures see a built scene through its [`frame`]. Coordinates in the experiment file are the
+//! scene's own: a bundle's working CRS (easting, northing, height in m), a canopy's frame (m).
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -9,8 +9,7 @@ use glam::DVec3;
 use serde::Deserialize;
 
 use crate::bundle::{BrdfSpec, Spectrum};
-use crate::frame::direction_from_angles;
-use crate::measure::{Area, Camera, OrthoGrid};
+use crate::measure::config::SceneFrame;
 use crate::scene::build::{self, Background, CanopyGround, LeafCloud, LeafColumns};
 use crate::scene::curvature::Curvature;
 use crate::scene::Scene;
@@ -87,13 +86,22 @@ pub struct LeafCloudConfig {
     pub leaves: String,
     /// "r x y z nx ny nz" (default for `.def` files) or "x y z nx ny nz r" (default otherwise).
     #[serde(default)]
-    pub columns: Option<String>,
+    pub columns: Option<ColumnsConfig>,
     /// File of `x y z` translations of the copies (default: one copy at the origin).
     #[serde(default)]
     pub positions: Option<String>,
     /// Bi-Lambertian leaf optics.
     pub reflectance: Spectrum,
     pub transmittance: Spectrum,
+}
+
+/// Column order of a leaf file.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+pub enum ColumnsConfig {
+    #[serde(rename = "r x y z nx ny nz")]
+    RadiusFirst,
+    #[serde(rename = "x y z nx ny nz r")]
+    RadiusLast,
 }
 
 #[derive(Clone, Debug, Deserialize)]
@@ -357,15 +365,9 @@ pub fn build_scene(
             for (i, o) in objects.iter().enumerate() {
                 let key = format!("scene.objects[{i}]");
                 let leaves = base.join(&o.leaves);
-                let columns = match o.columns.as_deref() {
-                    Some("r x y z nx ny nz") => LeafColumns::RadiusFirst,
-                    Some("x y z nx ny nz r") => LeafColumns::RadiusLast,
-                    Some(other) => {
-                        return Err((
-                            format!("{key}.columns"),
-                            format!("\"{other}\" is unknown (known: \"r x y z nx ny nz\", \"x y z nx ny nz r\")"),
-                        ))
-                    }
+                let columns = match o.columns {
+                    Some(ColumnsConfig::RadiusFirst) => LeafColumns::RadiusFirst,
+                    Some(ColumnsConfig::RadiusLast) => LeafColumns::RadiusLast,
                     None if o.leaves.ends_with(".def") => LeafColumns::RadiusFirst,
                     None => LeafColumns::RadiusLast,
                 };
@@ -427,127 +429,12 @@ pub fn build_scene(
     }
 }
 
-/// Scene coordinates of the experiment file → the scene's local frame.
-pub fn to_local(scene: &Scene, x: f64, y: f64) -> (f64, f64) {
-    match &scene.georef {
-        Some(g) => (x - g.origin.x, y - g.origin.y),
-        None => (x, y),
+/// What the measures need of a built scene (`measure/config.rs`): its extent and top in the
+/// local frame, and where the experiment file's coordinates have their origin.
+pub fn frame(scene: &Scene) -> SceneFrame {
+    SceneFrame {
+        extent: scene.extent,
+        top: scene.z_range[1],
+        origin: scene.georef.as_ref().map(|g| (g.origin.x, g.origin.y)),
     }
-}
-
-/// The target area of a distant measure (default: the scene's extent at its top).
-pub fn area(scene: &Scene, rect: Option<[f64; 4]>, height: Option<f64>) -> Result<Area, String> {
-    let rect = match rect {
-        None => scene.extent,
-        Some(r) => {
-            if !(r.iter().all(|v| v.is_finite()) && r[0] < r[2] && r[1] < r[3]) {
-                return Err("must be [xmin, ymin, xmax, ymax] with min < max".into());
-            }
-            let (a, b) = to_local(scene, r[0], r[1]);
-            let (c, d) = to_local(scene, r[2], r[3]);
-            [a, b, c, d]
-        }
-    };
-    let height = height.unwrap_or(scene.z_range[1]);
-    if !height.is_finite() {
-        return Err(format!("target height {height} is not finite"));
-    }
-    Ok(Area { rect, height })
-}
-
-/// The pixel grid of an ortho measure, snapped outwards to whole pixels.
-pub fn ortho_grid(
-    scene: &Scene,
-    pixel: f64,
-    window: Option<[f64; 4]>,
-    zenith: f64,
-    azimuth: f64,
-) -> Result<OrthoGrid, SceneErr> {
-    if !(pixel.is_finite() && pixel > 0.0) {
-        return Err(("pixel_size_m".into(), format!("{pixel} must be > 0")));
-    }
-    if !(zenith.is_finite() && (0.0..89.0).contains(&zenith)) {
-        return Err((
-            "zenith".into(),
-            format!("{zenith} degrees must lie in [0, 89)"),
-        ));
-    }
-    if !azimuth.is_finite() {
-        return Err(("azimuth".into(), format!("{azimuth} is not finite")));
-    }
-    let a = area(scene, window, None).map_err(|m| ("window_m".into(), m))?;
-    let r = a.rect;
-    let width = ((r[2] - r[0]) / pixel).ceil().max(1.0) as usize;
-    let height = ((r[3] - r[1]) / pixel).ceil().max(1.0) as usize;
-    if width.saturating_mul(height) > 50_000_000 {
-        return Err((
-            "pixel_size_m".into(),
-            format!("{width} × {height} pixels is too many (limit 5·10⁷); use a larger pixel or a window"),
-        ));
-    }
-    // Centre the snapped grid on the requested window.
-    let x0 = 0.5 * (r[0] + r[2]) - 0.5 * width as f64 * pixel;
-    let y1 = 0.5 * (r[1] + r[3]) + 0.5 * height as f64 * pixel;
-    let azimuth = azimuth.rem_euclid(360.0);
-    Ok(OrthoGrid {
-        width,
-        height,
-        geotransform: [x0, pixel, 0.0, y1, 0.0, -pixel],
-        view: direction_from_angles(zenith.to_radians(), azimuth.to_radians()),
-        vza: zenith,
-        vaa: azimuth,
-    })
-}
-
-/// A pinhole camera from origin, target, up and horizontal field of view.
-pub fn camera(
-    scene: &Scene,
-    origin: [f64; 3],
-    target: [f64; 3],
-    up: Option<[f64; 3]>,
-    fov: f64,
-    width: usize,
-    height: usize,
-) -> Result<Camera, SceneErr> {
-    if origin.iter().chain(&target).any(|v| !v.is_finite()) {
-        return Err(("origin_m".into(), "origin and target must be finite".into()));
-    }
-    if !(fov > 0.0 && fov < 179.0) {
-        return Err(("fov".into(), format!("{fov} degrees must lie in (0, 179)")));
-    }
-    if width == 0 || height == 0 || width.saturating_mul(height) > 50_000_000 {
-        return Err((
-            "width".into(),
-            "width and height must be 1..; at most 5·10⁷ pixels".into(),
-        ));
-    }
-    let (ox, oy) = to_local(scene, origin[0], origin[1]);
-    let (tx, ty) = to_local(scene, target[0], target[1]);
-    let o = DVec3::new(ox, oy, origin[2]);
-    let t = DVec3::new(tx, ty, target[2]);
-    let forward = (t - o).normalize_or_zero();
-    if forward == DVec3::ZERO {
-        return Err(("target_m".into(), "must differ from origin_m".into()));
-    }
-    let upv = DVec3::from_array(up.unwrap_or([0.0, 0.0, 1.0]));
-    let right = forward.cross(upv).normalize_or_zero();
-    if right == DVec3::ZERO {
-        return Err((
-            "up".into(),
-            "must not be parallel to the viewing direction".into(),
-        ));
-    }
-    let true_up = right.cross(forward);
-    let tan_x = (0.5 * fov).to_radians().tan();
-    let tan_y = tan_x * height as f64 / width as f64;
-    Ok(Camera {
-        origin: o,
-        forward,
-        right,
-        up: true_up,
-        tan_x,
-        tan_y,
-        width,
-        height,
-    })
 }

@@ -1,10 +1,18 @@
-//! Settings of the transport core that the resolver fills from `[integrator]` (the raw keys
-//! are in `config/mod.rs`; their meanings in `docs/experiment.md`).
+//! Settings of the transport core and the `[integrator]` table they come from: its raw serde
+//! type and [`IntegratorSettings::from_config`], which checks it against the rest of the run
+//! (keys and meanings in `docs/experiment.md`).
 
-/// Which walk serves the measures.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+use serde::Deserialize;
+
+use crate::atmosphere::PlaneParallel;
+use crate::error::{ConfigCtx, ConfigError};
+
+/// Which walk serves the measures (`integrator.type`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
 pub enum IntegratorKind {
     /// Forward for `mdistant` and `distant_flux`, backward for `radiancemeter`.
+    #[default]
     Auto,
     /// Photons from the Sun with local estimates towards every direction (1D distant measures).
     Forward,
@@ -27,4 +35,248 @@ pub struct IntegratorSettings {
     pub spectral_alis: Option<usize>,
     /// Samples before the first precision check (None: 4 blocks).
     pub first_check_spp: Option<u64>,
+}
+
+/// `integrator.local_estimate`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LocalEstimate {
+    /// Expected local estimates integrated along flights.
+    #[default]
+    Expected,
+    /// The classic estimate at sampled collisions.
+    Collision,
+}
+
+/// `integrator.ckd_walk`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CkdWalk {
+    /// Blocks of samples cycle through the g-points.
+    #[default]
+    Cycle,
+    /// One backward walk carries every g-point of a bin.
+    Alis,
+}
+
+/// `integrator.spectral_walk`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpectralWalk {
+    /// Every wavelength has its own walks.
+    #[default]
+    Independent,
+    /// One backward walk carries a group of neighbouring wavelengths.
+    Alis,
+}
+
+/// The `[integrator]` table.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntegratorConfig {
+    #[serde(default, rename = "type")]
+    pub kind: IntegratorKind,
+    /// Maximum scattering order (1 = single scattering); default unlimited.
+    #[serde(default)]
+    pub max_depth: Option<u32>,
+    /// Scattering order from which Russian roulette may end paths (default 5).
+    #[serde(default)]
+    pub rr_depth: Option<u32>,
+    #[serde(default)]
+    pub local_estimate: LocalEstimate,
+    /// `mode = "ckd"` only.
+    #[serde(default)]
+    pub ckd_walk: CkdWalk,
+    /// `mode = "mono"` only.
+    #[serde(default)]
+    pub spectral_walk: SpectralWalk,
+    /// `spectral_walk = "alis"`: wavelengths per group (1–64, default 32).
+    #[serde(default)]
+    pub alis_group: Option<usize>,
+    /// Samples per direction before the first check of `target_rel_stderr` (default 8192).
+    #[serde(default)]
+    pub first_check_spp: Option<u64>,
+}
+
+/// What of the rest of the run the integrator settings are checked against.
+#[derive(Clone, Copy, Debug)]
+pub struct RunShape {
+    /// `mode = "ckd"`.
+    pub ckd: bool,
+    pub polarized: bool,
+    /// A spherical-shell atmosphere.
+    pub spherical: bool,
+    /// A 3D scene.
+    pub scene: bool,
+    /// The index of the first radiancemeter among the measures, if any.
+    pub radiancemeter: Option<usize>,
+}
+
+impl IntegratorSettings {
+    /// The settings of `cfg` for a run of shape `run`; errors name `integrator.…` (or the
+    /// measure a forward walk cannot serve).
+    pub fn from_config(
+        ctx: &ConfigCtx,
+        cfg: &IntegratorConfig,
+        run: RunShape,
+    ) -> Result<Self, ConfigError> {
+        let kind = cfg.kind;
+        if run.spherical && kind == IntegratorKind::Forward {
+            return Err(ctx.err(
+                "integrator.type",
+                "spherical-shell atmospheres use the backward walk (\"auto\" or \"backward\")",
+            ));
+        }
+        if kind == IntegratorKind::Forward {
+            if let Some(im) = run.radiancemeter {
+                return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
+            }
+        }
+        if run.scene && kind == IntegratorKind::Forward {
+            return Err(ctx.err(
+                "integrator.type",
+                "3D scenes use the backward walk (\"auto\" or \"backward\")",
+            ));
+        }
+        let max_depth = match cfg.max_depth {
+            Some(0) => return Err(ctx.err("integrator.max_depth", "must be at least 1")),
+            Some(d) => d,
+            None => u32::MAX,
+        };
+        let alis = match cfg.ckd_walk {
+            CkdWalk::Cycle => false,
+            CkdWalk::Alis => {
+                let key = "integrator.ckd_walk";
+                if !run.ckd {
+                    return Err(ctx.err(
+                        key,
+                        "is used only with mode = \"ckd\" (monochromatic runs: integrator.spectral_walk = \"alis\")",
+                    ));
+                }
+                if run.polarized || run.spherical || run.scene {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is implemented for scalar plane-parallel 1D runs only",
+                    ));
+                }
+                if kind == IntegratorKind::Forward {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is a backward walk (integrator.type \"auto\" or \"backward\")",
+                    ));
+                }
+                true
+            }
+        };
+        let spectral_alis = match cfg.spectral_walk {
+            SpectralWalk::Independent => None,
+            SpectralWalk::Alis => {
+                let key = "integrator.spectral_walk";
+                if run.ckd {
+                    return Err(ctx.err(
+                        key,
+                        "is used only with mode = \"mono\" (CKD bins: integrator.ckd_walk = \"alis\")",
+                    ));
+                }
+                if run.polarized {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is scalar only (polarized = true is not supported)",
+                    ));
+                }
+                if run.spherical {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is plane-parallel only (not for spherical-shell geometry)",
+                    ));
+                }
+                if run.scene {
+                    return Err(ctx.err(key, "\"alis\" is for 1D runs only (not with a 3D scene)"));
+                }
+                if kind == IntegratorKind::Forward {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is a backward walk (integrator.type \"auto\" or \"backward\", not \"forward\")",
+                    ));
+                }
+                Some(match cfg.alis_group {
+                    None => 32,
+                    Some(n) if (1..=super::backward_alis::MAX_CHANNELS).contains(&n) => n,
+                    Some(n) => {
+                        return Err(ctx.err(
+                            "integrator.alis_group",
+                            format!("{n} wavelengths per group: must lie in 1 … 64"),
+                        ))
+                    }
+                })
+            }
+        };
+        if spectral_alis.is_none() && cfg.alis_group.is_some() {
+            return Err(ctx.err(
+                "integrator.alis_group",
+                "is used only with integrator.spectral_walk = \"alis\"",
+            ));
+        }
+        Ok(IntegratorSettings {
+            spectral_alis,
+            kind,
+            max_depth,
+            rr_depth: cfg.rr_depth.unwrap_or(5),
+            expected_local_estimate: cfg.local_estimate == LocalEstimate::Expected,
+            alis,
+            first_check_spp: match cfg.first_check_spp {
+                Some(n) if n < 64 => {
+                    return Err(ctx.err(
+                        "integrator.first_check_spp",
+                        format!(
+                            "{n} is too few samples to estimate a standard error (at least 64)"
+                        ),
+                    ))
+                }
+                other => other,
+            },
+        })
+    }
+
+    /// Spectral ALIS: each group's reference (its central wavelength's scattering) must scatter
+    /// wherever one of its wavelengths does, or the walks would miss paths. `atmospheres` holds
+    /// the atmosphere of every run wavelength.
+    pub fn check_spectral_groups(
+        &self,
+        ctx: &ConfigCtx,
+        wavelengths: &[f64],
+        atmospheres: &[&PlaneParallel],
+    ) -> Result<(), ConfigError> {
+        let Some(n) = self.spectral_alis else {
+            return Ok(());
+        };
+        for group in crate::spectral::wavelength_groups_of(wavelengths, Some(n)) {
+            let central = group[group.len() / 2];
+            let atms: Vec<&PlaneParallel> = group.iter().map(|&iw| atmospheres[iw]).collect();
+            let reference = super::backward_alis::group_reference(atmospheres[central], &atms);
+            if let Some(i) = super::backward_alis::Layers::unsupported_layer(&reference, &atms) {
+                return Err(ctx.err(
+                    "integrator.spectral_walk",
+                    format!(
+                        "layer {i} (from the top) scatters at some wavelength of the group {}–{} nm but not at its reference wavelength {} nm; use smaller groups (integrator.alis_group) or \"independent\"",
+                        wavelengths[group[0]],
+                        wavelengths[group[group.len() - 1]],
+                        wavelengths[central]
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// CKD: the ALIS walk carries at most 64 g-points per bin (`ng` in this run's data).
+    pub fn check_g_points(&self, ctx: &ConfigCtx, ng: usize) -> Result<(), ConfigError> {
+        if ng > 64 && self.alis {
+            return Err(ctx.err(
+                "integrator.ckd_walk",
+                format!("\"alis\" handles at most 64 g-points per bin (this file has {ng})"),
+            ));
+        }
+        Ok(())
+    }
 }

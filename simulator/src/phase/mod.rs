@@ -10,12 +10,18 @@
 //!
 //! All models here are reciprocal (`P` depends on Θ only), so the same function serves forward
 //! (photon) and backward (importance) walks.
+//!
+//! Adding a model touches three files, all in this folder (see CONTRIBUTING.md): its file (doc
+//! header, tests), a variant of [`PhaseFunction`] here, and a variant of [`PhaseConfig`] with its
+//! arm in [`PhaseResolver::resolve`] (`config.rs`).
 
+pub mod config;
 pub mod hg;
 pub mod mixture;
 pub mod rayleigh;
 pub mod tabulated;
 
+pub use config::{PhaseConfig, PhaseResolver};
 pub use hg::HenyeyGreenstein;
 pub use mixture::Mixture;
 pub use rayleigh::Rayleigh;

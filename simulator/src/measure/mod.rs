@@ -15,6 +15,10 @@
 //!   it.
 //! * In 3D scenes, `Distant` measures the radiance leaving a horizontal target rectangle,
 //!   averaged over it (RAMI's area BRF).
+//!
+//! The experiment file's `[[measures]]` tables are resolved into these types in `config.rs`.
+
+pub mod config;
 
 use glam::DVec3;
 

@@ -1,0 +1,221 @@
+//! The `[illumination]` table of the experiment file (raw serde type) and its resolution into
+//! the Sun of a run: its direction (given, or from a time and place with `sun_position`), its
+//! distance, and the solar irradiance at every run wavelength (`solar`). Keys and units are
+//! documented in `docs/experiment.md`; angles in degrees there, radians here.
+
+use glam::DVec3;
+use serde::Deserialize;
+
+use crate::error::{ConfigCtx, ConfigError};
+use crate::frame::direction_from_angles;
+use crate::solar::{day_of_year, earth_sun_factor, Spectrum};
+use crate::spectral::SpectralValue;
+use crate::sun_position::sun_position;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum IlluminationConfig {
+    Directional {
+        /// degrees, [0, 90) (or from `time` and the place).
+        #[serde(default)]
+        zenith: Option<f64>,
+        /// degrees, clockwise from North.
+        #[serde(default)]
+        azimuth: Option<f64>,
+        /// UTC "YYYY-MM-DDTHH:MM:SSZ": the Sun's position (NREL SPA) at `latitude`/`longitude`.
+        #[serde(default)]
+        time: Option<String>,
+        /// degrees north.
+        #[serde(default)]
+        latitude: Option<f64>,
+        /// degrees east.
+        #[serde(default)]
+        longitude: Option<f64>,
+        /// m above sea level.
+        #[serde(default)]
+        elevation: Option<f64>,
+        /// W m⁻² nm⁻¹, normal to the beam: a number, a list, or a spectrum name / file.
+        #[serde(default = "one_irradiance")]
+        irradiance: IrradianceValue,
+        /// "YYYY-MM-DD": scale the irradiance by the Earth–Sun distance of that day.
+        #[serde(default)]
+        date: Option<String>,
+    },
+}
+
+/// Solar irradiance: numbers, or the name of a built-in spectrum / a CSV file.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(untagged)]
+pub enum IrradianceValue {
+    Value(SpectralValue),
+    Spectrum(String),
+}
+
+fn one_irradiance() -> IrradianceValue {
+    IrradianceValue::Value(SpectralValue::Scalar(1.0))
+}
+
+/// The Sun of a run.
+#[derive(Clone, Debug)]
+pub struct Sun {
+    /// Solar zenith as given (or computed), degrees.
+    pub zenith_deg: f64,
+    /// Solar azimuth, degrees clockwise from North, in [0, 360).
+    pub azimuth_deg: f64,
+    /// Unit vector from the target towards the Sun.
+    pub dir: DVec3,
+    /// Earth–Sun distance (AU) when the Sun comes from `time` (or `date`).
+    pub distance_au: Option<f64>,
+    /// E0 at each run wavelength (W m⁻² nm⁻¹), scaled to the Earth–Sun distance when known.
+    pub irradiance: Vec<f64>,
+}
+
+impl IlluminationConfig {
+    /// The Sun at the run `wavelengths` (nm). `spherical`: a spherical-shell atmosphere, where
+    /// the Sun may be below the horizon (zenith up to 180°).
+    pub fn resolve(
+        &self,
+        ctx: &ConfigCtx,
+        wavelengths: &[f64],
+        spherical: bool,
+    ) -> Result<Sun, ConfigError> {
+        let IlluminationConfig::Directional {
+            zenith,
+            azimuth,
+            irradiance,
+            date,
+            time,
+            latitude,
+            longitude,
+            elevation,
+        } = self;
+        let mut sun_distance_factor = None;
+        let mut distance_au = None;
+        let (zenith, azimuth) = match (time, zenith) {
+            (Some(t), None) => {
+                if azimuth.is_some() {
+                    return Err(ctx.err(
+                        "illumination.azimuth",
+                        "is computed from `time`; give one or the other",
+                    ));
+                }
+                if date.is_some() {
+                    return Err(ctx.err(
+                        "illumination.date",
+                        "is implied by `time`; give one or the other",
+                    ));
+                }
+                let lat = latitude
+                    .ok_or_else(|| ctx.err("illumination.latitude", "is required with `time`"))?;
+                let lon = longitude
+                    .ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
+                let p = sun_position(
+                    t,
+                    ctx.finite("illumination.latitude", lat)?,
+                    ctx.finite("illumination.longitude", lon)?,
+                    elevation.unwrap_or(0.0),
+                    None,
+                )
+                .map_err(|m| ctx.err("illumination.time", m))?;
+                tracing::debug!(
+                    "Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU",
+                    p.zenith,
+                    p.azimuth,
+                    p.distance_au
+                );
+                sun_distance_factor = Some(1.0 / (p.distance_au * p.distance_au));
+                distance_au = Some(p.distance_au);
+                (p.zenith, p.azimuth)
+            }
+            (None, Some(z)) => {
+                if latitude.is_some() || longitude.is_some() || elevation.is_some() {
+                    return Err(ctx.err(
+                        "illumination",
+                        "`latitude`/`longitude`/`elevation` are used only with `time`",
+                    ));
+                }
+                (*z, azimuth.unwrap_or(0.0))
+            }
+            (Some(_), Some(_)) => {
+                return Err(ctx.err(
+                    "illumination.zenith",
+                    "give either `zenith` (and `azimuth`) or `time` with a place, not both",
+                ))
+            }
+            (None, None) => {
+                return Err(ctx.err(
+                    "illumination",
+                    "give `zenith` (and `azimuth`), or `time` with `latitude` and `longitude`",
+                ))
+            }
+        };
+        let zenith = ctx.finite("illumination.zenith", zenith)?;
+        if !spherical && !(0.0..90.0).contains(&zenith) {
+            return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
+        }
+        if !(0.0..=180.0).contains(&zenith) {
+            return Err(ctx.err(
+                "illumination.zenith",
+                format!("{zenith} degrees must lie in [0, 180]"),
+            ));
+        }
+        let azimuth = ctx.finite("illumination.azimuth", azimuth)?;
+        if !(-360.0..=360.0).contains(&azimuth) {
+            return Err(ctx.err(
+                "illumination.azimuth",
+                format!("{azimuth} degrees must lie in [-360, 360]"),
+            ));
+        }
+        let mut irradiance = match irradiance {
+            IrradianceValue::Value(v) => v.expand(ctx, "illumination.irradiance", 0.0, 1e9)?,
+            IrradianceValue::Spectrum(name) => {
+                let spectrum = match Spectrum::builtin(name) {
+                    Some(s) => s,
+                    None => {
+                        let fpath = ctx.file(name);
+                        let text = std::fs::read_to_string(&fpath).map_err(|e| {
+                            ctx.err("illumination.irradiance", format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
+                        })?;
+                        Spectrum::from_csv(name, &text).map_err(|m| {
+                            ctx.err(
+                                "illumination.irradiance",
+                                format!("{}: {m}", fpath.display()),
+                            )
+                        })?
+                    }
+                };
+                wavelengths
+                    .iter()
+                    .map(|&w| {
+                        spectrum.at(w).ok_or_else(|| {
+                            ctx.err(
+                                "illumination.irradiance",
+                                format!(
+                                    "wavelength {w} nm is outside the spectrum \"{name}\" ({}–{} nm)",
+                                    spectrum.wavelength[0],
+                                    spectrum.wavelength[spectrum.wavelength.len() - 1]
+                                ),
+                            )
+                        })
+                    })
+                    .collect::<Result<Vec<f64>, _>>()?
+            }
+        };
+        if let Some(d) = date {
+            let doy = day_of_year(d).map_err(|m| ctx.err("illumination.date", m))?;
+            sun_distance_factor = Some(earth_sun_factor(doy));
+            distance_au = Some(1.0 / earth_sun_factor(doy).sqrt());
+        }
+        if let Some(k) = sun_distance_factor {
+            irradiance.iter_mut().for_each(|e| *e *= k);
+        }
+        let azimuth_deg = azimuth.rem_euclid(360.0);
+        Ok(Sun {
+            zenith_deg: zenith,
+            azimuth_deg,
+            dir: direction_from_angles(zenith.to_radians(), azimuth_deg.to_radians()),
+            distance_au,
+            irradiance,
+        })
+    }
+}

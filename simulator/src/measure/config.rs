@@ -1,0 +1,589 @@
+//! The `[[measures]]` tables of the experiment file: the raw serde type, one variant per measure
+//! type, and its resolution into a [`Measure`]. Keys and units are documented in
+//! `docs/experiment.md`; altitudes in km and angles in degrees there, m and radians here.
+//! Measures of 3D scenes see the scene through a [`SceneFrame`], so this module does not
+//! depend on the scene's types.
+
+use glam::DVec3;
+use serde::Deserialize;
+
+use super::{Area, Camera, Measure, MeasureKind, OrthoGrid};
+use crate::error::{ConfigCtx, ConfigError};
+use crate::frame::direction_from_angles;
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
+pub enum MeasureConfig {
+    Mdistant {
+        id: String,
+        /// "hplane" (default unless `azimuths` is given) or "directions".
+        #[serde(default)]
+        construct: Option<Construct>,
+        /// degrees; hplane: the half-plane azimuth.
+        #[serde(default)]
+        azimuth: Option<f64>,
+        /// degrees; hplane: signed zeniths; directions: view zeniths.
+        zeniths: Vec<f64>,
+        /// degrees; directions: view azimuths, one per zenith.
+        #[serde(default)]
+        azimuths: Option<Vec<f64>>,
+        /// 3D scenes: the area whose mean BRF is measured, [xmin, ymin, xmax, ymax] in the
+        /// scene's coordinates (m; a bundle's working CRS). Default: the scene's extent.
+        #[serde(default)]
+        target_m: Option<[f64; 4]>,
+        /// 3D scenes: height of the target area, m (default: the top of the scene).
+        #[serde(default)]
+        target_height_m: Option<f64>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    /// A georeferenced TOA image of a 3D scene seen from one direction (parallel projection,
+    /// orthorectified on the terrain).
+    Ortho {
+        id: String,
+        /// m.
+        pixel_size_m: f64,
+        /// [xmin, ymin, xmax, ymax] in the scene's coordinates (m); default: the scene extent.
+        #[serde(default)]
+        window_m: Option<[f64; 4]>,
+        /// degrees: view zenith and azimuth (clockwise from North) of the sensor.
+        #[serde(default)]
+        zenith: f64,
+        #[serde(default)]
+        azimuth: f64,
+        /// Samples per pixel (the maximum when `target_rel_stderr` is set).
+        spp: u64,
+        /// Stop when the **median** relative standard error of the pixels' BRF is at most this.
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    /// A pinhole camera.
+    Perspective {
+        id: String,
+        /// m, scene coordinates (x, y, height).
+        origin_m: [f64; 3],
+        /// m: the point the camera looks at.
+        target_m: [f64; 3],
+        /// Up vector (default [0, 0, 1]).
+        #[serde(default)]
+        up: Option<[f64; 3]>,
+        /// degrees: horizontal field of view.
+        fov: f64,
+        /// pixels.
+        width: usize,
+        height: usize,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    Radiancemeter {
+        id: String,
+        /// km, [x, y, z]; z is the altitude.
+        origin: [f64; 3],
+        /// Looking direction (need not be normalised).
+        direction: [f64; 3],
+        /// degrees: azimuth fixing the Stokes meridian plane when the view is vertical.
+        #[serde(default)]
+        frame_azimuth: Option<f64>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+    DistantFlux {
+        id: String,
+        /// km; default: top of the atmosphere.
+        #[serde(default)]
+        altitude: Option<f64>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
+}
+
+/// `mdistant.construct`: how the directions are laid out.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Construct {
+    /// A half-plane through `azimuth`: signed zeniths, negative ones at `azimuth + 180`.
+    Hplane,
+    /// Explicit (zenith, azimuth) pairs.
+    Directions,
+}
+
+/// What measures need of a 3D scene, in its local frame (m).
+#[derive(Clone, Copy, Debug)]
+pub struct SceneFrame {
+    /// Horizontal extent of the scene's content [xmin, ymin, xmax, ymax].
+    pub extent: [f64; 4],
+    /// Highest point of the geometry.
+    pub top: f64,
+    /// The experiment file's coordinates of the local origin (a bundle's working CRS), if any.
+    pub origin: Option<(f64, f64)>,
+}
+
+impl SceneFrame {
+    /// Scene coordinates of the experiment file → the scene's local frame.
+    pub fn to_local(&self, x: f64, y: f64) -> (f64, f64) {
+        match self.origin {
+            Some((ox, oy)) => (x - ox, y - oy),
+            None => (x, y),
+        }
+    }
+}
+
+/// The resolved geometry the measures refer to, m.
+#[derive(Clone, Copy, Debug)]
+pub struct MeasureContext<'a> {
+    pub ground: f64,
+    pub toa: f64,
+    /// The 3D scene, when the experiment renders one.
+    pub scene: Option<&'a SceneFrame>,
+}
+
+impl MeasureConfig {
+    fn common(&self) -> (&String, u64, Option<f64>) {
+        match self {
+            MeasureConfig::Mdistant {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::Radiancemeter {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::DistantFlux {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::Ortho {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
+            | MeasureConfig::Perspective {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            } => (id, *spp, *target_rel_stderr),
+        }
+    }
+
+    /// The measure `measures[index]`; `earlier` are the measures before it (ids are unique).
+    pub fn resolve(
+        &self,
+        ctx: &ConfigCtx,
+        index: usize,
+        earlier: &[Measure],
+        at: &MeasureContext,
+    ) -> Result<Measure, ConfigError> {
+        let key = format!("measures[{index}]");
+        let (id, spp, target) = self.common();
+        if id.is_empty()
+            || !id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
+            || id.starts_with(|c: char| c.is_ascii_digit())
+        {
+            return Err(ctx.err(format!("{key}.id"), format!("\"{id}\" must be a non-empty identifier of letters, digits and _ (not starting with a digit)")));
+        }
+        if earlier.iter().any(|x| &x.id == id) {
+            return Err(ctx.err(
+                format!("{key}.id"),
+                format!("\"{id}\" is used by another measure"),
+            ));
+        }
+        if spp < 2 {
+            return Err(ctx.err(
+                format!("{key}.spp"),
+                format!("{spp} must be at least 2 (a standard error needs two samples)"),
+            ));
+        }
+        if let Some(t) = target {
+            if !(t > 0.0 && t < 1.0) {
+                return Err(ctx.err(
+                    format!("{key}.target_rel_stderr"),
+                    format!("{t} must lie in (0, 1)"),
+                ));
+            }
+        }
+        let scene = at.scene;
+        let kind = match self {
+            MeasureConfig::Mdistant {
+                construct,
+                azimuth,
+                zeniths,
+                azimuths,
+                target_m,
+                target_height_m,
+                ..
+            } => {
+                let construct = construct.unwrap_or(if azimuths.is_some() {
+                    Construct::Directions
+                } else {
+                    Construct::Hplane
+                });
+                if zeniths.is_empty() {
+                    return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
+                }
+                let (vza, vaa) =
+                    distant_directions(ctx, &key, construct, *azimuth, zeniths, azimuths)?;
+                let directions = vza
+                    .iter()
+                    .zip(&vaa)
+                    .map(|(z, a): (&f64, &f64)| {
+                        direction_from_angles(z.to_radians(), a.to_radians())
+                    })
+                    .collect();
+                let area = match (scene, target_m, target_height_m) {
+                    (Some(sc), r, h) => Some(
+                        area(sc, *r, *h).map_err(|m| ctx.err(format!("{key}.target_m"), m))?,
+                    ),
+                    (None, None, None) => None,
+                    (None, _, _) => {
+                        return Err(ctx.err(
+                            format!("{key}.target_m"),
+                            "a target area needs a 3D `scene`",
+                        ))
+                    }
+                };
+                MeasureKind::Distant {
+                    directions,
+                    vza,
+                    vaa,
+                    area,
+                }
+            }
+            MeasureConfig::Ortho {
+                pixel_size_m,
+                window_m,
+                zenith,
+                azimuth,
+                ..
+            } => {
+                let sc = scene
+                    .ok_or_else(|| ctx.err(key.clone(), "an ortho measure needs a 3D `scene`"))?;
+                MeasureKind::Ortho(
+                    ortho_grid(sc, *pixel_size_m, *window_m, *zenith, *azimuth)
+                        .map_err(|(k, m)| ctx.err(format!("{key}.{k}"), m))?,
+                )
+            }
+            MeasureConfig::Perspective {
+                origin_m,
+                target_m,
+                up,
+                fov,
+                width,
+                height,
+                ..
+            } => {
+                let sc = scene.ok_or_else(|| {
+                    ctx.err(key.clone(), "a perspective measure needs a 3D `scene`")
+                })?;
+                MeasureKind::Perspective(
+                    camera(sc, *origin_m, *target_m, *up, *fov, *width, *height)
+                        .map_err(|(k, m)| ctx.err(format!("{key}.{k}"), m))?,
+                )
+            }
+            MeasureConfig::Radiancemeter { .. } | MeasureConfig::DistantFlux { .. }
+                if scene.is_some() =>
+            {
+                return Err(ctx.err(
+                    key.clone(),
+                    "radiancemeter and distant_flux measures are 1D; with a 3D scene use `perspective` or an `mdistant` with a target area",
+                ))
+            }
+            MeasureConfig::Radiancemeter {
+                origin,
+                direction,
+                frame_azimuth,
+                ..
+            } => {
+                for i in 0..3 {
+                    ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
+                    ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
+                }
+                let o = DVec3::from_array(*origin) * 1e3;
+                let d = DVec3::from_array(*direction);
+                if d.length() < 1e-12 {
+                    return Err(ctx.err(format!("{key}.direction"), "must not be the zero vector"));
+                }
+                if o.z < at.ground {
+                    return Err(ctx.err(
+                        format!("{key}.origin[2]"),
+                        format!(
+                            "altitude {} km is below the ground ({} km)",
+                            origin[2],
+                            at.ground / 1e3
+                        ),
+                    ));
+                }
+                let frame_azimuth = match frame_azimuth {
+                    Some(a) => ctx
+                        .finite(&format!("{key}.frame_azimuth"), *a)?
+                        .to_radians(),
+                    None => 0.0,
+                };
+                MeasureKind::Radiancemeter {
+                    origin: o,
+                    look: d.normalize(),
+                    frame_azimuth,
+                }
+            }
+            MeasureConfig::DistantFlux { altitude, .. } => {
+                let a = altitude.map(|a| a * 1e3).unwrap_or(at.toa);
+                if !a.is_finite() || a < at.ground || a > at.toa {
+                    return Err(ctx.err(
+                        format!("{key}.altitude"),
+                        format!(
+                            "{} km must lie between the ground and the top of the atmosphere",
+                            a / 1e3
+                        ),
+                    ));
+                }
+                MeasureKind::DistantFlux { altitude: a }
+            }
+        };
+        Ok(Measure {
+            id: id.clone(),
+            spp,
+            target_rel_stderr: target,
+            kind,
+        })
+    }
+}
+
+/// View zeniths and azimuths (degrees, azimuths in [0, 360)) of an `mdistant` measure.
+fn distant_directions(
+    ctx: &ConfigCtx,
+    key: &str,
+    construct: Construct,
+    azimuth: Option<f64>,
+    zeniths: &[f64],
+    azimuths: &Option<Vec<f64>>,
+) -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
+    let (mut vza, mut vaa) = (Vec::new(), Vec::new());
+    match construct {
+        Construct::Hplane => {
+            if azimuths.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.azimuths"),
+                    "is not used by construct \"hplane\" (use `azimuth`)",
+                ));
+            }
+            let az = azimuth.ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.azimuth"),
+                    "is required by construct \"hplane\"",
+                )
+            })?;
+            let az = ctx.finite(&format!("{key}.azimuth"), az)?;
+            for (i, &z) in zeniths.iter().enumerate() {
+                if !z.is_finite() || z <= -90.0 || z >= 90.0 {
+                    return Err(ctx.err(
+                        format!("{key}.zeniths[{i}]"),
+                        format!("{z} degrees must lie in (-90, 90)"),
+                    ));
+                }
+                vza.push(z.abs());
+                vaa.push(if z >= 0.0 { az } else { az + 180.0 }.rem_euclid(360.0));
+            }
+        }
+        Construct::Directions => {
+            if azimuth.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.azimuth"),
+                    "is not used by construct \"directions\" (use `azimuths`)",
+                ));
+            }
+            let azs = azimuths.as_ref().ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.azimuths"),
+                    "is required by construct \"directions\"",
+                )
+            })?;
+            if azs.len() != zeniths.len() {
+                return Err(ctx.err(
+                    format!("{key}.azimuths"),
+                    format!(
+                        "has {} values but `zeniths` has {}",
+                        azs.len(),
+                        zeniths.len()
+                    ),
+                ));
+            }
+            for (i, (&z, &a)) in zeniths.iter().zip(azs).enumerate() {
+                if !z.is_finite() || !(0.0..90.0).contains(&z) {
+                    return Err(ctx.err(
+                        format!("{key}.zeniths[{i}]"),
+                        format!("{z} degrees must lie in [0, 90)"),
+                    ));
+                }
+                let a = ctx.finite(&format!("{key}.azimuths[{i}]"), a)?;
+                vza.push(z);
+                vaa.push(a.rem_euclid(360.0));
+            }
+        }
+    }
+    Ok((vza, vaa))
+}
+
+/// A (sub-key, message) error of a scene measure; the caller prefixes the measure's key.
+type SubErr = (String, String);
+
+/// The target area of a distant measure (default: the scene's extent at its top).
+fn area(scene: &SceneFrame, rect: Option<[f64; 4]>, height: Option<f64>) -> Result<Area, String> {
+    let rect = match rect {
+        None => scene.extent,
+        Some(r) => {
+            if !(r.iter().all(|v| v.is_finite()) && r[0] < r[2] && r[1] < r[3]) {
+                return Err("must be [xmin, ymin, xmax, ymax] with min < max".into());
+            }
+            let (a, b) = scene.to_local(r[0], r[1]);
+            let (c, d) = scene.to_local(r[2], r[3]);
+            [a, b, c, d]
+        }
+    };
+    let height = height.unwrap_or(scene.top);
+    if !height.is_finite() {
+        return Err(format!("target height {height} is not finite"));
+    }
+    Ok(Area { rect, height })
+}
+
+/// The pixel grid of an ortho measure, snapped outwards to whole pixels.
+fn ortho_grid(
+    scene: &SceneFrame,
+    pixel: f64,
+    window: Option<[f64; 4]>,
+    zenith: f64,
+    azimuth: f64,
+) -> Result<OrthoGrid, SubErr> {
+    if !(pixel.is_finite() && pixel > 0.0) {
+        return Err(("pixel_size_m".into(), format!("{pixel} must be > 0")));
+    }
+    if !(zenith.is_finite() && (0.0..89.0).contains(&zenith)) {
+        return Err((
+            "zenith".into(),
+            format!("{zenith} degrees must lie in [0, 89)"),
+        ));
+    }
+    if !azimuth.is_finite() {
+        return Err(("azimuth".into(), format!("{azimuth} is not finite")));
+    }
+    let a = area(scene, window, None).map_err(|m| ("window_m".into(), m))?;
+    let r = a.rect;
+    let width = ((r[2] - r[0]) / pixel).ceil().max(1.0) as usize;
+    let height = ((r[3] - r[1]) / pixel).ceil().max(1.0) as usize;
+    if width.saturating_mul(height) > 50_000_000 {
+        return Err((
+            "pixel_size_m".into(),
+            format!("{width} × {height} pixels is too many (limit 5·10⁷); use a larger pixel or a window"),
+        ));
+    }
+    // Centre the snapped grid on the requested window.
+    let x0 = 0.5 * (r[0] + r[2]) - 0.5 * width as f64 * pixel;
+    let y1 = 0.5 * (r[1] + r[3]) + 0.5 * height as f64 * pixel;
+    let azimuth = azimuth.rem_euclid(360.0);
+    Ok(OrthoGrid {
+        width,
+        height,
+        geotransform: [x0, pixel, 0.0, y1, 0.0, -pixel],
+        view: direction_from_angles(zenith.to_radians(), azimuth.to_radians()),
+        vza: zenith,
+        vaa: azimuth,
+    })
+}
+
+/// A pinhole camera from origin, target, up and horizontal field of view.
+fn camera(
+    scene: &SceneFrame,
+    origin: [f64; 3],
+    target: [f64; 3],
+    up: Option<[f64; 3]>,
+    fov: f64,
+    width: usize,
+    height: usize,
+) -> Result<Camera, SubErr> {
+    if origin.iter().chain(&target).any(|v| !v.is_finite()) {
+        return Err(("origin_m".into(), "origin and target must be finite".into()));
+    }
+    if !(fov > 0.0 && fov < 179.0) {
+        return Err(("fov".into(), format!("{fov} degrees must lie in (0, 179)")));
+    }
+    if width == 0 || height == 0 || width.saturating_mul(height) > 50_000_000 {
+        return Err((
+            "width".into(),
+            "width and height must be 1..; at most 5·10⁷ pixels".into(),
+        ));
+    }
+    let (ox, oy) = scene.to_local(origin[0], origin[1]);
+    let (tx, ty) = scene.to_local(target[0], target[1]);
+    let o = DVec3::new(ox, oy, origin[2]);
+    let t = DVec3::new(tx, ty, target[2]);
+    let forward = (t - o).normalize_or_zero();
+    if forward == DVec3::ZERO {
+        return Err(("target_m".into(), "must differ from origin_m".into()));
+    }
+    let upv = DVec3::from_array(up.unwrap_or([0.0, 0.0, 1.0]));
+    let right = forward.cross(upv).normalize_or_zero();
+    if right == DVec3::ZERO {
+        return Err((
+            "up".into(),
+            "must not be parallel to the viewing direction".into(),
+        ));
+    }
+    let true_up = right.cross(forward);
+    let tan_x = (0.5 * fov).to_radians().tan();
+    let tan_y = tan_x * height as f64 / width as f64;
+    Ok(Camera {
+        origin: o,
+        forward,
+        right,
+        up: true_up,
+        tan_x,
+        tan_y,
+        width,
+        height,
+    })
+}
+
+/// With a sensor band, `target_rel_stderr` is the target of the band-weighted result: each of
+/// the N independent wavelengths may then be √N_eff times noisier, with
+/// N_eff = (Σ a_k)² / Σ a_k² and a_k = w_k·E0_k (equal relative errors combine this way).
+pub fn relax_targets_for_band(measures: &mut [Measure], weights: &[f64], irradiance: &[f64]) {
+    let a: Vec<f64> = weights.iter().zip(irradiance).map(|(w, e)| w * e).collect();
+    let (s1, s2) = (a.iter().sum::<f64>(), a.iter().map(|x| x * x).sum::<f64>());
+    if s2 > 0.0 {
+        let n_eff = s1 * s1 / s2;
+        for m in measures {
+            if let Some(t) = m.target_rel_stderr {
+                m.target_rel_stderr = Some((t * n_eff.sqrt()).min(0.5));
+            }
+        }
+    }
+}
+
+/// CKD runs whose blocks of samples cycle through `ng` g-points: every measure's sample count
+/// becomes a whole number of cycles (rounded up, logged).
+pub fn round_to_g_point_cycles(measures: &mut [Measure], ng: usize) {
+    for m in measures {
+        let unit = m.block_size() * ng as u64;
+        let spp = m.spp.div_ceil(unit) * unit;
+        if spp != m.spp {
+            tracing::info!(
+                "measure `{}`: spp {} rounded up to {spp} (whole cycles of {ng} g-points × {} samples)",
+                m.id,
+                m.spp,
+                unit / ng as u64
+            );
+            m.spp = spp;
+        }
+    }
+}
