@@ -130,6 +130,26 @@ impl Measure {
             MeasureKind::Perspective(_) => "perspective",
         }
     }
+
+    /// Whether the cells are hemispherical fluxes (albedo) rather than radiances (BRF).
+    pub fn is_flux(&self) -> bool {
+        matches!(self.kind, MeasureKind::DistantFlux { .. })
+    }
+
+    /// View zenith and azimuth (degrees) of a radiance cell of a non-image measure, for the
+    /// result rows (None for fluxes and images, whose pixels have their own products).
+    pub fn view_angles(&self, cell: usize) -> Option<(f64, f64)> {
+        match &self.kind {
+            MeasureKind::Distant { vza, vaa, .. } => Some((vza[cell], vaa[cell])),
+            MeasureKind::Radiancemeter { look, .. } => {
+                let (z, a) = crate::frame::angles_from_direction(-*look);
+                Some((z.to_degrees(), a.to_degrees()))
+            }
+            MeasureKind::DistantFlux { .. }
+            | MeasureKind::Ortho(_)
+            | MeasureKind::Perspective(_) => None,
+        }
+    }
 }
 
 impl Measure {

@@ -19,8 +19,6 @@ use std::path::Path;
 use crate::accum::MeasureResult;
 use crate::config::resolve::Experiment;
 use crate::error::OutputError;
-use crate::frame::angles_from_direction;
-use crate::measure::MeasureKind;
 
 /// One output row: one measure, wavelength and direction.
 #[derive(Clone, Debug)]
@@ -110,27 +108,18 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 dolp: None,
                 n_samples: r.acc.n[c],
             };
-            if r.acc.is_polarized() && !matches!(m.kind, MeasureKind::DistantFlux { .. }) {
+            if r.acc.is_polarized() && !m.is_flux() {
                 use crate::integrator::{Q, U, V};
                 row.brf_q = Some(r.acc.mean_stderr(c, Q));
                 row.brf_u = Some(r.acc.mean_stderr(c, U));
                 row.brf_v = Some(r.acc.mean_stderr(c, V));
                 row.dolp = Some(dolp(&r.acc, c));
             }
-            match &m.kind {
-                MeasureKind::Distant { vza, vaa, .. } => {
-                    row.vza = Some(vza[c]);
-                    row.vaa = Some(vaa[c]);
-                }
-                MeasureKind::Radiancemeter { look, .. } => {
-                    let (z, a) = angles_from_direction(-*look);
-                    row.vza = Some(z.to_degrees());
-                    row.vaa = Some(a.to_degrees());
-                }
-                MeasureKind::DistantFlux { .. } => {}
-                MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("skipped"),
+            if let Some((z, a)) = m.view_angles(c) {
+                row.vza = Some(z);
+                row.vaa = Some(a);
             }
-            if let MeasureKind::DistantFlux { .. } = m.kind {
+            if m.is_flux() {
                 if sun_up {
                     row.albedo = Some((t, te));
                 }
