@@ -120,7 +120,8 @@ pub struct ConeTreesConfig {
     /// Leaves per crown and their radius (m).
     pub leaves: usize,
     pub leaf_radius_m: f64,
-    /// Goel–Strebel leaf inclination parameters (2θ/π ~ Beta(mu, nu)).
+    /// Goel–Strebel leaf inclination parameters: density of x = 2θ/π ∝ (1 − x)^(mu−1)·x^(nu−1),
+    /// i.e. x ~ Beta(nu, mu) (`scene::build::goel_strebel_inclination`).
     #[serde(default = "default_mu")]
     pub mu: f64,
     #[serde(default = "default_nu")]

@@ -367,7 +367,8 @@ pub struct ConeTrees {
     pub crown_radius: f64,
     pub leaves: usize,
     pub leaf_radius: f64,
-    /// Goel–Strebel leaf inclination: 2θ/π ~ Beta(mu, nu); azimuth uniform.
+    /// Goel–Strebel leaf inclination (see [`goel_strebel_inclination`]): 2θ/π ~ Beta(nu, mu);
+    /// azimuth uniform.
     pub mu: f64,
     pub nu: f64,
     pub leaf_brdf: BrdfSpec,
@@ -386,6 +387,22 @@ fn beta_johnk(a: f64, b: f64, rng: &mut crate::rng::Stream) -> f64 {
     }
 }
 
+/// A leaf inclination θ (rad, of the normal from the vertical) from the Goel–Strebel
+/// inverse-beta distribution (Goel & Strebel 1984, "Simple beta distribution representation of
+/// leaf orientation in vegetation canopies", Agron. J. 76:800–802), with the parameter names of
+/// RAMI-IV and Eradiate: x = 2θ/π has the density
+///
+/// f(x) = (1 − x)^(μ−1) · x^(ν−1) / B(μ, ν), 0 ≤ x ≤ 1,
+///
+/// i.e. x ~ Beta(ν, μ), mean ν/(μ + ν). In this convention the planophile set of the paper has
+/// μ > ν (2.770, 1.172) and the spherical one μ 1.101, ν 1.930 (mean θ ≈ 57°); RAMI's μ = 1.066,
+/// ν = 1.853 (HET06) give mean x 0.635, close to spherical. Beta(μ, ν) would be the mirror image
+/// (mean 0.365, planophile). `tests/leaf_angles.rs` checks the moments against a leaf cloud
+/// made by another generator (`../shared/data/canopy/hom/hom_leaves.txt`).
+pub fn goel_strebel_inclination(mu: f64, nu: f64, rng: &mut crate::rng::Stream) -> f64 {
+    std::f64::consts::FRAC_PI_2 * beta_johnk(nu, mu, rng)
+}
+
 impl ConeTrees {
     /// The crown of variant `k`: discs uniform in the cone's volume.
     pub fn crown(&self, k: usize) -> Vec<Disc> {
@@ -397,7 +414,7 @@ impl ConeTrees {
                 let rmax = self.crown_radius * (1.0 - h / self.crown_height);
                 let r = rmax * rng.next_f64().sqrt();
                 let phi = std::f64::consts::TAU * rng.next_f64();
-                let theta = std::f64::consts::FRAC_PI_2 * beta_johnk(self.mu, self.nu, &mut rng);
+                let theta = goel_strebel_inclination(self.mu, self.nu, &mut rng);
                 let az = std::f64::consts::TAU * rng.next_f64();
                 let n = crate::frame::direction_from_angles(theta, az);
                 Disc {
