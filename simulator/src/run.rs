@@ -24,13 +24,6 @@ use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::sensor;
 
-pub use crate::measure::{BLOCK, IMAGE_BLOCK};
-
-/// The block size of a measure.
-pub fn block_size(m: &Measure) -> u64 {
-    m.block_size()
-}
-
 pub use crate::accum::{MeasureResult, Method};
 
 pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
@@ -71,7 +64,7 @@ fn run_block(
         return run_block_alis(exp, base, layers, iw, im, cell, range);
     }
     let ng = base.g_states.len();
-    let b = range.start / block_size(&exp.measures[im]);
+    let b = range.start / exp.measures[im].block_size();
     let (w, opt) = &base.g_states[(b % ng as u64) as usize];
     let mut acc = run_block_at(exp, opt, iw, im, cell, range);
     acc.scale(w * ng as f64);
@@ -106,7 +99,6 @@ fn run_block_alis(
     range: std::ops::Range<u64>,
 ) -> Accum {
     use crate::integrator::backward_alis::{Channels, Kind};
-    let m = &exp.measures[im];
     let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
@@ -119,18 +111,35 @@ fn run_block_alis(
             surface: &base.surface,
         },
     };
-    let toa = atms[0].toa();
-    let geometry = ReferenceLayers {
-        channels: &g,
-        sun: exp.sun_dir,
-    };
+    channel_walks(exp, &g, iw as u64, im, cell, range)
+}
+
+/// Backward walks over channels `g` (one accumulator cell per output: the bin mean, or one per
+/// wavelength), stream family `key`.
+fn channel_walks(
+    exp: &Experiment,
+    g: &crate::integrator::backward_alis::Channels,
+    key: u64,
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Accum {
+    let m = &exp.measures[im];
+    let toa = g.reference.toa();
+    let geometry = ReferenceLayers::new(g, exp.sun_dir);
     let k = Geometry::<ChannelPath>::light(&geometry).normalization;
-    let mut acc = Accum::new(1);
+    let mut acc = Accum::new(g.outputs());
     for s in range {
-        let mut rng = Stream::new(exp.seed, [iw as u64, im as u64, cell as u64, s]);
+        let mut rng = Stream::new(exp.seed, [key, im as u64, cell as u64, s]);
         let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
-        let w = ChannelPath::new(&g);
-        let t = backward::walk(&geometry, z0, d0, w, &exp.integrator, &mut rng);
+        let t = backward::walk(
+            &geometry,
+            z0,
+            d0,
+            ChannelPath::new(&geometry),
+            &exp.integrator,
+            &mut rng,
+        );
         ChannelPath::record(&mut acc, 0, &t, k);
     }
     acc
@@ -171,7 +180,6 @@ fn run_block_spectral(
     range: std::ops::Range<u64>,
 ) -> Vec<Accum> {
     use crate::integrator::backward_alis::{Channels, Kind};
-    let m = &exp.measures[im];
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
     let surfaces: Vec<&crate::bsdf::Bsdf> =
@@ -185,22 +193,8 @@ fn run_block_spectral(
             reference_surface: &exp.optics[group[group.len() / 2]].surface,
         },
     };
-    let toa = sg.reference.toa();
-    let geometry = ReferenceLayers {
-        channels: &g,
-        sun: exp.sun_dir,
-    };
-    let k = Geometry::<ChannelPath>::light(&geometry).normalization;
-    // One cell per wavelength of the group, split into one accumulator each at the end.
-    let mut all = Accum::new(group.len());
-    let key = GROUP_STREAM | group[0] as u64;
-    for s in range {
-        let mut rng = Stream::new(exp.seed, [key, im as u64, cell as u64, s]);
-        let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
-        let w = ChannelPath::new(&g);
-        let t = backward::walk(&geometry, z0, d0, w, &exp.integrator, &mut rng);
-        ChannelPath::record(&mut all, 0, &t, k);
-    }
+    // One cell per wavelength of the group, split into one accumulator each.
+    let all = channel_walks(exp, &g, GROUP_STREAM | group[0] as u64, im, cell, range);
     (0..group.len())
         .map(|c| {
             let mut a = Accum::new(1);
@@ -475,7 +469,7 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
 fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> Vec<MeasureResult> {
     let m = &exp.measures[im];
     let method = method_for(exp, m);
-    let bs = block_size(m);
+    let bs = m.block_size();
     let spectral = exp
         .integrator
         .spectral_alis

@@ -621,9 +621,26 @@ fn expected(
 /// ([`Layers::carry`]) and records the layer of its collision in the weight; the expected
 /// estimate is integrated per channel ([`expected`]).
 pub struct ReferenceLayers<'a> {
-    pub channels: &'a Channels<'a>,
+    channels: &'a Channels<'a>,
     /// Unit vector towards the Sun (`z > 0`).
-    pub sun: DVec3,
+    sun: DVec3,
+    /// Per channel, the Sun's transmittance to the ground `exp(−τ*_c/μ_s)`.
+    t_ground: Vec<f64>,
+}
+
+impl<'a> ReferenceLayers<'a> {
+    pub fn new(channels: &'a Channels<'a>, sun: DVec3) -> Self {
+        let t_ground = channels
+            .atms
+            .iter()
+            .map(|a| (-a.total_tau() / sun.z).exp())
+            .collect();
+        ReferenceLayers {
+            channels,
+            sun,
+            t_ground,
+        }
+    }
 }
 
 /// The weight of a walk over channels: the common weight `w` (reference albedos, surface weights,
@@ -632,19 +649,23 @@ pub struct ChannelPath<'a> {
     w: f64,
     e: [f64; MAX_CHANNELS],
     g: &'a Channels<'a>,
+    /// Per channel, the Sun's transmittance to the ground.
+    t_ground: &'a [f64],
     /// Layer of the last collision (set by the flight, used by the scattering).
     layer: usize,
     cache: PhaseCache,
 }
 
 impl<'a> ChannelPath<'a> {
-    /// A path of unit weight leaving the sensor.
-    pub fn new(g: &'a Channels<'a>) -> Self {
+    /// A path of unit weight leaving the sensor, in the reference geometry `r`.
+    pub fn new(r: &'a ReferenceLayers<'a>) -> Self {
+        let g = r.channels;
         assert!(g.atms.len() <= MAX_CHANNELS);
         ChannelPath {
             w: 1.0,
             e: [1.0; MAX_CHANNELS],
             g,
+            t_ground: &r.t_ground,
             layer: 0,
             cache: PhaseCache::new(g.layers.spectral.as_ref().map_or(0, |s| s.reps.len())),
         }
@@ -784,14 +805,13 @@ impl Adjoint for ChannelPath<'_> {
                 let acc: f64 = weights
                     .iter()
                     .zip(self.e.iter())
-                    .zip(g.atms)
-                    .map(|((wk, ek), a)| wk * ek * (-a.total_tau() / mu_s).exp())
+                    .zip(self.t_ground)
+                    .map(|((wk, ek), tk)| wk * ek * tk)
                     .sum();
                 t[0].add(order, self.w * f * acc);
             }
             Kind::Wavelengths { surfaces, .. } => {
-                for (k, (sf, a)) in surfaces.iter().zip(g.atms).enumerate() {
-                    let tg = (-a.total_tau() / mu_s).exp();
+                for (k, (sf, tg)) in surfaces.iter().zip(self.t_ground).enumerate() {
                     t[k].add(order, self.w * sf.eval(sun, wo) * mu_s * self.e[k] * tg);
                 }
             }
