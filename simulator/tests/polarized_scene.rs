@@ -13,27 +13,9 @@
 
 mod common;
 
-use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
+use common::bundles::{flat_plane, tmp, write_plane};
 use common::{check_all, experiment, mdistant_toml, run_rows, Cmp};
 use simulator::products::Row;
-
-fn flat_plane(size: f64) -> PlaneSpec {
-    PlaneSpec {
-        x0: -0.5 * size,
-        y0: -0.5 * size,
-        size,
-        h0: 0.0,
-        sx: 0.0,
-        sy: 0.0,
-        tiles: 2,
-        n: 4,
-        raster_width: 2,
-        raster: vec![0; 4],
-        materials: vec![("soil".to_string(), lambertian(0.25))],
-        frame_origin: [500_000.0, 4_000_000.0, 0.0],
-        wkt: String::new(),
-    }
-}
 
 const ATMOSPHERE: &str = "[atmosphere]\ntype = \"layered\"\n\
     [[atmosphere.layers]]\nbottom = 2.0\ntop = 100.0\ntau_sca = 0.25\nphase = { type = \"rayleigh\" }\n\
@@ -64,7 +46,10 @@ fn compare_stokes(case: &str, a: &[Row], b: &[Row]) -> Result<(), String> {
 /// Plane-parallel and spherical-shell geometries: flat polarized bundle = 1D polarized walk.
 #[test]
 fn flat_bundle_equals_1d_polarized_walk() {
-    let b = write_plane(&tmp("pol-flat-bundle"), &flat_plane(2000.0));
+    let b = write_plane(
+        &tmp("pol-flat-bundle"),
+        &flat_plane(2000.0, 0.0, -1000.0, 0.25),
+    );
     let vza = [0.0, 30.0, 50.0, 60.0, 40.0];
     let vaa = [0.0, 0.0, 60.0, 180.0, 270.0];
     let mut errs = Vec::new();
@@ -117,7 +102,7 @@ fn flat_bundle_equals_1d_polarized_walk() {
 /// view direction.
 #[test]
 fn polarized_ortho_writes_stokes_bands() {
-    let mut spec = flat_plane(2000.0);
+    let mut spec = flat_plane(2000.0, 0.0, -1000.0, 0.25);
     spec.wkt = gdal::spatial_ref::SpatialRef::from_epsg(32631)
         .unwrap()
         .to_wkt()

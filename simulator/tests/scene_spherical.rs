@@ -6,29 +6,11 @@
 
 mod common;
 
-use common::bundles::{lambertian, tmp, write_plane, PlaneSpec};
+use common::bundles::{flat_plane, lambertian, tmp, write_plane, PlaneSpec};
 use common::{compare_brf_rows, experiment, mdistant_toml, run_rows};
 use glam::DVec3;
 use simulator::scene::build::{from_bundle, Background};
 use simulator::scene::curvature::Curvature;
-
-fn flat_plane(size: f64, h0: f64, x0: f64) -> PlaneSpec {
-    PlaneSpec {
-        x0,
-        y0: -0.5 * size,
-        size,
-        h0,
-        sx: 0.0,
-        sy: 0.0,
-        tiles: 2,
-        n: 4,
-        raster_width: 2,
-        raster: vec![0; 4],
-        materials: vec![("soil".to_string(), lambertian(0.3))],
-        frame_origin: [500_000.0, 4_000_000.0, 0.0],
-        wkt: String::new(),
-    }
-}
 
 /// A bent terrain lies on the sphere: rays hit a flat (constant-altitude) bundle 30 km from the
 /// origin at its altitude above the planet (within the chord error e²/(8R) of its 250 m quads),
@@ -36,7 +18,7 @@ fn flat_plane(size: f64, h0: f64, x0: f64) -> PlaneSpec {
 #[test]
 fn bent_geometry_lies_on_the_sphere() {
     let dir = tmp("bent-geometry");
-    let b = write_plane(&dir, &flat_plane(2000.0, 120.0, 29_000.0));
+    let b = write_plane(&dir, &flat_plane(2000.0, 120.0, 29_000.0, 0.3));
     let c = Curvature {
         radius: 6_378_100.0,
     };
@@ -89,10 +71,13 @@ fn bent_geometry_lies_on_the_sphere() {
 /// not bent, its edges would float above the background sphere and cast shadows on it).
 #[test]
 fn flat_bundle_on_the_sphere_equals_1d_spherical() {
-    let small = write_plane(&tmp("flat-sphere-2km"), &flat_plane(2000.0, 0.0, -1000.0));
+    let small = write_plane(
+        &tmp("flat-sphere-2km"),
+        &flat_plane(2000.0, 0.0, -1000.0, 0.3),
+    );
     let large = write_plane(
         &tmp("flat-sphere-20km"),
-        &flat_plane(20_000.0, 0.0, -10_000.0),
+        &flat_plane(20_000.0, 0.0, -10_000.0, 0.3),
     );
     let vza = [0.0, 40.0, 65.0, 30.0];
     let vaa = [0.0, 90.0, 180.0, 300.0];
@@ -162,7 +147,7 @@ fn bent_scene(name: &str, seed: u64, measure: &str) -> simulator::config::Experi
         &tmp(name),
         &PlaneSpec {
             n: 40,
-            ..flat_plane(20_000.0, 0.0, -10_000.0)
+            ..flat_plane(20_000.0, 0.0, -10_000.0, 0.3)
         },
     );
     experiment(&format!(

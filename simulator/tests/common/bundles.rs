@@ -39,6 +39,26 @@ pub fn lambertian(r: f64) -> BrdfSpec {
     }
 }
 
+/// A flat square terrain of one Lambertian material `reflectance` at height `h0`, `size` m wide
+/// from `x0` (y centred on the origin), 2×2 tiles of 4×4 quads, frame origin (500 000, 4 000 000).
+pub fn flat_plane(size: f64, h0: f64, x0: f64, reflectance: f64) -> PlaneSpec {
+    PlaneSpec {
+        x0,
+        y0: -0.5 * size,
+        size,
+        h0,
+        sx: 0.0,
+        sy: 0.0,
+        tiles: 2,
+        n: 4,
+        raster_width: 2,
+        raster: vec![0; 4],
+        materials: vec![("soil".to_string(), lambertian(reflectance))],
+        frame_origin: [500_000.0, 4_000_000.0, 0.0],
+        wkt: String::new(),
+    }
+}
+
 /// WKT of UTM 31N (EPSG:32631), written by hand (no GDAL needed to build the bundle).
 pub const UTM31N_EPSG: u32 = 32631;
 
