@@ -22,6 +22,7 @@ pub mod absorption;
 pub mod accum;
 pub mod atmosphere;
 pub mod bench;
+pub mod bench_polarized;
 pub mod bench_scene;
 pub mod bsdf;
 /// The scene-bundle format, now its own crate (`bundle/`); re-exported so that

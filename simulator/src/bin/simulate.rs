@@ -83,6 +83,24 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
     },
+    /// Thick polarized media: standard errors of the polarized walk against the scalar one and
+    /// against the scatter over seeds (see BENCHMARKS.md).
+    BenchPolarized {
+        /// Walks per seed (per direction for the backward walk).
+        #[arg(long, default_value_t = 20_000)]
+        walks: u64,
+        /// Seeds per case.
+        #[arg(long, default_value_t = 30)]
+        seeds: u64,
+        /// Walk: forward, backward or both.
+        #[arg(long, default_value = "both")]
+        method: String,
+        /// Optical thicknesses, comma-separated.
+        #[arg(long, value_delimiter = ',', default_value = "8,16")]
+        taus: Vec<f64>,
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+    },
     /// Time-to-precision benchmark on the reference workload (see BENCHMARKS.md).
     Bench {
         /// Target relative standard error in every direction.
@@ -298,6 +316,16 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
         } => {
             set_threads(threads)?;
             simulator::bench_scene::run(&bundle, pixel, target, rays)
+        }
+        Command::BenchPolarized {
+            walks,
+            seeds,
+            method,
+            taus,
+            threads,
+        } => {
+            set_threads(threads)?;
+            simulator::bench_polarized::run(walks, seeds, &method, &taus)
         }
         Command::Bench {
             target,

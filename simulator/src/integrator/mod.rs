@@ -28,6 +28,7 @@ pub mod backward_alis;
 pub mod forward;
 pub mod geometry;
 pub mod settings;
+pub mod stokes_sampling;
 pub mod surface;
 pub mod weight;
 

@@ -8,12 +8,15 @@
 //! | [`StokesPhoton`] | forward | Stokes vector `S` and its frame axis `e1` | (I single, I multiple, Q, U, V) |
 //! | [`MuellerPath`] | backward | 4×4 path matrix `T` and the segment's frame axis `e1` | (I single, I multiple, Q, U, V) |
 //!
-//! Conventions (Stokes frames, phase matrices) are those of [`crate::stokes`]. Every weight
+//! Conventions (Stokes frames, phase matrices) are those of [`crate::stokes`]. The scalar weight
 //! draws a new direction after a collision from the phase function `a1 = P11` and a uniform
-//! azimuth, and multiplies itself by `ω·F(Θ)/a1(Θ)` (scalar: `ω`): unbiased, since the scattered
-//! intensity's density is `(F·S)_I/4π` and the sampling density `a1·I/4π`. Surface bounces draw
-//! from the surface's sampler: depolarizing surfaces keep the intensity only, polarizing ones
-//! (the ocean) apply their reflection matrix in the plane of incidence like a scattering.
+//! azimuth, and multiplies itself by `ω`. The polarized weights draw (Θ, φ) jointly from the
+//! density of the scattered intensity, `(F·S)_I/4π` ([`super::stokes_sampling`]), and multiply
+//! themselves by `ω·F/(F·S)_I·I`: their intensity weight is multiplied by exactly ω, as the
+//! scalar one (no compounding polarization factor in thick media). Surface bounces draw from the
+//! surface's sampler: depolarizing surfaces keep the intensity only, polarizing ones (the ocean)
+//! apply their reflection matrix in the plane of incidence, weighted by the sampler's
+//! `f·cos/pdf` over `a1` (an intensity factor in [0, 2] per bounce).
 //!
 //! The *sun* is unpolarized: next-event estimates scatter `(1, 0, 0, 0)` into the path.
 //!
@@ -23,6 +26,7 @@
 
 use glam::{DMat4, DVec3, DVec4};
 
+use super::stokes_sampling;
 use super::surface::SurfaceAt;
 use super::RR_THRESHOLD;
 use crate::accum::Accum;
@@ -290,13 +294,18 @@ impl Weight for StokesPhoton {
     }
     #[inline]
     fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
-        let d2 = sample_scattered(phase, d, rng);
-        let f = phase.matrix(d.dot(d2));
-        let (s2, l2) = scatter(self.s, d, self.e1, d2, &f);
-        let k = omega / f.a1;
+        let i = self.s[0];
+        let smp = stokes_sampling::sample(phase, d, self.e1, self.s[1] / i, self.s[2] / i, rng);
+        let (s2, l2) = scatter(self.s, d, self.e1, smp.d2, &smp.f);
+        // The density is ∝ the scattered intensity: S'₀ = ω·I.
+        let k = if smp.norm > 0.0 {
+            omega / smp.norm
+        } else {
+            0.0
+        };
         self.s = s2.map(|x| x * k);
         self.e1 = l2;
-        d2
+        smp.d2
     }
     #[inline]
     fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
@@ -420,10 +429,19 @@ impl Weight for MuellerPath {
     }
     #[inline]
     fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
-        let d2 = sample_scattered(phase, d, rng);
-        let f = phase.matrix(d.dot(d2));
+        // Light arrives along −d; its frame axis e1 is the path segment's (see the module of
+        // `stokes_sampling`: q = T01/T00, u = −T02/T00 make T00 scale by exactly ω).
+        let t00 = self.t.col(0).x;
+        let (q, u) = (self.t.col(1).x / t00, -self.t.col(2).x / t00);
+        let smp = stokes_sampling::sample(phase, d, self.e1, q, u, rng);
+        let d2 = smp.d2;
         let (_, l_in, l_out) = plane(-d2, -d, self.e1);
-        self.t = self.t * rotation(-d, l_out, self.e1) * mueller(&f) * (omega / f.a1);
+        let k = if smp.norm > 0.0 {
+            omega / smp.norm
+        } else {
+            0.0
+        };
+        self.t = self.t * rotation(-d, l_out, self.e1) * mueller(&smp.f) * k;
         self.e1 = l_in;
         d2
     }
@@ -454,4 +472,45 @@ impl Weight for MuellerPath {
         Some(d2)
     }
     polarized_tally!();
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::phase::Rayleigh;
+
+    /// Stokes-aware sampling: after a scattering the intensity weight is exactly ω times the
+    /// previous one, for forward photons and backward path matrices in any polarization state
+    /// (which also pins the frame algebra of `stokes_sampling` to `stokes::scatter` and to the
+    /// backward rotation), and |Q|, |U| stay ≤ I.
+    #[test]
+    fn polarized_scattering_multiplies_intensity_by_omega() {
+        let phase = PhaseFunction::Rayleigh(Rayleigh::new(0.03).unwrap());
+        let mut rng = Stream::new(11, [2, 7, 1, 8]);
+        let omega = 0.9;
+        let mut p = StokesPhoton::unpolarized(DVec3::new(0.3, -0.4, -0.866).normalize());
+        let mut d = DVec3::new(0.3, -0.4, -0.866).normalize();
+        let mut b = MuellerPath::at_sensor(any_perpendicular(d));
+        let mut db = d;
+        for order in 0..200 {
+            let i0 = p.s[0];
+            d = p.scatter(&phase, omega, d, &mut rng);
+            assert!((p.s[0] - omega * i0).abs() < 1e-12 * i0, "order {order}");
+            let pol = (p.s[1].powi(2) + p.s[2].powi(2) + p.s[3].powi(2)).sqrt();
+            assert!(pol <= p.s[0] * (1.0 + 1e-9), "order {order}: {:?}", p.s);
+            p.rescale_to(1.0, p.s[0]);
+            assert!((p.e1.dot(d)).abs() < 1e-9 && (p.e1.length() - 1.0).abs() < 1e-9);
+
+            let t0 = b.t.col(0).x;
+            db = b.scatter(&phase, omega, db, &mut rng);
+            let t1 = b.t.col(0).x;
+            assert!(
+                (t1 - omega * t0).abs() < 1e-12 * t0,
+                "order {order}: {t0} → {t1}"
+            );
+            let row = (b.t.col(1).x.powi(2) + b.t.col(2).x.powi(2)).sqrt();
+            assert!(row <= t1 * (1.0 + 1e-9), "order {order}");
+            b.rescale_to(1.0, t1);
+        }
+    }
 }
