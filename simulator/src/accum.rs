@@ -25,7 +25,27 @@ pub struct Accum {
     pub sum2: Vec<f64>,
     /// `[cell * 3 + k]` for (I·Q, I·U, Q·U); empty in scalar runs.
     pub cross: Vec<f64>,
+    /// Per cell, of the total (I) only: sums of the third and fourth powers of the samples and
+    /// the largest sample, for the heavy-tail diagnostic ([`Accum::tail`]).
+    pub sum3: Vec<f64>,
+    pub sum4: Vec<f64>,
+    pub max: Vec<f64>,
 }
+
+/// Heavy-tail diagnostic of one cell (see [`Accum::tail`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Tail {
+    /// Relative variance of the variance estimate (MCNP's VOV):
+    /// `Σ(x−x̄)⁴ / (Σ(x−x̄)²)² − 1/N`. Below 0.1 the standard error is trustworthy.
+    pub vov: f64,
+    /// The largest single sample's share of the sum.
+    pub max_share: f64,
+}
+
+/// Cells with fewer samples are not judged by [`Accum::tail`]: their VOV is too noisy.
+pub const TAIL_MIN_SAMPLES: u64 = 1000;
+/// MCNP's threshold on the VOV (X-5 Monte Carlo Team 2003, vol. I, §2.6.9).
+pub const VOV_LIMIT: f64 = 0.1;
 
 impl Accum {
     pub fn new(cells: usize) -> Self {
@@ -35,6 +55,9 @@ impl Accum {
             sum: vec![0.0; cells * 3],
             sum2: vec![0.0; cells * 3],
             cross: Vec::new(),
+            sum3: vec![0.0; cells],
+            sum4: vec![0.0; cells],
+            max: vec![0.0; cells],
         }
     }
 
@@ -45,6 +68,9 @@ impl Accum {
             sum: vec![0.0; cells * 6],
             sum2: vec![0.0; cells * 6],
             cross: vec![0.0; cells * 3],
+            sum3: vec![0.0; cells],
+            sum4: vec![0.0; cells],
+            max: vec![0.0; cells],
         }
     }
 
@@ -57,6 +83,7 @@ impl Accum {
     pub fn add(&mut self, cell: usize, single: f64, multiple: f64) {
         let t = single + multiple;
         self.n[cell] += 1;
+        self.add_tail(cell, t);
         let o = cell * self.ncomp;
         for (k, x) in [t, single, multiple].into_iter().enumerate() {
             self.sum[o + k] += x;
@@ -69,6 +96,7 @@ impl Accum {
     pub fn add_stokes(&mut self, cell: usize, single: f64, multiple: f64, q: f64, u: f64, v: f64) {
         let i = single + multiple;
         self.n[cell] += 1;
+        self.add_tail(cell, i);
         let o = cell * 6;
         for (k, x) in [i, single, multiple, q, u, v].into_iter().enumerate() {
             self.sum[o + k] += x;
@@ -80,11 +108,49 @@ impl Accum {
         self.cross[c + 2] += q * u;
     }
 
-    /// Multiply every sample by `f` (the sums by f, the sums of squares and products by f²).
+    #[inline]
+    fn add_tail(&mut self, cell: usize, x: f64) {
+        let x2 = x * x;
+        self.sum3[cell] += x2 * x;
+        self.sum4[cell] += x2 * x2;
+        self.max[cell] = self.max[cell].max(x.abs());
+    }
+
+    /// Multiply every sample by `f` (the sums by f, the sums of squares and products by f², …).
     pub fn scale(&mut self, f: f64) {
         self.sum.iter_mut().for_each(|x| *x *= f);
         self.sum2.iter_mut().for_each(|x| *x *= f * f);
         self.cross.iter_mut().for_each(|x| *x *= f * f);
+        self.sum3.iter_mut().for_each(|x| *x *= f * f * f);
+        self.sum4.iter_mut().for_each(|x| *x *= (f * f) * (f * f));
+        self.max.iter_mut().for_each(|x| *x *= f.abs());
+    }
+
+    /// The heavy-tail diagnostic of the total in `cell`; `None` with fewer than
+    /// [`TAIL_MIN_SAMPLES`] samples or a zero variance. The central moments come from the power
+    /// sums; their cancellation matters only for nearly constant samples, whose VOV is ≈ 0
+    /// anyway (the result is clamped at 0).
+    pub fn tail(&self, cell: usize) -> Option<Tail> {
+        let n = self.n[cell];
+        if n < TAIL_MIN_SAMPLES {
+            return None;
+        }
+        let nf = n as f64;
+        let o = cell * self.ncomp + TOTAL;
+        let (s1, s2, s3, s4) = (self.sum[o], self.sum2[o], self.sum3[cell], self.sum4[cell]);
+        let m = s1 / nf;
+        let m2 = s2 - nf * m * m;
+        if m2 <= 0.0 {
+            return None;
+        }
+        let m4 = s4 - 4.0 * m * s3 + 6.0 * m * m * s2 - 3.0 * nf * m.powi(4);
+        let vov = (m4.max(0.0) / (m2 * m2) - 1.0 / nf).max(0.0);
+        let max_share = if s1.abs() > 0.0 {
+            self.max[cell] / s1.abs()
+        } else {
+            0.0
+        };
+        Some(Tail { vov, max_share })
     }
 
     /// Add `other` (same layout) into self; exact merge of partial results.
@@ -105,6 +171,15 @@ impl Accum {
         for (a, b) in self.cross.iter_mut().zip(&other.cross) {
             *a += b;
         }
+        for (a, b) in self.sum3.iter_mut().zip(&other.sum3) {
+            *a += b;
+        }
+        for (a, b) in self.sum4.iter_mut().zip(&other.sum4) {
+            *a += b;
+        }
+        for (a, b) in self.max.iter_mut().zip(&other.max) {
+            *a = a.max(*b);
+        }
     }
 
     /// Add cell `from` of `other` into cell `to` of self.
@@ -120,6 +195,9 @@ impl Accum {
                 self.cross[to * 3 + j] += other.cross[from * 3 + j];
             }
         }
+        self.sum3[to] += other.sum3[from];
+        self.sum4[to] += other.sum4[from];
+        self.max[to] = self.max[to].max(other.max[from]);
     }
 
     /// Mean and standard error of the mean of component `k` in `cell`.
@@ -210,4 +288,60 @@ pub struct MeasureResult {
     pub wavelength: usize,
     pub method: Method,
     pub acc: Accum,
+}
+
+#[cfg(test)]
+mod tail_tests {
+    use super::*;
+
+    /// The VOV from power sums against its definition computed directly, merged blocks equal
+    /// one accumulator, scaling leaves it unchanged; light tails pass, a Pareto tail (α = 1.5,
+    /// infinite variance) fails.
+    #[test]
+    fn vov_of_light_and_heavy_tails() {
+        let mut rng = crate::rng::Stream::new(5, [3, 1, 4, 1]);
+        let n = 20_000;
+        // Exponential samples (kurtosis 9): VOV ≈ (κ − 1)/N ≈ 4e-4.
+        let light: Vec<f64> = (0..n).map(|_| -(1.0 - rng.next_f64()).ln()).collect();
+        let heavy: Vec<f64> = (0..n)
+            .map(|_| (1.0 - rng.next_f64()).powf(-1.0 / 1.5))
+            .collect();
+        for (xs, is_heavy) in [(&light, false), (&heavy, true)] {
+            let mut a = Accum::new(1);
+            let mut b1 = Accum::new(1);
+            let mut b2 = Accum::new(1);
+            for (i, &x) in xs.iter().enumerate() {
+                a.add(0, x, 0.0);
+                if i % 2 == 0 {
+                    b1.add(0, 0.0, x)
+                } else {
+                    b2.add(0, x, 0.0)
+                }
+            }
+            b1.merge(&b2);
+            let m = xs.iter().sum::<f64>() / n as f64;
+            let m2: f64 = xs.iter().map(|x| (x - m).powi(2)).sum();
+            let m4: f64 = xs.iter().map(|x| (x - m).powi(4)).sum();
+            let direct = m4 / (m2 * m2) - 1.0 / n as f64;
+            let t = a.tail(0).unwrap();
+            assert!(
+                (t.vov - direct).abs() < 1e-9 * direct.max(1e-3),
+                "{} vs {direct}",
+                t.vov
+            );
+            assert!((b1.tail(0).unwrap().vov - t.vov).abs() < 1e-9 * t.vov.max(1e-3));
+            let mut s = a.clone();
+            s.scale(3.7);
+            assert!((s.tail(0).unwrap().vov - t.vov).abs() < 1e-9 * t.vov.max(1e-3));
+            let max = xs.iter().cloned().fold(0.0, f64::max);
+            assert!((t.max_share - max / (m * n as f64)).abs() < 1e-12);
+            assert_eq!(t.vov > VOV_LIMIT, is_heavy, "vov {}", t.vov);
+        }
+        // Too few samples: not judged.
+        let mut few = Accum::new(1);
+        for k in 0..(TAIL_MIN_SAMPLES - 1) {
+            few.add(0, k as f64, 0.0);
+        }
+        assert!(few.tail(0).is_none());
+    }
 }

@@ -31,6 +31,7 @@ pub use bundle;
 pub mod config;
 pub mod error;
 pub mod frame;
+pub mod heavy_tail;
 pub mod illumination;
 pub mod integrator;
 pub mod measure;

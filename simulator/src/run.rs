@@ -404,10 +404,12 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
         let k = r.wavelength * nm + r.measure;
         slots[k] = Some(r);
     }
-    slots
+    let out: Vec<MeasureResult> = slots
         .into_iter()
         .map(|r| r.expect("every (wavelength, measure) pair has a task"))
-        .collect()
+        .collect();
+    crate::heavy_tail::warn(exp, &out);
+    out
 }
 
 /// The progress bar's message for a task.
@@ -740,5 +742,7 @@ pub fn run_shard(
         let k = r.wavelength * nm + r.measure;
         out[k] = Some(r);
     }
+    let done: Vec<MeasureResult> = out.iter().flatten().cloned().collect();
+    crate::heavy_tail::warn(exp, &done);
     Ok((out, resumed.into_inner()))
 }

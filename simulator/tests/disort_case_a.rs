@@ -100,7 +100,7 @@ fn run_case(
         integrator,
         &mdistant_toml("toa", &vza, &vaa, spp),
     );
-    let out = run_rows(&experiment(&text));
+    let out = run_rows_light_tailed(&experiment(&text));
     let cmps: Vec<Cmp> = rows
         .iter()
         .zip(&out)

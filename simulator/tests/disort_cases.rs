@@ -147,7 +147,7 @@ fn run_case(
         measures.push(flux(spp));
     }
     let exp = experiment(&experiment_for(case, integrator, measures));
-    let rows = run_rows(&exp);
+    let rows = run_rows_light_tailed(&exp);
     let mut cmps: Vec<Cmp> = brf
         .iter()
         .zip(&rows)

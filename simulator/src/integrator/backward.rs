@@ -13,18 +13,23 @@
 //! provides ([`Geometry::flight`]); nothing is then scored at sampled collisions. `"collision"`
 //! scores there instead (a cross-check; both are unbiased).
 //!
-//! The path continues in a direction drawn from the phase function (reciprocal) or the surface's
+//! The path continues in a direction drawn from the phase function (reciprocal; at peaked phase
+//! functions mixed with draws about the Sun direction, [`PeakSampling`]) or the surface's
 //! sampler. Absorption multiplies the weight by ω (survival biasing); Russian roulette after
-//! `rr_depth` orders ([`survives`]); orders beyond `max_depth` are not counted. A sample is
+//! `rr_depth` orders ([`survives`]), splitting of heavy weights ([`split_count`]); orders beyond
+//! `max_depth` are not counted. A sample is
 //! `π·L/(E0·μ)` split into single scattering (first interaction) and the rest. The sky has no
 //! diffuse source above TOA and the direct solar beam (a delta in direction) is never seen.
 
 use glam::DVec3;
 
 use super::geometry::{Event, Geometry};
+use super::peak_sampling::PeakSampling;
 use super::settings::IntegratorSettings;
 use super::surface::SurfaceAt;
-use super::weight::{survives, MuellerPath, OrderSplit, Scalar, Weight, INV_4PI};
+use super::weight::{
+    split_count, survives, MuellerPath, OrderSplit, Scalar, Weight, INV_4PI, MAX_SPLITS,
+};
 use crate::rng::Stream;
 
 /// How a weight scores sunlight arriving at a path vertex.
@@ -162,20 +167,59 @@ pub fn walk<G: Geometry<W>, W: Adjoint>(
     g: &G,
     start: G::Pos,
     d0: DVec3,
-    mut w: W,
+    w: W,
     settings: &IntegratorSettings,
     rng: &mut Stream,
 ) -> W::Tally {
     let sun = g.light().sun;
-    let expected = settings.expected_local_estimate;
+    // The Sun is the detector of the next-event estimates: P(sun·d) at a flight along d.
+    let peak = PeakSampling {
+        eps: settings.detector_sampling,
+        dirs: std::slice::from_ref(&sun),
+    };
     let mut tally = W::zero_tally();
-    let (mut pos, mut d) = (start, d0);
-    let mut order: u32 = 1;
+    let mut budget = MAX_SPLITS;
+    let state = State {
+        pos: start,
+        d: d0,
+        w,
+        order: 1,
+    };
+    walk_from(g, state, settings, &peak, rng, &mut tally, &mut budget);
+    tally
+}
+
+/// Where a path (or a copy of a split path) continues from.
+struct State<P, W> {
+    pos: P,
+    d: DVec3,
+    w: W,
+    /// Order of the next interaction (1 = first).
+    order: u32,
+}
+
+fn walk_from<G: Geometry<W>, W: Adjoint>(
+    g: &G,
+    state: State<G::Pos, W>,
+    settings: &IntegratorSettings,
+    peak: &PeakSampling,
+    rng: &mut Stream,
+    tally: &mut W::Tally,
+    budget: &mut u32,
+) {
+    let sun = g.light().sun;
+    let expected = settings.expected_local_estimate;
+    let State {
+        mut pos,
+        mut d,
+        mut w,
+        mut order,
+    } = state;
     while order <= settings.max_depth {
         let mut acc = W::zero_phase();
         let event = g.flight(pos, d, &mut w, expected.then_some(&mut acc), rng);
         if expected && W::phase_intensity(&acc) > 0.0 {
-            w.see_sun_volume(&mut tally, order, &acc, d, sun, INV_4PI);
+            w.see_sun_volume(tally, order, &acc, d, sun, INV_4PI);
         }
         match event {
             Event::Escape => break,
@@ -189,14 +233,14 @@ pub fn walk<G: Geometry<W>, W: Adjoint>(
                     let mut a = W::zero_phase();
                     g.collision_estimate(p, omega, phase, d, &mut w, &mut a);
                     if W::phase_intensity(&a) > 0.0 {
-                        w.see_sun_volume(&mut tally, order, &a, d, sun, INV_4PI);
+                        w.see_sun_volume(tally, order, &a, d, sun, INV_4PI);
                     }
                 }
-                d = w.scatter(phase, omega, d, rng);
+                d = w.scatter(phase, omega, d, peak, rng);
             }
             Event::Surface(h) => {
                 let surface = g.surface(&h);
-                w.see_sun_surface(&mut tally, order, &surface, d, sun, || g.sun_at_surface(&h));
+                w.see_sun_surface(tally, order, &surface, d, sun, || g.sun_at_surface(&h));
                 match w.reflect(&surface, d, rng) {
                     Some(d2) => {
                         pos = g.leave(&h, d2);
@@ -210,6 +254,17 @@ pub fn walk<G: Geometry<W>, W: Adjoint>(
         if !survives(&mut w, order, settings.rr_depth, rng) {
             break;
         }
+        if let Some((copy, n)) = split_count(&w, budget) {
+            for _ in 0..n {
+                let next = State {
+                    pos,
+                    d,
+                    w: copy.splittable().expect("a split weight copies"),
+                    order,
+                };
+                walk_from(g, next, settings, peak, rng, tally, budget);
+            }
+            return;
+        }
     }
-    tally
 }

@@ -79,6 +79,7 @@ use glam::DVec3;
 
 use super::backward::Adjoint;
 use super::geometry::{Event, Geometry, Light};
+use super::peak_sampling::PeakSampling;
 use super::surface::SurfaceAt;
 use super::weight::{OrderSplit, Weight};
 use crate::accum::Accum;
@@ -712,7 +713,16 @@ impl Weight for ChannelPath<'_> {
         self.w = target;
     }
     #[inline]
-    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+    /// ALIS walks do not use detector-directional sampling (`_peak`): their channels share
+    /// one path drawn from the reference phase function.
+    fn scatter(
+        &mut self,
+        phase: &PhaseFunction,
+        omega: f64,
+        d: DVec3,
+        _peak: &PeakSampling,
+        rng: &mut Stream,
+    ) -> DVec3 {
         self.w *= omega;
         // A new direction from the reference phase function (as `sample_scattered`).
         let mu = phase.sample_cos(rng.next_f64());

@@ -25,9 +25,13 @@
 
 use glam::DVec3;
 
+use super::peak_sampling::PeakSampling;
 use super::settings::IntegratorSettings;
 use super::surface::SurfaceAt;
-use super::weight::{survives, OrderSplit, Scalar, StokesPhoton, StokesTally, Toward, Weight};
+use super::weight::{
+    split_count, survives, OrderSplit, Scalar, StokesPhoton, StokesTally, Toward, Weight,
+    MAX_SPLITS,
+};
 use crate::accum::Accum;
 use crate::atmosphere::{FlightEnd, PlaneParallel};
 use crate::bsdf::Bsdf;
@@ -234,13 +238,46 @@ pub fn walk<W: Photon>(
     scratch: &mut Scratch<W>,
 ) {
     scratch.tally.iter_mut().for_each(|x| *x = W::zero_tally());
+    let d = -sun_dir;
+    let mut budget = MAX_SPLITS;
+    let state = State {
+        tau: 0.0,
+        d,
+        w: W::entering(d),
+        order: 1,
+    };
+    walk_from(atm, surface, targets, settings, rng, scratch, state, &mut budget);
+}
+
+/// Where a photon (or a copy of a split photon) continues from.
+struct State<W> {
+    /// Optical depth from the top.
+    tau: f64,
+    d: DVec3,
+    w: W,
+    /// Order of the next interaction (1 = first).
+    order: u32,
+}
+
+#[allow(clippy::too_many_arguments)]
+fn walk_from<W: Photon>(
+    atm: &PlaneParallel,
+    surface: &Bsdf,
+    targets: &ForwardTargets,
+    settings: &IntegratorSettings,
+    rng: &mut Stream,
+    scratch: &mut Scratch<W>,
+    state: State<W>,
+    budget: &mut u32,
+) {
     let total = atm.total_tau();
     let dirs = targets.directions;
-    let mut d = -sun_dir;
-    let mut w = W::entering(d);
-    let mut tau = 0.0_f64;
-    // Order of the next interaction (1 = first).
-    let mut order: u32 = 1;
+    let State {
+        mut tau,
+        mut d,
+        mut w,
+        mut order,
+    } = state;
     let ground = SurfaceAt::Flat {
         bsdf: surface,
         frame: None,
@@ -314,12 +351,29 @@ pub fn walk<W: Photon>(
                         w.local_estimate(&mut scratch.tally[k], order, &acc, d, to, im);
                     }
                 }
-                d = w.scatter(phase, omega, d, rng);
+                // The sensor directions are the detectors of the local estimates.
+                let peak = PeakSampling {
+                    eps: settings.detector_sampling,
+                    dirs,
+                };
+                d = w.scatter(phase, omega, d, &peak, rng);
             }
         }
         order += 1;
         if !survives(&mut w, order, settings.rr_depth, rng) {
             break;
+        }
+        if let Some((copy, n)) = split_count(&w, budget) {
+            for _ in 0..n {
+                let next = State {
+                    tau,
+                    d,
+                    w: copy.splittable().expect("a split weight copies"),
+                    order,
+                };
+                walk_from(atm, surface, targets, settings, rng, scratch, next, budget);
+            }
+            return;
         }
     }
 }

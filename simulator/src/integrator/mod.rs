@@ -27,6 +27,7 @@ pub mod backward;
 pub mod backward_alis;
 pub mod forward;
 pub mod geometry;
+pub mod peak_sampling;
 pub mod settings;
 pub mod stokes_sampling;
 pub mod surface;

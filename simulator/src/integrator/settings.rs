@@ -35,7 +35,12 @@ pub struct IntegratorSettings {
     pub spectral_alis: Option<usize>,
     /// Samples before the first precision check (None: 4 blocks).
     pub first_check_spp: Option<u64>,
+    /// DDIS mixture weight ε at peaked phase functions (`integrator/peak_sampling.rs`); 0: off.
+    pub detector_sampling: f64,
 }
+
+/// Default `integrator.detector_sampling`.
+pub const DETECTOR_SAMPLING: f64 = 0.1;
 
 /// `integrator.local_estimate`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
@@ -96,6 +101,10 @@ pub struct IntegratorConfig {
     /// Samples per direction before the first check of `target_rel_stderr` (default 8192).
     #[serde(default)]
     pub first_check_spp: Option<u64>,
+    /// Detector-directional importance sampling at peaked phase functions: the mixture weight
+    /// ε in [0, 0.5] (default 0.1; 0 turns it off).
+    #[serde(default)]
+    pub detector_sampling: Option<f64>,
 }
 
 /// What of the rest of the run the integrator settings are checked against.
@@ -217,7 +226,18 @@ impl IntegratorSettings {
                 "is used only with integrator.spectral_walk = \"alis\"",
             ));
         }
+        let detector_sampling = match cfg.detector_sampling {
+            None => DETECTOR_SAMPLING,
+            Some(e) if (0.0..=0.5).contains(&e) => e,
+            Some(e) => {
+                return Err(ctx.err(
+                    "integrator.detector_sampling",
+                    format!("{e} must lie in 0 … 0.5 (the share of scatterings drawn towards the detector directions; 0 turns it off)"),
+                ))
+            }
+        };
         Ok(IntegratorSettings {
+            detector_sampling,
             spectral_alis,
             kind,
             max_depth,

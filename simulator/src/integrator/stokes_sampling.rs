@@ -27,6 +27,7 @@
 
 use glam::DVec3;
 
+use super::peak_sampling::PeakSampling;
 use crate::phase::PhaseFunction;
 use crate::rng::Stream;
 use crate::stokes::PhaseMatrix;
@@ -70,6 +71,51 @@ pub(crate) fn sample(
     let (s2, c2) = (2.0 * phi).sin_cos();
     let norm = f.a1 + f.b1 * (q * c2 + u * s2);
     StokesSample { d2, f, norm }
+}
+
+/// [`sample`], or where `peak` is active the DDIS mixture ([`PeakSampling`]): then `norm` is the
+/// mixture's density (times 4π) relative to `I`, `(1 − ε)·norm_at(d2) + ε·detector density`.
+#[inline]
+pub(crate) fn sample_with(
+    phase: &PhaseFunction,
+    d: DVec3,
+    e1: DVec3,
+    q: f64,
+    u: f64,
+    peak: &PeakSampling,
+    rng: &mut Stream,
+) -> StokesSample {
+    if !peak.active(phase) {
+        return sample(phase, d, e1, q, u, rng);
+    }
+    let (d2, f) = match peak.choose(rng) {
+        Some(axis) => {
+            let d2 = super::weight::sample_scattered(phase, axis, rng);
+            (d2, phase.matrix(d.dot(d2)))
+        }
+        None => {
+            let smp = sample(phase, d, e1, q, u, rng);
+            (smp.d2, smp.f)
+        }
+    };
+    let main = norm_at(&f, d, e1, q, u, d2);
+    StokesSample {
+        d2,
+        f,
+        norm: peak.mixture(phase, main, d2),
+    }
+}
+
+/// The numerator `a1 + b1·(q cos 2φ + u sin 2φ)` of [`sample`]'s density at a given `d2`
+/// (φ its azimuth about `d` from `e1` towards `d × e1`; `f` the phase matrix at `d·d2`).
+#[inline]
+pub(crate) fn norm_at(f: &PhaseMatrix, d: DVec3, e1: DVec3, q: f64, u: f64, d2: DVec3) -> f64 {
+    let (x, y) = (d2.dot(e1), d2.dot(d.cross(e1)));
+    let r2 = x * x + y * y;
+    if r2 < 1e-300 {
+        return f.a1;
+    }
+    f.a1 + f.b1 * (q * (x * x - y * y) + u * 2.0 * x * y) / r2
 }
 
 /// ψ ∈ [0, 2π) with density `(1 + A cos 2ψ)/2π` from one uniform number `v`: the half of the

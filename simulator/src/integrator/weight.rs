@@ -26,6 +26,7 @@
 
 use glam::{DMat4, DVec3, DVec4};
 
+use super::peak_sampling::PeakSampling;
 use super::stokes_sampling;
 use super::surface::SurfaceAt;
 use super::RR_THRESHOLD;
@@ -58,12 +59,24 @@ pub trait Weight: Sized {
     fn rescale_to(&mut self, target: f64, i: f64);
 
     /// Scatter at a collision along `d` with single-scattering albedo `omega`: returns the new
-    /// direction (two random numbers, from `a1`).
-    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3;
+    /// direction (two random numbers, three where `peak` is active: [`PeakSampling`]).
+    fn scatter(
+        &mut self,
+        phase: &PhaseFunction,
+        omega: f64,
+        d: DVec3,
+        peak: &PeakSampling,
+        rng: &mut Stream,
+    ) -> DVec3;
 
     /// Bounce off `surface` arriving along `d`: returns the new direction, `None` when the
     /// surface absorbs the path.
     fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3>;
+
+    /// A copy of this weight for splitting ([`split_count`]); `None`: never split (ALIS).
+    fn splittable(&self) -> Option<Self> {
+        None
+    }
 
     /// Add the tally of one path, each score times `k`, to `cell` of `acc`.
     fn record(acc: &mut Accum, cell: usize, t: &Self::Tally, k: f64);
@@ -92,6 +105,30 @@ pub(crate) fn survives<W: Weight>(w: &mut W, order: u32, rr_depth: u32, rng: &mu
         }
     }
     true
+}
+
+/// Paths whose intensity weight exceeds this are split (DDIS and BRDF weights can grow).
+pub(crate) const SPLIT_ABOVE: f64 = 2.0;
+/// At most this many copies per split, and this many splits per walk.
+const MAX_COPIES: f64 = 8.0;
+pub(crate) const MAX_SPLITS: u32 = 256;
+
+/// Splitting, the counterpart of Russian roulette for heavy weights: a path whose intensity
+/// weight `I` exceeds [`SPLIT_ABOVE`] continues as `n = ⌈I⌉` (at most 8) independent copies of
+/// weight `I/n` each (unbiased: the copies' expected scores add up to the path's). Returns the
+/// copy and `n`, or `None` (no split, a weight that does not split, or the walk's `budget` of
+/// splits spent).
+#[inline]
+pub(crate) fn split_count<W: Weight>(w: &W, budget: &mut u32) -> Option<(W, usize)> {
+    let i = w.intensity();
+    if i <= SPLIT_ABOVE || *budget == 0 {
+        return None;
+    }
+    let mut c = w.splittable()?;
+    *budget -= 1;
+    let n = i.ceil().min(MAX_COPIES);
+    c.rescale_to(i / n, i);
+    Some((c, n as usize))
 }
 
 /// A new propagation direction after scattering along `d`: cos Θ from the phase function, a
@@ -153,6 +190,10 @@ impl Weight for Scalar {
         *acc
     }
     #[inline]
+    fn splittable(&self) -> Option<Self> {
+        Some(*self)
+    }
+    #[inline]
     fn intensity(&self) -> f64 {
         self.0
     }
@@ -161,9 +202,24 @@ impl Weight for Scalar {
         self.0 = target;
     }
     #[inline]
-    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
-        self.0 *= omega;
-        sample_scattered(phase, d, rng)
+    fn scatter(
+        &mut self,
+        phase: &PhaseFunction,
+        omega: f64,
+        d: DVec3,
+        peak: &PeakSampling,
+        rng: &mut Stream,
+    ) -> DVec3 {
+        if !peak.active(phase) {
+            self.0 *= omega;
+            return sample_scattered(phase, d, rng);
+        }
+        let axis = peak.choose(rng).unwrap_or(d);
+        let d2 = sample_scattered(phase, axis, rng);
+        let p = phase.eval(d.dot(d2));
+        let mix = peak.mixture(phase, p, d2);
+        self.0 *= if mix > 0.0 { omega * p / mix } else { 0.0 };
+        d2
     }
     #[inline]
     fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
@@ -284,6 +340,10 @@ fn add_stokes(t: &mut StokesTally, order: u32, s: [f64; 4]) {
 impl Weight for StokesPhoton {
     polarized_phase!();
     #[inline]
+    fn splittable(&self) -> Option<Self> {
+        Some(*self)
+    }
+    #[inline]
     fn intensity(&self) -> f64 {
         self.s[0]
     }
@@ -293,11 +353,19 @@ impl Weight for StokesPhoton {
         self.s = self.s.map(|x| x * k);
     }
     #[inline]
-    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+    fn scatter(
+        &mut self,
+        phase: &PhaseFunction,
+        omega: f64,
+        d: DVec3,
+        peak: &PeakSampling,
+        rng: &mut Stream,
+    ) -> DVec3 {
         let i = self.s[0];
-        let smp = stokes_sampling::sample(phase, d, self.e1, self.s[1] / i, self.s[2] / i, rng);
+        let (q, u) = (self.s[1] / i, self.s[2] / i);
+        let smp = stokes_sampling::sample_with(phase, d, self.e1, q, u, peak, rng);
         let (s2, l2) = scatter(self.s, d, self.e1, smp.d2, &smp.f);
-        // The density is ∝ the scattered intensity: S'₀ = ω·I.
+        // The density is ∝ the scattered intensity (S'₀ = ω·I), or a DDIS mixture.
         let k = if smp.norm > 0.0 {
             omega / smp.norm
         } else {
@@ -419,6 +487,10 @@ impl MuellerPath {
 impl Weight for MuellerPath {
     polarized_phase!();
     #[inline]
+    fn splittable(&self) -> Option<Self> {
+        Some(*self)
+    }
+    #[inline]
     fn intensity(&self) -> f64 {
         // A product of Mueller matrices has T00 ≥ |T0j|: the path's intensity weight.
         self.t.col(0).x
@@ -428,12 +500,19 @@ impl Weight for MuellerPath {
         self.t *= target / i;
     }
     #[inline]
-    fn scatter(&mut self, phase: &PhaseFunction, omega: f64, d: DVec3, rng: &mut Stream) -> DVec3 {
+    fn scatter(
+        &mut self,
+        phase: &PhaseFunction,
+        omega: f64,
+        d: DVec3,
+        peak: &PeakSampling,
+        rng: &mut Stream,
+    ) -> DVec3 {
         // Light arrives along −d; its frame axis e1 is the path segment's (see the module of
         // `stokes_sampling`: q = T01/T00, u = −T02/T00 make T00 scale by exactly ω).
         let t00 = self.t.col(0).x;
         let (q, u) = (self.t.col(1).x / t00, -self.t.col(2).x / t00);
-        let smp = stokes_sampling::sample(phase, d, self.e1, q, u, rng);
+        let smp = stokes_sampling::sample_with(phase, d, self.e1, q, u, peak, rng);
         let d2 = smp.d2;
         let (_, l_in, l_out) = plane(-d2, -d, self.e1);
         let k = if smp.norm > 0.0 {
@@ -494,7 +573,7 @@ mod tests {
         let mut db = d;
         for order in 0..200 {
             let i0 = p.s[0];
-            d = p.scatter(&phase, omega, d, &mut rng);
+            d = p.scatter(&phase, omega, d, &PeakSampling::OFF, &mut rng);
             assert!((p.s[0] - omega * i0).abs() < 1e-12 * i0, "order {order}");
             let pol = (p.s[1].powi(2) + p.s[2].powi(2) + p.s[3].powi(2)).sqrt();
             assert!(pol <= p.s[0] * (1.0 + 1e-9), "order {order}: {:?}", p.s);
@@ -502,7 +581,7 @@ mod tests {
             assert!((p.e1.dot(d)).abs() < 1e-9 && (p.e1.length() - 1.0).abs() < 1e-9);
 
             let t0 = b.t.col(0).x;
-            db = b.scatter(&phase, omega, db, &mut rng);
+            db = b.scatter(&phase, omega, db, &PeakSampling::OFF, &mut rng);
             let t1 = b.t.col(0).x;
             assert!(
                 (t1 - omega * t0).abs() < 1e-12 * t0,

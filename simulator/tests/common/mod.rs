@@ -24,6 +24,19 @@ pub fn run_rows(exp: &Experiment) -> Vec<Row> {
     rows(exp, &res)
 }
 
+/// [`run_rows`], asserting that the heavy-tail check (`simulator::heavy_tail`) finds nothing:
+/// for reference cases whose standard errors must be trustworthy.
+pub fn run_rows_light_tailed(exp: &Experiment) -> Vec<Row> {
+    let res = simulator::run::run(exp, false);
+    let tails = simulator::heavy_tail::check(exp, &res);
+    assert!(
+        tails.is_empty(),
+        "heavy-tail warnings on a reference case: {}",
+        tails.iter().map(|t| t.to_string()).collect::<Vec<_>>().join("; ")
+    );
+    rows(exp, &res)
+}
+
 /// One comparison of a Monte Carlo value with a reference value.
 #[derive(Clone, Debug)]
 pub struct Cmp {
