@@ -36,7 +36,8 @@ fn starved_cloud_run_is_flagged() {
 
 #[test]
 fn rayleigh_run_is_silent() {
-    let text = "seed = 3\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\n\
+    let text =
+        "seed = 3\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\n\
                 optical_thickness = 0.5\nphase = { type = \"rayleigh\" }\n\
                 [surface]\ntype = \"lambertian\"\nreflectance = 0.3\n\
                 [illumination]\ntype = \"directional\"\nzenith = 30.0\n\

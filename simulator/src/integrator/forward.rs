@@ -246,7 +246,16 @@ pub fn walk<W: Photon>(
         w: W::entering(d),
         order: 1,
     };
-    walk_from(atm, surface, targets, settings, rng, scratch, state, &mut budget);
+    walk_from(
+        atm,
+        surface,
+        targets,
+        settings,
+        rng,
+        scratch,
+        state,
+        &mut budget,
+    );
 }
 
 /// Where a photon (or a copy of a split photon) continues from.

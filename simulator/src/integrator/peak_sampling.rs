@@ -43,7 +43,10 @@ pub struct PeakSampling<'a> {
 }
 
 impl<'a> PeakSampling<'a> {
-    pub const OFF: PeakSampling<'static> = PeakSampling { eps: 0.0, dirs: &[] };
+    pub const OFF: PeakSampling<'static> = PeakSampling {
+        eps: 0.0,
+        dirs: &[],
+    };
 
     /// Whether scattering through `phase` uses the mixture.
     #[inline]

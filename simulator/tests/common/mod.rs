@@ -32,7 +32,11 @@ pub fn run_rows_light_tailed(exp: &Experiment) -> Vec<Row> {
     assert!(
         tails.is_empty(),
         "heavy-tail warnings on a reference case: {}",
-        tails.iter().map(|t| t.to_string()).collect::<Vec<_>>().join("; ")
+        tails
+            .iter()
+            .map(|t| t.to_string())
+            .collect::<Vec<_>>()
+            .join("; ")
     );
     rows(exp, &res)
 }
