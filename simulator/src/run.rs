@@ -24,6 +24,7 @@ use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::sensor;
 
+use crate::accum::VOV_LIMIT;
 pub use crate::accum::{MeasureResult, Method};
 
 pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
@@ -554,7 +555,13 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
                 }
             })
             .fold(0.0, f64::max);
-        let reached = m.target_rel_stderr.is_some_and(|t| rel <= t);
+        // A standard error that cannot be trusted (heavy tails, `heavy_tail.rs`) does not stop
+        // the run early.
+        let trusted = || {
+            accs.iter()
+                .all(|acc| (0..acc.n.len()).all(|c| acc.tail(c).is_none_or(|t| t.vov <= VOV_LIMIT)))
+        };
+        let reached = m.target_rel_stderr.is_some_and(|t| rel <= t) && trusted();
         if done >= m.spp || reached {
             if reached && done < m.spp {
                 bar.inc((m.spp - done) * walks_per_sample(exp, m) * per_walk);
