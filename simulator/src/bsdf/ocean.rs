@@ -25,6 +25,17 @@
 //! `r_p = (n cos χ − cos t)/(n cos χ + cos t)` for the parallel axes `l = r × d` of that frame
 //! (at normal incidence `r_p = −r_s`, the mirror's flip of the parallel axis).
 //!
+//! **Sampling** ([`Ocean::sample`], [`Ocean::pdf`]): facet normals are drawn from the slope
+//! distribution itself, `tan²β ~ Exp(mean σ²)` and a uniform facet azimuth (`P(z_x, z_y)` is an
+//! isotropic Gaussian), which is the density `p_h(h) = P/cos³β` over the solid angle of `h`
+//! (`D(h)·cos β` in microfacet terms, `D = P/cos⁴β`); `wi` is `wo` mirrored about `h`, so its
+//! density is `p_h(h)/(4 wo·h)` with `h` the half vector of `(wi, wo)`. The weight is then
+//! `f_r cos θi/pdf = R(χ)·S·(wo·h)/(μ_o cos β)`: the Fresnel reflectance times the shadowing
+//! (≈ 1 at low wind away from grazing views), however narrow the glint. Facets turned away from
+//! `wo` (`wo·h < 0`) mirror `wo` below the horizon: such draws have weight 0 and end the path,
+//! which stays unbiased because the pdf is the true density of the draws above the horizon
+//! (it integrates to the probability of landing there, < 1).
+//!
 //! References: Cox & Munk (1954), J. Opt. Soc. Am. 44:838; Mishchenko & Travis (1997),
 //! J. Geophys. Res. 102:16989; Sancer (1969), IEEE Trans. Antennas Propag. 17:577.
 
@@ -120,6 +131,34 @@ impl Ocean {
             p * s / (4.0 * wi.z * wo.z * cb2 * cb2),
             wi.dot(h).clamp(0.0, 1.0),
         )
+    }
+
+    /// Draws `wi` given `wo` (local frame) from two uniforms in [0, 1): a facet normal from the
+    /// slope distribution, `wo` mirrored about it (below the horizon for facets turned away
+    /// from `wo`; see the module header).
+    #[inline]
+    pub fn sample(&self, wo: DVec3, u1: f64, u2: f64) -> DVec3 {
+        let tan2 = -self.sigma2 * (1.0 - u1).ln();
+        let cb = 1.0 / (1.0 + tan2).sqrt();
+        let sb = tan2.sqrt() * cb;
+        let (sp, cp) = (std::f64::consts::TAU * u2).sin_cos();
+        let h = DVec3::new(sb * cp, sb * sp, cb);
+        2.0 * wo.dot(h) * h - wo
+    }
+
+    /// The solid-angle density of [`Ocean::sample`] at `wi` given `wo`, both above the horizon
+    /// (the caller, [`crate::bsdf::Bsdf::pdf`], handles the horizon): `p_h(h)/(4 wo·h)`.
+    #[inline]
+    pub fn pdf(&self, wi: DVec3, wo: DVec3) -> f64 {
+        let h = (wi + wo).normalize();
+        let cb = h.z;
+        if cb <= 0.0 {
+            return 0.0;
+        }
+        let cb2 = cb * cb;
+        let tan2 = (1.0 - cb2) / cb2;
+        let p_h = (-tan2 / self.sigma2).exp() / (std::f64::consts::PI * self.sigma2 * cb2 * cb);
+        p_h / (4.0 * wo.dot(h))
     }
 
     #[inline]
