@@ -280,6 +280,62 @@ mod tests {
         }
     }
 
+    /// Leaves are sampled exactly: χ² of the drawn directions against `SurfaceModel::pdf`
+    /// (2 sides × 10 × 10 cells in (cos²θ, φ) about the side's normal, equal in probability
+    /// within a side; 100 000 draws, fixed seed), and every draw's weight is `eval_cos/pdf`
+    /// = ρ + τ; the pdf integrates to 1 over the sphere.
+    #[test]
+    fn leaf_sampling_is_exact() {
+        let (rho, tau) = (0.45, 0.3);
+        let leaf = SurfaceModel::Leaf {
+            reflectance: rho,
+            transmittance: tau,
+        };
+        let n = DVec3::new(0.3, -0.2, 0.9).normalize();
+        let wo = DVec3::new(-0.1, 0.4, 0.8).normalize();
+        let (t, b) = basis_around(n);
+        let mut rng = crate::rng::Stream::new(3, [0, 0, 0, 0]);
+        let total = 100_000;
+        let mut counts = vec![0u64; 200];
+        for _ in 0..total {
+            let s = leaf
+                .sample(n, wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()])
+                .unwrap();
+            let want = leaf.eval_cos(n, s.wi, wo) / leaf.pdf(n, s.wi, wo);
+            assert!((s.weight - want).abs() < 1e-12 && (s.weight - (rho + tau)).abs() < 1e-12);
+            assert!((s.pdf / leaf.pdf(n, s.wi, wo) - 1.0).abs() < 1e-12);
+            let l = to_local(s.wi, n, t, b);
+            let side = usize::from(l.z < 0.0);
+            let c2 = l.z * l.z;
+            let phi = l.y.atan2(l.x).rem_euclid(std::f64::consts::TAU);
+            let i = ((c2 * 10.0) as usize).min(9);
+            let j = ((phi / std::f64::consts::TAU * 10.0) as usize).min(9);
+            counts[side * 100 + i * 10 + j] += 1;
+        }
+        let mut chi2 = 0.0;
+        for (k, &c) in counts.iter().enumerate() {
+            let p_side = if k < 100 { rho } else { tau } / (rho + tau);
+            let e = total as f64 * p_side / 100.0;
+            chi2 += (c as f64 - e).powi(2) / e;
+        }
+        let q = crate::bsdf::test_support::chi2_quantile_999(199);
+        assert!(chi2 < q, "chi2 = {chi2} > {q}");
+        // ∫pdf over the sphere (midpoint rule in cos θ and φ about n).
+        let (nt, np) = (200, 400);
+        let mut sum = 0.0;
+        for i in 0..nt {
+            let ct = -1.0 + 2.0 * (i as f64 + 0.5) / nt as f64;
+            let st = (1.0 - ct * ct).sqrt();
+            for j in 0..np {
+                let p = std::f64::consts::TAU * (j as f64 + 0.5) / np as f64;
+                let w = t * (st * p.cos()) + b * (st * p.sin()) + n * ct;
+                sum += leaf.pdf(n, w, wo);
+            }
+        }
+        sum *= 4.0 * std::f64::consts::PI / (nt * np) as f64;
+        assert!((sum - 1.0).abs() < 1e-4, "∫pdf = {sum}");
+    }
+
     #[test]
     fn leaf_sides_and_bad_parameters() {
         let leaf = SurfaceModel::Leaf {
