@@ -16,7 +16,7 @@
 //! * ocean: facet normals from the Cox–Munk slope distribution, `wo` mirrored about them
 //!   (`ocean.rs`): weight ≈ Fresnel × shadowing however narrow the glint; draws below the
 //!   horizon have weight 0 (the path is absorbed);
-//! * RPV, RTLS, RTLS-H, Hapke: a table of `f_r` built from the model when it is constructed
+//! * RPV, RTLS, RTLS-H, Hapke, tabulated BRDFs: a table of `f_r` built from the model when it is constructed
 //!   (`table_sampler.rs`), mixed with the cosine density (a defensive one-sample MIS mixture, so
 //!   the weight stays bounded where the table misses a narrow feature);
 //! * bi-Lambertian leaves (`scene/material.rs`): reflection or transmission in proportion to
@@ -41,6 +41,7 @@ pub mod rpv;
 pub mod rtls;
 pub mod rtls_hotspot;
 pub mod table_sampler;
+pub mod tabulated;
 
 use glam::DVec3;
 
@@ -52,6 +53,7 @@ pub use rpv::Rpv;
 pub use rtls::Rtls;
 pub use rtls_hotspot::RtlsHotspot;
 pub use table_sampler::TableSampler;
+pub use tabulated::Tabulated;
 
 use crate::frame::sample_cosine_hemisphere;
 
@@ -76,6 +78,8 @@ pub enum Bsdf {
     RtlsHotspot(RtlsHotspot),
     Hapke(Hapke),
     Ocean(Ocean),
+    /// A measured BRDF read from a netCDF table (`tabulated.rs`).
+    Tabulated(Tabulated),
 }
 
 impl Bsdf {
@@ -92,6 +96,7 @@ impl Bsdf {
             Bsdf::RtlsHotspot(m) => m.eval(wi, wo),
             Bsdf::Hapke(m) => m.eval(wi, wo),
             Bsdf::Ocean(m) => m.eval(wi, wo),
+            Bsdf::Tabulated(m) => m.eval(wi, wo),
         }
     }
 
@@ -117,6 +122,7 @@ impl Bsdf {
             Bsdf::Rtls(m) => Some(&m.sampler),
             Bsdf::RtlsHotspot(m) => Some(&m.sampler),
             Bsdf::Hapke(m) => Some(&m.sampler),
+            Bsdf::Tabulated(m) => Some(&m.sampler),
         }
     }
 
@@ -174,6 +180,15 @@ impl Bsdf {
             (Bsdf::Lambertian(m), Bsdf::Lambertian(_)) => m.reflectance,
             _ if pdf > 0.0 => self.eval(wi, wo) * wi.z / pdf,
             _ => 0.0,
+        }
+    }
+
+    /// A line about the model for `simulate check` and logs, where there is more to say than
+    /// its parameters (a tabulated BRDF: its file, grids and reciprocity error).
+    pub fn info(&self) -> Option<String> {
+        match self {
+            Bsdf::Tabulated(m) => Some(m.table.summary()),
+            _ => None,
         }
     }
 

@@ -27,7 +27,8 @@
 
 use glam::DVec3;
 
-use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls};
+use crate::bsdf::tabulated::BrdfTable;
+use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, Tabulated};
 use crate::frame::{basis_around, sample_cosine_hemisphere};
 use bundle::BrdfSpec;
 
@@ -119,7 +120,34 @@ impl SurfaceModel {
                 refractive_index.as_ref().map_or(1.33, at),
                 *shadowing,
             )?)),
+            BrdfSpec::Tabulated { file, symmetrize } => {
+                let table = BrdfTable::load(std::path::Path::new(file))?;
+                SurfaceModel::Opaque(Bsdf::Tabulated(Tabulated::new(
+                    table,
+                    wavelength_nm,
+                    *symmetrize,
+                )))
+            }
         })
+    }
+
+    /// `spec` with its file (a tabulated BRDF's table) taken relative to `dir` and made
+    /// absolute; other specs unchanged. Scenes apply it with the bundle's folder to manifest
+    /// materials and with the experiment's folder to the experiment's own materials.
+    pub fn with_files_in(spec: &BrdfSpec, dir: &std::path::Path) -> BrdfSpec {
+        match spec {
+            BrdfSpec::Tabulated { file, symmetrize } => {
+                let p = dir.join(file);
+                BrdfSpec::Tabulated {
+                    file: std::path::absolute(&p)
+                        .unwrap_or(p)
+                        .to_string_lossy()
+                        .into_owned(),
+                    symmetrize: *symmetrize,
+                }
+            }
+            _ => spec.clone(),
+        }
     }
 
     /// `f(wi, wo)·|n·wi|`: the factor that turns the irradiance arriving along `−wi` (normal to
