@@ -2,8 +2,8 @@
 //! itself (RPV, RTLS, RTLS-H, Hapke, tabulated BRDFs): the sampler of [`crate::bsdf::Bsdf::sample`]
 //! for every model but the Lambertian (exact cosine sampling) and the ocean (facet sampling).
 //!
-//! **What it tabulates.** For `N_O` view zeniths θo (nodes at the centres of equal cells in
-//! [0°, 90°]), the target density of `wi` is `f_r(wi, wo)·cos θi` (solid angle). In the
+//! **What it tabulates.** For `N_O` views (nodes at the centres of equal cells in
+//! `cos θo ∈ [0, 1]`), the target density of `wi` is `f_r(wi, wo)·cos θi` (solid angle). In the
 //! coordinates `s = cos²θi ∈ [0, 1]` and the relative azimuth `Δφ` (`cos θi dω = ½ ds dφ`) that
 //! density is `∝ f_r` itself, so each node holds a piecewise-constant 2D distribution of `f_r`
 //! over `N_S × N_PHI` equal cells in `(s, |Δφ|)`, `|Δφ| ∈ [0, π]` (isotropic BRDFs are even in
@@ -14,7 +14,7 @@
 //! [`TableSampler::sample`] draws.
 //!
 //! **Between nodes** the sampler draws from node j or j + 1 with probabilities `1 − t`, `t`
-//! (linear in θo), so the table's density is the same mixture of the two nodes' densities.
+//! (linear in cos θo), so the table's density is the same mixture of the two nodes' densities.
 //!
 //! **Defensive mixture** (one-sample multiple importance sampling, Hesterberg 1995; Veach 1997
 //! §9.2.3): with probability `ALPHA` the direction is drawn from the cosine-weighted hemisphere,
@@ -31,10 +31,11 @@
 //!
 //! **Cost**: `N_O·N_S·N_PHI` = 9 216 BRDF evaluations per model at construction (0.3–3 ms
 //! depending on the model, `BENCHMARKS.md`), 38 KiB of CDFs shared by clones (`Arc`);
-//! `sample` is two binary searches and one `pdf`; `pdf` one `acos`, one `atan2` and two table
-//! lookups.
+//! `sample` is two binary searches, one `sin_cos` and one `pdf`; `pdf` one binary search of
+//! `cos Δφ` among the cells' bounds and two table lookups (no inverse trigonometry; about
+//! 100 ns more per bounce than cosine sampling, `BENCHMARKS.md`).
 
-use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, PI};
+use std::f64::consts::{FRAC_1_PI, PI};
 use std::sync::Arc;
 
 use glam::DVec3;
@@ -49,6 +50,17 @@ pub const N_S: usize = 24;
 pub const N_PHI: usize = 24;
 /// Probability of the cosine-weighted component of the defensive mixture.
 pub const ALPHA: f64 = 0.15;
+
+/// `cos(k·π/N_PHI)` for k = 0…N_PHI: the bounds of the Δφ cells.
+static COS_BOUNDS: std::sync::LazyLock<[f64; N_PHI + 1]> = std::sync::LazyLock::new(|| {
+    std::array::from_fn(|k| {
+        if k == N_PHI {
+            -1.0
+        } else {
+            (k as f64 * PI / N_PHI as f64).cos()
+        }
+    })
+});
 
 /// Largest f64 below 1, to keep rescaled uniforms in [0, 1).
 const BELOW_ONE: f64 = 1.0 - f64::EPSILON / 2.0;
@@ -115,11 +127,10 @@ pub(crate) fn azimuth_axes(wo: DVec3) -> (DVec3, DVec3) {
     }
 }
 
-/// The node below `wo`'s zenith and the weight `t` of the node above it.
+/// The node below `wo`'s cos θo and the weight `t` of the node above it.
 #[inline]
 fn node_weights(wo: DVec3) -> (usize, f64) {
-    let theta = wo.z.clamp(-1.0, 1.0).acos();
-    let x = theta / FRAC_PI_2 * N_O as f64 - 0.5;
+    let x = wo.z.clamp(0.0, 1.0) * N_O as f64 - 0.5;
     if x <= 0.0 {
         (0, 0.0)
     } else if x >= (N_O - 1) as f64 {
@@ -139,8 +150,8 @@ impl TableSampler {
         let mut row = [0.0f64; N_PHI];
         let mut rows = [0.0f64; N_S];
         for n in 0..N_O {
-            let theta_o = (n as f64 + 0.5) / N_O as f64 * FRAC_PI_2;
-            let wo = DVec3::new(theta_o.sin(), 0.0, theta_o.cos());
+            let mu_o = (n as f64 + 0.5) / N_O as f64;
+            let wo = DVec3::new((1.0 - mu_o * mu_o).sqrt(), 0.0, mu_o);
             let mut node = Node {
                 marginal: [0.0; N_S + 1],
                 conditional: [[0.0; N_PHI + 1]; N_S],
@@ -212,9 +223,15 @@ impl TableSampler {
         }
         let ct = wi.z.min(1.0);
         let j = ((ct * ct * N_S as f64) as usize).min(N_S - 1);
+        // The Δφ cell from cos Δφ against the cells' bounds (decreasing in Δφ).
         let (a, b) = azimuth_axes(wo);
-        let dphi = wi.dot(b).abs().atan2(wi.dot(a));
-        let k = ((dphi / PI * N_PHI as f64) as usize).min(N_PHI - 1);
+        let (x, y) = (wi.dot(a), wi.dot(b));
+        let r = (x * x + y * y).sqrt();
+        let cos_dphi = if r > 0.0 { x / r } else { 1.0 };
+        let k = COS_BOUNDS
+            .partition_point(|&c| c > cos_dphi)
+            .clamp(1, N_PHI)
+            - 1;
         let cell = |n: &Node| {
             let pj = f64::from(n.marginal[j + 1]) - f64::from(n.marginal[j]);
             let row = &n.conditional[j];
