@@ -489,7 +489,7 @@ mod tests {
                         test_support::Chart {
                             cos2: false,
                             x: (
-                                (tz + spread).min(1.5707).cos(),
+                                (tz + spread).min(std::f64::consts::FRAC_PI_2).cos(),
                                 (tz - spread).max(0.0).cos(),
                             ),
                             phi0: PI,

@@ -554,7 +554,8 @@ pub(crate) mod tests {
     fn bad_tables_are_refused_with_the_variable_named() {
         let g = grid(0.0, 80.0, 20.0);
         let p = [0.0, 90.0, 180.0];
-        let cases: Vec<(&str, Box<dyn Fn(&Path)>, &str)> = vec![
+        type Writer<'a> = Box<dyn Fn(&Path) + 'a>;
+        let cases: Vec<(&str, Writer, &str)> = vec![
             (
                 "nan.nc",
                 Box::new(|path: &Path| {
