@@ -16,8 +16,8 @@
 //! * ocean: facet normals from the Cox–Munk slope distribution, `wo` mirrored about them
 //!   (`ocean.rs`): weight ≈ Fresnel × shadowing however narrow the glint; draws below the
 //!   horizon have weight 0 (the path is absorbed);
-//! * RPV, RTLS, RTLS-H, Hapke, tabulated BRDFs: a table of `f_r` built from the model when it is constructed
-//!   (`table_sampler.rs`), mixed with the cosine density (a defensive one-sample MIS mixture, so
+//! * RPV, RTLS, RTLS-H, Hapke, tabulated BRDFs: a table of `f_r` built from the model when it
+//!   is constructed (`table_sampler.rs`), mixed with the cosine density (a defensive one-sample MIS mixture, so
 //!   the weight stays bounded where the table misses a narrow feature);
 //! * bi-Lambertian leaves (`scene/material.rs`): reflection or transmission in proportion to
 //!   ρ and τ, then the cosine lobe of that side: exact importance sampling (weight = ρ + τ).

@@ -1,10 +1,10 @@
 //! Tabulated (measured) BRDF: values of `f_r` on a grid of angles per wavelength, read from a
 //! netCDF file, interpolated, and importance-sampled by a table built from it.
 //!
-//! | key          | unit | default | meaning                                                          |
-//! |--------------|------|---------|------------------------------------------------------------------|
-//! | `file`       | —    | —       | the netCDF file (experiment files: relative to the file; bundles: to the bundle) |
-//! | `symmetrize` | bool | false   | evaluate `½[F(θi, θr, Δφ) + F(θr, θi, Δφ)]`: a reciprocal BRDF from a table that is not |
+//! | key          | unit | default | meaning                                                    |
+//! |--------------|------|---------|------------------------------------------------------------|
+//! | `file`       | —    | —       | netCDF table, relative to the experiment file (or bundle)  |
+//! | `symmetrize` | bool | false   | evaluate `½[F(θi, θr, Δφ) + F(θr, θi, Δφ)]` (reciprocal)   |
 //!
 //! **File layout** (netCDF-3 or -4; names fixed; `docs/experiment.md`):
 //!
