@@ -1,6 +1,7 @@
 //! A factored, tabulated importance sampler for smooth isotropic BRDFs, built from the BRDF
-//! itself (RPV, RTLS, RTLS-H, Hapke, tabulated BRDFs): the sampler of [`crate::bsdf::Bsdf::sample`]
-//! for every model but the Lambertian (exact cosine sampling) and the ocean (facet sampling).
+//! itself (RPV, RTLS, RTLS-H, Hapke, tabulated BRDFs): the sampler of
+//! [`crate::bsdf::Bsdf::sample`] for every model but the Lambertian (exact cosine sampling) and
+//! the ocean (facet sampling).
 //!
 //! **What it tabulates.** For `N_O` views (nodes at the centres of equal cells in
 //! `cos θo ∈ [0, 1]`), the target density of `wi` is `f_r(wi, wo)·cos θi` (solid angle). In the
@@ -20,7 +21,8 @@
 //! §9.2.3): with probability `ALPHA` the direction is drawn from the cosine-weighted hemisphere,
 //! so `pdf = ALPHA·cos θi/π + (1 − ALPHA)·p_table` and the weight `f_r cos θi/pdf` is at most
 //! `π f_r/ALPHA` wherever the table misses a narrow feature (a hot spot narrower than a cell)
-//! and at most `(f_r/f̄_cell)/(1 − ALPHA)` elsewhere. This is the only MIS in surface sampling:
+//! and at most `(f_r/f_cell)·ρ/(1 − ALPHA)` elsewhere (`f_cell` the table's value of the cell,
+//! ρ the directional albedo). This is the only MIS in surface sampling:
 //! the Sun is a delta direction, so a BSDF sample never hits it and the next-event estimate to
 //! the Sun needs no MIS weight (`docs/transport.md`).
 //!
@@ -29,11 +31,11 @@
 //! rescaled, the `s` cell and the position in it; the second the `Δφ` cell, the sign and the
 //! position.
 //!
-//! **Cost**: `N_O·N_S·N_PHI` = 9 216 BRDF evaluations per model at construction (0.3–3 ms
-//! depending on the model, `BENCHMARKS.md`), 38 KiB of CDFs shared by clones (`Arc`);
+//! **Cost**: `N_O·N_S·N_PHI` = 9 216 BRDF evaluations per model at construction (0.2–1.2 ms
+//! depending on the model, `BENCHMARKS.md`), 39 KiB of CDFs shared by clones (`Arc`);
 //! `sample` is two binary searches, one `sin_cos` and one `pdf`; `pdf` one binary search of
 //! `cos Δφ` among the cells' bounds and two table lookups (no inverse trigonometry; about
-//! 100 ns more per bounce than cosine sampling, `BENCHMARKS.md`).
+//! 130 ns more per bounce than cosine sampling, `BENCHMARKS.md`).
 
 use std::f64::consts::{FRAC_1_PI, PI};
 use std::sync::Arc;
