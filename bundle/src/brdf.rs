@@ -193,6 +193,9 @@ pub enum BrdfViolation {
         wavelength_nm: Option<f64>,
         range: ParamRange,
     },
+    /// `tabulated`: the `file` key is not a usable path (the file itself is read and checked by
+    /// the simulator, which names the variable at fault).
+    File { message: String },
     /// `bi_lambertian`: reflectance + transmittance above [`BI_LAMBERTIAN_MAX_SUM`].
     SumAboveOne {
         reflectance: f64,
@@ -210,6 +213,7 @@ impl BrdfViolation {
                 param
             }
             BrdfViolation::SumAboveOne { .. } => "transmittance",
+            BrdfViolation::File { .. } => "file",
         }
     }
 }
@@ -222,6 +226,7 @@ impl fmt::Display for BrdfViolation {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
             BrdfViolation::Spectrum { param, message } => write!(f, "`{param}`: {message}"),
+            BrdfViolation::File { message } => write!(f, "`file`: {message}"),
             BrdfViolation::OutOfRange {
                 param,
                 value,
@@ -400,6 +405,15 @@ pub enum BrdfSpec {
         #[serde(default = "yes")]
         shadowing: bool,
     },
+    /// A measured BRDF: a netCDF table over (wavelength, θi, θr, Δφ) in sr⁻¹, layout in the
+    /// simulator's `bsdf/tabulated.rs` and `docs/experiment.md`. `file` is relative to the
+    /// bundle folder (in a manifest) or to the experiment file (in an experiment's materials);
+    /// `symmetrize` averages f(i, r) and f(r, i).
+    Tabulated {
+        file: String,
+        #[serde(default)]
+        symmetrize: bool,
+    },
 }
 
 fn yes() -> bool {
@@ -416,6 +430,7 @@ impl BrdfSpec {
             BrdfSpec::Rtls { .. } => "rtls",
             BrdfSpec::Hapke { .. } => "hapke",
             BrdfSpec::Ocean { .. } => "ocean",
+            BrdfSpec::Tabulated { .. } => "tabulated",
         }
     }
 
@@ -468,6 +483,8 @@ impl BrdfSpec {
                 }
                 v
             }
+            // A table, not parameters: its values are checked when the simulator reads it.
+            BrdfSpec::Tabulated { .. } => Vec::new(),
         }
     }
 
@@ -494,6 +511,13 @@ impl BrdfSpec {
                     });
                     break;
                 }
+            }
+        }
+        if let BrdfSpec::Tabulated { file, .. } = self {
+            if file.trim().is_empty() || file.contains('\0') {
+                violations.push(BrdfViolation::File {
+                    message: format!("{file:?} is not a file name"),
+                });
             }
         }
         if let (
@@ -588,6 +612,10 @@ mod tests {
                 wind_speed: c(5.0),
                 refractive_index: Some(c(1.33)),
                 shadowing: true,
+            },
+            BrdfSpec::Tabulated {
+                file: "brdf/sand.nc".into(),
+                symmetrize: false,
             },
         ]
     }
@@ -698,6 +726,36 @@ mod tests {
         .is_ok());
         assert!(leaf(c(0.7), c(0.4)).validate().is_err());
         assert!(leaf(c(0.6), c(0.4)).validate().is_ok());
+    }
+
+    /// Rationale: a tabulated material names a file, which only the simulator can read; the
+    /// bundle checks that the key is a file name and that the spec round-trips through TOML
+    /// (manifests).
+    #[test]
+    fn tabulated_names_a_file() {
+        let t: BrdfSpec = toml::from_str("type = \"tabulated\"\nfile = \"brdf/sand.nc\"").unwrap();
+        assert_eq!(
+            t,
+            BrdfSpec::Tabulated {
+                file: "brdf/sand.nc".into(),
+                symmetrize: false
+            }
+        );
+        assert_eq!(t.type_name(), "tabulated");
+        assert!(t.validate().is_ok());
+        let back: BrdfSpec = toml::from_str(&toml::to_string(&t).unwrap()).unwrap();
+        assert_eq!(back, t);
+        let e = BrdfSpec::Tabulated {
+            file: " ".into(),
+            symmetrize: true,
+        }
+        .validate()
+        .unwrap_err();
+        assert_eq!(e.to_string(), "tabulated: `file`: \" \" is not a file name");
+        assert_eq!(e.violations[0].param(), "file");
+        assert!(
+            toml::from_str::<BrdfSpec>("type = \"tabulated\"\nfile = \"a.nc\"\nfle = 1").is_err()
+        );
     }
 
     #[test]

@@ -30,6 +30,8 @@ fn material_rgb(b: &BrdfSpec) -> [f64; 3] {
         BrdfSpec::Rtls { f_iso, .. } => f_iso,
         BrdfSpec::Hapke { w, .. } => w,
         BrdfSpec::Ocean { .. } => return [0.02, 0.05, 0.1],
+        // A measured table: no colour without reading it; a neutral grey.
+        BrdfSpec::Tabulated { .. } => return [0.2, 0.2, 0.2],
     };
     [s.at(650.0), s.at(550.0), s.at(450.0)].map(|v| v.clamp(0.0, 1.0))
 }

@@ -165,6 +165,23 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 exp.wavelengths.len(),
                 exp.measures.len()
             );
+            // What the surfaces have to say beyond their parameters (tabulated BRDFs: file,
+            // grids, reciprocity error), once each.
+            let mut infos: Vec<String> = Vec::new();
+            for o in &exp.optics {
+                let scene = o.scene_models.iter().filter_map(|m| match m {
+                    simulator::scene::material::SurfaceModel::Opaque(b) => Some(b),
+                    _ => None,
+                });
+                for b in std::iter::once(&o.surface).chain(scene) {
+                    if let Some(i) = b.info().filter(|i| !infos.contains(i)) {
+                        infos.push(i);
+                    }
+                }
+            }
+            for i in infos {
+                println!("  {i}");
+            }
             Ok(())
         }
         Command::Run {

@@ -5,7 +5,8 @@
 
 use serde::Deserialize;
 
-use super::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, RtlsHotspot};
+use super::tabulated::BrdfTable;
+use super::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, RtlsHotspot, Tabulated};
 use crate::error::{ConfigCtx, ConfigError};
 use crate::spectral::SpectralValue;
 
@@ -55,6 +56,13 @@ pub enum SurfaceConfig {
         #[serde(default = "yes")]
         shadowing: bool,
     },
+    /// A measured BRDF from a netCDF table (`tabulated.rs`: layout, interpolation).
+    Tabulated {
+        /// Relative to the experiment file.
+        file: String,
+        #[serde(default)]
+        symmetrize: bool,
+    },
 }
 
 fn yes() -> bool {
@@ -69,10 +77,16 @@ fn default_xi0() -> SpectralValue {
 const ANY: (f64, f64) = (-1e6, 1e6);
 
 impl SurfaceConfig {
-    /// One BRDF per run wavelength. `key` is the table's key path (`surface`): a value that is
-    /// not a finite number, or a list of the wrong length, is reported at `key.NAME`; a value
-    /// out of its model's range at `key`, with the model's message naming the parameter.
-    pub fn resolve(&self, ctx: &ConfigCtx, key: &str) -> Result<Vec<Bsdf>, ConfigError> {
+    /// One BRDF per run wavelength (`wavelengths`, nm). `key` is the table's key path
+    /// (`surface`): a value that is not a finite number, or a list of the wrong length, is
+    /// reported at `key.NAME`; a value out of its model's range at `key`, with the model's
+    /// message naming the parameter; a bad table file at `key.file`, naming file and variable.
+    pub fn resolve(
+        &self,
+        ctx: &ConfigCtx,
+        key: &str,
+        wavelengths: &[f64],
+    ) -> Result<Vec<Bsdf>, ConfigError> {
         let spectral =
             |name: &str, v: &SpectralValue| v.expand(ctx, &format!("{key}.{name}"), ANY.0, ANY.1);
         let model = |m: String| ctx.err(key, m);
@@ -153,6 +167,14 @@ impl SurfaceConfig {
                         ))
                     })
                     .collect::<Result<_, ConfigError>>()?
+            }
+            SurfaceConfig::Tabulated { file, symmetrize } => {
+                let table = BrdfTable::load(&ctx.file(file))
+                    .map_err(|m| ctx.err(format!("{key}.file"), m))?;
+                wavelengths
+                    .iter()
+                    .map(|&w| Bsdf::Tabulated(Tabulated::new(table.clone(), w, *symmetrize)))
+                    .collect()
             }
             SurfaceConfig::Hapke {
                 w,

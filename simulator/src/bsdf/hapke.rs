@@ -66,6 +66,8 @@
 use glam::DVec3;
 use std::f64::consts::{FRAC_1_PI, PI};
 
+use super::TableSampler;
+
 #[derive(Clone, Debug)]
 pub struct Hapke {
     pub w: f64,
@@ -85,6 +87,8 @@ pub struct Hapke {
     tan_tb: f64,
     cot_tb: f64,
     chi: f64,
+    /// Importance sampler built from this model (`table_sampler.rs`).
+    pub(crate) sampler: TableSampler,
 }
 
 /// Checks against the shared range table (`bundle::BRDF_PARAM_RANGES`, the ranges above); the
@@ -105,7 +109,7 @@ impl Hapke {
         check("h", h)?;
         let gamma = (1.0 - w).sqrt();
         let tan_tb = theta_deg.to_radians().tan();
-        Ok(Self {
+        let mut m = Self {
             w,
             b,
             c,
@@ -122,7 +126,10 @@ impl Hapke {
             tan_tb,
             cot_tb: if theta_deg > 0.0 { 1.0 / tan_tb } else { 0.0 },
             chi: 1.0 / (1.0 + PI * tan_tb * tan_tb).sqrt(),
-        })
+            sampler: TableSampler::unbuilt(),
+        };
+        m.sampler = TableSampler::build(|wi, wo| m.eval(wi, wo));
+        Ok(m)
     }
 
     /// Ambartsumian–Chandrasekhar H function, Hapke (2002) approximation.

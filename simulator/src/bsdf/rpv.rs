@@ -45,6 +45,8 @@
 
 use glam::DVec3;
 
+use super::TableSampler;
+
 #[derive(Clone, Debug)]
 pub struct Rpv {
     pub rho_0: f64,
@@ -58,6 +60,8 @@ pub struct Rpv {
     one_plus_g2: f64,
     two_g: f64,
     one_minus_rho_c: f64,
+    /// Importance sampler built from this model (`table_sampler.rs`).
+    pub(crate) sampler: TableSampler,
 }
 
 /// Checks that `v` is a number in `[lo, hi]` (open ends where `open_*`), naming the parameter.
@@ -74,7 +78,7 @@ impl Rpv {
         check("k", k)?;
         check("g", g)?;
         check("rho_c", rho_c)?;
-        Ok(Self {
+        let mut m = Self {
             rho_0,
             k,
             g,
@@ -85,7 +89,10 @@ impl Rpv {
             one_plus_g2: 1.0 + g * g,
             two_g: 2.0 * g,
             one_minus_rho_c: 1.0 - rho_c,
-        })
+            sampler: TableSampler::unbuilt(),
+        };
+        m.sampler = TableSampler::build(|wi, wo| m.eval(wi, wo));
+        Ok(m)
     }
 
     /// BRDF (sr⁻¹) for unit vectors `wi` (towards the light) and `wo` (towards the viewer), both

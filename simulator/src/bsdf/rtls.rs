@@ -50,6 +50,8 @@
 use glam::DVec3;
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4};
 
+use super::TableSampler;
+
 /// Crown relative height `h/b` of the Li-Sparse kernel (MODIS value).
 pub const H_OVER_B: f64 = 2.0;
 /// Crown shape `b/r` of the Li-Sparse kernel (MODIS value: spherical crowns).
@@ -60,6 +62,8 @@ pub struct Rtls {
     pub f_iso: f64,
     pub f_vol: f64,
     pub f_geo: f64,
+    /// Importance sampler built from this model (`table_sampler.rs`).
+    pub(crate) sampler: TableSampler,
 }
 
 impl Rtls {
@@ -70,11 +74,14 @@ impl Rtls {
         for (name, v) in [("f_iso", f_iso), ("f_vol", f_vol), ("f_geo", f_geo)] {
             bundle::check_param("rtls", name, name, v)?;
         }
-        Ok(Self {
+        let mut m = Self {
             f_iso,
             f_vol,
             f_geo,
-        })
+            sampler: TableSampler::unbuilt(),
+        };
+        m.sampler = TableSampler::build(|wi, wo| m.eval(wi, wo));
+        Ok(m)
     }
 
     /// The two kernels `(K_vol, K_geo)` for unit vectors `wi`, `wo` with `z > 0`.

@@ -49,7 +49,7 @@
 use glam::DVec3;
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_4};
 
-use super::Rtls;
+use super::{Rtls, TableSampler};
 
 /// ξ0 of Maignan et al. (2004), degrees.
 pub const DEFAULT_XI0_DEG: f64 = 1.5;
@@ -76,6 +76,8 @@ pub struct RtlsHotspot {
     pub xi0_deg: f64,
     /// 1/ξ0, rad⁻¹.
     inv_xi0: f64,
+    /// Importance sampler built from this model (`table_sampler.rs`).
+    pub(crate) sampler: TableSampler,
 }
 
 impl RtlsHotspot {
@@ -87,13 +89,16 @@ impl RtlsHotspot {
             bundle::check_param("rtls", name, name, v)?;
         }
         XI0_RANGE.check("xi0", xi0_deg)?;
-        Ok(Self {
+        let mut m = Self {
             f_iso,
             f_vol,
             f_geo,
             xi0_deg,
             inv_xi0: 1.0 / xi0_deg.to_radians(),
-        })
+            sampler: TableSampler::unbuilt(),
+        };
+        m.sampler = TableSampler::build(|wi, wo| m.eval(wi, wo));
+        Ok(m)
     }
 
     /// The hot-spot factor `H(ξ) = 1 + (1 + ξ/ξ0)^−1` at the phase angle `xi` (radians).
@@ -327,24 +332,15 @@ mod tests {
         }
     }
 
-    /// χ² of the model's sampler (`Bsdf::sample`, the cosine-weighted hemisphere) against its
-    /// pdf, with the shared helper; and the weight of every draw is f_r·cos θ/pdf, also next to
-    /// the hot spot of the fixed view.
+    /// χ² of the model's sampler (`Bsdf::sample`, its table) against its pdf, with the shared
+    /// helper, next to the hot spot of the fixed view (the weight of every draw is checked in
+    /// `bsdf/mod.rs`).
     #[test]
     fn chi2_sampling() {
         let m = Bsdf::RtlsHotspot(model(P));
         let wo = direction_from_angles(0.5, 0.3);
-        let chi2 = crate::bsdf::test_support::chi2_cosine(|u1, u2| {
-            let s = m.sample(wo, u1, u2);
-            let want = m.eval(s.wi, wo) * s.wi.z / m.pdf(s.wi, wo);
-            assert!((s.weight - want).abs() <= 1e-12 * want.max(1.0));
-            s.wi
-        });
-        println!("RTLS-H sampler: chi2 = {chi2:.1} with 99 degrees of freedom");
-        assert!(
-            chi2 < crate::bsdf::test_support::CHI2_99_DOF_999,
-            "chi2 = {chi2}"
-        );
+        let chart = crate::bsdf::test_support::Chart::hemisphere(12, 24, 4);
+        crate::bsdf::test_support::assert_chi2("RTLS-H", &m, wo, &chart, 100_000);
     }
 
     /// Constructors reject out-of-range and NaN parameters, naming them.

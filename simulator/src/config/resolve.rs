@@ -267,7 +267,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         }
         (None, None) => return Err(ctx.err("surface", "is required (or a 3D `scene`)")),
         (None, Some(_)) => vec![Bsdf::Lambertian(Lambertian::new(0.0).expect("valid")); nw],
-        (Some(s), None) => s.resolve(&ctx, "surface")?,
+        (Some(s), None) => s.resolve(&ctx, "surface", &wavelengths)?,
     };
 
     let sun = cfg

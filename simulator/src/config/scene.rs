@@ -169,6 +169,12 @@ pub struct PaddingConfig {
 /// A (key, message) error of scene resolution; the caller adds the file.
 pub type SceneErr = (String, String);
 
+/// An experiment's own material, its table file (tabulated BRDFs) taken from the experiment's
+/// folder.
+fn here(spec: &BrdfSpec, base: &Path) -> BrdfSpec {
+    crate::scene::material::SurfaceModel::with_files_in(spec, base)
+}
+
 fn check_spec(key: &str, spec: &BrdfSpec) -> Result<(), SceneErr> {
     // Validate at a few wavelengths: spectra are checked for shape, models for ranges.
     for w in [400.0, 550.0, 700.0, 1000.0, 2000.0] {
@@ -246,19 +252,21 @@ pub fn build_scene(
                             ));
                         }
                     }
-                    if let Some(b) = brdf {
+                    let brdf = brdf.as_deref().map(|b| here(b, base));
+                    if let Some(b) = &brdf {
                         check_spec("scene.background.brdf", b)?;
                     }
                     Background::Flat {
                         altitude: *altitude_m,
-                        brdf: brdf.as_deref().cloned().map(Box::new),
+                        brdf: brdf.map(Box::new),
                     }
                 }
             };
             let mut overrides = Vec::new();
             for (name, spec) in materials {
-                check_spec(&format!("scene.materials.{name}"), spec)?;
-                overrides.push((name.clone(), spec.clone()));
+                let spec = here(spec, base);
+                check_spec(&format!("scene.materials.{name}"), &spec)?;
+                overrides.push((name.clone(), spec));
             }
             let reqs: Vec<build::TextureRequest> = textures
                 .iter()
@@ -339,7 +347,8 @@ pub fn build_scene(
                         "leaves must be ≥ 1 and variants in 1..=1024".into(),
                     ));
                 }
-                check_spec(&format!("{key}.trunk_brdf"), &t.trunk_brdf)?;
+                let trunk_brdf = here(&t.trunk_brdf, base);
+                check_spec(&format!("{key}.trunk_brdf"), &trunk_brdf)?;
                 let leaf_brdf = BrdfSpec::BiLambertian {
                     reflectance: t.reflectance.clone(),
                     transmittance: t.transmittance.clone(),
@@ -350,7 +359,7 @@ pub fn build_scene(
                     trunk_radius: t.trunk_radius_m,
                     trunk_bottom: t.trunk_m[0],
                     trunk_top: t.trunk_m[1],
-                    trunk_brdf: t.trunk_brdf.clone(),
+                    trunk_brdf,
                     crown_height: t.crown_height_m,
                     crown_radius: t.crown_radius_m,
                     leaves: t.leaves,
@@ -396,7 +405,8 @@ pub fn build_scene(
             let ground = match ground {
                 None => None,
                 Some(g) => {
-                    check_spec("scene.ground.brdf", &g.brdf)?;
+                    let brdf = here(&g.brdf, base);
+                    check_spec("scene.ground.brdf", &brdf)?;
                     if let Some(e) = g.extent_m {
                         if !(e[0] < e[2] && e[1] < e[3]) {
                             return Err((
@@ -408,7 +418,7 @@ pub fn build_scene(
                     Some(CanopyGround {
                         altitude: g.altitude_m,
                         extent: g.extent_m,
-                        brdf: g.brdf.clone(),
+                        brdf,
                     })
                 }
             };

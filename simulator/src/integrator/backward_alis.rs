@@ -12,25 +12,26 @@
 //!   exact for any direction, from the optical depths at both ends: [`Layers::carry`]);
 //! * at a scattering event in layer i, new direction at cos Θ drawn from P_ref:
 //!   `× (σ_c,i/σ_ref,i)·(P_c,i(cos Θ)/P_ref,i(cos Θ))`;
-//! * at a surface bounce: all BRDF models draw `wi` from the same cosine-weighted density, so
-//!   the channel's own weight is `q_c = f_c·cos θ_i/pdf` ([`Bsdf::sample_weight`]); the common
-//!   weight takes `r` (the reference surface's `q`, or max_c q_c where that is 0) and
-//!   `e_c × q_c/r`.
+//! * at a surface bounce: the reference surface draws `wi` with its own density `pdf_ref`
+//!   ([`Bsdf::sample`]; models sample differently, `bsdf/mod.rs`), and channel c's own weight is
+//!   `q_c = f_c·cos θ_i/pdf_ref` ([`Bsdf::weight_of`]); the common weight takes `r` (the
+//!   reference surface's `q`, or max_c q_c where that is 0) and `e_c × q_c/r`.
 //!
 //! **Why each channel's estimate is unbiased.** Write channel c's scalar radiance as the Neumann
 //! series over paths x = (x_1, d_1, x_2, …) from the sensor: the integrand is a product, per
-//! flight, of the transport kernel `σ_c(x_j)·e^{−τ_c(flight)}·P_c(cos Θ_j)/(4π)` (at the
-//! ground: `e^{−τ_c(flight)}·f_c cos θ_i`) times the next-event score of each vertex, with c's
-//! own σ_c, P_c, BRDF and solar transmittance `exp(−τ_c(z)/μ_s)`. The walk draws the same path
-//! from the reference density `k_ref e^{−τ_ref}·P_ref/(4π)` per flight (at the ground:
-//! `e^{−τ_ref}` times the shared cosine density). The ratio of kernel to density at every step
-//! is exactly the factor above (`ω_ref` in `w` times `e_c`'s update, or `q_c` = `r`·(q_c/r) at
-//! the ground), so `w·e_c·score_c` has the expectation of channel c's series (importance
-//! sampling; the reference's walk is the same for every c, only the weights differ): unbiased
-//! whenever the reference density is positive where
-//! channel c's is (σ_ref,i > 0 wherever some σ_c,i > 0, checked by the resolver; P_ref > 0,
-//! true of every phase model here; the surface density is shared). Russian roulette and
-//! `max_depth` act on the common weight and the order, identically for every channel, so they
+//! flight, of the transport kernel `σ_c(x_j)·e^{−τ_c(flight)}·P_c(cos Θ_j)/(4π)` (at the ground:
+//! `e^{−τ_c(flight)}·f_c cos θ_i`) times the next-event score of each vertex, with c's own σ_c,
+//! P_c, BRDF and solar transmittance `exp(−τ_c(z)/μ_s)`. The walk draws the same path from the
+//! reference density `k_ref e^{−τ_ref}·P_ref/(4π)` per flight (at the ground: `e^{−τ_ref}` times
+//! the reference surface's sampling density). The ratio of kernel to density at every step is
+//! exactly the factor above (`ω_ref` in `w` times `e_c`'s update, or `q_c` = `r`·(q_c/r) at the
+//! ground), so `w·e_c·score_c` has the expectation of channel c's series (importance sampling; the
+//! reference's walk is the same for every c, only the weights differ): unbiased whenever the
+//! reference density is positive where channel c's is (σ_ref,i > 0 wherever some σ_c,i > 0, checked
+//! by the resolver; P_ref > 0, true of every phase model here; the reference surface's sampling
+//! density is positive wherever a channel's BRDF is: the tabulated samplers include the cosine
+//! density, the ocean's facet density is positive everywhere above the horizon). Russian roulette
+//! and `max_depth` act on the common weight and the order, identically for every channel, so they
 //! keep each channel unbiased. With the default expected local estimate, the next-event score of
 //! the next flight is replaced by its expectation over the reference's collision point,
 //! `∫ σ_c P_c/(4π) e_c e^{−S_c(ℓ)} e^{−τ_c(z(ℓ))/μ_s} dℓ` (S_c: c's optical path along the
@@ -744,16 +745,19 @@ impl Weight for ChannelPath<'_> {
     #[inline]
     fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
         let wo = -d;
-        // The reference surface draws; every model samples the same (cosine) density, so
-        // channel c's own weight is q_c.
+        // The reference surface draws with its density pdf_ref; channel c's own weight is
+        // q_c = f_c·cos θ_i/pdf_ref.
         let smp = surface.sample(wo, rng)?;
         match self.g.kind {
             Kind::GPoints { .. } => self.w *= smp.weight,
-            Kind::Wavelengths { surfaces, .. } => {
+            Kind::Wavelengths {
+                surfaces,
+                reference_surface,
+            } => {
                 let mut q = [0.0_f64; MAX_CHANNELS];
                 let mut q_max = 0.0_f64;
                 for (qk, sf) in q.iter_mut().zip(surfaces.iter()) {
-                    *qk = sf.sample_weight(smp.wi, wo);
+                    *qk = sf.weight_of(smp.wi, wo, smp.pdf, reference_surface);
                     q_max = q_max.max(*qk);
                 }
                 let r = if smp.weight > 0.0 { smp.weight } else { q_max };

@@ -111,16 +111,20 @@ impl SurfaceAt<'_> {
         }
     }
 
-    /// Draw the next direction towards the light given `wo`; `None` when the surface absorbs.
+    /// Draw the next direction towards the light given `wo`; `None` when the surface absorbs
+    /// (a scene material's weight is 0, or a flat surface drew a direction below its horizon,
+    /// pdf 0). A flat surface may return weight 0 with a valid direction (reflectance 0): ALIS
+    /// walks still weigh that direction for their other channels.
     #[inline]
     pub fn sample(&self, wo: DVec3, rng: &mut Stream) -> Option<SurfaceSample> {
         match self {
             SurfaceAt::Flat { bsdf, frame } => {
                 let wo_l = frame.map_or(wo, |f| f.local(wo));
                 let s = bsdf.sample(wo_l, rng.next_f64(), rng.next_f64());
-                Some(SurfaceSample {
+                (s.pdf > 0.0).then(|| SurfaceSample {
                     wi: frame.map_or(s.wi, |f| f.world(s.wi)),
                     weight: s.weight,
+                    pdf: s.pdf,
                 })
             }
             SurfaceAt::Scene { model, n } => {

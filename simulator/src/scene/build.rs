@@ -62,10 +62,16 @@ pub fn from_bundle(
     // template triangles hold the manifest's `index` of each material (any unique 0–254, not
     // necessarily contiguous). `Bundle::open` has checked that every id used has a material and
     // that every BRDF is within `bundle::BRDF_PARAM_RANGES`.
+    // Tables of tabulated BRDFs are files in the bundle's folder.
     let mut materials: Vec<(String, BrdfSpec)> = m
         .materials
         .iter()
-        .map(|x| (x.name.clone(), x.brdf.clone()))
+        .map(|x| {
+            (
+                x.name.clone(),
+                crate::scene::material::SurfaceModel::with_files_in(&x.brdf, dir),
+            )
+        })
         .collect();
     let mut scene_id = [u8::MAX; 256];
     for (pos, x) in m.materials.iter().enumerate() {
