@@ -147,6 +147,46 @@ impl Drop for TmpDirGuard {
     }
 }
 
+/// Whether `dir` may be replaced by a forced write: it does not exist, or it is an empty
+/// directory, or a directory with a bundle manifest (`manifest.toml` naming a format version).
+/// Anything else (a file, a directory of other data) is refused with
+/// [`BundleError::NotABundle`], so `--force` never deletes data that is not a bundle.
+pub fn check_replaceable(dir: &Path) -> Result<(), BundleError> {
+    let not = |reason: &str| BundleError::NotABundle {
+        path: dir.to_path_buf(),
+        reason: reason.into(),
+    };
+    let meta = match std::fs::symlink_metadata(dir) {
+        Ok(m) => m,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(()),
+        Err(source) => {
+            return Err(BundleError::Write {
+                path: dir.to_path_buf(),
+                source,
+            })
+        }
+    };
+    if !meta.is_dir() {
+        return Err(not(if meta.file_type().is_symlink() {
+            "a symbolic link"
+        } else {
+            "not a directory"
+        }));
+    }
+    let mut entries = std::fs::read_dir(dir).map_err(|source| BundleError::Write {
+        path: dir.to_path_buf(),
+        source,
+    })?;
+    if entries.next().is_none() {
+        return Ok(());
+    }
+    match std::fs::read_to_string(dir.join(MANIFEST_FILE)) {
+        Ok(text) if text.contains("format_version") => Ok(()),
+        Ok(_) => Err(not("its manifest.toml has no format_version")),
+        Err(_) => Err(not("no manifest.toml")),
+    }
+}
+
 impl Bundle {
     /// Write the bundle to `dir` atomically. Refuses an existing `dir` unless `force`, in which
     /// case the old directory is replaced only after the new one is complete.
@@ -157,6 +197,7 @@ impl Bundle {
                 path: dir.to_path_buf(),
             });
         }
+        check_replaceable(dir)?;
         self.check_consistency(dir)?;
         let parent = match dir.parent() {
             Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
@@ -929,6 +970,52 @@ mod tests {
         let e = Bundle::open(&dir).unwrap_err();
         assert!(e.to_string().contains("instances.bin"), "{e}");
         std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rationale: `--force` must never delete data that is not a bundle (issue 15): a directory
+    /// of other files, or a file, is refused and left untouched; an empty directory and an
+    /// existing bundle are replaced.
+    #[test]
+    fn force_replaces_only_bundles() {
+        let parent = tmpdir("force");
+        std::fs::create_dir_all(&parent).unwrap();
+        let b = sample();
+        // A folder of someone's data.
+        let data = parent.join("thesis");
+        std::fs::create_dir_all(&data).unwrap();
+        std::fs::write(data.join("chapter1.tex"), "precious").unwrap();
+        let e = b.write(&data, true).unwrap_err();
+        assert!(matches!(e, BundleError::NotABundle { .. }), "{e}");
+        assert!(
+            e.to_string().contains("thesis") && e.to_string().contains("no manifest.toml"),
+            "{e}"
+        );
+        assert_eq!(
+            std::fs::read_to_string(data.join("chapter1.tex")).unwrap(),
+            "precious"
+        );
+        // A file.
+        let file = parent.join("notes.txt");
+        std::fs::write(&file, "keep").unwrap();
+        assert!(matches!(
+            b.write(&file, true),
+            Err(BundleError::NotABundle { .. })
+        ));
+        assert_eq!(std::fs::read_to_string(&file).unwrap(), "keep");
+        // An empty directory and a bundle are replaced.
+        let empty = parent.join("empty");
+        std::fs::create_dir_all(&empty).unwrap();
+        b.write(&empty, true).unwrap();
+        b.write(&empty, true).unwrap();
+        Bundle::verify(&empty).unwrap();
+        // Nothing else was left in the parent (no temporary or trash directories).
+        let mut names: Vec<String> = std::fs::read_dir(&parent)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert_eq!(names, ["empty", "notes.txt", "thesis"]);
+        std::fs::remove_dir_all(&parent).unwrap();
     }
 
     /// Rationale: a failed write (here an inconsistent bundle) must leave neither the

@@ -32,7 +32,9 @@ mod io;
 mod manifest;
 
 pub use brdf::*;
-pub use io::{Bundle, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES};
+pub use io::{
+    check_replaceable, Bundle, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES,
+};
 pub use manifest::*;
 
 use std::path::PathBuf;
@@ -65,6 +67,9 @@ pub enum BundleError {
     Corrupt { path: PathBuf, message: String },
     #[error("output directory {} already exists (use --force to replace it)", path.display())]
     Exists { path: PathBuf },
+    /// `--force` replaces bundles (and empty directories) only, never other data.
+    #[error("{} exists and is not a scene bundle ({reason}); --force replaces only a bundle or an empty directory: remove it yourself or choose another output path", path.display())]
+    NotABundle { path: PathBuf, reason: String },
     /// A material of the manifest whose BRDF parameters are out of range or malformed.
     #[error("{}: material `{name}` (index {index}): {source}", path.display())]
     Brdf {

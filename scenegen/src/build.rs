@@ -179,9 +179,11 @@ pub fn build(
     out: &Path,
     opts: &BuildOptions,
 ) -> Result<BuildReport, ScenegenError> {
+    // Before any work: an existing output is refused, and `--force` replaces only a bundle.
     if out.exists() && !opts.force {
         return Err(bundle::BundleError::Exists { path: out.into() }.into());
     }
+    bundle::check_replaceable(out)?;
     let mut stages = Vec::new();
     let mut t = Instant::now();
     let mut stage = |name: &'static str, t: &mut Instant| {

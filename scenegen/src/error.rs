@@ -50,6 +50,7 @@ impl ScenegenError {
             ScenegenError::Bundle(b) => matches!(
                 b,
                 B::Exists { .. }
+                    | B::NotABundle { .. }
                     | B::Read { .. }
                     | B::Manifest { .. }
                     | B::Version { .. }

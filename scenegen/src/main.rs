@@ -27,7 +27,8 @@ enum Command {
     /// Build a bundle from a region file (keys in docs/region.md).
     Build {
         region: PathBuf,
-        /// Output bundle directory (must not exist unless --force).
+        /// Output bundle directory (must not exist unless --force, which replaces only a bundle
+        /// or an empty directory).
         #[arg(short, long)]
         output: PathBuf,
         /// Replace an existing output directory (after the new bundle is complete).

@@ -516,6 +516,28 @@ fn bad_inputs_are_named() {
     ]);
     assert_eq!(c, 0, "{stderr}");
     Bundle::open(&out).unwrap();
+    // --force never empties a folder that is not a bundle: exit 2, the folder named, its data
+    // intact (and the refusal comes before any work).
+    let data = dir.join("my_data");
+    std::fs::create_dir_all(&data).unwrap();
+    std::fs::write(data.join("results.csv"), "keep me").unwrap();
+    let (c, _, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "--force",
+        "-o",
+        data.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
+    assert_eq!(c, 2, "{stderr}");
+    assert!(
+        stderr.contains("my_data") && stderr.contains("is not a scene bundle"),
+        "{stderr}"
+    );
+    assert_eq!(
+        std::fs::read_to_string(data.join("results.csv")).unwrap(),
+        "keep me"
+    );
 
     // An output that cannot be written (parent is a file; a full disk fails the same way, on
     // a write): exit code 1, the path named, no temporary directory left.
