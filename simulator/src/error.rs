@@ -77,6 +77,9 @@ pub enum OutputError {
         what: String,
         source: gdal::errors::GdalError,
     },
+    /// Another `simulate run` holds the output folder's lock.
+    #[error("another simulate run is writing into {} (its lock {} is held); wait for it to finish or choose another output folder", dir.display(), lock.display())]
+    Busy { dir: PathBuf, lock: PathBuf },
     /// PNG encoding failed (`path` is the product's final name).
     #[error("cannot write PNG {}: {source}", path.display())]
     Image {

@@ -36,6 +36,7 @@ pub mod illumination;
 pub mod integrator;
 pub mod measure;
 pub mod optics;
+pub mod output_lock;
 pub mod phase;
 pub mod pics;
 pub mod pics_catalogue;

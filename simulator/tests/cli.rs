@@ -364,3 +364,42 @@ fn sharded_runs_merge_exactly() {
     assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("--shard"));
 }
+
+/// Rationale (issue 15): two runs into one output folder must not mix their products. While a
+/// run holds the folder's lock, a second `simulate run` there fails at once (exit 1, the folder
+/// named, nothing written); once the lock is released the same command runs.
+#[test]
+fn second_run_into_a_busy_folder_is_refused() {
+    let out = tmpdir("busy");
+    let text = std::fs::read_to_string(example())
+        .unwrap()
+        .replace("spp = 100000", "spp = 2000");
+    let exp = out.join("exp.toml");
+    std::fs::write(&exp, text).unwrap();
+    let run = || {
+        bin()
+            .args([
+                "run",
+                exp.to_str().unwrap(),
+                "-o",
+                out.to_str().unwrap(),
+                "--quiet",
+            ])
+            .output()
+            .unwrap()
+    };
+    let held = simulator::output_lock::lock(&out).unwrap();
+    let o = run();
+    let stderr = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{stderr}");
+    assert!(
+        stderr.contains("another simulate run") && stderr.contains(out.to_str().unwrap()),
+        "{stderr}"
+    );
+    assert!(!out.join("results.csv").exists());
+    drop(held);
+    let o = run();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert!(out.join("results.csv").exists());
+    std::fs::remove_dir_all(&out).unwrap();
+}

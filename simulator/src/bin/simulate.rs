@@ -196,6 +196,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let exp = Experiment::load(&experiment)?;
             std::fs::create_dir_all(&output)
                 .with_context(|| format!("cannot create output folder {}", output.display()))?;
+            // One run per output folder (shards share theirs by design).
+            let _lock = match shard {
+                None => Some(simulator::output_lock::lock(&output)?),
+                Some(_) => None,
+            };
             let t0 = Instant::now();
             tracing::info!(
                 "running {} ({} wavelength(s), {} measure(s)) on {} thread(s)",
