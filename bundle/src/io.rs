@@ -522,6 +522,30 @@ impl Bundle {
             Ok(off as usize..end as usize)
         };
 
+        // Byte sizes from manifest counts, refusing counts whose size overflows.
+        let size = |path: &Path, count: u64, each: u64, what: &str| -> Result<u64, BundleError> {
+            count.checked_mul(each).ok_or_else(|| BundleError::Corrupt {
+                path: path.to_path_buf(),
+                message: format!("{what}: count {count} is impossibly large"),
+            })
+        };
+        // Vertices must be finite (a NaN would poison the BVH and every ray near it).
+        let finite = |path: &Path, positions: &[[f32; 3]], what: &str| -> Result<(), BundleError> {
+            match positions
+                .iter()
+                .position(|p| !p.iter().all(|c| c.is_finite()))
+            {
+                None => Ok(()),
+                Some(k) => Err(BundleError::Corrupt {
+                    path: path.to_path_buf(),
+                    message: format!(
+                        "{what}: vertex {k} has a non-finite coordinate {:?}",
+                        positions[k]
+                    ),
+                }),
+            }
+        };
+
         let (path, bytes) = read(&manifest.terrain.file)?;
         let mut terrain = Vec::with_capacity(manifest.terrain.tiles.len());
         for t in &manifest.terrain.tiles {
@@ -530,15 +554,21 @@ impl Bundle {
                 &path,
                 &bytes,
                 t.positions_offset,
-                t.vertex_count * 12,
+                size(&path, t.vertex_count, 12, &what)?,
                 &what,
             )?;
-            let u = slice(&path, &bytes, t.uvs_offset, t.vertex_count * 8, &what)?;
+            let u = slice(
+                &path,
+                &bytes,
+                t.uvs_offset,
+                size(&path, t.vertex_count, 8, &what)?,
+                &what,
+            )?;
             let i = slice(
                 &path,
                 &bytes,
                 t.indices_offset,
-                t.triangle_count * 12,
+                size(&path, t.triangle_count, 12, &what)?,
                 &what,
             )?;
             let indices: Vec<[u32; 3]> = u32s(&bytes[i])
@@ -555,13 +585,21 @@ impl Bundle {
                     message: format!("{what}: a vertex index is out of range"),
                 });
             }
+            let positions: Vec<[f32; 3]> = f32s(&bytes[p])
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            finite(&path, &positions, &what)?;
+            if !t.origin.iter().all(|c| c.is_finite()) {
+                return Err(BundleError::Corrupt {
+                    path: dir.join(MANIFEST_FILE),
+                    message: format!("{what}: non-finite origin {:?}", t.origin),
+                });
+            }
             terrain.push(TerrainTile {
                 id: t.id,
                 origin: t.origin,
-                positions: f32s(&bytes[p])
-                    .chunks_exact(3)
-                    .map(|c| [c[0], c[1], c[2]])
-                    .collect(),
+                positions,
                 uvs: f32s(&bytes[u])
                     .chunks_exact(2)
                     .map(|c| [c[0], c[1]])
@@ -578,14 +616,14 @@ impl Bundle {
                 &path,
                 &bytes,
                 t.positions_offset,
-                t.vertex_count * 12,
+                size(&path, t.vertex_count, 12, &what)?,
                 &what,
             )?;
             let i = slice(
                 &path,
                 &bytes,
                 t.indices_offset,
-                t.triangle_count * 12,
+                size(&path, t.triangle_count, 12, &what)?,
                 &what,
             )?;
             let mm = slice(&path, &bytes, t.materials_offset, t.triangle_count, &what)?;
@@ -603,20 +641,27 @@ impl Bundle {
                     message: format!("{what}: a vertex index is out of range"),
                 });
             }
+            let positions: Vec<[f32; 3]> = f32s(&bytes[p])
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2]])
+                .collect();
+            finite(&path, &positions, &what)?;
             templates.push(TemplateMesh {
                 name: t.name.clone(),
                 source: t.source.clone(),
-                positions: f32s(&bytes[p])
-                    .chunks_exact(3)
-                    .map(|c| [c[0], c[1], c[2]])
-                    .collect(),
+                positions,
                 indices,
                 materials: bytes[mm].to_vec(),
             });
         }
 
         let (path, bytes) = read(&manifest.instances.file)?;
-        if bytes.len() as u64 != manifest.instances.count * INSTANCE_RECORD_BYTES as u64 {
+        if Some(bytes.len() as u64)
+            != manifest
+                .instances
+                .count
+                .checked_mul(INSTANCE_RECORD_BYTES as u64)
+        {
             return Err(BundleError::Corrupt {
                 path,
                 message: format!(
@@ -644,8 +689,18 @@ impl Bundle {
                     ),
                 });
             }
+            let translation = [f64at(0), f64at(8), f64at(16)];
+            if !translation.iter().all(|c| c.is_finite()) || !linear.iter().all(|c| c.is_finite()) {
+                return Err(BundleError::Corrupt {
+                    path,
+                    message: format!(
+                        "instance {}: non-finite transform (translation {translation:?}, linear part {linear:?})",
+                        instances.len()
+                    ),
+                });
+            }
             instances.push(Instance {
-                translation: [f64at(0), f64at(8), f64at(16)],
+                translation,
                 linear,
                 template,
             });
@@ -798,7 +853,7 @@ mod tests {
     use super::*;
     use crate::{BrdfSpec, Spectrum};
 
-    fn sample() -> Bundle {
+    pub(super) fn sample() -> Bundle {
         let manifest = Manifest {
             format: FORMAT_NAME.into(),
             format_version: FORMAT_VERSION,
@@ -1171,5 +1226,61 @@ mod tests {
         }
         .validate()
         .is_err());
+    }
+}
+
+#[cfg(test)]
+mod damaged_input_tests {
+    use super::*;
+
+    fn written(name: &str) -> (PathBuf, Manifest) {
+        let dir =
+            std::env::temp_dir().join(format!("bundle-damaged-{name}-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let m = tests::sample().write(&dir, false).unwrap();
+        (dir, m)
+    }
+
+    /// Rationale (issue 15): a NaN vertex used to panic inside the BVH library, and a huge
+    /// `vertex_count` overflowed the size check and panicked on an index. Both are refused at
+    /// open with the file, the tile and the vertex named.
+    #[test]
+    fn nan_vertex_and_huge_counts_are_refused() {
+        let (dir, m) = written("nan");
+        let t = &m.terrain.tiles[0];
+        let path = dir.join(&m.terrain.file);
+        let mut bytes = std::fs::read(&path).unwrap();
+        let at = t.positions_offset as usize + 12 + 8; // vertex 1, z
+        bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
+        std::fs::write(&path, &bytes).unwrap();
+        let e = Bundle::open(&dir).unwrap_err();
+        let msg = e.to_string();
+        assert!(
+            matches!(e, BundleError::Corrupt { .. })
+                && msg.contains("vertex 1")
+                && msg.contains("non-finite")
+                && msg.contains(&m.terrain.file),
+            "{msg}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
+
+        let (dir, m) = written("huge");
+        let mpath = dir.join(MANIFEST_FILE);
+        let text = std::fs::read_to_string(&mpath).unwrap();
+        let line = format!("vertex_count = {}", m.terrain.tiles[0].vertex_count);
+        assert!(text.contains(&line), "{text}");
+        std::fs::write(
+            &mpath,
+            // Every count of 3 (the terrain total, the tile, the template) becomes one whose
+            // byte size overflows u64.
+            text.replace(&line, "vertex_count = 3074457345618258603"),
+        )
+        .unwrap();
+        let e = Bundle::open(&dir).unwrap_err();
+        assert!(
+            matches!(e, BundleError::Corrupt { .. }) && e.to_string().contains("impossibly large"),
+            "{e}"
+        );
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 }
