@@ -448,6 +448,9 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
 /// the samples done (or `min_grow` more, if that is larger), rounded up to whole units
 /// (`block`: a block, or a whole cycle of g-point blocks in CKD runs). Depends only on
 /// results, so it is thread-count independent.
+/// The most blocks one round of a task runs (and holds) at once.
+const MAX_ROUND_BLOCKS: u64 = 1 << 18;
+
 fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_grow: u64) -> u64 {
     let grow = if rel.is_finite() && target > 0.0 {
         (done as f64 * (rel / target).powi(2) * 1.1).ceil() as u64
@@ -510,6 +513,11 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
             (first.div_ceil(unit) * unit).min(m.spp)
         }
     };
+    // Rounds hold at most MAX_ROUND_BLOCKS blocks in memory (a huge `spp` without a target used
+    // to list all its blocks at once and abort on allocation). Blocks merge in the same order
+    // whatever the rounds, so capping changes no result.
+    let round_cap = (MAX_ROUND_BLOCKS / (walk_cells.len() as u64 * cycle as u64)).max(1) * unit;
+    next = next.min(done + round_cap);
     let per_walk = group.len() as u64;
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
@@ -582,7 +590,8 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
             m.spp,
             unit,
             min_grow,
-        );
+        )
+        .min(done + round_cap);
     }
     group
         .iter()
