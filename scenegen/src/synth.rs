@@ -68,6 +68,15 @@ pub fn write_geotiff<T: GdalType + Copy>(
     nodata: Option<f64>,
     data: Vec<T>,
 ) -> Result<(), ScenegenError> {
+    // Output parents are created (a fresh tree has no `out/…` folders).
+    if let Some(parent) = path.parent().filter(|p| !p.as_os_str().is_empty()) {
+        std::fs::create_dir_all(parent).map_err(|source| {
+            ScenegenError::Bundle(bundle::BundleError::Write {
+                path: parent.to_path_buf(),
+                source,
+            })
+        })?;
+    }
     let drv = DriverManager::get_driver_by_name("GTiff").map_err(gdal_err("GTiff driver"))?;
     let mut opts = gdal::raster::RasterCreationOptions::new();
     opts.add_name_value("COMPRESS", "DEFLATE")
