@@ -42,6 +42,13 @@ pub struct Tail {
     pub max_share: f64,
 }
 
+impl Tail {
+    /// Whether the cell's standard error can be trusted: VOV ≤ [`VOV_LIMIT`].
+    pub fn trusted(&self) -> bool {
+        self.vov <= VOV_LIMIT
+    }
+}
+
 /// Cells with fewer samples are not judged by [`Accum::tail`]: their VOV is too noisy.
 pub const TAIL_MIN_SAMPLES: u64 = 1000;
 /// MCNP's threshold on the VOV (X-5 Monte Carlo Team 2003, vol. I, §2.6.9).

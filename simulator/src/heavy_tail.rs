@@ -46,7 +46,10 @@ impl std::fmt::Display for HeavyTail {
 }
 
 /// The (measure, wavelength) pairs of `results` that fail the check.
-pub fn check(exp: &Experiment, results: &[MeasureResult]) -> Vec<HeavyTail> {
+pub fn check<'a>(
+    exp: &Experiment,
+    results: impl IntoIterator<Item = &'a MeasureResult>,
+) -> Vec<HeavyTail> {
     let mut out = Vec::new();
     for r in results {
         let acc = &r.acc;
@@ -55,7 +58,7 @@ pub fn check(exp: &Experiment, results: &[MeasureResult]) -> Vec<HeavyTail> {
         for c in 0..acc.n.len() {
             let Some(t) = acc.tail(c) else { continue };
             judged += 1;
-            if t.vov > VOV_LIMIT {
+            if !t.trusted() {
                 failed += 1;
             }
             if worst.is_none_or(|(_, w)| t.vov > w.vov) {
@@ -78,7 +81,7 @@ pub fn check(exp: &Experiment, results: &[MeasureResult]) -> Vec<HeavyTail> {
 }
 
 /// [`check`], each failure logged as a warning.
-pub fn warn(exp: &Experiment, results: &[MeasureResult]) {
+pub fn warn<'a>(exp: &Experiment, results: impl IntoIterator<Item = &'a MeasureResult>) {
     for h in check(exp, results) {
         tracing::warn!("{h}");
     }

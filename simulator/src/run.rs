@@ -24,7 +24,6 @@ use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::sensor;
 
-use crate::accum::VOV_LIMIT;
 pub use crate::accum::{MeasureResult, Method};
 
 pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
@@ -567,7 +566,7 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
         // the run early.
         let trusted = || {
             accs.iter()
-                .all(|acc| (0..acc.n.len()).all(|c| acc.tail(c).is_none_or(|t| t.vov <= VOV_LIMIT)))
+                .all(|acc| (0..acc.n.len()).all(|c| acc.tail(c).is_none_or(|t| t.trusted())))
         };
         let reached = m.target_rel_stderr.is_some_and(|t| rel <= t) && trusted();
         if done >= m.spp || reached {
@@ -758,7 +757,6 @@ pub fn run_shard(
         let k = r.wavelength * nm + r.measure;
         out[k] = Some(r);
     }
-    let done: Vec<MeasureResult> = out.iter().flatten().cloned().collect();
-    crate::heavy_tail::warn(exp, &done);
+    crate::heavy_tail::warn(exp, out.iter().flatten());
     Ok((out, resumed.into_inner()))
 }

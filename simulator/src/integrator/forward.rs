@@ -291,6 +291,11 @@ fn walk_from<W: Photon>(
         bsdf: surface,
         frame: None,
     };
+    // The sensor directions are the detectors of the local estimates.
+    let peak = PeakSampling {
+        eps: settings.detector_sampling,
+        dirs,
+    };
     loop {
         if order <= settings.max_depth && !dirs.is_empty() {
             // Expected-value scores of this flight.
@@ -360,11 +365,6 @@ fn walk_from<W: Photon>(
                         w.local_estimate(&mut scratch.tally[k], order, &acc, d, to, im);
                     }
                 }
-                // The sensor directions are the detectors of the local estimates.
-                let peak = PeakSampling {
-                    eps: settings.detector_sampling,
-                    dirs,
-                };
                 d = w.scatter(phase, omega, d, &peak, rng);
             }
         }

@@ -51,7 +51,7 @@ impl<'a> PeakSampling<'a> {
     /// Whether scattering through `phase` uses the mixture.
     #[inline]
     pub fn active(&self, phase: &PhaseFunction) -> bool {
-        self.eps > 0.0 && !self.dirs.is_empty() && phase.eval(1.0) >= PEAK_MIN
+        self.eps > 0.0 && !self.dirs.is_empty() && phase.forward_peak() >= PEAK_MIN
     }
 
     /// Draw the mixture's choice (one uniform number): `Some(v_k)` to sample about a detector

@@ -88,21 +88,22 @@ pub(crate) fn sample_with(
     if !peak.active(phase) {
         return sample(phase, d, e1, q, u, rng);
     }
-    let (d2, f) = match peak.choose(rng) {
+    // The main sampler's density at its own draw is known; at a detector draw it is evaluated.
+    let main = match peak.choose(rng) {
         Some(axis) => {
             let d2 = super::weight::sample_scattered(phase, axis, rng);
-            (d2, phase.matrix(d.dot(d2)))
+            let f = phase.matrix(d.dot(d2));
+            StokesSample {
+                norm: norm_at(&f, d, e1, q, u, d2),
+                d2,
+                f,
+            }
         }
-        None => {
-            let smp = sample(phase, d, e1, q, u, rng);
-            (smp.d2, smp.f)
-        }
+        None => sample(phase, d, e1, q, u, rng),
     };
-    let main = norm_at(&f, d, e1, q, u, d2);
     StokesSample {
-        d2,
-        f,
-        norm: peak.mixture(phase, main, d2),
+        norm: peak.mixture(phase, main.norm, main.d2),
+        ..main
     }
 }
 

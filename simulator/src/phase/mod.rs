@@ -51,6 +51,17 @@ impl PhaseFunction {
         }
     }
 
+    /// The forward peak `P(1)` in O(1) (a table's last node, a mixture's weighted peaks);
+    /// asked at every scattering by detector-directional sampling.
+    #[inline]
+    pub fn forward_peak(&self) -> f64 {
+        match self {
+            PhaseFunction::Tabulated(p) => p.forward_peak(),
+            PhaseFunction::Mixture(m) => m.components().map(|(w, p)| w * p.forward_peak()).sum(),
+            PhaseFunction::Rayleigh(_) | PhaseFunction::Hg(_) => self.eval(1.0),
+        }
+    }
+
     /// Draw `cos Θ` with density `P/2` from one uniform number in [0, 1).
     #[inline]
     pub fn sample_cos(&self, u: f64) -> f64 {

@@ -235,6 +235,12 @@ impl Tabulated {
         i.clamp(1, self.mu.len() - 1) - 1
     }
 
+    /// `P(1)`: the value at the grid's last node (cos Θ = 1), without a search.
+    #[inline]
+    pub fn forward_peak(&self) -> f64 {
+        self.p[self.p.len() - 1]
+    }
+
     #[inline]
     pub fn eval(&self, mu: f64) -> f64 {
         let mu = mu.clamp(-1.0, 1.0);
@@ -425,6 +431,26 @@ mod tests {
         assert!((t.asymmetry() - 0.5).abs() < 1e-3, "{}", t.asymmetry());
         let p = PhaseFunction::Tabulated(Arc::new(t));
         assert!((mean_over_sphere(&p) - 1.0).abs() < 1e-6);
+    }
+
+    /// The O(1) forward peak equals `eval(1)`, for a table and a mixture containing it.
+    #[test]
+    fn forward_peak_is_eval_at_one() {
+        let t = PhaseFunction::Tabulated(Arc::new(hg_table(0.9, 360)));
+        let m = PhaseFunction::Mixture(Arc::new(
+            crate::phase::Mixture::new(vec![
+                (
+                    0.3,
+                    PhaseFunction::Rayleigh(crate::phase::Rayleigh::new(0.03).unwrap()),
+                ),
+                (0.7, t.clone()),
+            ])
+            .unwrap(),
+        ));
+        for p in [&t, &m] {
+            let (a, b) = (p.forward_peak(), p.eval(1.0));
+            assert!((a - b).abs() <= 1e-12 * b, "{a} vs {b}");
+        }
     }
 
     /// χ² of the sampler against eval, on a strongly peaked table.
