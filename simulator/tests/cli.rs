@@ -4,7 +4,7 @@
 mod common;
 
 use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::process::{Command, Output};
 
 fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_simulate"))
@@ -21,17 +21,19 @@ fn example() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/rayleigh_lambertian.toml")
 }
 
-/// The README example runs as written and writes both products with the documented columns
-/// and variables; the netCDF values equal the CSV values.
-#[test]
-fn example_runs_and_writes_products() {
-    let out = tmpdir("example");
+/// The README example at `spp` samples per direction, written to `dir/exp.toml`.
+fn example_at(dir: &Path, spp: u64) -> PathBuf {
     let text = std::fs::read_to_string(example())
         .unwrap()
-        .replace("spp = 100000", "spp = 5000");
-    let exp = out.join("exp.toml");
+        .replace("spp = 100000", &format!("spp = {spp}"));
+    let exp = dir.join("exp.toml");
     std::fs::write(&exp, text).unwrap();
-    let o = bin()
+    exp
+}
+
+/// `simulate run EXP -o OUT --quiet`.
+fn run_quiet(exp: &Path, out: &Path) -> Output {
+    bin()
         .args([
             "run",
             exp.to_str().unwrap(),
@@ -40,7 +42,16 @@ fn example_runs_and_writes_products() {
             "--quiet",
         ])
         .output()
-        .unwrap();
+        .unwrap()
+}
+
+/// The README example runs as written and writes both products with the documented columns
+/// and variables; the netCDF values equal the CSV values.
+#[test]
+fn example_runs_and_writes_products() {
+    let out = tmpdir("example");
+    let exp = example_at(&out, 5000);
+    let o = run_quiet(&exp, &out);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
     let mut lines = csv.lines();
@@ -171,16 +182,7 @@ fn bad_input_is_a_clear_error() {
     for (name, text, needles) in cases {
         let path = dir.join("bad.toml");
         std::fs::write(&path, &text).unwrap();
-        let o = bin()
-            .args([
-                "run",
-                path.to_str().unwrap(),
-                "-o",
-                dir.join("out").to_str().unwrap(),
-                "--quiet",
-            ])
-            .output()
-            .unwrap();
+        let o = run_quiet(&path, &dir.join("out"));
         let err = String::from_utf8_lossy(&o.stderr);
         assert_eq!(
             o.status.code(),
@@ -242,16 +244,7 @@ fn bundle_with_unknown_material_ids_is_refused() {
         ),
     )
     .unwrap();
-    let o = bin()
-        .args([
-            "run",
-            exp.to_str().unwrap(),
-            "-o",
-            dir.join("out").to_str().unwrap(),
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
+    let o = run_quiet(&exp, &dir.join("out"));
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(2), "{err}");
     for needle in [
@@ -272,22 +265,9 @@ fn unwritable_output_is_reported() {
     let dir = tmpdir("unwritable");
     let blocker = dir.join("file");
     std::fs::write(&blocker, "x").unwrap();
-    let text = std::fs::read_to_string(example())
-        .unwrap()
-        .replace("spp = 100000", "spp = 100");
-    let exp = dir.join("exp.toml");
-    std::fs::write(&exp, text).unwrap();
+    let exp = example_at(&dir, 100);
     let target = blocker.join("sub");
-    let o = bin()
-        .args([
-            "run",
-            exp.to_str().unwrap(),
-            "-o",
-            target.to_str().unwrap(),
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
+    let o = run_quiet(&exp, &target);
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains(target.to_str().unwrap()), "{err}");
@@ -371,23 +351,8 @@ fn sharded_runs_merge_exactly() {
 #[test]
 fn second_run_into_a_busy_folder_is_refused() {
     let out = tmpdir("busy");
-    let text = std::fs::read_to_string(example())
-        .unwrap()
-        .replace("spp = 100000", "spp = 2000");
-    let exp = out.join("exp.toml");
-    std::fs::write(&exp, text).unwrap();
-    let run = || {
-        bin()
-            .args([
-                "run",
-                exp.to_str().unwrap(),
-                "-o",
-                out.to_str().unwrap(),
-                "--quiet",
-            ])
-            .output()
-            .unwrap()
-    };
+    let exp = example_at(&out, 2000);
+    let run = || run_quiet(&exp, &out);
     let held = simulator::output_lock::lock(&out).unwrap();
     let o = run();
     let stderr = String::from_utf8_lossy(&o.stderr);

@@ -24,7 +24,8 @@ use simulator::frame::direction_from_angles;
 const RHO_0: [f64; 2] = [0.1, 0.3];
 const K_G_RHOC: (f64, f64, f64) = (0.8, -0.2, 0.3);
 
-/// Writes the RPV table at 500 and 700 nm (netCDF-3; the layout of `bsdf/tabulated.rs`).
+/// Writes the RPV table at 500 and 700 nm (`simulator::bsdf::tabulated::write_table`, the
+/// documented layout).
 fn write_rpv_table(path: &Path) {
     let models: Vec<Rpv> = RHO_0
         .iter()
@@ -33,44 +34,14 @@ fn write_rpv_table(path: &Path) {
     let theta: Vec<f64> = (0..=44).map(|k| 2.0 * k as f64).collect();
     let dphi: Vec<f64> = (0..=36).map(|k| 5.0 * k as f64).collect();
     let wl = [500.0, 700.0];
-    let mut values = Vec::new();
-    for m in &models {
-        for &ti in &theta {
-            for &tr in &theta {
-                for &dp in &dphi {
-                    // dphi = φ_r − φ_i, 0 = backscattering (both directions at one azimuth).
-                    let wi = direction_from_angles(f64::to_radians(ti), 0.0);
-                    let wo = direction_from_angles(f64::to_radians(tr), f64::to_radians(dp));
-                    values.push(m.eval(wi, wo));
-                }
-            }
-        }
-    }
-    let _session = simulator::netcdf_session();
-    let mut nc = netcdf::create_with(path, netcdf::Options::_64BIT_OFFSET).unwrap();
-    let axes: [(&str, &[f64], &str); 4] = [
-        ("wavelength", &wl, "nm"),
-        ("theta_i", &theta, "degree"),
-        ("theta_r", &theta, "degree"),
-        ("dphi", &dphi, "degree"),
-    ];
-    for (name, g, unit) in axes {
-        nc.add_dimension(name, g.len()).unwrap();
-        let mut v = nc.add_variable::<f64>(name, &[name]).unwrap();
-        v.put_attribute("units", unit).unwrap();
-    }
-    let mut v = nc
-        .add_variable::<f64>("brdf", &["wavelength", "theta_i", "theta_r", "dphi"])
-        .unwrap();
-    v.put_attribute("units", "sr-1").unwrap();
-    nc.enddef().unwrap();
-    for (name, g, _) in axes {
-        nc.variable_mut(name).unwrap().put_values(g, ..).unwrap();
-    }
-    nc.variable_mut("brdf")
-        .unwrap()
-        .put_values(&values, ..)
-        .unwrap();
+    simulator::bsdf::tabulated::write_table(path, &wl, &theta, &theta, &dphi, |w, ti, tr, dp| {
+        let m = &models[if w == wl[0] { 0 } else { 1 }];
+        // dphi = φ_r − φ_i, 0 = backscattering (both directions at one azimuth).
+        let wi = direction_from_angles(f64::to_radians(ti), 0.0);
+        let wo = direction_from_angles(f64::to_radians(tr), f64::to_radians(dp));
+        m.eval(wi, wo)
+    })
+    .unwrap();
 }
 
 /// |a − b| ≤ 4.5·√(σa² + σb²) + 5·10⁻⁴ for every row's BRF.

@@ -385,61 +385,63 @@ impl Tabulated {
     }
 }
 
+/// Write a table in the file layout of the module header (netCDF-3, 64-bit offsets):
+/// `f(wavelength, theta_i, theta_r, dphi)` in sr⁻¹ at every grid point, angles in degrees. For
+/// tests and for turning a model into a table; the grids must satisfy the layout's rules.
+pub fn write_table(
+    path: &Path,
+    wavelengths: &[f64],
+    theta_i: &[f64],
+    theta_r: &[f64],
+    dphi: &[f64],
+    f: impl Fn(f64, f64, f64, f64) -> f64,
+) -> Result<(), netcdf::Error> {
+    let _session = crate::netcdf_session();
+    // netCDF-3 (64-bit offset): read from test threads, a netCDF-4 file makes HDF5 print its
+    // (harmless) attribute probes, whose printing is switched off in one thread only.
+    let mut nc = netcdf::create_with(path, netcdf::Options::_64BIT_OFFSET)?;
+    let axes = [
+        ("wavelength", wavelengths, "nm"),
+        ("theta_i", theta_i, "degree"),
+        ("theta_r", theta_r, "degree"),
+        ("dphi", dphi, "degree"),
+    ];
+    // Classic files: everything defined first, then the data.
+    for (name, g, unit) in axes {
+        nc.add_dimension(name, g.len())?;
+        let mut v = nc.add_variable::<f64>(name, &[name])?;
+        v.put_attribute("units", unit)?;
+    }
+    let mut v = nc.add_variable::<f64>("brdf", &["wavelength", "theta_i", "theta_r", "dphi"])?;
+    v.put_attribute("units", "sr-1")?;
+    nc.enddef()?;
+    for (name, g, _) in axes {
+        nc.variable_mut(name)
+            .expect("defined above")
+            .put_values(g, ..)?;
+    }
+    let mut vals =
+        Vec::with_capacity(wavelengths.len() * theta_i.len() * theta_r.len() * dphi.len());
+    for &w in wavelengths {
+        for &i in theta_i {
+            for &r in theta_r {
+                for &p in dphi {
+                    vals.push(f(w, i, r, p));
+                }
+            }
+        }
+    }
+    nc.variable_mut("brdf")
+        .expect("defined above")
+        .put_values(&vals, ..)?;
+    Ok(())
+}
+
 #[cfg(test)]
 pub(crate) mod tests {
     use super::*;
     use crate::bsdf::{Bsdf, Rpv};
     use crate::frame::direction_from_angles;
-
-    /// Writes a table in the file layout of the module header (a test helper and an example
-    /// generator): `f(wavelength, theta_i, theta_r, dphi)` in sr⁻¹, angles in degrees.
-    pub(crate) fn write_table(
-        path: &Path,
-        wavelengths: &[f64],
-        theta_i: &[f64],
-        theta_r: &[f64],
-        dphi: &[f64],
-        f: impl Fn(f64, f64, f64, f64) -> f64,
-    ) {
-        let _session = crate::netcdf_session();
-        // netCDF-3 (64-bit offset): read from test threads, a netCDF-4 file makes HDF5 print
-        // its (harmless) attribute probes, whose printing is switched off in one thread only.
-        let mut nc = netcdf::create_with(path, netcdf::Options::_64BIT_OFFSET).unwrap();
-        let axes = [
-            ("wavelength", wavelengths, "nm"),
-            ("theta_i", theta_i, "degree"),
-            ("theta_r", theta_r, "degree"),
-            ("dphi", dphi, "degree"),
-        ];
-        // Classic files: everything defined first, then the data.
-        for (name, g, unit) in axes {
-            nc.add_dimension(name, g.len()).unwrap();
-            let mut v = nc.add_variable::<f64>(name, &[name]).unwrap();
-            v.put_attribute("units", unit).unwrap();
-        }
-        let mut v = nc
-            .add_variable::<f64>("brdf", &["wavelength", "theta_i", "theta_r", "dphi"])
-            .unwrap();
-        v.put_attribute("units", "sr-1").unwrap();
-        nc.enddef().unwrap();
-        for (name, g, _) in axes {
-            nc.variable_mut(name).unwrap().put_values(g, ..).unwrap();
-        }
-        let mut vals = Vec::new();
-        for &w in wavelengths {
-            for &i in theta_i {
-                for &r in theta_r {
-                    for &p in dphi {
-                        vals.push(f(w, i, r, p));
-                    }
-                }
-            }
-        }
-        nc.variable_mut("brdf")
-            .unwrap()
-            .put_values(&vals, ..)
-            .unwrap();
-    }
 
     pub(crate) fn grid(lo: f64, hi: f64, step: f64) -> Vec<f64> {
         let n = ((hi - lo) / step).round() as usize;
@@ -475,7 +477,8 @@ pub(crate) mod tests {
         );
         write_table(&path, &[500.0, 700.0], &ti, &tr, &dp, |w, i, r, p| {
             rpv_at(if w < 600.0 { &a } else { &b }, i, r, p)
-        });
+        })
+        .unwrap();
         let table = BrdfTable::load(&path).unwrap();
         assert!(
             Arc::ptr_eq(&table, &BrdfTable::load(&path).unwrap()),
@@ -533,7 +536,8 @@ pub(crate) mod tests {
         // f = 0.1·(1 + 0.2·θi/80): 20 % larger at θi = 80° than at θr = 80°.
         write_table(&path, &[550.0], &g, &g, &[0.0, 180.0], |_, i, _, _| {
             0.1 * (1.0 + 0.2 * i / 80.0)
-        });
+        })
+        .unwrap();
         let t = BrdfTable::load(&path).unwrap();
         let r = t.reciprocity.unwrap();
         assert!((r.error - 0.2 / 1.2).abs() < 1e-12, "{r:?}");
@@ -566,6 +570,7 @@ pub(crate) mod tests {
                             0.1
                         }
                     })
+                    .unwrap()
                 }),
                 "variable `brdf` is NaN at wavelength 550 nm, theta_i 40°",
             ),
@@ -579,6 +584,7 @@ pub(crate) mod tests {
                             0.1
                         }
                     })
+                    .unwrap()
                 }),
                 "variable `brdf` is -0.5 at wavelength 550 nm, theta_i 0°, theta_r 0°, dphi 180°",
             ),
@@ -586,13 +592,14 @@ pub(crate) mod tests {
                 "order.nc",
                 Box::new(|path: &Path| {
                     write_table(path, &[550.0], &[0.0, 40.0, 20.0], &g, &p, |_, _, _, _| 0.1)
+                        .unwrap()
                 }),
                 "variable `theta_i` must increase strictly (40 then 20)",
             ),
             (
                 "range.nc",
                 Box::new(|path: &Path| {
-                    write_table(path, &[550.0], &g, &g, &[0.0, 360.0], |_, _, _, _| 0.1)
+                    write_table(path, &[550.0], &g, &g, &[0.0, 360.0], |_, _, _, _| 0.1).unwrap()
                 }),
                 "variable `dphi` has the value 360 outside [0, 180]",
             ),

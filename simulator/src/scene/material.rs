@@ -251,6 +251,25 @@ mod tests {
     use super::*;
     use bundle::Spectrum;
 
+    /// ∫ f dω over the sphere by the midpoint rule in cos θ (`nt` cells) and φ (`np` cells)
+    /// about the axis `n` of the frame `(t, b, n)`.
+    fn sphere_integral(
+        (nt, np): (usize, usize),
+        (t, b, n): (DVec3, DVec3, DVec3),
+        f: impl Fn(DVec3) -> f64,
+    ) -> f64 {
+        let mut sum = 0.0;
+        for i in 0..nt {
+            let ct = -1.0 + 2.0 * (i as f64 + 0.5) / nt as f64;
+            let st = (1.0 - ct * ct).sqrt();
+            for j in 0..np {
+                let p = std::f64::consts::TAU * (j as f64 + 0.5) / np as f64;
+                sum += f(t * (st * p.cos()) + b * (st * p.sin()) + n * ct);
+            }
+        }
+        sum * 4.0 * std::f64::consts::PI / (nt * np) as f64
+    }
+
     /// The sampler's weight equals `eval_cos/pdf` on average: E[weight·g(wi)] = ∫ f·|cos|·g dω
     /// for a test function g, checked by quadrature for a leaf and an RPV surface on a tilted
     /// normal.
@@ -277,18 +296,9 @@ mod tests {
         ];
         for m in &models {
             // Quadrature over the sphere.
-            let (nt, np) = (400, 800);
-            let mut quad = 0.0;
-            for i in 0..nt {
-                let ct = -1.0 + 2.0 * (i as f64 + 0.5) / nt as f64;
-                let st = (1.0 - ct * ct).sqrt();
-                for j in 0..np {
-                    let p = std::f64::consts::TAU * (j as f64 + 0.5) / np as f64;
-                    let w = DVec3::new(st * p.cos(), st * p.sin(), ct);
-                    quad += m.eval_cos(n, w, wo) * g(w);
-                }
-            }
-            quad *= 4.0 * std::f64::consts::PI / (nt * np) as f64;
+            let quad = sphere_integral((400, 800), (DVec3::X, DVec3::Y, DVec3::Z), |w| {
+                m.eval_cos(n, w, wo) * g(w)
+            });
             let mut rng = crate::rng::Stream::new(1, [0, 0, 0, 0]);
             let k = 400_000;
             let (mut sum, mut sum2) = (0.0, 0.0);
@@ -349,18 +359,7 @@ mod tests {
         let q = crate::bsdf::test_support::chi2_quantile_999(199);
         assert!(chi2 < q, "chi2 = {chi2} > {q}");
         // ∫pdf over the sphere (midpoint rule in cos θ and φ about n).
-        let (nt, np) = (200, 400);
-        let mut sum = 0.0;
-        for i in 0..nt {
-            let ct = -1.0 + 2.0 * (i as f64 + 0.5) / nt as f64;
-            let st = (1.0 - ct * ct).sqrt();
-            for j in 0..np {
-                let p = std::f64::consts::TAU * (j as f64 + 0.5) / np as f64;
-                let w = t * (st * p.cos()) + b * (st * p.sin()) + n * ct;
-                sum += leaf.pdf(n, w, wo);
-            }
-        }
-        sum *= 4.0 * std::f64::consts::PI / (nt * np) as f64;
+        let sum = sphere_integral((200, 400), (t, b, n), |w| leaf.pdf(n, w, wo));
         assert!((sum - 1.0).abs() < 1e-4, "∫pdf = {sum}");
     }
 
