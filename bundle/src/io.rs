@@ -491,16 +491,22 @@ impl Bundle {
         })
     }
 
-    /// Read a whole bundle, checking every offset and count against the file sizes.
+    /// Read a whole bundle: every binary file is checked against the size and SHA-256 the
+    /// manifest records (the four files are read and hashed in parallel), and every offset,
+    /// count, vertex, transform, geotransform and material id is checked before use.
     pub fn open(dir: &Path) -> Result<Bundle, BundleError> {
         let manifest = Self::read_manifest(dir)?;
-        let read = |name: &str| -> Result<(PathBuf, Vec<u8>), BundleError> {
-            let path = dir.join(name);
-            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read {
-                path: path.clone(),
-                source,
-            })?;
-            Ok((path, bytes))
+        check_georeference(&manifest, &dir.join(MANIFEST_FILE))?;
+        let names = [
+            manifest.terrain.file.as_str(),
+            TEMPLATES_FILE,
+            manifest.instances.file.as_str(),
+            manifest.material_raster.file.as_str(),
+        ];
+        let mut files = read_verified(dir, &manifest, &names)?;
+        let mut read = |name: &str| -> Result<(PathBuf, Vec<u8>), BundleError> {
+            let k = names.iter().position(|n| *n == name).expect("a listed file");
+            Ok(std::mem::take(&mut files[k]))
         };
         let slice = |path: &Path,
                      bytes: &[u8],
@@ -730,25 +736,129 @@ impl Bundle {
         })
     }
 
-    /// Recompute the SHA-256 of every binary file and compare with the manifest.
-    pub fn verify(dir: &Path) -> Result<(), BundleError> {
-        let m = Self::read_manifest(dir)?;
+    /// Checks, without reading them, that every file the manifest lists is present with its
+    /// recorded size, and that the georeference is sane (for quick summaries).
+    pub fn check_present(dir: &Path, m: &Manifest) -> Result<(), BundleError> {
+        check_georeference(m, &dir.join(MANIFEST_FILE))?;
         for d in &m.provenance.files {
             let path = dir.join(&d.file);
-            let bytes = std::fs::read(&path).map_err(|source| BundleError::Read {
+            let meta = std::fs::metadata(&path).map_err(|source| BundleError::Read {
                 path: path.clone(),
                 source,
             })?;
-            let got = hex(&Sha256::digest(&bytes));
-            if got != d.sha256 {
+            if meta.len() != d.bytes {
                 return Err(BundleError::Corrupt {
                     path,
-                    message: format!("SHA-256 {got} differs from the manifest's {}", d.sha256),
+                    message: format!(
+                        "{} bytes, the manifest records {} (truncated or replaced)",
+                        meta.len(),
+                        d.bytes
+                    ),
                 });
             }
         }
         Ok(())
     }
+
+    /// Recompute the SHA-256 of every binary file and compare with the manifest (what
+    /// [`Bundle::open`] also does; this checks without building the bundle in memory).
+    pub fn verify(dir: &Path) -> Result<(), BundleError> {
+        let m = Self::read_manifest(dir)?;
+        let names: Vec<&str> = m.provenance.files.iter().map(|d| d.file.as_str()).collect();
+        read_verified(dir, &m, &names).map(|_| ())
+    }
+}
+
+/// Reads `names` (files of `dir`) in parallel, each checked against the byte count and SHA-256
+/// that `manifest.provenance.files` records for it. A file the provenance does not list, a
+/// missing file, a wrong size or a wrong digest is an error naming the file.
+fn read_verified(
+    dir: &Path,
+    manifest: &Manifest,
+    names: &[&str],
+) -> Result<Vec<(PathBuf, Vec<u8>)>, BundleError> {
+    std::thread::scope(|s| {
+        let jobs: Vec<_> = names
+            .iter()
+            .map(|&name| {
+                s.spawn(move || -> Result<(PathBuf, Vec<u8>), BundleError> {
+                    let path = dir.join(name);
+                    let expect = manifest
+                        .provenance
+                        .files
+                        .iter()
+                        .find(|d| d.file == name)
+                        .ok_or_else(|| BundleError::Manifest {
+                            path: dir.join(MANIFEST_FILE),
+                            message: format!(
+                                "`provenance.files` has no size and SHA-256 for `{name}`"
+                            ),
+                        })?;
+                    let bytes = std::fs::read(&path).map_err(|source| BundleError::Read {
+                        path: path.clone(),
+                        source,
+                    })?;
+                    if bytes.len() as u64 != expect.bytes {
+                        return Err(BundleError::Corrupt {
+                            path,
+                            message: format!(
+                                "{} bytes, the manifest records {} (truncated or replaced)",
+                                bytes.len(),
+                                expect.bytes
+                            ),
+                        });
+                    }
+                    let got = hex(&Sha256::digest(&bytes));
+                    if got != expect.sha256 {
+                        return Err(BundleError::Corrupt {
+                            path,
+                            message: format!(
+                                "SHA-256 {got} differs from the manifest's {} (the file is damaged or was changed after the build)",
+                                expect.sha256
+                            ),
+                        });
+                    }
+                    Ok((path, bytes))
+                })
+            })
+            .collect();
+        jobs.into_iter()
+            .map(|j| j.join().expect("a reader thread does not panic"))
+            .collect()
+    })
+}
+
+/// Checks the manifest's georeference: a finite, non-degenerate, north-up material-raster
+/// geotransform, a finite extent with min < max, and a finite frame origin.
+fn check_georeference(m: &Manifest, path: &Path) -> Result<(), BundleError> {
+    let bad = |message: String| BundleError::Manifest {
+        path: path.to_path_buf(),
+        message,
+    };
+    let gt = m.material_raster.geotransform;
+    if !gt.iter().all(|v| v.is_finite()) || gt[1] <= 0.0 || gt[5] >= 0.0 {
+        return Err(bad(format!(
+            "`material_raster.geotransform` {gt:?} is not a north-up transform (finite, pixel width > 0, pixel height < 0)"
+        )));
+    }
+    if gt[2] != 0.0 || gt[4] != 0.0 {
+        return Err(bad(format!(
+            "`material_raster.geotransform` {gt:?} is rotated; bundles are north-up"
+        )));
+    }
+    let e = &m.extent;
+    let finite = e.min.iter().chain(&e.max).chain(&e.height_range).all(|v| v.is_finite());
+    if !finite || e.min[0] >= e.max[0] || e.min[1] >= e.max[1] || e.height_range[0] > e.height_range[1]
+    {
+        return Err(bad(format!(
+            "`extent` (min {:?}, max {:?}, height_range {:?}) is not finite or is inverted",
+            e.min, e.max, e.height_range
+        )));
+    }
+    if !m.frame.origin.iter().all(|v| v.is_finite()) {
+        return Err(bad(format!("`frame.origin` {:?} is not finite", m.frame.origin)));
+    }
+    Ok(())
 }
 
 /// Checks the material table of a manifest (`path` names it): indices unique and below
@@ -851,6 +961,19 @@ fn u32s(b: &[u8]) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Records the current size and SHA-256 of every binary file in the manifest, as a writer
+    /// would: tests that damage a buffer's *content* call it so that the checks behind the
+    /// digest (ids, vertices, counts) are reached.
+    pub(super) fn reseal(dir: &Path) {
+        let mut m = Bundle::read_manifest(dir).unwrap();
+        for d in &mut m.provenance.files {
+            let bytes = std::fs::read(dir.join(&d.file)).unwrap();
+            d.bytes = bytes.len() as u64;
+            d.sha256 = hex(&Sha256::digest(&bytes));
+        }
+        std::fs::write(dir.join(MANIFEST_FILE), toml::to_string(&m).unwrap()).unwrap();
+    }
     use crate::{BrdfSpec, Spectrum};
 
     pub(super) fn sample() -> Bundle {
@@ -1134,6 +1257,7 @@ mod tests {
         sparse_sample().write(&dir, false).unwrap();
         // Raster: ids 7 (2 pixels) and 12 (1 pixel) have no material; 255 is "no material".
         std::fs::write(dir.join("materials.u8"), [3u8, 7, 7, 12]).unwrap();
+        reseal(&dir);
         let e = Bundle::open(&dir).unwrap_err();
         match &e {
             BundleError::UnknownMaterialIds { path, ids, .. } => {
@@ -1153,6 +1277,7 @@ mod tests {
         let mut bytes = std::fs::read(&t).unwrap();
         bytes[m.templates[0].materials_offset as usize] = 4;
         std::fs::write(&t, bytes).unwrap();
+        reseal(&dir);
         let msg = Bundle::open(&dir).unwrap_err().to_string();
         assert!(
             msg.contains("templates.bin") && msg.contains("4 (1 triangle)"),
@@ -1253,6 +1378,7 @@ mod damaged_input_tests {
         let at = t.positions_offset as usize + 12 + 8; // vertex 1, z
         bytes[at..at + 4].copy_from_slice(&f32::NAN.to_le_bytes());
         std::fs::write(&path, &bytes).unwrap();
+        tests::reseal(&dir);
         let e = Bundle::open(&dir).unwrap_err();
         let msg = e.to_string();
         assert!(
@@ -1281,6 +1407,58 @@ mod damaged_input_tests {
             matches!(e, BundleError::Corrupt { .. }) && e.to_string().contains("impossibly large"),
             "{e}"
         );
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+
+    /// Rationale (issue 15): a flipped byte in a buffer rendered silently (digests were only
+    /// checked by `info --verify`), and a deleted buffer was only noticed late. Open checks
+    /// every file's size and SHA-256 and names the file.
+    #[test]
+    fn flipped_truncated_or_missing_buffers_are_refused_at_open() {
+        for file in ["terrain.bin", "templates.bin", "instances.bin", "materials.u8"] {
+            let (dir, _) = written("flip");
+            let path = dir.join(file);
+            let mut bytes = std::fs::read(&path).unwrap();
+            bytes[0] ^= 0x10;
+            std::fs::write(&path, &bytes).unwrap();
+            let msg = Bundle::open(&dir).unwrap_err().to_string();
+            assert!(msg.contains(file) && msg.contains("SHA-256"), "{msg}");
+            std::fs::write(&path, &bytes[..bytes.len() - 1]).unwrap();
+            let msg = Bundle::open(&dir).unwrap_err().to_string();
+            assert!(msg.contains(file) && msg.contains("truncated"), "{msg}");
+            std::fs::remove_file(&path).unwrap();
+            let e = Bundle::open(&dir).unwrap_err();
+            assert!(
+                matches!(e, BundleError::Read { .. }) && e.to_string().contains(file),
+                "{e}"
+            );
+            assert!(Bundle::verify(&dir).is_err());
+            std::fs::remove_dir_all(&dir).unwrap();
+        }
+    }
+
+    /// Rationale (issue 15): a NaN or zero geotransform or an inverted extent rendered black
+    /// pixels and wrong area averages without a word.
+    #[test]
+    fn bad_georeference_is_refused() {
+        let (dir, m) = written("georef");
+        let mpath = dir.join(MANIFEST_FILE);
+        let good = m.clone();
+        let cases: Vec<(Box<dyn Fn(&mut Manifest)>, &str)> = vec![
+            (Box::new(|m| m.material_raster.geotransform[1] = f64::NAN), "geotransform"),
+            (Box::new(|m| m.material_raster.geotransform = [0.0; 6]), "geotransform"),
+            (Box::new(|m| m.material_raster.geotransform[2] = 0.5), "rotated"),
+            (Box::new(|m| m.extent.max[0] = m.extent.min[0] - 1.0), "extent"),
+            (Box::new(|m| m.extent.height_range = [10.0, -10.0]), "extent"),
+            (Box::new(|m| m.frame.origin[2] = f64::INFINITY), "frame.origin"),
+        ];
+        for (damage, needle) in cases {
+            let mut m = good.clone();
+            damage(&mut m);
+            std::fs::write(&mpath, toml::to_string(&m).unwrap()).unwrap();
+            let msg = Bundle::open(&dir).unwrap_err().to_string();
+            assert!(msg.contains("manifest.toml") && msg.contains(needle), "{needle}: {msg}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

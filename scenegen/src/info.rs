@@ -28,6 +28,7 @@ pub fn human_bytes(b: u64) -> String {
 /// The summary text of the bundle in `dir`.
 pub fn summary(dir: &Path) -> Result<String, ScenegenError> {
     let m = Bundle::read_manifest(dir)?;
+    Bundle::check_present(dir, &m)?;
     let mut s = String::new();
     let w = &mut s;
     let e = &m.extent;

@@ -11,6 +11,7 @@
 
 pub mod bench;
 pub mod build;
+pub mod dem_values;
 pub mod error;
 pub mod gltf_export;
 pub mod info;

@@ -291,18 +291,7 @@ pub fn check_coverage(
     .unzip();
     let have = bounds(&cx, &cy);
     let src = source_srs(ds, path)?;
-    let to_src = CoordTransform::new(&frame.srs, &src)
-        .map_err(|e| input(path, format!("no transformation from the working CRS: {e}")))?;
-    let (mut xs, mut ys) = ring(extent, 32);
-    to_src
-        .transform_coords(&mut xs, &mut ys, &mut [])
-        .map_err(|e| {
-            input(
-                path,
-                format!("cannot transform the area into the {role}'s CRS: {e}"),
-            )
-        })?;
-    let need = bounds(&xs, &ys);
+    let need = area_in_source(ds, path, role, frame, extent)?;
     let px = gt[1].abs().max(gt[5].abs());
     let miss = [
         have[0] - need[0],
@@ -336,6 +325,29 @@ pub fn check_coverage(
             have[0], have[2], have[1], have[3], need[0], need[2], need[1], need[3]
         ),
     ))
+}
+
+/// Bounds (xmin, ymin, xmax, ymax) of `extent` (working CRS) in the CRS of `ds`.
+pub(crate) fn area_in_source(
+    ds: &Dataset,
+    path: &Path,
+    role: &str,
+    frame: &WorkingFrame,
+    extent: [f64; 4],
+) -> Result<[f64; 4], ScenegenError> {
+    let src = source_srs(ds, path)?;
+    let to_src = CoordTransform::new(&frame.srs, &src)
+        .map_err(|e| input(path, format!("no transformation from the working CRS: {e}")))?;
+    let (mut xs, mut ys) = ring(extent, 32);
+    to_src
+        .transform_coords(&mut xs, &mut ys, &mut [])
+        .map_err(|e| {
+            input(
+                path,
+                format!("cannot transform the area into the {role}'s CRS: {e}"),
+            )
+        })?;
+    Ok(bounds(&xs, &ys))
 }
 
 /// Warp band 1 of `src` onto `grid` in the working CRS. Pixels that no source pixel covers (or
@@ -457,6 +469,9 @@ pub fn load_dem(region: &Region, frame: &WorkingFrame) -> Result<DemData, Sceneg
         let factor = unit_factor(&band.unit(), path)?;
         let scale = band.scale().unwrap_or(1.0);
         let offset = band.offset().unwrap_or(0.0);
+        let e = [g.x0, g.y(g.height - 1), g.x(g.width - 1), g.y0];
+        let window = area_in_source(&ds, path, "DEM", frame, e)?;
+        crate::dem_values::check(&ds, path, window, |v| (v * scale + offset) * factor)?;
 
         let mut h: Vec<f32> = warp(
             &ds,

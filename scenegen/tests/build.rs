@@ -309,6 +309,18 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
     }
     assert!(b.material_raster.iter().all(|&v| v != NO_MATERIAL));
 
+    // `info` fails, naming the file, on a copy with a buffer deleted (issue 15).
+    let damaged = dir.join("damaged");
+    std::fs::create_dir_all(&damaged).unwrap();
+    for e in std::fs::read_dir(&out).unwrap() {
+        let e = e.unwrap();
+        std::fs::copy(e.path(), damaged.join(e.file_name())).unwrap();
+    }
+    std::fs::remove_file(damaged.join("instances.bin")).unwrap();
+    let (code, _, stderr) = scenegen(&["info", damaged.to_str().unwrap()]);
+    assert_eq!(code, 2, "{stderr}");
+    assert!(stderr.contains("instances.bin"), "{stderr}");
+
     // info and glTF export run on it.
     let (code, info, _) = scenegen(&["info", out.to_str().unwrap(), "--verify"]);
     assert_eq!(code, 0);
