@@ -1444,7 +1444,8 @@ mod damaged_input_tests {
         let (dir, m) = written("georef");
         let mpath = dir.join(MANIFEST_FILE);
         let good = m.clone();
-        let cases: Vec<(Box<dyn Fn(&mut Manifest)>, &str)> = vec![
+        type Damage = Box<dyn Fn(&mut Manifest)>;
+        let cases: Vec<(Damage, &str)> = vec![
             (Box::new(|m| m.material_raster.geotransform[1] = f64::NAN), "geotransform"),
             (Box::new(|m| m.material_raster.geotransform = [0.0; 6]), "geotransform"),
             (Box::new(|m| m.material_raster.geotransform[2] = 0.5), "rotated"),
