@@ -35,6 +35,7 @@ pub mod heavy_tail;
 pub mod illumination;
 pub mod integrator;
 pub mod measure;
+pub mod nc_complete;
 pub mod optics;
 pub mod output_lock;
 pub mod phase;

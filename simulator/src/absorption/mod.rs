@@ -149,6 +149,11 @@ pub(crate) fn read_f64(var: &netcdf::Variable<'_>, path: &str) -> Result<Vec<f64
 
 /// Open a netCDF file.
 pub(crate) fn open_nc(path: &std::path::Path) -> Result<netcdf::File> {
+    crate::nc_complete::check(path).map_err(|message| AbsorptionError::Format {
+        path: path.display().to_string(),
+        variable: "(file)".into(),
+        message,
+    })?;
     netcdf::open(path).map_err(|source| AbsorptionError::Netcdf {
         path: path.display().to_string(),
         variable: "(file)".into(),

@@ -293,6 +293,10 @@ impl ParticleDataset {
     pub fn load(path: &Path, size_index: usize) -> Result<Self, DatasetError> {
         let ps = path.display().to_string();
         let _session = crate::netcdf_session();
+        crate::nc_complete::check(path).map_err(|msg| DatasetError::Content {
+            path: ps.clone(),
+            msg,
+        })?;
         let file = netcdf::open(path).map_err(|source| DatasetError::Netcdf {
             path: ps.clone(),
             source,

@@ -112,6 +112,7 @@ impl BrdfTable {
     fn read(path: &Path) -> Result<BrdfTable, String> {
         let p = path.display().to_string();
         let _session = crate::netcdf_session();
+        crate::nc_complete::check(path).map_err(|e| format!("BRDF table {p}: {e}"))?;
         let file = netcdf::open(path).map_err(|e| format!("cannot read BRDF table {p}: {e}"))?;
         let get = |name: &str, what: &str, unit_ok: &dyn Fn(&str) -> bool| {
             let v = file

@@ -308,6 +308,7 @@ impl Tabulated {
             msg,
         };
         let _session = crate::netcdf_session();
+        crate::nc_complete::check(path).map_err(content)?;
         let file = netcdf::open(path).map_err(nc_err)?;
         let var = |name: &str| {
             file.variable(name).ok_or_else(|| {
@@ -477,5 +478,15 @@ mod tests {
         assert!(err.contains("outside the tabulated range"), "{err}");
         let err = Tabulated::load_libradtran(Path::new("/nonexistent.cdf"), 550.0, 0).unwrap_err();
         assert!(err.to_string().contains("/nonexistent.cdf"));
+        // Rationale (issue 15): netCDF-C reads a truncated classic file's missing data as
+        // zeros (BRF off by 40 %, exit 0); it is refused, naming the file.
+        let bytes = std::fs::read(&path).unwrap();
+        let cut = std::env::temp_dir().join(format!("waso-cut-{}.mie.cdf", std::process::id()));
+        std::fs::write(&cut, &bytes[..bytes.len() * 3 / 4]).unwrap();
+        let err = Tabulated::load_libradtran(&cut, 350.0, 0)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("truncated") && err.contains("waso-cut"), "{err}");
+        std::fs::remove_file(&cut).unwrap();
     }
 }
