@@ -232,6 +232,7 @@ pub fn build(
     let (codes, resampling) = raster::load_landcover(region, &frame, &mgrid, scheme.nodata)?;
     let material_raster = materials.map_raster(&codes, &region.landcover_file, &scheme.name)?;
     pb.finish_and_clear();
+    check_instance_budget(region, &mgrid, &codes)?;
     stage("landcover", &mut t);
 
     let pb = bar(opts, "terrain: triangulating");
@@ -393,6 +394,52 @@ pub fn build(
 
 /// Place instances on every land-cover tile (rows in parallel, each with its own surface
 /// interpolator; the order of the result does not depend on the thread count).
+/// Most instances a bundle may hold: 64 bytes each on disk, about 200 bytes each in the
+/// renderer's memory with its instance BVH, so 10⁸ instances need some 20 GiB.
+pub const MAX_INSTANCES: f64 = 1.0e8;
+
+/// Refuse, before placing anything, a population whose expected instance count (density ×
+/// area of the land-cover cells of its classes) exceeds [`MAX_INSTANCES`], naming the rule that
+/// places the most and the memory it would take.
+fn check_instance_budget(
+    region: &Region,
+    mgrid: &Grid,
+    codes: &[Option<i64>],
+) -> Result<(), ScenegenError> {
+    let Some(rules) = &region.population else {
+        return Ok(());
+    };
+    let mut cells: BTreeMap<i64, u64> = BTreeMap::new();
+    for c in codes.iter().flatten() {
+        *cells.entry(*c).or_default() += 1;
+    }
+    let cell_ha = mgrid.dx * mgrid.dx / 1.0e4;
+    let per_rule: Vec<f64> = rules
+        .iter()
+        .map(|r| {
+            let n: u64 = r.classes.iter().map(|c| cells.get(c).copied().unwrap_or(0)).sum();
+            n as f64 * cell_ha * r.density_per_ha
+        })
+        .collect();
+    let total: f64 = per_rule.iter().sum();
+    if total <= MAX_INSTANCES {
+        return Ok(());
+    }
+    let (k, most) = per_rule
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1))
+        .expect("a rule");
+    Err(ScenegenError::Region {
+        path: region.path.clone(),
+        key: format!("population[{k}].density_per_ha"),
+        message: format!(
+            "the population would place about {total:.3e} instances ({:.0} GiB to render; this rule alone {most:.3e}), more than the {MAX_INSTANCES:.0e} a bundle may hold: lower the densities or the area",
+            total * 200.0 / (1u64 << 30) as f64
+        ),
+    })
+}
+
 fn place_all(
     tin: &tin::Tin,
     grid: &Grid,

@@ -18,6 +18,18 @@ fn tmp(name: &str) -> PathBuf {
 
 /// A 2 km square region over a 40 × 40 DEM at 60 m in the local frame; `damage` edits heights.
 fn setup(name: &str, nodata: Option<f64>, damage: impl Fn(&mut [f32])) -> (PathBuf, PathBuf) {
+    setup_sized(name, nodata, damage, 60.0, "")
+}
+
+/// As [`setup`] with DEM pixels of `px` metres (the area is 2/60 of the DEM's side less one
+/// pixel per side) and `extra` appended to the region.
+fn setup_sized(
+    name: &str,
+    nodata: Option<f64>,
+    damage: impl Fn(&mut [f32]),
+    px: f64,
+    extra: &str,
+) -> (PathBuf, PathBuf) {
     let dir = tmp(name);
     let mut v: Vec<f32> = (0..40 * 40).map(|k| 300.0 + (k % 40) as f32).collect();
     damage(&mut v);
@@ -25,7 +37,7 @@ fn setup(name: &str, nodata: Option<f64>, damage: impl Fn(&mut [f32])) -> (PathB
         &dir.join("dem.tif"),
         40,
         40,
-        Some([-1200.0, 60.0, 0.0, 1200.0, 0.0, -60.0]),
+        Some([-20.0 * px, px, 0.0, 20.0 * px, 0.0, -px]),
         Some(LOCAL),
         nodata,
         v,
@@ -35,16 +47,17 @@ fn setup(name: &str, nodata: Option<f64>, damage: impl Fn(&mut [f32])) -> (PathB
         &dir.join("lc.tif"),
         20,
         20,
-        Some([-1200.0, 120.0, 0.0, 1200.0, 0.0, -120.0]),
+        Some([-20.0 * px, 2.0 * px, 0.0, 20.0 * px, 0.0, -2.0 * px]),
         Some(LOCAL),
         Some(255.0),
         vec![18u8; 400],
     )
     .unwrap();
     let region = dir.join("region.toml");
+    let size_km = 38.0 * px / 1000.0;
     std::fs::write(
         &region,
-        "seed = 1\n[area]\ncentre = [5.7, 45.0]\nsize_km = 2\n[dem]\nfiles = [\"dem.tif\"]\nspacing_m = 60\n[landcover]\nfile = \"lc.tif\"\nscheme = \"corine\"\n",
+        format!("seed = 1\n[area]\ncentre = [5.7, 45.0]\nsize_km = {size_km}\n[dem]\nfiles = [\"dem.tif\"]\nspacing_m = {px}\n[landcover]\nfile = \"lc.tif\"\nscheme = \"corine\"\n{extra}"),
     )
     .unwrap();
     (dir, region)
@@ -87,5 +100,25 @@ fn bad_heights_are_refused_with_file_and_pixel() {
     let (dir, region) = setup("tagged", Some(-32768.0), |v| v[at] = -32768.0);
     let (code, stderr) = build(&dir, &region);
     assert_eq!(code, 0, "{stderr}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// An absurd instance density over a 11 km square (1.1·10⁹ expected instances) used to abort
+/// on allocation; it is refused before placement, naming the rule's key.
+#[test]
+fn absurd_instance_density_is_refused_before_placement() {
+    let (dir, region) = setup_sized(
+        "density",
+        None,
+        |_| {},
+        300.0,
+        "[[population]]\nclasses = [18]\ntemplate = \"tree\"\ndensity_per_ha = 100000\n",
+    );
+    let (code, stderr) = build(&dir, &region);
+    assert_eq!(code, 2, "{stderr}");
+    for n in ["population[0].density_per_ha", "instances", "GiB", "region.toml"] {
+        assert!(stderr.contains(n), "`{n}` not in {stderr}");
+    }
+    assert!(!dir.join("out").exists());
     std::fs::remove_dir_all(&dir).unwrap();
 }

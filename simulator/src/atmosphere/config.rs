@@ -174,6 +174,10 @@ fn default_profile() -> String {
     "afgl_1986-us_standard".into()
 }
 
+/// Most computational layers a molecular atmosphere may have (memory and set-up time grow
+/// with layers × wavelengths × g-points).
+pub const MAX_LAYERS: usize = 10_000;
+
 fn default_layer_thickness() -> f64 {
     1.0
 }
@@ -349,6 +353,19 @@ impl AtmosphereConfig {
                             toa / 1e3,
                             prof.z[0] / 1e3,
                             prof.top() / 1e3
+                        ),
+                    ));
+                }
+                // Refuse before allocating: 1e-6 km over 100 km would be 10⁸ layers.
+                let n_layers = ((toa - ground) / dz).ceil();
+                if n_layers > MAX_LAYERS as f64 {
+                    return Err(ctx.err(
+                        "atmosphere.layer_thickness",
+                        format!(
+                            "{layer_thickness} km makes {n_layers:.0} layers between {} and {} km (at most {MAX_LAYERS}); use at least {:.3} km",
+                            ground / 1e3,
+                            toa / 1e3,
+                            (toa - ground) / 1e3 / MAX_LAYERS as f64
                         ),
                     ));
                 }

@@ -165,6 +165,13 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 exp.wavelengths.len(),
                 exp.measures.len()
             );
+            let mem = simulator::config::memory::estimate(&exp);
+            println!(
+                "  memory: about {} (results {}, scene {})",
+                simulator::config::memory::human(mem.total()),
+                simulator::config::memory::human(mem.results_bytes),
+                simulator::config::memory::human(mem.scene_bytes)
+            );
             // What the surfaces have to say beyond their parameters (tabulated BRDFs: file,
             // grids, reciprocity error), once each.
             let mut infos: Vec<String> = Vec::new();

@@ -409,7 +409,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             round_to_g_point_cycles(&mut measures, ng);
         }
     }
-    Ok(Experiment {
+    let exp = Experiment {
         wavelengths,
         band,
         optics,
@@ -427,7 +427,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         scene,
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
-    })
+    };
+    super::memory::check(&exp, super::memory::total_memory())?;
+    Ok(exp)
 }
 
 #[cfg(test)]
