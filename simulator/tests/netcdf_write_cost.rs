@@ -66,7 +66,10 @@ fn netcdf_write_cost() {
     let dir = std::env::temp_dir().join(format!("netcdf_write_cost_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     println!("measures,wavelengths,write_s,bytes");
-    for n in counts.split(',').map(|s| s.trim().parse::<usize>().unwrap()) {
+    for n in counts
+        .split(',')
+        .map(|s| s.trim().parse::<usize>().unwrap())
+    {
         let exp = experiment(n);
         let rows = rows(&exp);
         let path = dir.join(format!("results_{n}.nc"));
