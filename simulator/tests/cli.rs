@@ -76,17 +76,16 @@ fn example_runs_and_writes_products() {
     assert_eq!(rows[10][idx("vaa")].parse::<f64>().unwrap(), 0.0);
 
     let f = netcdf::open(out.join("results.nc")).unwrap();
-    let brf: Vec<f64> = f
-        .variable("toa_pp_brf")
-        .unwrap()
-        .get_values::<f64, _>(..)
-        .unwrap();
-    let vza: Vec<f64> = f
-        .variable("toa_pp_vza")
-        .unwrap()
-        .get_values::<f64, _>(..)
-        .unwrap();
+    let brf: Vec<f64> = f.variable("brf").unwrap().get_values::<f64, _>(..).unwrap();
+    let vza: Vec<f64> = f.variable("vza").unwrap().get_values::<f64, _>(..).unwrap();
     assert_eq!(brf.len(), 11);
+    assert_eq!(
+        f.variable("direction_measure_id")
+            .unwrap()
+            .get_string(10)
+            .unwrap(),
+        "toa_pp"
+    );
     for (i, r) in rows.iter().enumerate() {
         let b: f64 = r[idx("brf")].parse().unwrap();
         assert!((b - brf[i]).abs() <= 1e-9 * b.abs(), "row {i}");
@@ -101,7 +100,7 @@ fn example_runs_and_writes_products() {
         .unwrap();
     assert_eq!(conv, "CF-1.10");
     let units: String = f
-        .variable("toa_pp_radiance")
+        .variable("radiance")
         .unwrap()
         .attribute("units")
         .unwrap()

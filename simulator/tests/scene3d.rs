@@ -281,7 +281,7 @@ fn tilted_far_terrain_has_no_self_intersection() {
 /// true colour for 440/550/660 nm.
 #[test]
 fn ortho_geotiff_matches_netcdf() {
-    use gdal::Dataset;
+    use gdal::{Dataset, Metadata};
     let dir = tmp("geotiff");
     let wkt = gdal::spatial_ref::SpatialRef::from_epsg(32631)
         .unwrap()
@@ -361,6 +361,44 @@ fn ortho_geotiff_matches_netcdf() {
     }
     let stdout = String::from_utf8_lossy(&o.stdout);
     assert!(stdout.contains("true colour"), "{stdout}");
+
+    // The GeoTIFFs are Cloud-Optimized, with band units and GDAL's imagery band metadata.
+    assert_eq!(
+        ds.metadata_item("LAYOUT", "IMAGE_STRUCTURE").as_deref(),
+        Some("COG")
+    );
+    for (k, w) in ["0.44", "0.55", "0.66"].iter().enumerate() {
+        let band = ds.rasterband(k + 1).unwrap();
+        assert_eq!(band.block_size(), (256, 256));
+        assert_eq!(band.unit(), "1");
+        assert_eq!(
+            band.metadata_item("CENTRAL_WAVELENGTH_UM", "IMAGERY")
+                .as_deref(),
+            Some(*w)
+        );
+    }
+    let rad = Dataset::open(out.join("toa_radiance.tif")).unwrap();
+    assert_eq!(rad.rasterband(1).unwrap().unit(), "W m-2 sr-1 nm-1");
+
+    // results.nc is georeferenced for GDAL: the image variable opens with the GeoTIFF's
+    // geotransform and CRS, one band per wavelength, the same pixels.
+    drop(nc);
+    let _session = simulator::netcdf_session();
+    let sub = format!("NETCDF:\"{}\":toa_brf", out.join("results.nc").display());
+    let g = Dataset::open(&sub).unwrap();
+    assert_eq!(g.raster_size(), (4, 4));
+    assert_eq!(g.raster_count(), 3);
+    let gt_nc = g.geo_transform().unwrap();
+    for (a, b) in gt_nc.iter().zip(&gt) {
+        assert!((a - b).abs() < 1e-6, "{gt_nc:?} vs {gt:?}");
+    }
+    let srs = g.spatial_ref().unwrap();
+    assert!(srs == ds.spatial_ref().unwrap(), "{:?}", srs.to_wkt());
+    assert_eq!(srs.auth_code().unwrap(), 32631);
+    let v = g.rasterband(2).unwrap().read_band_as::<f64>().unwrap();
+    for (k, x) in v.data().iter().enumerate() {
+        assert_eq!(*x, brf_nc[16 + k], "netCDF band 2 pixel {k}");
+    }
 }
 
 /// The two atmospheric estimators of the scene walk — expected value along each flight (exact
@@ -433,6 +471,7 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
             name: "r".into(),
             description: "r".into(),
             values: &uniform,
+            ..Default::default()
         }],
         &[],
     )
@@ -450,11 +489,13 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
                 name: "r400".into(),
                 description: "".into(),
                 values: &b400,
+                ..Default::default()
             },
             ImageBand {
                 name: "r700".into(),
                 description: "".into(),
                 values: &b700,
+                ..Default::default()
             },
         ],
         &[],
@@ -474,6 +515,7 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
             name: "r".into(),
             description: "".into(),
             values: &uniform,
+            ..Default::default()
         }],
         &[],
     )

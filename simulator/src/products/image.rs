@@ -15,9 +15,21 @@
 //! * The band *description* (what GIS tools show as the band name) is `ImageBand::name`; the longer
 //!   `ImageBand::description` goes into the band metadata item `long_name`. Dataset metadata
 //!   (units, wavelength, angles, software version…) is written as GDAL metadata items in the
-//!   default domain (TIFF tag `GDAL_METADATA`), so no `.aux.xml` side-car is needed.
-//! * DEFLATE compression always; 256×256 tiles when the image is larger than 256 px on a side
-//!   (strips otherwise); `BIGTIFF=IF_SAFER`; band interleaving.
+//!   default domain (TIFF tag `GDAL_METADATA`): it needs no `.aux.xml` side-car.
+//! * Band units (`ImageBand::unit`, e.g. `W m-2 sr-1 nm-1`, `1` for the BRF) are GDAL's band unit
+//!   type (`GDALSetRasterUnitType`, what `gdalinfo` prints as `Unit Type`).
+//! * Spectral band metadata as GDAL's raster data model specifies for imagery, in the band
+//!   metadata domain `IMAGERY`: `CENTRAL_WAVELENGTH_UM` (µm) when `ImageBand::wavelength_nm` is
+//!   given, `FWHM_UM` (µm) when `ImageBand::fwhm_nm` is given (monochromatic runs give none: a
+//!   single wavelength has no width). GDAL before 3.10 keeps only the default domain of a band in
+//!   the TIFF, so the `IMAGERY` domain goes into GDAL's PAM side-car `path.aux.xml` (written
+//!   only when a band has a wavelength, atomically, after the GeoTIFF), and the same items are
+//!   also in the band's default domain inside the TIFF, where any reader finds them without the
+//!   side-car.
+//! * **Cloud-Optimized GeoTIFF**: written by GDAL's COG driver (GDAL ≥ 3.1): 256×256 tiles,
+//!   DEFLATE, `BIGTIFF=IF_SAFER`, the driver's default interleaving, and overviews (averages, NaN ignored) halving
+//!   the size until it fits in one tile; `IMAGE_STRUCTURE` metadata `LAYOUT=COG`. The image is
+//!   first assembled in a GDAL `MEM` dataset, then copied by the COG driver.
 //!
 //! # PNG quicklook (`write_quicklook_png`)
 //!
@@ -49,16 +61,22 @@ use super::write_atomic;
 use crate::error::OutputError;
 
 /// One band of an image: name (e.g. "brf_550nm"), description, row-major values (row 0 = north),
-/// f64.
-#[derive(Clone, Debug)]
+/// f64, and optionally its unit and spectral position.
+#[derive(Clone, Debug, Default)]
 pub struct ImageBand<'a> {
     pub name: String,
     pub description: String,
     pub values: &'a [f64],
+    /// Unit of the values (GDAL band unit type); empty: none.
+    pub unit: String,
+    /// Central wavelength (nm), written as `CENTRAL_WAVELENGTH_UM` in the `IMAGERY` domain.
+    pub wavelength_nm: Option<f64>,
+    /// Full width at half maximum (nm), written as `FWHM_UM` in the `IMAGERY` domain.
+    pub fwhm_nm: Option<f64>,
 }
 
-/// Tiles (and not strips) above this many pixels on a side.
-const TILE_ABOVE: usize = 256;
+/// COG tile size (pixels on a side); overviews are built down to one tile.
+const TILE: usize = 256;
 
 fn invalid(path: &Path, message: String) -> OutputError {
     OutputError::Io {
@@ -81,9 +99,9 @@ impl Drop for MemFile {
 
 /// Write a multi-band Float32 GeoTIFF atomically (temp file in the same folder, then rename):
 /// `geotransform` in GDAL order (pixel corners), `wkt` the CRS (may be empty: then no CRS is set),
-/// NaN as nodata, band descriptions set, metadata key/values on the dataset (e.g. units,
-/// wavelength, view angles, software version). DEFLATE compression; tiled when the image is
-/// larger than 256 px on a side. See the module documentation for the conventions.
+/// NaN as nodata, band descriptions, units and wavelengths set, metadata key/values on the dataset
+/// (e.g. units, wavelength, view angles, software version). A Cloud-Optimized GeoTIFF: DEFLATE,
+/// 256×256 tiles, overviews. See the module documentation for the conventions.
 pub fn write_geotiff(
     path: &Path,
     width: usize,
@@ -130,22 +148,10 @@ pub fn write_geotiff(
         COUNTER.fetch_add(1, Ordering::Relaxed)
     )));
 
-    let driver = DriverManager::get_driver_by_name("GTiff").map_err(gdal_err("GTiff driver"))?;
-    let mut opts = RasterCreationOptions::new();
-    let mut opt = |k: &str, v: &str| {
-        opts.add_name_value(k, v)
-            .map_err(gdal_err("creation options"))
-    };
-    opt("COMPRESS", "DEFLATE")?;
-    opt("BIGTIFF", "IF_SAFER")?;
-    opt("INTERLEAVE", "BAND")?;
-    if width > TILE_ABOVE || height > TILE_ABOVE {
-        opt("TILED", "YES")?;
-        opt("BLOCKXSIZE", "256")?;
-        opt("BLOCKYSIZE", "256")?;
-    }
-    let mut ds = driver
-        .create_with_band_type_with_options::<f32, _>(&mem.0, width, height, bands.len(), &opts)
+    // The image in memory, with all its metadata; the COG driver then lays it out.
+    let mem_driver = DriverManager::get_driver_by_name("MEM").map_err(gdal_err("MEM driver"))?;
+    let mut ds = mem_driver
+        .create_with_band_type::<f32, _>("", width, height, bands.len())
         .map_err(gdal_err("create"))?;
     ds.set_geo_transform(&geotransform)
         .map_err(gdal_err("set geotransform"))?;
@@ -166,14 +172,103 @@ pub fn write_geotiff(
             band.set_metadata_item("long_name", &b.description, "")
                 .map_err(gdal_err("band long_name"))?;
         }
+        if !b.unit.is_empty() {
+            set_unit(&band, &b.unit).map_err(gdal_err(&format!("unit of band {}", b.name)))?;
+        }
+        for (key, um) in spectral_items(b) {
+            for domain in ["IMAGERY", ""] {
+                band.set_metadata_item(key, &um, domain)
+                    .map_err(gdal_err(&format!("{key} of band {}", b.name)))?;
+            }
+        }
         let data: Vec<f32> = b.values.iter().map(|&v| v as f32).collect();
         let mut buf = Buffer::new((width, height), data);
         band.write((0, 0), (width, height), &mut buf)
             .map_err(gdal_err(&format!("write band {}", b.name)))?;
     }
-    ds.close().map_err(gdal_err("close"))?;
+    let cog = DriverManager::get_driver_by_name("COG").map_err(gdal_err("COG driver"))?;
+    let mut opts = RasterCreationOptions::new();
+    for (k, v) in [
+        ("COMPRESS", "DEFLATE"),
+        ("BIGTIFF", "IF_SAFER"),
+        ("BLOCKSIZE", &TILE.to_string()),
+        ("OVERVIEWS", "AUTO"),
+        ("RESAMPLING", "AVERAGE"),
+    ] {
+        opts.add_name_value(k, v)
+            .map_err(gdal_err("creation options"))?;
+    }
+    let out = ds
+        .create_copy(&cog, &mem.0, &opts)
+        .map_err(gdal_err("COG copy"))?;
+    out.close().map_err(gdal_err("close"))?;
+    ds.close().map_err(gdal_err("close in-memory image"))?;
     gdal::vsi::call_on_mem_file_bytes(&mem.0, |bytes| write_atomic(path, bytes))
-        .map_err(gdal_err("read in-memory GeoTIFF"))?
+        .map_err(gdal_err("read in-memory GeoTIFF"))??;
+    match imagery_sidecar(bands) {
+        Some(xml) => write_atomic(&sidecar_path(path), xml.as_bytes()),
+        None => Ok(()),
+    }
+}
+
+/// The band's `IMAGERY` items: `CENTRAL_WAVELENGTH_UM`, `FWHM_UM` (µm), those that are known.
+fn spectral_items(b: &ImageBand) -> Vec<(&'static str, String)> {
+    [
+        ("CENTRAL_WAVELENGTH_UM", b.wavelength_nm),
+        ("FWHM_UM", b.fwhm_nm),
+    ]
+    .into_iter()
+    .filter_map(|(k, nm)| nm.map(|nm| (k, format!("{}", nm / 1000.0))))
+    .collect()
+}
+
+/// `path.aux.xml`: GDAL's PAM side-car of `path`.
+pub fn sidecar_path(path: &Path) -> PathBuf {
+    let mut p = path.as_os_str().to_owned();
+    p.push(".aux.xml");
+    PathBuf::from(p)
+}
+
+/// The PAM side-car holding the bands' `IMAGERY` metadata domain (`None` when no band has a
+/// wavelength). GDAL < 3.10 does not store a band's `IMAGERY` domain in the TIFF itself (its COG
+/// and GTiff copies keep only the default domain), but every GDAL reads it from the side-car.
+fn imagery_sidecar(bands: &[ImageBand]) -> Option<String> {
+    let mut xml = String::from("<PAMDataset>\n");
+    let mut any = false;
+    for (i, b) in bands.iter().enumerate() {
+        let items = spectral_items(b);
+        if items.is_empty() {
+            continue;
+        }
+        any = true;
+        xml.push_str(&format!(
+            "  <PAMRasterBand band=\"{}\">\n    <Metadata domain=\"IMAGERY\">\n",
+            i + 1
+        ));
+        for (k, v) in items {
+            xml.push_str(&format!("      <MDI key=\"{k}\">{v}</MDI>\n"));
+        }
+        xml.push_str("    </Metadata>\n  </PAMRasterBand>\n");
+    }
+    xml.push_str("</PAMDataset>\n");
+    any.then_some(xml)
+}
+
+/// GDAL's band unit type (the gdal crate has no setter for it).
+fn set_unit(band: &gdal::raster::RasterBand, unit: &str) -> gdal::errors::Result<()> {
+    let c = std::ffi::CString::new(unit)?;
+    // SAFETY: a valid band handle borrowed from an open dataset and a NUL-terminated string that
+    // GDAL copies.
+    let rv = unsafe { gdal_sys::GDALSetRasterUnitType(band.c_rasterband(), c.as_ptr()) };
+    if rv == gdal_sys::CPLErr::CE_None {
+        Ok(())
+    } else {
+        Err(gdal::errors::GdalError::CplError {
+            class: rv,
+            number: 0,
+            msg: format!("GDALSetRasterUnitType({unit}) failed"),
+        })
+    }
 }
 
 /// Reference wavelengths (nm) of the true-colour channels R, G, B and the tolerance.
@@ -391,16 +486,21 @@ mod tests {
                 name: "brf_440nm".into(),
                 description: "BRF at 440 nm".into(),
                 values: &data[0],
+                ..Default::default()
             },
             ImageBand {
                 name: "brf_550nm".into(),
                 description: "BRF at 550 nm".into(),
                 values: &b1,
+                unit: "W m-2 sr-1 nm-1".into(),
+                wavelength_nm: Some(550.0),
+                fwhm_nm: Some(20.0),
             },
             ImageBand {
                 name: "brf_660nm".into(),
                 description: "BRF at 660 nm".into(),
                 values: &data[2],
+                ..Default::default()
             },
         ];
         let metadata = vec![
@@ -409,11 +509,14 @@ mod tests {
             ("software".to_string(), "simulator test".to_string()),
         ];
         write_geotiff(&path, w, h, gt, &wkt, &bands, &metadata)?;
-        // Only the product in the folder: no temporary file, no `.aux.xml` side-car.
+        // Only the product and its side-car (the band with a wavelength) in the folder: no
+        // temporary file.
         let names: Vec<_> = std::fs::read_dir(&dir)?
             .map(|e| e.map(|e| e.file_name()))
             .collect::<Result<_, _>>()?;
-        assert_eq!(names, vec![std::ffi::OsString::from("toa.tif")]);
+        let mut names: Vec<String> = names.iter().map(|n| n.to_string_lossy().into()).collect();
+        names.sort();
+        assert_eq!(names, ["toa.tif", "toa.tif.aux.xml"]);
 
         let ds = Dataset::open(&path)?;
         assert_eq!(ds.raster_size(), (w, h));
@@ -445,6 +548,29 @@ mod tests {
             }
         }
         assert!(ds.rasterband(2)?.read_band_as::<f32>()?.data()[w + 2].is_nan());
+        // Band unit and GDAL's imagery band metadata (µm); none where not given.
+        let b2 = ds.rasterband(2)?;
+        assert_eq!(b2.unit(), "W m-2 sr-1 nm-1");
+        assert_eq!(
+            b2.metadata_item("CENTRAL_WAVELENGTH_UM", "").as_deref(),
+            Some("0.55")
+        );
+        assert_eq!(
+            b2.metadata_item("CENTRAL_WAVELENGTH_UM", "IMAGERY")
+                .as_deref(),
+            Some("0.55")
+        );
+        assert_eq!(
+            b2.metadata_item("FWHM_UM", "IMAGERY").as_deref(),
+            Some("0.02")
+        );
+        let b1 = ds.rasterband(1)?;
+        assert_eq!(b1.unit(), "");
+        assert_eq!(b1.metadata_item("CENTRAL_WAVELENGTH_UM", "IMAGERY"), None);
+        assert_eq!(
+            ds.metadata_item("LAYOUT", "IMAGE_STRUCTURE").as_deref(),
+            Some("COG")
+        );
         drop(ds);
         std::fs::remove_dir_all(&dir)?;
         Ok(())
@@ -460,6 +586,7 @@ mod tests {
             name: "x".into(),
             description: String::new(),
             values: &v,
+            ..Default::default()
         }];
         write_geotiff(
             &path,
@@ -487,6 +614,54 @@ mod tests {
         Ok(())
     }
 
+    /// A 600×600 image is a COG with 256×256 tiles and two overviews (300² and 150², the first
+    /// size within one tile), which average the pixels and skip the NaN nodata.
+    #[test]
+    fn geotiff_is_cloud_optimized_with_overviews() -> Result<(), Box<dyn std::error::Error>> {
+        let dir = temp_dir("cog");
+        let path = dir.join("cog.tif");
+        let n = 600usize;
+        let mut v: Vec<f64> = (0..n * n).map(|i| ((i % n) / 2) as f64).collect();
+        v[1] = f64::NAN; // row 0, column 1: the first overview pixel averages columns 0 only
+        let bands = [ImageBand {
+            name: "brf_865nm".into(),
+            description: "BRF at 865 nm".into(),
+            values: &v,
+            unit: "1".into(),
+            wavelength_nm: Some(865.0),
+            fwhm_nm: None,
+        }];
+        let gt = [0.0, 10.0, 0.0, 6000.0, 0.0, -10.0];
+        let wkt = SpatialRef::from_epsg(32631)?.to_wkt()?;
+        write_geotiff(&path, n, n, gt, &wkt, &bands, &[])?;
+        let ds = Dataset::open(&path)?;
+        assert_eq!(
+            ds.metadata_item("LAYOUT", "IMAGE_STRUCTURE").as_deref(),
+            Some("COG")
+        );
+        assert_eq!(ds.geo_transform()?, gt);
+        let band = ds.rasterband(1)?;
+        assert_eq!(band.block_size(), (256, 256));
+        assert_eq!(band.overview_count()?, 2);
+        let ov = band.overview(0)?;
+        assert_eq!(ov.size(), (300, 300));
+        assert_eq!(band.overview(1)?.size(), (150, 150));
+        let o = ov.read_band_as::<f32>()?;
+        // Column pair (2c, 2c+1) holds c in both: the average is c, NaN skipped.
+        assert_eq!(o.data()[0], 0.0);
+        assert_eq!(o.data()[7], 7.0);
+        assert_eq!(band.unit(), "1");
+        assert_eq!(
+            band.metadata_item("CENTRAL_WAVELENGTH_UM", "IMAGERY")
+                .as_deref(),
+            Some("0.865")
+        );
+        assert_eq!(band.metadata_item("FWHM_UM", "IMAGERY"), None);
+        drop(ds);
+        std::fs::remove_dir_all(&dir)?;
+        Ok(())
+    }
+
     #[test]
     fn geotiff_into_missing_folder_fails_naming_the_path() {
         let dir = temp_dir("missing").join("does_not_exist");
@@ -496,6 +671,7 @@ mod tests {
             name: "brf".into(),
             description: "BRF".into(),
             values: &v,
+            ..Default::default()
         }];
         let err = write_geotiff(
             &path,

@@ -5,7 +5,9 @@
 //! * ortho measures: `ID_brf.tif`, `ID_brf_stderr.tif`, `ID_radiance.tif`,
 //!   `ID_radiance_stderr.tif` — Float32 GeoTIFFs in the scene's CRS (a bundle's working CRS;
 //!   none for canopies) with the pixel-corner geotransform, one band per wavelength (band `k`
-//!   is `exp.wavelengths[k]`), NaN as nodata;
+//!   is `exp.wavelengths[k]`, also given as the band's `CENTRAL_WAVELENGTH_UM` in the `IMAGERY`
+//!   metadata domain), the band unit set (`W m-2 sr-1 nm-1` or `1`), NaN as nodata, written as
+//!   Cloud-Optimized GeoTIFFs (256×256 tiles, overviews; `products::image`);
 //! * polarized runs, ortho measures also: `ID_q.tif`, `ID_u.tif` (BRF-normalised Stokes Q and U,
 //!   `π·Q/(E0 cos SZA)`, in the meridian frame of the view direction, `stokes.rs`), `ID_dolp.tif`
 //!   and `ID_dolp_stderr.tif` (degree of linear polarization √(Q²+U²)/I and its standard error);
@@ -219,6 +221,10 @@ pub fn write_files(
                     name: format!("{name}_{w}nm"),
                     description: format!("{long} at {w} nm"),
                     values: v,
+                    unit: units.to_string(),
+                    wavelength_nm: Some(*w),
+                    // Monochromatic wavelengths have no width.
+                    fwhm_nm: None,
                 })
                 .collect();
             let mut md = meta.clone();
