@@ -33,6 +33,7 @@ pub mod error;
 pub mod frame;
 pub mod heavy_tail;
 pub mod illumination;
+pub mod input_digest;
 pub mod integrator;
 pub mod measure;
 pub mod nc_complete;

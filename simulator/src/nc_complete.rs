@@ -20,7 +20,10 @@ const MAX_HEADER: u64 = 64 << 20;
 /// Checks that `path`, if it is a classic-format netCDF file, holds every byte its header
 /// declares. `Ok` for netCDF-4/HDF5 and other files (their readers check them).
 pub fn check(path: &Path) -> Result<(), String> {
-    let mut f = std::fs::File::open(path).map_err(|e| format!("cannot read it: {e}"))?;
+    // A file that cannot be opened is left to the netCDF reader, which names the cause.
+    let Ok(mut f) = std::fs::File::open(path) else {
+        return Ok(());
+    };
     let len = f.metadata().map_err(|e| format!("cannot read it: {e}"))?.len();
     let mut magic = [0u8; 4];
     if f.read_exact(&mut magic).is_err() || &magic[..3] != b"CDF" {

@@ -605,9 +605,11 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
 }
 
 /// Checkpoints: after each (wavelength, measure) task its sums are written to
-/// `DIR/wWWW_mMMM.json` (atomically), stamped with a hash of the experiment text and the
-/// simulator version. A later run of the same experiment into the same folder reuses them, so
-/// an interrupted run resumes where it stopped; any change to the experiment invalidates them.
+/// `DIR/wWWW_mMMM.json` (atomically), stamped with a hash of the experiment text, the
+/// simulator version and every input file the experiment names (`input_digest.rs`: a rebuilt
+/// bundle, a replaced phase table). A later run of the same experiment into the same folder
+/// reuses them, so an interrupted run resumes where it stopped; any change to the experiment
+/// or its inputs invalidates them.
 pub mod checkpoint {
     use std::path::{Path, PathBuf};
 
@@ -628,13 +630,17 @@ pub mod checkpoint {
         acc: Accum,
     }
 
-    /// FNV-1a 64 of the experiment text: identifies the run a checkpoint belongs to.
+    /// FNV-1a 64 of the experiment text, the simulator's version and the digest of every
+    /// input file the experiment names ([`crate::input_digest`]): identifies the run a
+    /// checkpoint belongs to. Computed once per run (it reads the inputs).
     pub fn experiment_hash(exp: &Experiment) -> String {
+        let inputs = crate::input_digest::digest(&exp.source_text, &exp.source_path);
         let mut h: u64 = 0xcbf2_9ce4_8422_2325;
         for b in exp
             .source_text
             .bytes()
             .chain(env!("CARGO_PKG_VERSION").bytes())
+            .chain(inputs.bytes())
         {
             h ^= b as u64;
             h = h.wrapping_mul(0x0000_0100_0000_01b3);
@@ -647,11 +653,17 @@ pub mod checkpoint {
     }
 
     /// A stored result for this task, if one exists and belongs to this experiment.
-    pub fn load(dir: &Path, exp: &Experiment, iw: usize, im: usize) -> Option<MeasureResult> {
+    pub fn load(
+        dir: &Path,
+        exp: &Experiment,
+        key: &str,
+        iw: usize,
+        im: usize,
+    ) -> Option<MeasureResult> {
         let text = std::fs::read_to_string(path(dir, iw, im)).ok()?;
         let s: Stored = serde_json::from_str(&text).ok()?;
         let m = &exp.measures[im];
-        if s.experiment_hash != experiment_hash(exp)
+        if s.experiment_hash != key
             || s.measure != m.id
             || s.acc.n.len() != m.cell_count()
         {
@@ -670,13 +682,18 @@ pub mod checkpoint {
         })
     }
 
-    pub fn store(dir: &Path, exp: &Experiment, r: &MeasureResult) -> Result<(), OutputError> {
+    pub fn store(
+        dir: &Path,
+        exp: &Experiment,
+        key: &str,
+        r: &MeasureResult,
+    ) -> Result<(), OutputError> {
         std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
             path: dir.to_path_buf(),
             source,
         })?;
         let s = Stored {
-            experiment_hash: experiment_hash(exp),
+            experiment_hash: key.to_string(),
             version: env!("CARGO_PKG_VERSION").into(),
             measure: exp.measures[r.measure].id.clone(),
             wavelength_nm: exp.wavelengths[r.wavelength],
@@ -722,6 +739,7 @@ pub fn run_shard(
     let bar = progress_bar(exp, progress);
     let nm = exp.measures.len();
     let resumed = std::sync::atomic::AtomicUsize::new(0);
+    let key = checkpoint::experiment_hash(exp);
     // Tasks run concurrently (see `run`); each stores its checkpoints as soon as it is done.
     let parts = tasks(exp)
         .into_par_iter()
@@ -731,7 +749,7 @@ pub fn run_shard(
             let per = walks_per_sample(exp, m) * group.len() as u64;
             let loaded: Option<Vec<MeasureResult>> = group
                 .iter()
-                .map(|&iw| checkpoint::load(dir, exp, iw, im))
+                .map(|&iw| checkpoint::load(dir, exp, &key, iw, im))
                 .collect();
             if let Some(rs) = loaded {
                 bar.inc(m.spp * per);
@@ -745,7 +763,7 @@ pub fn run_shard(
             bar.set_message(task_message(exp, &group, im));
             let rs = run_task(exp, &group, im, &bar);
             for r in &rs {
-                checkpoint::store(dir, exp, r)?;
+                checkpoint::store(dir, exp, &key, r)?;
             }
             Ok(rs)
         })

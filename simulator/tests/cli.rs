@@ -232,8 +232,9 @@ fn bundle_with_unknown_material_ids_is_refused() {
     };
     let b = write_plane_with_indices(&dir, &spec, &[4, 7]);
     // ids 9 (3 pixels) and 200 (1 pixel) have no material; the writer refuses them, so edit
-    // the file (same size: only the ids are checked, not the digests).
+    // the file and record its new digest (as a buggy writer would).
     std::fs::write(b.join("materials.u8"), [9u8, 9, 200, 9]).unwrap();
+    common::bundles::reseal(&b);
     let exp = dir.join("exp.toml");
     std::fs::write(
         &exp,

@@ -138,6 +138,21 @@ fn main() -> ExitCode {
             }
             if e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some()) {
                 ExitCode::from(2)
+            } else if e.chain().any(|c| {
+                matches!(
+                    c.downcast_ref::<simulator::error::OutputError>(),
+                    Some(simulator::error::OutputError::Netcdf { .. })
+                )
+            }) {
+                // HDF5 keeps a file it could not flush (a full disk) open, and its exit handler
+                // then crashes (SIGSEGV) closing it. Everything of value is already on disk
+                // (checkpoints, the previous products) and staging folders are removed, so
+                // leave without running the C library's exit handlers.
+                use std::io::Write;
+                let _ = std::io::stdout().flush();
+                let _ = std::io::stderr().flush();
+                // SAFETY: _exit ends the process at once; no Rust state needs unwinding.
+                unsafe { libc::_exit(1) }
             } else {
                 ExitCode::from(1)
             }
@@ -248,15 +263,39 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             }
             let results: Vec<_> = results.into_iter().flatten().collect();
             let rows = products::rows(&exp, &results);
-            let csv = output.join("results.csv");
-            let nc = output.join("results.nc");
-            products::csv::write(&csv, &rows)?;
             let band = products::band_rows(&exp, &rows);
             let images = products::imagery::image_products(&exp, &results);
-            products::netcdf::write(&nc, &exp, &rows, &band, &images)?;
-            for img in &images {
-                let (files, what) = products::imagery::write_files(&output, &exp, img)?;
-                for f in &files {
+            // Every product goes to a staging folder and is moved in only when all are
+            // written: a failure (a full disk) leaves the previous products as they were.
+            let mut stage = products::staging::Staging::new(&output)?;
+            let mut looks = Vec::new();
+            let written = (|| -> Result<(), simulator::error::OutputError> {
+                products::csv::write(&stage.path("results.csv"), &rows)?;
+                products::netcdf::write(&stage.path("results.nc"), &exp, &rows, &band, &images)?;
+                for img in &images {
+                    looks.push(products::imagery::write_files(stage.dir(), &exp, img)?.1);
+                }
+                if !band.is_empty() {
+                    products::csv::write_band(&stage.path("results_band.csv"), &band)?;
+                }
+                Ok(())
+            })();
+            if let Err(e) = written {
+                return Err(explain_write_error(e, &output));
+            }
+            let csv = stage.final_path("results.csv");
+            let nc = stage.final_path("results.nc");
+            let committed = stage.commit()?;
+            for (img, what) in images.iter().zip(&looks) {
+                for f in committed.iter().filter(|f| {
+                    f.file_name()
+                        .is_some_and(|n| {
+                            let n = n.to_string_lossy();
+                            n.starts_with(&format!("{}_", img.id))
+                                || n.starts_with(&format!("{}.", img.id))
+                        })
+                        && !f.to_string_lossy().ends_with(".aux.xml")
+                }) {
                     println!("{:<16} wrote {}", img.id, f.display());
                 }
                 println!(
@@ -272,18 +311,14 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                     );
                 }
             }
-            if !band.is_empty() {
-                let path = output.join("results_band.csv");
-                products::csv::write_band(&path, &band)?;
-                for b in &band {
-                    if let Some((v, e)) = b.brf.or(b.albedo) {
-                        println!(
-                            "{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}",
-                            b.measure,
-                            b.band,
-                            b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into())
-                        );
-                    }
+            for b in &band {
+                if let Some((v, e)) = b.brf.or(b.albedo) {
+                    println!(
+                        "{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}",
+                        b.measure,
+                        b.band,
+                        b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into())
+                    );
                 }
             }
             print_summary(&rows);
@@ -418,5 +453,25 @@ fn print_summary(rows: &[products::Row]) {
             v,
             100.0 * e / v.abs().max(1e-300)
         );
+    }
+}
+
+/// A product write error with its real cause: when the output's filesystem is (nearly) full,
+/// say so (HDF5 reports a full disk as "HDF error"). The previous products are intact.
+fn explain_write_error(e: simulator::error::OutputError, output: &std::path::Path) -> anyhow::Error {
+    let free = products::staging::free_bytes(output);
+    let full = free.is_some_and(|f| f < 4 << 20);
+    let e = anyhow::Error::new(e);
+    if full {
+        e.context(format!(
+            "No space left on device: the filesystem of {} has {} bytes free; the previous products there are unchanged (free some space and run again: completed tasks resume from the checkpoints)",
+            output.display(),
+            free.unwrap_or(0)
+        ))
+    } else {
+        e.context(format!(
+            "products were not written; the previous products in {} are unchanged",
+            output.display()
+        ))
     }
 }

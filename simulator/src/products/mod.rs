@@ -13,6 +13,7 @@ pub mod csv;
 pub mod image;
 pub mod imagery;
 pub mod netcdf;
+pub mod staging;
 
 use std::path::Path;
 
@@ -152,13 +153,14 @@ pub fn write_atomic(path: &Path, bytes: &[u8]) -> Result<(), OutputError> {
     std::fs::rename(&tmp, path).map_err(io)
 }
 
-/// `dir/.name.partial`: where a product is written before the rename.
+/// `dir/.name.PID.partial`: where a product is written before the rename (unique per
+/// process, so two writers never share a temporary).
 pub fn tmp_path(path: &Path) -> std::path::PathBuf {
     let name = path
         .file_name()
         .map(|n| n.to_string_lossy().to_string())
         .unwrap_or_default();
-    path.with_file_name(format!(".{name}.partial"))
+    path.with_file_name(format!(".{name}.{}.partial", std::process::id()))
 }
 
 /// A band-weighted row (see `srf.rs` for the weighting): one per measure and direction.
