@@ -20,11 +20,45 @@ pub enum Mode {
 }
 
 /// A per-wavelength quantity: one number for every wavelength, or one per wavelength.
-#[derive(Clone, Debug, Deserialize)]
-#[serde(untagged)]
+#[derive(Clone, Debug)]
 pub enum SpectralValue {
     Scalar(f64),
     List(Vec<f64>),
+}
+
+/// A number or a list of numbers; anything else is "invalid type: string "abc", expected a
+/// number or a list of numbers (one per wavelength)", which names the value (an untagged enum
+/// would only say that no variant matched, and the key could not be found).
+impl<'de> Deserialize<'de> for SpectralValue {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = SpectralValue;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number or a list of numbers (one per wavelength)")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<SpectralValue, E> {
+                Ok(SpectralValue::Scalar(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<SpectralValue, E> {
+                Ok(SpectralValue::Scalar(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<SpectralValue, E> {
+                Ok(SpectralValue::Scalar(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<SpectralValue, A::Error> {
+                let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 16));
+                while let Some(x) = seq.next_element::<f64>()? {
+                    out.push(x);
+                }
+                Ok(SpectralValue::List(out))
+            }
+        }
+        d.deserialize_any(V)
+    }
 }
 
 impl SpectralValue {

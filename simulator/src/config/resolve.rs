@@ -87,27 +87,48 @@ impl Experiment {
 
     /// Parse and resolve experiment text; `path` names it in errors and anchors relative paths.
     pub fn from_str(text: &str, path: &Path) -> Result<Experiment, ConfigError> {
+        use super::diagnostics::{cut_lines, line_of, quote, split_toml_message};
         let parse_err = |message: String| ConfigError::Parse {
             path: path.to_path_buf(),
-            message,
+            message: cut_lines(&message),
         };
         let de = toml::Deserializer::parse(text).map_err(|e| parse_err(e.to_string()))?;
         let cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
             let inner = e.into_inner().to_string().trim_end().to_string();
             let found = locate_offender(text, &inner);
-            // The path serde kept is enough when it is the offender's.
-            let hint = if found.is_empty() || found == [key.as_str()] {
-                String::new()
-            } else {
-                format!(" (offending key: `{}`)", found.join("`, `"))
+            let (toml_line, core) = split_toml_message(&inner);
+            let core = plain_closed_choice(&core);
+            // serde's path, or the offender's when serde stopped at its table.
+            let key = match found.as_slice() {
+                [one] => one.clone(),
+                _ if key == "." => String::new(),
+                _ => key,
             };
-            let inner = plain_closed_choice(&inner);
-            if key.is_empty() || key == "." {
-                parse_err(format!("{inner}{hint}"))
+            let hint = if found.len() > 1 {
+                format!(" (offending keys: `{}`)", found.join("`, `"))
             } else {
-                parse_err(format!("at key `{key}`: {inner}{hint}"))
-            }
+                String::new()
+            };
+            let line = (!key.is_empty())
+                .then(|| line_of(text, &key))
+                .flatten()
+                .or(toml_line);
+            let at = match (key.is_empty(), line) {
+                (false, Some(n)) => format!("at key `{key}` (line {n}): "),
+                (false, None) => format!("at key `{key}`: "),
+                (true, Some(n)) => format!("line {n}: "),
+                (true, None) => String::new(),
+            };
+            let core = match core.strip_prefix("missing field `") {
+                Some(rest) => format!("missing required key `{rest}"),
+                None => core,
+            };
+            let quoted = line
+                .and_then(|n| quote(text, n))
+                .map(|q| format!("\n{q}"))
+                .unwrap_or_default();
+            parse_err(format!("{at}{core}{hint}{quoted}"))
         })?;
         resolve(cfg, text, path)
     }
