@@ -31,6 +31,7 @@ fn seasonal_cycle_of_a_lambertian_site() {
             vza: 3.0,
             vaa: 100.0,
             srf: "sentinel_2a-msi-4".into(),
+            sun: None,
         })
         .collect();
     let rows = run(&site, &acqs, |_| {}).unwrap();
@@ -176,6 +177,7 @@ fn three_d_site_equals_the_1d_site_when_flat() {
             vza: 5.0 * m as f64,
             vaa: 100.0,
             srf: "sentinel_2a-msi-4".into(),
+            sun: None,
         })
         .collect();
     let head = "name = \"flat\"\nlatitude = 28.55\nlongitude = 23.39\nelevation = 118.0\nspp = 2000\nirradiance = \"tsis_1\"\nwavelength_step = 10.0\n";
@@ -228,6 +230,7 @@ fn catalogue_sites() {
         vza: 5.0,
         vaa: 100.0,
         srf: "sentinel_2a-msi-4".into(),
+        sun: None,
     }];
     let (a, b) = (
         run(&by_key, &acq, |_| {}).unwrap(),
