@@ -60,13 +60,30 @@ pub fn read_acquisitions(path: &Path) -> Result<Vec<Acquisition>, ConfigError> {
 
 /// Parse acquisitions CSV text; `path` names it in errors.
 pub fn parse_acquisitions(text: &str, path: &Path) -> Result<Vec<Acquisition>, ConfigError> {
-    let err = |line: u64, column: Option<&str>, message: String| ConfigError::Invalid {
+    let err = |line: u64, column: Option<&str>, message: String| ConfigError::Parse {
         path: path.into(),
-        key: match column {
-            Some(c) => format!("line {line}, column `{c}`"),
-            None => format!("line {line}"),
+        message: match column {
+            Some(c) => format!("line {line}, column `{c}`: {message}"),
+            None => format!("line {line}: {message}"),
         },
-        message,
+    };
+    // The csv crate's line count skips blank lines, and a record's byte offset is where its
+    // parse began (before any blank or comment lines it skipped): count from the first line at
+    // or after that offset that holds data.
+    let line_at = |byte: u64| -> u64 {
+        let mut line = text.as_bytes()[..(byte as usize).min(text.len())]
+            .iter()
+            .filter(|&&b| b == b'\n')
+            .count() as u64
+            + 1;
+        let rest = text.get(byte as usize..).unwrap_or("");
+        for l in rest.lines() {
+            if !l.trim().is_empty() && !l.starts_with('#') {
+                break;
+            }
+            line += 1;
+        }
+        line
     };
     let mut reader = csv::ReaderBuilder::new()
         .comment(Some(b'#'))
@@ -116,10 +133,10 @@ pub fn parse_acquisitions(text: &str, path: &Path) -> Result<Vec<Acquisition>, C
     let mut out = Vec::new();
     for record in reader.records() {
         let record = record.map_err(|e| {
-            let line = e.position().map(|p| p.line()).unwrap_or(0);
+            let line = e.position().map_or(0, |p| line_at(p.byte()));
             err(line, None, e.to_string())
         })?;
-        let line = record.position().map(|p| p.line()).unwrap_or(0);
+        let line = record.position().map_or(0, |p| line_at(p.byte()));
         let cell = |c: &str| cols.get(c).and_then(|&i| record.get(i)).unwrap_or("");
         let angle = |c: &str, lo: f64, hi: f64| -> Result<Option<f64>, ConfigError> {
             let s = cell(c);
@@ -224,6 +241,11 @@ mod tests {
                 "line 3",
             ),
             ("time_utc,vza,vaa,srf\n\n2026-01-15T09:45:00Z,95,1,b\n", "`vza`", "line 3"),
+            (
+                "time_utc,vza,vaa,srf\n# c\n\n# d\n2026-01-15T09:45:00Z,1,1,b\n2026-01-15T09:45:00Z,1,-400,b\n",
+                "`vaa`",
+                "line 6",
+            ),
             ("time_utc,vza,vaa,srf\n2026-01-15T09:45:00Z,abc,1,b\n", "`vza`", "line 2"),
             ("time_utc,vza,vaa,srf\n2026-01-15T09:45:00Z,1,1,\n", "`srf`", "line 2"),
             (
