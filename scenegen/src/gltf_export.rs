@@ -102,9 +102,8 @@ impl Bin {
             3 => "VEC3",
             _ => "VEC4",
         };
-        self.accessors.push(
-            json!({"bufferView": v, "componentType": 5126, "count": p.len(), "type": ty}),
-        );
+        self.accessors
+            .push(json!({"bufferView": v, "componentType": 5126, "count": p.len(), "type": ty}));
         self.accessors.len() - 1
     }
     fn indices(&mut self, t: &[[u32; 3]]) -> usize {
@@ -124,8 +123,15 @@ fn scale_rotation(l: &[f32; 9]) -> ([f32; 3], [f32; 4], bool) {
     let (s, r, _) = glam::Mat4::from_mat3(m).to_scale_rotation_translation();
     let r = r.normalize();
     let back = glam::Mat3::from_quat(r) * glam::Mat3::from_diagonal(s);
-    let size = m.x_axis.length().max(m.y_axis.length()).max(m.z_axis.length());
-    let err = (back - m).to_cols_array().iter().fold(0f32, |a, x| a.max(x.abs()));
+    let size = m
+        .x_axis
+        .length()
+        .max(m.y_axis.length())
+        .max(m.z_axis.length());
+    let err = (back - m)
+        .to_cols_array()
+        .iter()
+        .fold(0f32, |a, x| a.max(x.abs()));
     let exact = err <= 1e-4 * size.max(f32::MIN_POSITIVE);
     let ok = r.is_finite() && s.is_finite();
     let (s, r) = if ok {

@@ -323,9 +323,7 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
 /// Instances exported to a GLB with `EXT_mesh_gpu_instancing`: `n` per template.
 fn gltf_instance_counts(glb: &Path, templates: usize) -> Vec<usize> {
     let g = gltf::Gltf::open(glb).unwrap();
-    assert!(g
-        .extensions_used()
-        .any(|e| e == "EXT_mesh_gpu_instancing"));
+    assert!(g.extensions_used().any(|e| e == "EXT_mesh_gpu_instancing"));
     let accessors: Vec<gltf::Accessor> = g.accessors().collect();
     let mut counts = vec![0; templates];
     let terrain_meshes = g.meshes().count() - templates;
@@ -392,8 +390,8 @@ fn check_gltf_export(b: &Bundle, out: &Path, dir: &Path) {
         .output()
         .unwrap();
     let report = String::from_utf8_lossy(&o.stdout);
-    let v: serde_json::Value = serde_json::from_str(&report)
-        .unwrap_or_else(|e| panic!("validator report: {e}\n{report}"));
+    let v: serde_json::Value =
+        serde_json::from_str(&report).unwrap_or_else(|e| panic!("validator report: {e}\n{report}"));
     assert_eq!(
         v["issues"]["numErrors"].as_u64(),
         Some(0),

@@ -241,3 +241,38 @@ impl IlluminationConfig {
         })
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sun(text: &str) -> Result<Sun, String> {
+        let cfg: IlluminationConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+        let ctx = ConfigCtx {
+            path: std::path::Path::new("exp.toml"),
+            base: std::path::Path::new("."),
+            nw: 1,
+        };
+        cfg.resolve(&ctx, &[550.0], false)
+            .map_err(|e| e.to_string())
+    }
+
+    /// `distance_au` scales E0 by 1/r² with given angles (a PICS acquisition with its own Sun
+    /// angles), and excludes `time` and `date`.
+    #[test]
+    fn distance_au_scales_the_irradiance() {
+        let s =
+            sun("type = \"directional\"\nzenith = 30.0\nirradiance = 2.0\ndistance_au = 1.01\n")
+                .unwrap();
+        assert_eq!(s.distance_au, Some(1.01));
+        assert!((s.irradiance[0] - 2.0 / (1.01 * 1.01)).abs() < 1e-15);
+        for bad in [
+            "type = \"directional\"\nzenith = 30.0\ndistance_au = 1.5\n",
+            "type = \"directional\"\nzenith = 30.0\ndistance_au = 1.0\ndate = \"2026-01-01\"\n",
+            "type = \"directional\"\ntime = \"2026-01-01T12:00:00Z\"\nlatitude = 0.0\nlongitude = 0.0\ndistance_au = 1.0\n",
+        ] {
+            let e = sun(bad).unwrap_err();
+            assert!(e.contains("exp.toml") && e.contains("distance_au"), "{e}");
+        }
+    }
+}

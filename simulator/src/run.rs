@@ -712,7 +712,7 @@ pub fn run_resumable(
     ))
 }
 
-/// Run only the tasks (wavelength group, measure) whose index in [`tasks`] order (`iw·measures +
+/// Run only the tasks (wavelength group, measure) whose index in `tasks` order (`iw·measures +
 /// im` without spectral groups) is `shard` modulo `shards`, storing each wavelength's result in
 /// `dir`; tasks of other shards are loaded from `dir` when present (so collecting the checkpoint
 /// files of all shards in one folder and running shard 0/1 there writes the products without

@@ -135,4 +135,33 @@ mod tests {
         assert!(sun_position("2003-10-17 19:30:30", 0.0, 0.0, 0.0, None).is_err());
         assert!(sun_position("2003-10-17T19:30:30Z", 95.0, 0.0, 0.0, None).is_err());
     }
+
+    /// The same SPA case given in the paper's local time (UTC−7): an RFC 3339 offset is the same
+    /// instant, so the same Sun; a time without an offset, or with a bad one, is refused.
+    #[test]
+    fn offsets_are_converted_to_utc() {
+        let utc = sun_position("2003-10-17T19:30:30Z", 39.742476, -105.1786, 1830.14, None);
+        let local = sun_position(
+            "2003-10-17T12:30:30-07:00",
+            39.742476,
+            -105.1786,
+            1830.14,
+            None,
+        );
+        let (a, b) = (utc.unwrap(), local.unwrap());
+        assert_eq!(
+            (a.zenith, a.azimuth, a.distance_au),
+            (b.zenith, b.azimuth, b.distance_au)
+        );
+        let t = parse_time("2026-01-15t11:45:00.25+02:00").unwrap();
+        assert_eq!(format_utc(&t), "2026-01-15T09:45:00.250Z");
+        assert_eq!(unix_seconds(&t), 1_768_470_300.25);
+        for bad in [
+            "2026-01-15T09:45:00",
+            "2026-01-15T09:45:00+25:00",
+            "2026-13-15T09:45:00Z",
+        ] {
+            assert!(parse_time(bad).is_err(), "{bad}");
+        }
+    }
 }

@@ -276,8 +276,9 @@ fn given_sun_angles_override_spa() {
     let acqs = read_acquisitions(&csv).unwrap();
     assert_eq!(acqs[0].time_utc, acqs[1].time_utc);
     let rows = run(&site, &acqs, |_| {}).unwrap();
-    let p = simulator::sun_position::sun_position("2026-06-15T09:45:00Z", 28.55, 23.39, 118.0, None)
-        .unwrap();
+    let p =
+        simulator::sun_position::sun_position("2026-06-15T09:45:00Z", 28.55, 23.39, 118.0, None)
+            .unwrap();
     assert!((rows[0].sza - p.zenith).abs() < 1e-9);
     assert_eq!((rows[1].sza, rows[1].saa), (60.0, 200.0));
     for r in &rows {
@@ -378,5 +379,8 @@ fn check_validates_site_files() {
     .unwrap();
     let (code, text) = check(&[&bad]);
     assert_eq!(code, Some(2), "{text}");
-    assert!(text.contains("bad.toml") && text.contains("surfce"), "{text}");
+    assert!(
+        text.contains("bad.toml") && text.contains("surfce"),
+        "{text}"
+    );
 }

@@ -76,7 +76,7 @@ enum Command {
         shard: Option<String>,
     },
     /// Simulated TOA reflectance of a calibration site for a list of acquisitions
-    /// (time_utc,vza,vaa,srf[,sza,saa]); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
+    /// (columns time_utc,vza,vaa,srf and optionally sza,saa); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
     Pics {
         /// Acquisitions CSV (columns in docs/pics.md).
         acquisitions: PathBuf,
@@ -263,6 +263,16 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 rayon::current_num_threads()
             );
             let ckpt = output.join("checkpoints");
+            tracing::debug!(
+                "products in {}, checkpoints in {}{}",
+                output.display(),
+                ckpt.display(),
+                if fresh {
+                    " (discarded first: --fresh)"
+                } else {
+                    ""
+                }
+            );
             if fresh {
                 let _ = std::fs::remove_dir_all(&ckpt);
             }

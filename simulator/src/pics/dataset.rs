@@ -112,7 +112,10 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
             f.add_dimension("acquisition", rows.len())?;
             {
                 let mut v = f.add_variable::<i32>("acquisition", &["acquisition"])?;
-                v.put_attribute("long_name", "acquisition number (row of the acquisitions file, from 1)")?;
+                v.put_attribute(
+                    "long_name",
+                    "acquisition number (row of the acquisitions file, from 1)",
+                )?;
                 let idx: Vec<i32> = (1..=rows.len() as i32).collect();
                 v.put_values(&idx, ..)?;
             }

@@ -244,11 +244,12 @@ pub fn acquisition_experiment(
     acq: &Acquisition,
     k: usize,
 ) -> Result<Experiment, ConfigError> {
-    let exp_text = experiment_text(site, acq, k as u64).map_err(|message| ConfigError::Invalid {
-        path: site_path.into(),
-        key: "site".into(),
-        message,
-    })?;
+    let exp_text =
+        experiment_text(site, acq, k as u64).map_err(|message| ConfigError::Invalid {
+            path: site_path.into(),
+            key: "site".into(),
+            message,
+        })?;
     Experiment::from_str(&exp_text, site_path).map_err(|e| ConfigError::Invalid {
         path: site_path.into(),
         key: format!("acquisition {} ({})", k + 1, acq.time_utc),
