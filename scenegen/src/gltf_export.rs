@@ -322,3 +322,29 @@ pub fn export(bundle_dir: &Path, out: &Path, thin: usize) -> Result<ExportReport
         bytes: total as u64,
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::scale_rotation;
+
+    /// The instance linear parts scenegen makes, Rz(yaw) · diag(s), come back exactly as a
+    /// quaternion and a scale (glTF applies T · R · S); a sheared matrix is flagged.
+    #[test]
+    fn rotation_times_scale_is_decomposed_exactly() {
+        for (yaw, s) in [
+            (0.0f32, [1.0f32, 1.0, 1.0]),
+            (1.3, [0.8, 0.8, 1.7]),
+            (-2.9, [2.0, 0.5, 1.1]),
+        ] {
+            let m = glam::Mat3::from_rotation_z(yaw) * glam::Mat3::from_diagonal(s.into());
+            let (sc, q, exact) = scale_rotation(&m.to_cols_array());
+            assert!(exact);
+            let back = glam::Mat3::from_quat(glam::Quat::from_array(q))
+                * glam::Mat3::from_diagonal(sc.into());
+            assert!(back.abs_diff_eq(m, 1e-5), "{back} vs {m}");
+            assert!((glam::Quat::from_array(q).length() - 1.0).abs() < 1e-6);
+        }
+        let shear = glam::Mat3::from_cols_array(&[1.0, 0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        assert!(!scale_rotation(&shear.to_cols_array()).2);
+    }
+}

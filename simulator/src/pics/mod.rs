@@ -336,7 +336,7 @@ pub fn to_csv(rows: &[PicsRow]) -> String {
             s,
             "{},{},{},{},{:.6},{:.6},{:.9},{:.8e},{:.3e},{:.8e},{:.3e},{:.8e}",
             a.time_utc,
-            a.srf,
+            csv_field(&a.srf),
             a.vza,
             a.vaa,
             r.sza,
@@ -350,4 +350,26 @@ pub fn to_csv(rows: &[PicsRow]) -> String {
         );
     }
     s
+}
+
+/// A CSV field, quoted (RFC 4180) when it holds a comma, a quote or a line break: an SRF file
+/// name may.
+fn csv_field(v: &str) -> String {
+    if v.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", v.replace('"', "\"\""))
+    } else {
+        v.to_string()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn csv_fields_are_quoted_when_needed() {
+        assert_eq!(super::csv_field("sentinel_2a-msi-4"), "sentinel_2a-msi-4");
+        assert_eq!(
+            super::csv_field("my, \"srf\".csv"),
+            "\"my, \"\"srf\"\".csv\""
+        );
+    }
 }
