@@ -311,12 +311,12 @@ fn given_sun_angles_override_spa() {
     assert_eq!(secs, vec![20619.0 * 86400.0 + 35100.0; 2]);
     let refl = f.variable("reflectance").unwrap();
     assert_eq!(attr(&refl, "coordinates"), "time");
-    let given: Vec<f64> = f
+    let given: Vec<i8> = f
         .variable("sun_angles_given")
         .unwrap()
-        .get_values::<f64, _>(..)
+        .get_values::<i8, _>(..)
         .unwrap();
-    assert_eq!(given, vec![0.0, 1.0]);
+    assert_eq!(given, vec![0, 1]);
     let idx: Vec<i32> = f
         .variable("acquisition")
         .unwrap()

@@ -8,8 +8,8 @@
 //!   CF readers (xarray, Panoply) take it as the time coordinate.
 //! * `time_utc` and `srf`: strings, the RFC 3339 UTC time and the band as in `pics.csv`.
 //! * `vza, vaa, sza, saa` (degree), `earth_sun_distance` (au), `reflectance`, `radiance`,
-//!   `band_irradiance` and the standard errors; `sun_angles_given` (1 where the CSV gave `sza`,
-//!   `saa`, 0 where SPA computed them).
+//!   `band_irradiance` and the standard errors; `sun_angles_given` (byte flag: 1 where the CSV
+//!   gave `sza`, `saa`, 0 where SPA computed them).
 //!
 //! Written to a temporary file and renamed.
 
@@ -27,7 +27,7 @@ type Column = (
     fn(&PicsRow) -> f64,
 );
 
-const COLUMNS: [Column; 11] = [
+const COLUMNS: [Column; 10] = [
     ("vza", "degree", "view zenith angle", |r| r.acquisition.vza),
     (
         "vaa",
@@ -46,12 +46,6 @@ const COLUMNS: [Column; 11] = [
         "degree",
         "solar azimuth angle, clockwise from North",
         |r| r.saa,
-    ),
-    (
-        "sun_angles_given",
-        "1",
-        "1: sza and saa from the acquisitions file; 0: computed",
-        |r| f64::from(u8::from(r.acquisition.sun.is_some())),
     ),
     ("earth_sun_distance", "au", "Earth-Sun distance", |r| {
         r.earth_sun_distance_au
@@ -142,6 +136,21 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
                 for (i, r) in rows.iter().enumerate() {
                     v.put_string(&r.acquisition.srf, [i])?;
                 }
+            }
+            {
+                let mut v = f.add_variable::<i8>("sun_angles_given", &["acquisition"])?;
+                v.put_attribute(
+                    "long_name",
+                    "whether sza and saa come from the acquisitions file",
+                )?;
+                v.put_attribute("flag_values", vec![0i8, 1])?;
+                v.put_attribute("flag_meanings", "computed_by_spa given_in_csv")?;
+                v.put_attribute("coordinates", "time")?;
+                let given: Vec<i8> = rows
+                    .iter()
+                    .map(|r| i8::from(r.acquisition.sun.is_some()))
+                    .collect();
+                v.put_values(&given, ..)?;
             }
             for (name, units, long, get) in COLUMNS {
                 let data: Vec<f64> = rows.iter().map(get).collect();
