@@ -275,6 +275,18 @@ fn given_sun_angles_override_spa() {
     .unwrap();
     let acqs = read_acquisitions(&csv).unwrap();
     assert_eq!(acqs[0].time_utc, acqs[1].time_utc);
+    // A plane-parallel site has no twilight: a given SZA of 95° is refused, naming the
+    // acquisition and where its angles came from.
+    let mut night = acqs.clone();
+    night[1].sun = Some((95.0, 200.0));
+    let e = run(&site, &night, |_| {}).unwrap_err().to_string();
+    assert!(
+        e.contains("site.toml")
+            && e.contains("acquisition 2")
+            && e.contains("from the acquisitions file")
+            && e.contains("illumination.zenith"),
+        "{e}"
+    );
     let rows = run(&site, &acqs, |_| {}).unwrap();
     let p =
         simulator::sun_position::sun_position("2026-06-15T09:45:00Z", 28.55, 23.39, 118.0, None)

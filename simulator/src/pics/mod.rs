@@ -252,7 +252,16 @@ pub fn acquisition_experiment(
         })?;
     Experiment::from_str(&exp_text, site_path).map_err(|e| ConfigError::Invalid {
         path: site_path.into(),
-        key: format!("acquisition {} ({})", k + 1, acq.time_utc),
+        key: format!(
+            "acquisition {} ({}{})",
+            k + 1,
+            acq.time_utc,
+            if acq.sun.is_some() {
+                "; sza, saa from the acquisitions file"
+            } else {
+                ""
+            }
+        ),
         message: e.to_string(),
     })
 }
