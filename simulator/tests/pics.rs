@@ -112,12 +112,15 @@ fn cli_pics() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("pics.csv")).unwrap();
     assert_eq!(csv.lines().count(), 7);
-    let f = netcdf::open(out.join("pics.nc")).unwrap();
-    let refl: Vec<f64> = f
-        .variable("reflectance")
-        .unwrap()
-        .get_values::<f64, _>(..)
-        .unwrap();
+    let refl: Vec<f64> = {
+        // HDF5 is not thread-safe: concurrent tests must not read while another writes.
+        let _session = simulator::netcdf_session();
+        let f = netcdf::open(out.join("pics.nc")).unwrap();
+        f.variable("reflectance")
+            .unwrap()
+            .get_values::<f64, _>(..)
+            .unwrap()
+    };
     assert_eq!(refl.len(), 6);
     assert!(refl.iter().all(|r| *r > 0.3 && *r < 0.8), "{refl:?}");
     let bad = dir.join("bad.csv");
@@ -306,6 +309,8 @@ fn given_sun_angles_override_spa() {
     std::fs::create_dir_all(&out).unwrap();
     let nc = out.join("pics.nc");
     simulator::pics::write_netcdf(&nc, &site, &rows).unwrap();
+    // HDF5 is not thread-safe: hold the library while reading (tests run concurrently).
+    let _session = simulator::netcdf_session();
     let f = netcdf::open(&nc).unwrap();
     let t = f.variable("time").unwrap();
     let attr = |v: &netcdf::Variable, k: &str| -> String {
