@@ -114,8 +114,8 @@ pub struct MaterialRaster {
     pub file: String,
     pub width: u32,
     pub height: u32,
-    /// GDAL-order geotransform in the working CRS: x = gt[0] + col·gt[1] + row·gt[2],
-    /// y = gt[3] + col·gt[4] + row·gt[5] (for the pixel corner; gt[5] < 0, row 0 is the north).
+    /// GDAL-order geotransform in the working CRS: x = gt\[0\] + col·gt\[1\] + row·gt\[2\],
+    /// y = gt\[3\] + col·gt\[4\] + row·gt\[5\] (for the pixel corner; gt\[5\] < 0, row 0 is the north).
     pub geotransform: [f64; 6],
     /// How the land cover was resampled onto this grid ("mode" or "nearest").
     pub resampling: String,

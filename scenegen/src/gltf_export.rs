@@ -6,9 +6,14 @@
 //!   origin), textured with the material raster drawn as a PNG (each material's colour is its
 //!   reflectance at 650, 550 and 450 nm, gamma-encoded; nearest filtering).
 //! * Templates: one mesh each (one primitive per material, double-sided so leaves show both
-//!   faces); instances are nodes with the instance's matrix. Viewers slow down with millions of
-//!   nodes, so at most `max_instances` are exported (every k-th, said on stderr and in
-//!   `asset.extras`).
+//!   faces). Instances use `EXT_mesh_gpu_instancing` (listed in `extensionsUsed`): one node per
+//!   template that has instances, with `TRANSLATION` (VEC3), `ROTATION` (unit quaternion, VEC4)
+//!   and `SCALE` (VEC3) float accessors, one entry per instance, so millions of instances cost
+//!   40 bytes each and no node. The bundle's linear part is rotation × scale (`bundle::Instance`),
+//!   which TRS holds exactly; a linear part with shear (not made by `scenegen`) is written as its
+//!   nearest TRS and counted in a warning. Every instance is written unless `thin` > 1 asks for
+//!   every `thin`-th (said on stderr and in `asset.extras`). A viewer without the extension shows
+//!   each template once, at the origin.
 //!
 //! The GLB is written to a temporary file then renamed.
 
@@ -88,6 +93,19 @@ impl Bin {
         );
         self.accessors.len() - 1
     }
+    /// A per-instance attribute of `EXT_mesh_gpu_instancing`: float vectors of N components,
+    /// in a buffer view without a target (not vertex data).
+    fn instance_attr<const N: usize>(&mut self, p: &[[f32; N]]) -> usize {
+        let bytes: Vec<u8> = p.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
+        let v = self.view(&bytes, None);
+        let ty = match N {
+            3 => "VEC3",
+            _ => "VEC4",
+        };
+        self.accessors
+            .push(json!({"bufferView": v, "componentType": 5126, "count": p.len(), "type": ty}));
+        self.accessors.len() - 1
+    }
     fn indices(&mut self, t: &[[u32; 3]]) -> usize {
         let bytes: Vec<u8> = t.iter().flatten().flat_map(|x| x.to_le_bytes()).collect();
         let v = self.view(&bytes, Some(34963));
@@ -96,6 +114,32 @@ impl Bin {
         );
         self.accessors.len() - 1
     }
+}
+
+/// Scale and rotation (unit quaternion x, y, z, w) of a column-major 3×3 rotation × scale, and
+/// whether they reproduce it (no shear) to 1e-4 of its largest column.
+fn scale_rotation(l: &[f32; 9]) -> ([f32; 3], [f32; 4], bool) {
+    let m = glam::Mat3::from_cols_array(l);
+    let (s, r, _) = glam::Mat4::from_mat3(m).to_scale_rotation_translation();
+    let r = r.normalize();
+    let back = glam::Mat3::from_quat(r) * glam::Mat3::from_diagonal(s);
+    let size = m
+        .x_axis
+        .length()
+        .max(m.y_axis.length())
+        .max(m.z_axis.length());
+    let err = (back - m)
+        .to_cols_array()
+        .iter()
+        .fold(0f32, |a, x| a.max(x.abs()));
+    let exact = err <= 1e-4 * size.max(f32::MIN_POSITIVE);
+    let ok = r.is_finite() && s.is_finite();
+    let (s, r) = if ok {
+        (s, r)
+    } else {
+        (glam::Vec3::ONE, glam::Quat::IDENTITY)
+    };
+    (s.to_array(), r.to_array(), exact && ok)
 }
 
 /// What was exported.
@@ -107,12 +151,8 @@ pub struct ExportReport {
     pub bytes: u64,
 }
 
-/// Write `bundle_dir` as a GLB at `out`.
-pub fn export(
-    bundle_dir: &Path,
-    out: &Path,
-    max_instances: usize,
-) -> Result<ExportReport, ScenegenError> {
+/// Write `bundle_dir` as a GLB at `out`, with every `thin`-th instance (1 or 0: all).
+pub fn export(bundle_dir: &Path, out: &Path, thin: usize) -> Result<ExportReport, ScenegenError> {
     let b = Bundle::open(bundle_dir)?;
     let mut bin = Bin {
         data: Vec::new(),
@@ -188,48 +228,47 @@ pub fn export(
     }
 
     let n = b.instances.len();
-    let step = if max_instances == 0 {
-        usize::MAX
-    } else {
-        n.div_ceil(max_instances).max(1)
-    };
-    let mut exported = 0;
-    for inst in b.instances.iter().step_by(step.min(n.max(1))) {
-        if max_instances == 0 {
-            break;
+    let thin = thin.max(1);
+    let kept: Vec<&bundle::Instance> = b.instances.iter().step_by(thin).collect();
+    let exported = kept.len();
+    let mut sheared = 0usize;
+    for (k, &mesh) in template_mesh.iter().enumerate() {
+        let mine: Vec<&&bundle::Instance> =
+            kept.iter().filter(|i| i.template as usize == k).collect();
+        if mine.is_empty() {
+            continue;
         }
-        let l = inst.linear;
-        let tr = inst.translation;
-        let matrix = [
-            l[0],
-            l[1],
-            l[2],
-            0.0,
-            l[3],
-            l[4],
-            l[5],
-            0.0,
-            l[6],
-            l[7],
-            l[8],
-            0.0,
-            tr[0] as f32,
-            tr[1] as f32,
-            tr[2] as f32,
-            1.0,
-        ];
-        nodes.push(json!({"mesh": template_mesh[inst.template as usize], "matrix": matrix}));
+        let mut tr = Vec::with_capacity(mine.len());
+        let mut rot = Vec::with_capacity(mine.len());
+        let mut sc = Vec::with_capacity(mine.len());
+        for inst in mine {
+            let (s, r, exact) = scale_rotation(&inst.linear);
+            sheared += usize::from(!exact);
+            tr.push(inst.translation.map(|x| x as f32));
+            rot.push(r);
+            sc.push(s);
+        }
+        let t = bin.instance_attr(&tr);
+        let r = bin.instance_attr(&rot);
+        let s = bin.instance_attr(&sc);
+        nodes.push(json!({"name": format!("{} instances", b.templates[k].name), "mesh": mesh,
+            "extensions": {"EXT_mesh_gpu_instancing": {"attributes": {"TRANSLATION": t, "ROTATION": r, "SCALE": s}}}}));
         children.push(nodes.len() - 1);
-        exported += 1;
     }
-    if exported < n {
-        tracing::warn!("exported {exported} of {n} instances (every {step}-th; raise --max-instances for more)");
+    if thin > 1 {
+        tracing::warn!("exported {exported} of {n} instances (every {thin}-th, as --thin asked)");
+    }
+    if sheared > 0 {
+        tracing::warn!(
+            "{sheared} instance(s) have a sheared linear part, which glTF's TRS cannot hold: written as their nearest rotation and scale"
+        );
     }
     nodes[0]["children"] = json!(children);
     bin.align();
     let doc = json!({
         "asset": {"version": "2.0", "generator": format!("scenegen {}", env!("CARGO_PKG_VERSION")),
-                  "extras": {"bundle": bundle_dir.display().to_string(), "instances_total": n, "instances_exported": exported}},
+                  "extras": {"bundle": bundle_dir.display().to_string(), "instances_total": n, "instances_exported": exported, "thin": thin}},
+        "extensionsUsed": ["EXT_mesh_gpu_instancing"],
         "scene": 0,
         "scenes": [{"nodes": [0]}],
         "nodes": nodes,
@@ -265,7 +304,7 @@ pub fn export(
     };
     if total > u32::MAX as usize {
         return Err(ScenegenError::Internal(format!(
-            "GLB would be {total} bytes, over the format's 4 GiB; lower --max-instances or export a smaller region"
+            "GLB would be {total} bytes, over the format's 4 GiB; use --thin N or export a smaller region"
         )));
     }
     write().map_err(|e| {
@@ -282,4 +321,30 @@ pub fn export(
         instances_total: n,
         bytes: total as u64,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::scale_rotation;
+
+    /// The instance linear parts scenegen makes, Rz(yaw) · diag(s), come back exactly as a
+    /// quaternion and a scale (glTF applies T · R · S); a sheared matrix is flagged.
+    #[test]
+    fn rotation_times_scale_is_decomposed_exactly() {
+        for (yaw, s) in [
+            (0.0f32, [1.0f32, 1.0, 1.0]),
+            (1.3, [0.8, 0.8, 1.7]),
+            (-2.9, [2.0, 0.5, 1.1]),
+        ] {
+            let m = glam::Mat3::from_rotation_z(yaw) * glam::Mat3::from_diagonal(s.into());
+            let (sc, q, exact) = scale_rotation(&m.to_cols_array());
+            assert!(exact);
+            let back = glam::Mat3::from_quat(glam::Quat::from_array(q))
+                * glam::Mat3::from_diagonal(sc.into());
+            assert!(back.abs_diff_eq(m, 1e-5), "{back} vs {m}");
+            assert!((glam::Quat::from_array(q).length() - 1.0).abs() < 1e-6);
+        }
+        let shear = glam::Mat3::from_cols_array(&[1.0, 0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 0.0, 1.0]);
+        assert!(!scale_rotation(&shear.to_cols_array()).2);
+    }
 }

@@ -4,8 +4,8 @@
 //!
 //! Modules: [`region`] (the region file, `docs/region.md`), [`raster`] (GDAL: working frame,
 //! warping, coverage and no-data checks), [`tin`] (greedy error-bounded triangulation with
-//! spade, tiling), [`build`] (the pipeline), [`gltf_export`] (a GLB for a standard 3D viewer),
-//! [`info`] (bundle summaries), [`bench`] (the scale benchmark), [`mesh_dem`] (gridded PLY
+//! spade, tiling), [`build`](mod@build) (the pipeline), [`gltf_export`] (a GLB for a standard 3D viewer),
+//! [`info`] (bundle summaries), [`bench`](mod@bench) (the scale benchmark), [`mesh_dem`] (gridded PLY
 //! terrain meshes to DEMs).
 //! Units: metres, degrees for longitudes and latitudes.
 

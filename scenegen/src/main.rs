@@ -2,6 +2,9 @@
 //!
 //! Exit codes: 0 success; 2 bad input (region file, input rasters or meshes, an existing output
 //! without `--force`); 1 any other failure (disk full, internal error).
+//!
+//! Logging (stderr): INFO by default; `-q` warnings and errors only (and no progress bars), `-v`
+//! debug, `-vv` trace; `RUST_LOG` (e.g. `RUST_LOG=scenegen=debug`) overrides all three.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -18,14 +21,41 @@ use scenegen::{BuildOptions, Region, ScenegenError};
     about = "Scene generator: DEM and land cover to a scene bundle"
 )]
 struct Cli {
+    #[command(flatten)]
+    verbosity: Verbosity,
     #[command(subcommand)]
     command: Command,
+}
+
+/// Log level flags, accepted before or after the subcommand.
+#[derive(clap::Args)]
+struct Verbosity {
+    /// Quiet: only warnings and errors on stderr, and no progress bars.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// More log output: -v debug, -vv trace (RUST_LOG, if set, overrides -q and -v).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+impl Verbosity {
+    /// The log filter: `RUST_LOG` when set, else the flags' level.
+    fn filter(&self) -> tracing_subscriber::EnvFilter {
+        let level = match (self.quiet, self.verbose) {
+            (true, _) => "warn",
+            (false, 0) => "info",
+            (false, 1) => "debug",
+            (false, _) => "trace",
+        };
+        tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into())
+    }
 }
 
 #[derive(Subcommand)]
 enum Command {
     /// Build a bundle from a region file (keys in docs/region.md).
     Build {
+        /// Region file (TOML).
         region: PathBuf,
         /// Output bundle directory (must not exist unless --force, which replaces only a bundle
         /// or an empty directory).
@@ -37,9 +67,6 @@ enum Command {
         /// Worker threads (default: all cores). The bundle does not depend on it.
         #[arg(short = 'j', long)]
         threads: Option<usize>,
-        /// No progress bars.
-        #[arg(short, long)]
-        quiet: bool,
         /// Override `terrain.tolerance_m` of the region file (metres).
         #[arg(long)]
         tolerance_m: Option<f64>,
@@ -48,25 +75,33 @@ enum Command {
         stats_json: bool,
     },
     /// Validate a region file without reading any raster.
-    Check { region: PathBuf },
+    Check {
+        /// Region file (TOML).
+        region: PathBuf,
+    },
     /// Summarise a bundle: extent, CRS, counts, materials and their pixel shares, memory.
     Info {
+        /// Scene bundle directory.
         bundle: PathBuf,
         /// Also recompute and compare the SHA-256 of every bundle file.
         #[arg(long)]
         verify: bool,
     },
-    /// Export a bundle to a GLB file for a standard 3D viewer.
+    /// Export a bundle to a GLB file for a standard 3D viewer (instances with
+    /// EXT_mesh_gpu_instancing).
     ExportGltf {
+        /// Scene bundle directory.
         bundle: PathBuf,
+        /// Output GLB file.
         output: PathBuf,
-        /// At most this many instances (evenly thinned); 0 exports none.
-        #[arg(long, default_value_t = 50_000)]
-        max_instances: usize,
+        /// Export every N-th instance only (default: all of them).
+        #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
+        thin: u64,
     },
     /// A gridded terrain mesh (PLY, x east / y north / z up in metres around a site) to a
     /// GeoTIFF DEM in the site's local transverse Mercator CRS, for a region file's `[dem]`.
     MeshToDem {
+        /// Terrain mesh (PLY).
         mesh: PathBuf,
         /// Longitude and latitude (degrees) of the mesh's origin, e.g. `23.39,28.55`.
         #[arg(
@@ -89,8 +124,10 @@ enum Command {
     },
     /// Scale benchmark: synthetic DEM and land cover of SIZE km at SPACING m (see BENCHMARKS.md).
     Bench {
+        /// Side of the synthetic square region, km.
         #[arg(long, default_value_t = 100.0)]
         size_km: f64,
+        /// DEM and land-cover pixel spacing, m.
         #[arg(long, default_value_t = 30.0)]
         spacing_m: f64,
         /// Terrain tolerances to build with, metres.
@@ -102,20 +139,19 @@ enum Command {
         /// Also build this region file (e.g. examples/grenoble/region.toml).
         #[arg(long)]
         region: Option<PathBuf>,
+        /// Keep the work directory.
         #[arg(long)]
         keep: bool,
     },
 }
 
 fn main() -> ExitCode {
+    let cli = Cli::parse();
     tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
+        .with_env_filter(cli.verbosity.filter())
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    let cli = Cli::parse();
     match dispatch(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -136,6 +172,7 @@ fn main() -> ExitCode {
 }
 
 fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    let quiet = cli.verbosity.quiet;
     match cli.command {
         Command::Check { region } => {
             let r = Region::load(&region)?;
@@ -153,7 +190,6 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             output,
             force,
             threads,
-            quiet,
             stats_json,
             tolerance_m,
         } => {
@@ -221,9 +257,10 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
         Command::ExportGltf {
             bundle,
             output,
-            max_instances,
+            thin,
         } => {
-            let r = scenegen::gltf_export::export(&bundle, &output, max_instances)?;
+            let thin = usize::try_from(thin).unwrap_or(usize::MAX);
+            let r = scenegen::gltf_export::export(&bundle, &output, thin)?;
             println!(
                 "{}: {} terrain tiles, {} templates, {} of {} instances, {}",
                 output.display(),
@@ -282,5 +319,32 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             )?;
             Ok(())
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    /// Every argument of every subcommand says what it does in `--help`.
+    #[test]
+    fn every_argument_has_help() {
+        fn walk(cmd: &clap::Command, path: &str, missing: &mut Vec<String>) {
+            for a in cmd.get_arguments() {
+                let id = a.get_id().as_str();
+                if id != "help" && id != "version" && a.get_help().is_none() {
+                    missing.push(format!("{path} {id}"));
+                }
+            }
+            for sub in cmd.get_subcommands() {
+                walk(sub, &format!("{path} {}", sub.get_name()), missing);
+            }
+        }
+        let cmd = Cli::command();
+        cmd.clone().debug_assert();
+        let mut missing = Vec::new();
+        walk(&cmd, "scenegen", &mut missing);
+        assert!(missing.is_empty(), "arguments without help: {missing:?}");
     }
 }

@@ -328,13 +328,92 @@ fn build_honours_tolerance_watertight_materials_and_instances() {
         info.contains("triangles") && info.contains("forest_floor") && info.contains("verify"),
         "{info}"
     );
+    check_gltf_export(&b, &out, &dir);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Instances exported to a GLB with `EXT_mesh_gpu_instancing`: `n` per template.
+fn gltf_instance_counts(glb: &Path, templates: usize) -> Vec<usize> {
+    let g = gltf::Gltf::open(glb).unwrap();
+    assert!(g.extensions_used().any(|e| e == "EXT_mesh_gpu_instancing"));
+    let accessors: Vec<gltf::Accessor> = g.accessors().collect();
+    let mut counts = vec![0; templates];
+    let terrain_meshes = g.meshes().count() - templates;
+    for node in g.nodes() {
+        let Some(ext) = node.extension_value("EXT_mesh_gpu_instancing") else {
+            continue;
+        };
+        let k = node.mesh().unwrap().index() - terrain_meshes;
+        let attr = |name: &str| {
+            let i = ext["attributes"][name].as_u64().unwrap() as usize;
+            accessors[i].count()
+        };
+        let n = attr("TRANSLATION");
+        assert_eq!(attr("ROTATION"), n);
+        assert_eq!(attr("SCALE"), n);
+        counts[k] += n;
+    }
+    counts
+}
+
+/// Rationale: a viewer must show every instance of the bundle (issue: the export used to keep
+/// every 26th as nodes). The GLB parses with the `gltf` crate, its instance count per template
+/// equals the bundle's, `--thin N` keeps every N-th, and the Khronos validator (when
+/// `gltf_validator` is on PATH) reports no error.
+fn check_gltf_export(b: &Bundle, out: &Path, dir: &Path) {
     let glb = dir.join("scene.glb");
     let (code, _, stderr) =
         scenegen(&["export-gltf", out.to_str().unwrap(), glb.to_str().unwrap()]);
     assert_eq!(code, 0, "{stderr}");
     let g = gltf::Gltf::open(&glb).unwrap();
     assert_eq!(g.meshes().count(), b.terrain.len() + b.templates.len());
-    std::fs::remove_dir_all(&dir).unwrap();
+    let mut want = vec![0; b.templates.len()];
+    for i in &b.instances {
+        want[i.template as usize] += 1;
+    }
+    assert!(b.instances.len() > 100, "{} instances", b.instances.len());
+    assert_eq!(gltf_instance_counts(&glb, b.templates.len()), want);
+
+    let thin = dir.join("thin.glb");
+    let (code, _, stderr) = scenegen(&[
+        "export-gltf",
+        out.to_str().unwrap(),
+        thin.to_str().unwrap(),
+        "--thin",
+        "7",
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(stderr.contains("every 7-th"), "{stderr}");
+    let total: usize = gltf_instance_counts(&thin, b.templates.len()).iter().sum();
+    assert_eq!(total, b.instances.len().div_ceil(7));
+
+    let validator = std::env::var_os("PATH").and_then(|p| {
+        std::env::split_paths(&p)
+            .map(|d| d.join("gltf_validator"))
+            .find(|f| f.is_file())
+    });
+    let Some(validator) = validator else {
+        println!("skipped the Khronos glTF validator: `gltf_validator` is not on PATH");
+        return;
+    };
+    let o = Command::new(validator)
+        .arg("-o")
+        .arg(&glb)
+        .output()
+        .unwrap();
+    let report = String::from_utf8_lossy(&o.stdout);
+    let v: serde_json::Value =
+        serde_json::from_str(&report).unwrap_or_else(|e| panic!("validator report: {e}\n{report}"));
+    assert_eq!(
+        v["issues"]["numErrors"].as_u64(),
+        Some(0),
+        "{}",
+        serde_json::to_string_pretty(&v["issues"]).unwrap()
+    );
+    println!(
+        "Khronos glTF validator: 0 errors, {} warnings",
+        v["issues"]["numWarnings"]
+    );
 }
 
 /// Rationale: instance placement must be a function of the seed: same seed, same bytes

@@ -75,6 +75,7 @@ fn libya4_terrain_site_in_3d() {
             vza: 5.2,
             vaa: 103.0,
             srf: "sentinel_2a-msi-4".into(),
+            sun: None,
         })
         .collect();
     let r3 = run(&ex.join("pics/libya4_3d_site.toml"), &acqs, |_| {}).unwrap();
@@ -108,6 +109,7 @@ fn libya4_terrain_site_in_3d() {
         vza: 5.2,
         vaa: 103.0,
         srf: "sentinel_2a-msi-4".into(),
+        sun: None,
     }];
     let site = |f: &str| run(&ex.join(format!("pics/{f}.toml")), &late, |_| {}).unwrap()[0].clone();
     let (s3, s1) = (site("libya4_3d_site_sph"), site("libya4_site_sph"));

@@ -22,7 +22,7 @@ pub enum IlluminationConfig {
         /// degrees, clockwise from North.
         #[serde(default)]
         azimuth: Option<f64>,
-        /// UTC "YYYY-MM-DDTHH:MM:SSZ": the Sun's position (NREL SPA) at `latitude`/`longitude`.
+        /// RFC 3339 time (any offset, converted to UTC): the Sun's position (NREL SPA) at `latitude`/`longitude`.
         #[serde(default)]
         time: Option<String>,
         /// degrees north.
@@ -40,6 +40,10 @@ pub enum IlluminationConfig {
         /// "YYYY-MM-DD": scale the irradiance by the Earth–Sun distance of that day.
         #[serde(default)]
         date: Option<String>,
+        /// AU: scale the irradiance by 1/r² for this Earth–Sun distance (with `zenith`; e.g. a
+        /// PICS acquisition whose Sun angles are given, its distance from SPA at its time).
+        #[serde(default)]
+        distance_au: Option<f64>,
     },
 }
 
@@ -88,6 +92,7 @@ impl IlluminationConfig {
             latitude,
             longitude,
             elevation,
+            distance_au: given_distance,
         } = self;
         let mut sun_distance_factor = None;
         let mut distance_au = None;
@@ -201,6 +206,23 @@ impl IlluminationConfig {
                     .collect::<Result<Vec<f64>, _>>()?
             }
         };
+        if let Some(d) = given_distance {
+            if time.is_some() || date.is_some() {
+                return Err(ctx.err(
+                    "illumination.distance_au",
+                    "is implied by `time` or `date`; give one of the three",
+                ));
+            }
+            let d = ctx.finite("illumination.distance_au", *d)?;
+            if !(0.9..=1.1).contains(&d) {
+                return Err(ctx.err(
+                    "illumination.distance_au",
+                    format!("{d} AU must lie in [0.9, 1.1] (the Earth's orbit)"),
+                ));
+            }
+            sun_distance_factor = Some(1.0 / (d * d));
+            distance_au = Some(d);
+        }
         if let Some(d) = date {
             let doy = day_of_year(d).map_err(|m| ctx.err("illumination.date", m))?;
             sun_distance_factor = Some(earth_sun_factor(doy));
@@ -217,5 +239,40 @@ impl IlluminationConfig {
             distance_au,
             irradiance,
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sun(text: &str) -> Result<Sun, String> {
+        let cfg: IlluminationConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+        let ctx = ConfigCtx {
+            path: std::path::Path::new("exp.toml"),
+            base: std::path::Path::new("."),
+            nw: 1,
+        };
+        cfg.resolve(&ctx, &[550.0], false)
+            .map_err(|e| e.to_string())
+    }
+
+    /// `distance_au` scales E0 by 1/r² with given angles (a PICS acquisition with its own Sun
+    /// angles), and excludes `time` and `date`.
+    #[test]
+    fn distance_au_scales_the_irradiance() {
+        let s =
+            sun("type = \"directional\"\nzenith = 30.0\nirradiance = 2.0\ndistance_au = 1.01\n")
+                .unwrap();
+        assert_eq!(s.distance_au, Some(1.01));
+        assert!((s.irradiance[0] - 2.0 / (1.01 * 1.01)).abs() < 1e-15);
+        for bad in [
+            "type = \"directional\"\nzenith = 30.0\ndistance_au = 1.5\n",
+            "type = \"directional\"\nzenith = 30.0\ndistance_au = 1.0\ndate = \"2026-01-01\"\n",
+            "type = \"directional\"\ntime = \"2026-01-01T12:00:00Z\"\nlatitude = 0.0\nlongitude = 0.0\ndistance_au = 1.0\n",
+        ] {
+            let e = sun(bad).unwrap_err();
+            assert!(e.contains("exp.toml") && e.contains("distance_au"), "{e}");
+        }
     }
 }

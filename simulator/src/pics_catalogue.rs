@@ -345,6 +345,7 @@ mod tests {
                 vza: 10.0,
                 vaa: 100.0,
                 srf: "sentinel_2a-msi-4".into(),
+                sun: None,
             };
             let text = crate::pics::experiment_text(&t, &acq, 0)
                 .unwrap_or_else(|e| panic!("{}: {e}", s.key));

@@ -372,12 +372,19 @@ fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
         .sum::<u64>()
         * exp.wavelengths.len() as u64;
     let b = ProgressBar::new(total);
-    b.set_style(
-        ProgressStyle::with_template(
-            "{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({per_sec}, eta {eta})",
-        )
-        .expect("valid progress template"),
-    );
+    // The bar counts walks (one per sample and direction cell of a backward walk, one per sample
+    // of a forward walk), so its rate is in walks per second, said with the unit.
+    match ProgressStyle::with_template(
+        "{msg:24} [{elapsed_precise}] {wide_bar} {percent:>3}% ({rate}, eta {eta})",
+    ) {
+        Ok(style) => b.set_style(style.with_key(
+            "rate",
+            |s: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                let _ = write!(w, "{:.3e} walks/s", s.per_sec());
+            },
+        )),
+        Err(e) => tracing::debug!("progress bar template: {e}"),
+    }
     b
 }
 
@@ -722,7 +729,7 @@ pub fn run_resumable(
     ))
 }
 
-/// Run only the tasks (wavelength group, measure) whose index in [`tasks`] order (`iw·measures +
+/// Run only the tasks (wavelength group, measure) whose index in `tasks` order (`iw·measures +
 /// im` without spectral groups) is `shard` modulo `shards`, storing each wavelength's result in
 /// `dir`; tasks of other shards are loaded from `dir` when present (so collecting the checkpoint
 /// files of all shards in one folder and running shard 0/1 there writes the products without

@@ -3,7 +3,7 @@
 //!
 //! | config key (`[illumination]`) | unit | default | meaning                                   |
 //! |-------------------------------|------|---------|-------------------------------------------|
-//! | `time`                        | —    | —       | UTC, `YYYY-MM-DDTHH:MM:SS[.s]Z`             |
+//! | `time`                        | —    | —       | RFC 3339 (`…Z` or `…+hh:mm`), taken in UTC  |
 //! | `latitude`, `longitude`       | deg  | —       | WGS84, north and east positive             |
 //! | `elevation`                   | m    | 0       | height of the target above sea level       |
 //!
@@ -12,6 +12,7 @@
 //! estimated from the date (Espenak & Meeus polynomials, in the crate). The Earth–Sun distance
 //! (AU) from the same computation scales the 1 AU irradiance by `1/r²`.
 
+use chrono::{DateTime, Datelike, SecondsFormat, Timelike, Utc};
 use solar_positioning::time::JulianDate;
 use solar_positioning::{Location, SolarPositions};
 
@@ -25,24 +26,36 @@ pub struct SunPosition {
     pub distance_au: f64,
 }
 
-/// Parse `YYYY-MM-DDTHH:MM:SS[.fff]Z` into (y, m, d, h, mi, s).
+/// Parse an RFC 3339 time (`2026-06-15T09:45:00Z`, `2026-06-15T11:45:00.5+02:00`; a space or
+/// a lower-case `t` may separate date and time) into UTC. The offset is required: a time without
+/// one is ambiguous.
+pub fn parse_time(t: &str) -> Result<DateTime<Utc>, String> {
+    DateTime::parse_from_rfc3339(t.trim())
+        .map(|d| d.with_timezone(&Utc))
+        .map_err(|e| {
+            format!(
+                "\"{t}\" is not an RFC 3339 time such as 2026-06-15T09:45:00Z or \
+                 2026-06-15T11:45:00+02:00 ({e})"
+            )
+        })
+}
+
+/// The canonical UTC form of a time: `YYYY-MM-DDTHH:MM:SS[.f]Z`.
+pub fn format_utc(t: &DateTime<Utc>) -> String {
+    t.to_rfc3339_opts(SecondsFormat::AutoSi, true)
+}
+
+/// Seconds since 1970-01-01T00:00:00Z (the netCDF time coordinate of `pics.nc`).
+pub fn unix_seconds(t: &DateTime<Utc>) -> f64 {
+    t.timestamp() as f64 + f64::from(t.timestamp_subsec_nanos()) * 1e-9
+}
+
+/// (y, m, d, h, mi, s) of an RFC 3339 time, in UTC.
 fn parse_utc(t: &str) -> Result<(i32, u32, u32, u32, u32, f64), String> {
-    let bad = || format!("\"{t}\" is not a UTC time of the form YYYY-MM-DDTHH:MM:SSZ");
-    let t2 = t.strip_suffix('Z').ok_or_else(bad)?;
-    let (date, time) = t2.split_once('T').ok_or_else(bad)?;
-    let d: Vec<&str> = date.split('-').collect();
-    let h: Vec<&str> = time.split(':').collect();
-    if d.len() != 3 || h.len() != 3 {
-        return Err(bad());
-    }
-    Ok((
-        d[0].parse().map_err(|_| bad())?,
-        d[1].parse().map_err(|_| bad())?,
-        d[2].parse().map_err(|_| bad())?,
-        h[0].parse().map_err(|_| bad())?,
-        h[1].parse().map_err(|_| bad())?,
-        h[2].parse().map_err(|_| bad())?,
-    ))
+    let u = parse_time(t)?;
+    // A leap second is held by chrono as nanoseconds ≥ 1e9 of second 59.
+    let s = f64::from(u.second()) + f64::from(u.nanosecond()) * 1e-9;
+    Ok((u.year(), u.month(), u.day(), u.hour(), u.minute(), s))
 }
 
 /// Sun position for a UTC time and a place; `delta_t` (s) overrides the estimate when given.
@@ -121,5 +134,34 @@ mod tests {
         );
         assert!(sun_position("2003-10-17 19:30:30", 0.0, 0.0, 0.0, None).is_err());
         assert!(sun_position("2003-10-17T19:30:30Z", 95.0, 0.0, 0.0, None).is_err());
+    }
+
+    /// The same SPA case given in the paper's local time (UTC−7): an RFC 3339 offset is the same
+    /// instant, so the same Sun; a time without an offset, or with a bad one, is refused.
+    #[test]
+    fn offsets_are_converted_to_utc() {
+        let utc = sun_position("2003-10-17T19:30:30Z", 39.742476, -105.1786, 1830.14, None);
+        let local = sun_position(
+            "2003-10-17T12:30:30-07:00",
+            39.742476,
+            -105.1786,
+            1830.14,
+            None,
+        );
+        let (a, b) = (utc.unwrap(), local.unwrap());
+        assert_eq!(
+            (a.zenith, a.azimuth, a.distance_au),
+            (b.zenith, b.azimuth, b.distance_au)
+        );
+        let t = parse_time("2026-01-15t11:45:00.25+02:00").unwrap();
+        assert_eq!(format_utc(&t), "2026-01-15T09:45:00.250Z");
+        assert_eq!(unix_seconds(&t), 1_768_470_300.25);
+        for bad in [
+            "2026-01-15T09:45:00",
+            "2026-01-15T09:45:00+25:00",
+            "2026-13-15T09:45:00Z",
+        ] {
+            assert!(parse_time(bad).is_err(), "{bad}");
+        }
     }
 }

@@ -368,3 +368,41 @@ fn second_run_into_a_busy_folder_is_refused() {
     assert!(out.join("results.csv").exists());
     std::fs::remove_dir_all(&out).unwrap();
 }
+
+/// Log levels: INFO by default, `-q` (before or after the subcommand) keeps only warnings and
+/// errors, `-v` adds DEBUG, and `RUST_LOG` overrides the flags.
+#[test]
+fn quiet_and_verbose_set_the_log_level() {
+    let dir = tmpdir("verbosity");
+    let exp = example_at(&dir, 200);
+    let run = |pre: &[&str], post: &[&str], rust_log: Option<&str>| {
+        let mut c = bin();
+        c.args(pre)
+            .args(["run", exp.to_str().unwrap(), "-o"])
+            .arg(dir.join("out"))
+            .args(post)
+            .env_remove("RUST_LOG");
+        if let Some(l) = rust_log {
+            c.env("RUST_LOG", l);
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        String::from_utf8_lossy(&o.stderr).to_string()
+    };
+    let default = run(&[], &[], None);
+    assert!(default.contains("INFO"), "{default}");
+    assert!(!default.contains("DEBUG"), "{default}");
+    for quiet in [run(&["-q"], &[], None), run(&[], &["--quiet"], None)] {
+        assert!(
+            !quiet.contains("INFO") && !quiet.contains("DEBUG"),
+            "{quiet}"
+        );
+    }
+    let verbose = run(&["-v"], &[], None);
+    assert!(
+        verbose.contains("INFO") && verbose.contains("DEBUG"),
+        "{verbose}"
+    );
+    let overridden = run(&["-q"], &[], Some("debug"));
+    assert!(overridden.contains("DEBUG"), "{overridden}");
+}

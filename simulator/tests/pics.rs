@@ -31,6 +31,7 @@ fn seasonal_cycle_of_a_lambertian_site() {
             vza: 3.0,
             vaa: 100.0,
             srf: "sentinel_2a-msi-4".into(),
+            sun: None,
         })
         .collect();
     let rows = run(&site, &acqs, |_| {}).unwrap();
@@ -111,12 +112,15 @@ fn cli_pics() {
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
     let csv = std::fs::read_to_string(out.join("pics.csv")).unwrap();
     assert_eq!(csv.lines().count(), 7);
-    let f = netcdf::open(out.join("pics.nc")).unwrap();
-    let refl: Vec<f64> = f
-        .variable("reflectance")
-        .unwrap()
-        .get_values::<f64, _>(..)
-        .unwrap();
+    let refl: Vec<f64> = {
+        // HDF5 is not thread-safe: concurrent tests must not read while another writes.
+        let _session = simulator::netcdf_session();
+        let f = netcdf::open(out.join("pics.nc")).unwrap();
+        f.variable("reflectance")
+            .unwrap()
+            .get_values::<f64, _>(..)
+            .unwrap()
+    };
     assert_eq!(refl.len(), 6);
     assert!(refl.iter().all(|r| *r > 0.3 && *r < 0.8), "{refl:?}");
     let bad = dir.join("bad.csv");
@@ -176,6 +180,7 @@ fn three_d_site_equals_the_1d_site_when_flat() {
             vza: 5.0 * m as f64,
             vaa: 100.0,
             srf: "sentinel_2a-msi-4".into(),
+            sun: None,
         })
         .collect();
     let head = "name = \"flat\"\nlatitude = 28.55\nlongitude = 23.39\nelevation = 118.0\nspp = 2000\nirradiance = \"tsis_1\"\nwavelength_step = 10.0\n";
@@ -228,6 +233,7 @@ fn catalogue_sites() {
         vza: 5.0,
         vaa: 100.0,
         srf: "sentinel_2a-msi-4".into(),
+        sun: None,
     }];
     let (a, b) = (
         run(&by_key, &acq, |_| {}).unwrap(),
@@ -246,4 +252,152 @@ fn catalogue_sites() {
     std::fs::write(&bad, format!("catalogue = \"atlantis\"\n{body}")).unwrap();
     let e = run(&bad, &acq, |_| {}).unwrap_err().to_string();
     assert!(e.contains("catalogue") && e.contains("libya4"), "{e}");
+}
+
+/// Sun angles given in the acquisitions CSV replace SPA's: the reflectance of a Lambertian site
+/// is still ρ, the radiance follows cos(given SZA), and the Earth–Sun distance is still SPA's at
+/// the acquisition time. A row with empty `sza,saa` cells keeps the computed Sun. An offset time
+/// is the same instant as its UTC form.
+#[test]
+fn given_sun_angles_override_spa() {
+    let dir = tmp("sun");
+    let site = dir.join("site.toml");
+    std::fs::write(
+        &site,
+        "latitude = 28.55\nlongitude = 23.39\nelevation = 118.0\nspp = 100\nirradiance = \"tsis_1\"\n\
+         [surface]\ntype = \"lambertian\"\nreflectance = 0.4\n",
+    )
+    .unwrap();
+    let csv = dir.join("acq.csv");
+    std::fs::write(
+        &csv,
+        "time_utc,vza,vaa,srf,sza,saa\n\
+         2026-06-15T09:45:00Z,5,100,sentinel_2a-msi-4,,\n\
+         2026-06-15T11:45:00+02:00,5,100,sentinel_2a-msi-4,60.0,200.0\n",
+    )
+    .unwrap();
+    let acqs = read_acquisitions(&csv).unwrap();
+    assert_eq!(acqs[0].time_utc, acqs[1].time_utc);
+    // A plane-parallel site has no twilight: a given SZA of 95° is refused, naming the
+    // acquisition and where its angles came from.
+    let mut night = acqs.clone();
+    night[1].sun = Some((95.0, 200.0));
+    let e = run(&site, &night, |_| {}).unwrap_err().to_string();
+    assert!(
+        e.contains("site.toml")
+            && e.contains("acquisition 2")
+            && e.contains("from the acquisitions file")
+            && e.contains("illumination.zenith"),
+        "{e}"
+    );
+    let rows = run(&site, &acqs, |_| {}).unwrap();
+    let p =
+        simulator::sun_position::sun_position("2026-06-15T09:45:00Z", 28.55, 23.39, 118.0, None)
+            .unwrap();
+    assert!((rows[0].sza - p.zenith).abs() < 1e-9);
+    assert_eq!((rows[1].sza, rows[1].saa), (60.0, 200.0));
+    for r in &rows {
+        assert!((r.earth_sun_distance_au - p.distance_au).abs() < 1e-12);
+        assert!((r.reflectance.0 - 0.4).abs() < 1e-12, "{:?}", r.reflectance);
+    }
+    let ratio = rows[1].radiance.0 / rows[0].radiance.0;
+    let want = 60f64.to_radians().cos() / p.zenith.to_radians().cos();
+    assert!((ratio / want - 1.0).abs() < 1e-12, "{ratio} vs {want}");
+
+    // pics.nc: a CF numeric time coordinate.
+    let out = dir.join("out");
+    std::fs::create_dir_all(&out).unwrap();
+    let nc = out.join("pics.nc");
+    simulator::pics::write_netcdf(&nc, &site, &rows).unwrap();
+    // HDF5 is not thread-safe: hold the library while reading (tests run concurrently).
+    let _session = simulator::netcdf_session();
+    let f = netcdf::open(&nc).unwrap();
+    let t = f.variable("time").unwrap();
+    let attr = |v: &netcdf::Variable, k: &str| -> String {
+        match v.attribute_value(k).unwrap().unwrap() {
+            netcdf::AttributeValue::Str(s) => s,
+            other => panic!("{k}: {other:?}"),
+        }
+    };
+    assert_eq!(attr(&t, "units"), "seconds since 1970-01-01T00:00:00Z");
+    assert_eq!(attr(&t, "calendar"), "standard");
+    assert_eq!(attr(&t, "standard_name"), "time");
+    assert_eq!(t.dimensions()[0].name(), "acquisition");
+    let secs: Vec<f64> = t.get_values::<f64, _>(..).unwrap();
+    // 2026-06-15T09:45:00Z = 20619 days and 35100 s after the epoch.
+    assert_eq!(secs, vec![20619.0 * 86400.0 + 35100.0; 2]);
+    let refl = f.variable("reflectance").unwrap();
+    assert_eq!(attr(&refl, "coordinates"), "time");
+    let given: Vec<i8> = f
+        .variable("sun_angles_given")
+        .unwrap()
+        .get_values::<i8, _>(..)
+        .unwrap();
+    assert_eq!(given, vec![0, 1]);
+    let idx: Vec<i32> = f
+        .variable("acquisition")
+        .unwrap()
+        .get_values::<i32, _>(..)
+        .unwrap();
+    assert_eq!(idx, vec![1, 2]);
+}
+
+/// `simulate check` recognises a PICS site file and validates it (with a sample acquisition, or
+/// with `--acquisitions`); a bad key or a bad CSV line is reported with its file, and the exit
+/// code is 2.
+#[test]
+fn check_validates_site_files() {
+    let dir = tmp("check");
+    let site = dir.join("site.toml");
+    std::fs::write(
+        &site,
+        "catalogue = \"libya4\"\nspp = 100\n[surface]\ntype = \"lambertian\"\nreflectance = 0.4\n",
+    )
+    .unwrap();
+    let check = |args: &[&std::path::Path]| {
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+            .arg("check")
+            .args(args)
+            .output()
+            .unwrap();
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stdout).to_string() + &String::from_utf8_lossy(&o.stderr),
+        )
+    };
+    let (code, text) = check(&[&site]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("valid PICS site file"), "{text}");
+
+    let csv = dir.join("acq.csv");
+    std::fs::write(
+        &csv,
+        "time_utc,vza,vaa,srf\n2026-06-15T09:45:00Z,5,100,sentinel_2a-msi-4\n",
+    )
+    .unwrap();
+    let (code, text) = check(&[&site, std::path::Path::new("--acquisitions"), &csv]);
+    assert_eq!(code, Some(0), "{text}");
+    assert!(text.contains("1 acquisition(s)"), "{text}");
+
+    std::fs::write(
+        &csv,
+        "time_utc,vza,vaa,srf,sza\n2026-06-15T09:45:00Z,5,100,sentinel_2a-msi-4,30\n",
+    )
+    .unwrap();
+    let (code, text) = check(&[&site, std::path::Path::new("--acquisitions"), &csv]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(text.contains("acq.csv") && text.contains("saa"), "{text}");
+
+    let bad = dir.join("bad.toml");
+    std::fs::write(
+        &bad,
+        "latitude = 28.55\nlongitude = 23.39\nspp = 100\nsurfce = 1\n[surface]\ntype = \"lambertian\"\nreflectance = 0.4\n",
+    )
+    .unwrap();
+    let (code, text) = check(&[&bad]);
+    assert_eq!(code, Some(2), "{text}");
+    assert!(
+        text.contains("bad.toml") && text.contains("surfce"),
+        "{text}"
+    );
 }

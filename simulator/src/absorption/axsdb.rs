@@ -28,7 +28,7 @@
 //! O₃ cross-section of the expected size (~1e-22 cm²). The `x_*` coordinates are volume (mole)
 //! fractions, `p` in Pa, `t` in K, `g` ∈ [0, 1] the cumulative-probability (quantile) coordinate,
 //! `w` in nm (a wavenumber `w` in cm⁻¹ is also accepted, as axsdb does). CKD files also hold
-//! `wbounds(wbv, w)` [nm] (the bin bounds) and `error(w, ng)`: the relative error (absolute
+//! `wbounds(wbv, w)` \[nm\] (the bin bounds) and `error(w, ng)`: the relative error (absolute
 //! value) of the band-mean top-to-bottom transmittance of the AFGL-1986 US-standard atmosphere
 //! computed with an `ng`-point Gauss–Legendre quadrature of g on [0, 1], against a
 //! monochromatic (line-by-line) reference integrated over the bin ( `error:comment`).
@@ -182,17 +182,17 @@ pub enum SpectralPoint {
 pub struct CkdBin {
     /// File holding the bin.
     pub file: String,
-    /// Bounds from `wbounds` / `spectral.csv` [nm].
+    /// Bounds from `wbounds` / `spectral.csv` \[nm\].
     pub lower_nm: f64,
     pub upper_nm: f64,
-    /// The bin's `w` coordinate [nm] (its representative wavelength; not always the midpoint,
+    /// The bin's `w` coordinate \[nm\] (its representative wavelength; not always the midpoint,
     /// e.g. 349.9286 nm for 345–355 nm).
     pub wavelength_nm: f64,
     file_index: usize,
 }
 
 impl CkdBin {
-    /// (lower + upper) / 2 [nm].
+    /// (lower + upper) / 2 \[nm\].
     pub fn centre_nm(&self) -> f64 {
         0.5 * (self.lower_nm + self.upper_nm)
     }
@@ -732,12 +732,12 @@ impl AbsorptionTable {
         &self.fixed_species
     }
 
-    /// Pressure nodes [Pa], ascending.
+    /// Pressure nodes \[Pa\], ascending.
     pub fn pressure_grid_pa(&self) -> &[f64] {
         &self.p.nodes
     }
 
-    /// Temperature nodes [K], ascending.
+    /// Temperature nodes \[K\], ascending.
     pub fn temperature_grid_k(&self) -> &[f64] {
         &self.t.nodes
     }
@@ -767,7 +767,7 @@ impl AbsorptionTable {
         best
     }
 
-    /// Bin bounds [nm] of file `w` index `w_index` (CKD).
+    /// Bin bounds \[nm\] of file `w` index `w_index` (CKD).
     pub fn bin_bounds_nm(&self, w_index: usize) -> Option<(f64, f64)> {
         self.wbounds_nm.get(w_index).copied()
     }
@@ -1145,7 +1145,7 @@ impl AxsDatabase {
         &self.files
     }
 
-    /// Spectral range covered [nm].
+    /// Spectral range covered \[nm\].
     pub fn spectral_range_nm(&self) -> (f64, f64) {
         let lo = self
             .files
@@ -1254,7 +1254,7 @@ impl AxsDatabase {
         gauss_legendre_unit(n)
     }
 
-    /// Monochromatic spectral points [nm] in [wmin_nm, wmax_nm], ascending (loads the files).
+    /// Monochromatic spectral points \[nm\] in [wmin_nm, wmax_nm], ascending (loads the files).
     pub fn spectral_points(&self, wmin_nm: f64, wmax_nm: f64) -> Result<Vec<f64>> {
         if self.kind != DatabaseKind::Mono {
             return Err(AbsorptionError::WrongKind {

@@ -290,7 +290,7 @@ fn is_rrtmgp(file: &Path) -> bool {
             .unwrap_or(false)
 }
 
-/// `mode = "ckd"` with `spectral.srf`: the bins (lower, upper) [nm] of the absorption data
+/// `mode = "ckd"` with `spectral.srf`: the bins (lower, upper) \[nm\] of the absorption data
 /// `file` (`atmosphere.absorption_data` of a `molecular` atmosphere; None: there is none), or
 /// None for RRTMGP, whose bands are too wide to sample a sensor band (the band is then sampled
 /// every `wavelength_step` nm, each wavelength with its RRTMGP band's g-points).

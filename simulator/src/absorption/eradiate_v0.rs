@@ -5,7 +5,7 @@
 //! * `k(z, bd)` — volume absorption coefficient, `units = "km^-1"`,
 //!   `standard_name = "volume_absorption_coefficient"`, of the AFGL-1986 US-standard
 //!   atmosphere (all its absorbing gases), converted here to **m⁻¹**;
-//! * `z(z)` — altitudes [km] of the **layer centres** (49 layers: 1 km thick from 0 to 25 km,
+//! * `z(z)` — altitudes \[km\] of the **layer centres** (49 layers: 1 km thick from 0 to 25 km,
 //!   2.5 km to 50 km, 5 km to 120 km), converted to m;
 //! * `bd` — a flattened (bin, g-point) index with the coordinates `bin(bd)` (string, the bin's
 //!   centre wavelength in nm, e.g. `"760"` for 755–765 nm; global attribute `bin_set = "10nm"`)
@@ -13,7 +13,7 @@
 //!   g ∈ [0, 1], nodes ascending; n = 16 in this file). The file stores no weights: they are the
 //!   Gauss–Legendre weights ([`super::axsdb::gauss_legendre_unit`]), which `bin_set_10nm.nc`
 //!   confirms (`quadrature_type = "gauss_legendre"`, `quadrature_n = 16`).
-//! * The optional bin-set file `bin_set_10nm.nc` gives `wmin(bin)`, `wmax(bin)` [nm] for the bin
+//! * The optional bin-set file `bin_set_10nm.nc` gives `wmin(bin)`, `wmax(bin)` \[nm\] for the bin
 //!   labels; without it the bounds are centre ± half the width named by `bin_set` ("10nm").
 //!
 //! Spectral coverage 395–2405 nm (201 bins "400" … "2400").
@@ -57,9 +57,9 @@ pub enum V0Interpolation {
 pub struct V0Bin {
     /// Label as stored (`"760"`).
     pub label: String,
-    /// Centre [nm] (the label's value).
+    /// Centre \[nm\] (the label's value).
     pub centre_nm: f64,
-    /// Bounds [nm].
+    /// Bounds \[nm\].
     pub lower_nm: f64,
     pub upper_nm: f64,
     /// g-points (ascending) and weights (sum 1).
@@ -291,12 +291,12 @@ impl EradiateV0Ckd {
             .find(|b| b.lower_nm <= wavelength_nm && wavelength_nm < b.upper_nm)
     }
 
-    /// Layer centres [m].
+    /// Layer centres \[m\].
     pub fn layer_centres_m(&self) -> &[f64] {
         &self.z_centres_m
     }
 
-    /// Layer bounds [m] (one more than the centres).
+    /// Layer bounds \[m\] (one more than the centres).
     pub fn layer_bounds_m(&self) -> &[f64] {
         &self.z_bounds_m
     }

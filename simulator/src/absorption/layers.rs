@@ -28,7 +28,7 @@ pub struct GasColumns {
 }
 
 impl GasColumns {
-    /// `grid`: the computational layers (bottom, top) [m], ascending and contiguous, within
+    /// `grid`: the computational layers (bottom, top) \[m\], ascending and contiguous, within
     /// the profile's altitude range.
     pub fn new(prof: &AtmosphereProfile, grid: &[(f64, f64)]) -> GasColumns {
         let (lo, hi) = (grid[0].0, grid[grid.len() - 1].1);

@@ -247,7 +247,7 @@ impl AtmosphereProfile {
 }
 
 /// ∫ f dz over [z0, z1] for f linear between the nodes (z ascending); the parts of [z0, z1]
-/// outside [z[0], z[last]] contribute nothing. Negative if z1 < z0.
+/// outside [z\[0\], z\[last\]] contribute nothing. Negative if z1 < z0.
 pub fn integrate_piecewise_linear(z: &[f64], f: &[f64], z0: f64, z1: f64) -> f64 {
     if z1 < z0 {
         return -integrate_piecewise_linear(z, f, z1, z0);

@@ -37,14 +37,14 @@
 //!   upper (the tropopause node is stored twice).
 //! * **Binary species parameter** η, per temperature node t ∈ {jT, jT+1}: with
 //!   r = vmr_ref(g₁, t) / vmr_ref(g₂, t), `col_mix(t) = col[g₁] + r·col[g₂]` and
-//!   η = col[g₁] / col_mix(t) (½ when col_mix = 0); linear between the 9 η nodes on [0, 1].
+//!   η = col\[g₁\] / col_mix(t) (½ when col_mix = 0); linear between the 9 η nodes on [0, 1].
 //! * **Major**: τ_g = Σ_t col_mix(t) · Σ_{p, η nodes} w_T w_p w_η · kmajor(t, p, η, g) —
 //!   trilinear, with the η interpolation (and col_mix) done separately at each T node.
 //! * **Minor** (the lower or upper list, each interval covering some g-points of one band): the
 //!   coefficient is interpolated bilinearly in (T, η) with the band's flavor, and multiplied by
-//!   `col[gas]`, then — if `minor_scales_with_density` — by (p [hPa] / T [K]) (continua and
+//!   `col[gas]`, then — if `minor_scales_with_density` — by (p \[hPa\] / T \[K\]) (continua and
 //!   collision-induced absorption), and, if the interval has a `scaling_gas` s, by the moist mole
-//!   fraction x_s = (col[s]/col[0]) / (1 + col[h2o]/col[0]) or by its complement 1 − x_s
+//!   fraction x_s = (col\[s\]/col\[0\]) / (1 + col\[h2o\]/col\[0\]) or by its complement 1 − x_s
 //!   (`scale_by_complement`; e.g. the H₂O self and foreign continua).
 //!
 //! ## Layers of a level-based profile
@@ -93,7 +93,7 @@
 //!   pressures lines are Doppler-broadened, nearly pressure-independent. Only the table
 //!   look-up is clamped: the minor gases' density factor p/T (continua) uses the actual p and T,
 //!   as the reference does.
-//! * At η = 1 exactly (col[g₂] = 0, e.g. CO₂ or O₂ removed from the profile) the reference code
+//! * At η = 1 exactly (col\[g₂\] = 0, e.g. CO₂ or O₂ removed from the profile) the reference code
 //!   uses the η node 0.875 with weight 1 (its index is clamped but its weight is not); here η = 1
 //!   uses the node 1 (the tables' η = 1 values differ from the η = 0.875 ones). Everywhere else
 //!   the weights are the reference's. (Checked: for every sub-layer of the US-standard column
@@ -615,7 +615,7 @@ impl RrtmgpSw {
         Ok(n - 1 - band)
     }
 
-    /// Band limits (λ_min, λ_max) [nm], bands in ascending wavelength (λ = 10⁷ / ν[cm⁻¹]).
+    /// Band limits (λ_min, λ_max) \[nm\], bands in ascending wavelength (λ = 10⁷ / ν[cm⁻¹]).
     pub fn bands_nm(&self) -> Vec<(f64, f64)> {
         self.band_wavenumber
             .iter()
@@ -643,7 +643,7 @@ impl RrtmgpSw {
 
     /// Gas absorption optical thickness of each layer for every g-point of `band` (ascending
     /// wavelength numbering): `out[g][layer]`, g in the band's file order
-    /// ([`Self::gpoints_of_band`]). `layers`: (bottom, top) altitudes [m], ascending and
+    /// ([`Self::gpoints_of_band`]). `layers`: (bottom, top) altitudes \[m\], ascending and
     /// contiguous, within the profile's altitude range. See the module header for the layer
     /// states, column amounts and clamping.
     pub fn layer_optical_thickness(

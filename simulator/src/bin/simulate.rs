@@ -2,6 +2,9 @@
 //!
 //! Exit codes: 0 success; 2 bad input (experiment file unreadable or invalid); 1 any other
 //! failure (an output that cannot be written, an internal error).
+//!
+//! Logging (stderr): INFO by default; `-q` warnings and errors only (and no progress bar), `-v`
+//! debug, `-vv` trace; `RUST_LOG` (e.g. `RUST_LOG=simulator=debug`) overrides all three.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -21,8 +24,34 @@ use simulator::products;
     about = "Monte Carlo radiative transfer for Earth-observation scenes"
 )]
 struct Cli {
+    #[command(flatten)]
+    verbosity: Verbosity,
     #[command(subcommand)]
     command: Command,
+}
+
+/// Log level flags, accepted before or after the subcommand.
+#[derive(clap::Args)]
+struct Verbosity {
+    /// Quiet: only warnings and errors on stderr, and no progress bar.
+    #[arg(short, long, global = true, conflicts_with = "verbose")]
+    quiet: bool,
+    /// More log output: -v debug, -vv trace (RUST_LOG, if set, overrides -q and -v).
+    #[arg(short, long, global = true, action = clap::ArgAction::Count)]
+    verbose: u8,
+}
+
+impl Verbosity {
+    /// The log filter: `RUST_LOG` when set, else the flags' level.
+    fn filter(&self) -> tracing_subscriber::EnvFilter {
+        let level = match (self.quiet, self.verbose) {
+            (true, _) => "warn",
+            (false, 0) => "info",
+            (false, 1) => "debug",
+            (false, _) => "trace",
+        };
+        tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| level.into())
+    }
 }
 
 #[derive(Subcommand)]
@@ -37,9 +66,6 @@ enum Command {
         /// Worker threads (default: all cores). Results do not depend on it.
         #[arg(short = 'j', long)]
         threads: Option<usize>,
-        /// No progress bar.
-        #[arg(short, long)]
-        quiet: bool,
         /// Ignore checkpoints of an earlier, interrupted run in OUTDIR/checkpoints.
         #[arg(long)]
         fresh: bool,
@@ -50,22 +76,30 @@ enum Command {
         shard: Option<String>,
     },
     /// Simulated TOA reflectance of a calibration site for a list of acquisitions
-    /// (time_utc,vza,vaa,srf); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
+    /// (columns time_utc,vza,vaa,srf and optionally sza,saa); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
     Pics {
-        /// Acquisitions CSV.
+        /// Acquisitions CSV (columns in docs/pics.md).
         acquisitions: PathBuf,
         /// Site file (TOML; see the `pics` module docs / docs/pics.md).
         #[arg(long)]
         site: PathBuf,
+        /// Output folder (created if missing).
         #[arg(short, long, default_value = "out")]
         output: PathBuf,
+        /// Worker threads (default: all cores). Results do not depend on it.
         #[arg(short = 'j', long)]
         threads: Option<usize>,
-        #[arg(short, long)]
-        quiet: bool,
     },
-    /// Validate an experiment file without running it.
-    Check { experiment: PathBuf },
+    /// Validate an experiment file, or a PICS site file (detected by its `latitude` or
+    /// `catalogue` key), without running it.
+    Check {
+        /// Experiment file or PICS site file (TOML).
+        experiment: PathBuf,
+        /// With a site file: also validate every acquisition of this CSV (default: one sample
+        /// acquisition, Sentinel-2A B4 at nadir with the Sun at 30°).
+        #[arg(long)]
+        acquisitions: Option<PathBuf>,
+    },
     /// 3D-scene benchmark on a bundle: set-up time, memory, ray rates, time to render an ortho
     /// image to a median relative standard error (see BENCHMARKS.md).
     BenchScene {
@@ -80,6 +114,7 @@ enum Command {
         /// Primary rays to time (one thread).
         #[arg(long, default_value_t = 1_000_000)]
         rays: usize,
+        /// Worker threads (default: all cores).
         #[arg(long)]
         threads: Option<usize>,
     },
@@ -98,6 +133,7 @@ enum Command {
         /// Optical thicknesses, comma-separated.
         #[arg(long, value_delimiter = ',', default_value = "8,16")]
         taus: Vec<f64>,
+        /// Worker threads (default: all cores).
         #[arg(short = 'j', long)]
         threads: Option<usize>,
     },
@@ -115,20 +151,19 @@ enum Command {
         /// Spherical-shell geometry (Earth radius) instead of plane-parallel.
         #[arg(long)]
         spherical: bool,
+        /// Worker threads (default: all cores).
         #[arg(short = 'j', long)]
         threads: Option<usize>,
     },
 }
 
 fn main() -> ExitCode {
+    let cli = Cli::parse();
     tracing_subscriber::fmt()
-        .with_env_filter(
-            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
-        )
+        .with_env_filter(cli.verbosity.filter())
         .with_writer(std::io::stderr)
         .with_ansi(std::io::IsTerminal::is_terminal(&std::io::stderr()))
         .init();
-    let cli = Cli::parse();
     match dispatch(cli) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -171,8 +206,27 @@ fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
 }
 
 fn dispatch(cli: Cli) -> anyhow::Result<()> {
+    let quiet = cli.verbosity.quiet;
     match cli.command {
-        Command::Check { experiment } => {
+        Command::Check {
+            experiment,
+            acquisitions,
+        } => {
+            if let Some(n) = check_site(&experiment, acquisitions.as_deref())? {
+                println!("{}: valid PICS site file ({n})", experiment.display());
+                return Ok(());
+            }
+            if let Some(a) = &acquisitions {
+                return Err(ConfigError::Invalid {
+                    path: a.clone(),
+                    key: "--acquisitions".into(),
+                    message: format!(
+                        "is for PICS site files; {} is an experiment file",
+                        experiment.display()
+                    ),
+                }
+                .into());
+            }
             let exp = Experiment::load(&experiment)?;
             println!(
                 "{}: valid ({} wavelength(s), {} measure(s))",
@@ -210,7 +264,6 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             experiment,
             output,
             threads,
-            quiet,
             fresh,
             shard,
         } => {
@@ -232,6 +285,16 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 rayon::current_num_threads()
             );
             let ckpt = output.join("checkpoints");
+            tracing::debug!(
+                "products in {}, checkpoints in {}{}",
+                output.display(),
+                ckpt.display(),
+                if fresh {
+                    " (discarded first: --fresh)"
+                } else {
+                    ""
+                }
+            );
             if fresh {
                 let _ = std::fs::remove_dir_all(&ckpt);
             }
@@ -337,7 +400,6 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             site,
             output,
             threads,
-            quiet,
         } => {
             set_threads(threads)?;
             let acqs = simulator::pics::read_acquisitions(&acquisitions)?;
@@ -402,6 +464,31 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             simulator::bench::run(target, &method, polarized, spherical)
         }
     }
+}
+
+/// `simulate check` of a PICS site file: `None` when `path` is not one (an experiment, or TOML
+/// that does not parse, left to the experiment loader's errors); else what was validated.
+fn check_site(
+    path: &std::path::Path,
+    acquisitions: Option<&std::path::Path>,
+) -> anyhow::Result<Option<String>> {
+    let Ok(text) = std::fs::read_to_string(path) else {
+        return Ok(None);
+    };
+    let Ok(doc) = text.parse::<toml::Table>() else {
+        return Ok(None);
+    };
+    if !simulator::pics::is_site_file(&doc) {
+        return Ok(None);
+    }
+    let acqs = acquisitions
+        .map(simulator::pics::read_acquisitions)
+        .transpose()?;
+    simulator::pics::check_site(path, acqs.as_deref())?;
+    Ok(Some(match (&acqs, acquisitions) {
+        (Some(a), Some(p)) => format!("{} acquisition(s) of {}", a.len(), p.display()),
+        _ => "with a sample acquisition; add --acquisitions CSV to check yours".into(),
+    }))
 }
 
 /// `K/N` with 0 ≤ K < N.
@@ -473,5 +560,32 @@ fn explain_write_error(e: simulator::error::OutputError, output: &std::path::Pat
             "products were not written; the previous products in {} are unchanged",
             output.display()
         ))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Cli;
+    use clap::CommandFactory;
+
+    /// Every argument of every subcommand says what it does in `--help`.
+    #[test]
+    fn every_argument_has_help() {
+        fn walk(cmd: &clap::Command, path: &str, missing: &mut Vec<String>) {
+            for a in cmd.get_arguments() {
+                let id = a.get_id().as_str();
+                if id != "help" && id != "version" && a.get_help().is_none() {
+                    missing.push(format!("{path} {id}"));
+                }
+            }
+            for sub in cmd.get_subcommands() {
+                walk(sub, &format!("{path} {}", sub.get_name()), missing);
+            }
+        }
+        let cmd = Cli::command();
+        cmd.clone().debug_assert();
+        let mut missing = Vec::new();
+        walk(&cmd, "simulate", &mut missing);
+        assert!(missing.is_empty(), "arguments without help: {missing:?}");
     }
 }

@@ -56,7 +56,7 @@ pub fn split_toml_message(message: &str) -> (Option<usize>, String) {
 /// 1-based line of the key at `path` (e.g. `atmosphere.optical_thickness`,
 /// `measures[1].spp`, `atmosphere.phase.type`) in `text`: the first line after the header of the
 /// longest table prefix (the k-th `[[name]]` for `name[k]`) that assigns one of the remaining
-/// path components. None when it cannot be found.
+/// path components (the first of them). None when it cannot be found.
 pub fn line_of(text: &str, path: &str) -> Option<usize> {
     let parts: Vec<(String, Option<usize>)> = path
         .split('.')
@@ -107,12 +107,12 @@ pub fn line_of(text: &str, path: &str) -> Option<usize> {
         if k > start && header(l).is_some() {
             break;
         }
+        // The first remaining component is assigned here (deeper ones sit in its inline
+        // table on the same line).
         let t = l.trim_start();
-        for n in &names {
-            if let Some(rest) = t.strip_prefix(n) {
-                if rest.trim_start().starts_with('=') {
-                    return Some(k + 1);
-                }
+        if let Some(rest) = t.strip_prefix(names[0]) {
+            if rest.trim_start().starts_with('=') {
+                return Some(k + 1);
             }
         }
     }

@@ -1,5 +1,5 @@
 //! The experiment file: its top-level serde type ([`ExperimentConfig`]) and the orchestration
-//! of its resolution into an [`Experiment`] ([`resolve`]).
+//! of its resolution into an [`Experiment`] ([`resolve`](mod@resolve)).
 //!
 //! Each part of the file is declared and resolved beside the models it configures, so adding a
 //! model stays local (CONTRIBUTING.md):

@@ -16,7 +16,7 @@
 //! The path continues in a direction drawn from the phase function (reciprocal; at peaked phase
 //! functions mixed with draws about the Sun direction, [`PeakSampling`]) or the surface's
 //! sampler. Absorption multiplies the weight by ω (survival biasing); Russian roulette after
-//! `rr_depth` orders ([`survives`]), splitting of heavy weights ([`split_count`]); orders beyond
+//! `rr_depth` orders (`survives`), splitting of heavy weights (`split_count`); orders beyond
 //! `max_depth` are not counted. A sample is
 //! `π·L/(E0·μ)` split into single scattering (first interaction) and the rest. The sky has no
 //! diffuse source above TOA and the direct solar beam (a delta in direction) is never seen.

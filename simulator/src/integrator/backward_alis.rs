@@ -9,7 +9,7 @@
 //! `w`, phase function P_ref, surface sampled by the reference BRDF). Every channel c carries a
 //! multiplicative path factor `e_c`, updated
 //! * along each flight of length ℓ: `× exp(−(τ_c − τ_ref))` (optical paths along the flight,
-//!   exact for any direction, from the optical depths at both ends: [`Layers::carry`]);
+//!   exact for any direction, from the optical depths at both ends: `Layers::carry`);
 //! * at a scattering event in layer i, new direction at cos Θ drawn from P_ref:
 //!   `× (σ_c,i/σ_ref,i)·(P_c,i(cos Θ)/P_ref,i(cos Θ))`;
 //! * at a surface bounce: the reference surface draws `wi` with its own density `pdf_ref`
@@ -36,7 +36,7 @@
 //! the next flight is replaced by its expectation over the reference's collision point,
 //! `∫ σ_c P_c/(4π) e_c e^{−S_c(ℓ)} e^{−τ_c(z(ℓ))/μ_s} dℓ` (S_c: c's optical path along the
 //! flight; the reference densities cancel), integrated exactly layer by layer for every channel
-//! ([`expected`]).
+//! (`expected`).
 //!
 //! **CKD g-points** ([`Kind::GPoints`]): the channels share scattering, phase functions and the
 //! surface, the reference is the bin's atmosphere without gas absorption (particle absorption
@@ -72,9 +72,9 @@
 //! precision there (single scattering, exact along the first flight, is the rest).
 //!
 //! Cost: per flight and per wavelength one exponential per layer crossed (the expected
-//! estimate, vectorized over the wavelengths with [`exp_fast`]) and one phase evaluation per
+//! estimate, vectorized over the wavelengths with `exp_fast`) and one phase evaluation per
 //! flight and distinct phase function (equal phase functions, in any layer or wavelength, share
-//! one: [`PhaseCache`]).
+//! one: `PhaseCache`).
 
 use glam::DVec3;
 
@@ -620,8 +620,8 @@ fn expected(
 /// The reference atmosphere of a walk over channels `g`, as a geometry of the backward
 /// estimator: positions are altitudes (m); free paths are sampled in the reference
 /// ([`PlaneParallel::march`]); every flight carries the channels' path factors
-/// ([`Layers::carry`]) and records the layer of its collision in the weight; the expected
-/// estimate is integrated per channel ([`expected`]).
+/// (`Layers::carry`) and records the layer of its collision in the weight; the expected
+/// estimate is integrated per channel (`expected`).
 pub struct ReferenceLayers<'a> {
     channels: &'a Channels<'a>,
     /// Unit vector towards the Sun (`z > 0`).

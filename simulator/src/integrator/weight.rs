@@ -73,7 +73,7 @@ pub trait Weight: Sized {
     /// surface absorbs the path.
     fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3>;
 
-    /// A copy of this weight for splitting ([`split_count`]); `None`: never split (ALIS).
+    /// A copy of this weight for splitting (`split_count`); `None`: never split (ALIS).
     fn splittable(&self) -> Option<Self> {
         None
     }

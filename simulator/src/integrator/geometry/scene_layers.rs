@@ -12,7 +12,7 @@
 //! 3. next-event estimates at atmospheric points below the scene's top and at surfaces need a
 //!    shadow ray (visibility `V`).
 //!
-//! Expected estimate of a flight's next collision ([`expected_atmospheric`]): exact, layer by
+//! Expected estimate of a flight's next collision (`expected_atmospheric`): exact, layer by
 //! layer, for the part of the flight above the scene's top (no geometry can shadow it), and one
 //! forced collision with its shadow ray for the part below the top (unbiased, one shadow ray per
 //! flight).

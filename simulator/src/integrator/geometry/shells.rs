@@ -5,7 +5,7 @@
 //! the ray (Earth's shadow), so points lit at twilight (SZA > 90° at the target) are handled.
 //! The expected estimate of a flight's next collision has no closed form here: it is estimated
 //! from [`NEE_STRATA`](super::NEE_STRATA) stratified collision points
-//! ([`stratified_estimate`](super::stratified_estimate)). The ground's normal is the local
+//! (`super::stratified_estimate`). The ground's normal is the local
 //! vertical; BRDFs are evaluated in its frame.
 
 use glam::DVec3;

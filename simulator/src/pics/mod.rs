@@ -20,28 +20,29 @@
 //! [surface]               # any experiment [surface] table (the site's BRDF, with its source)
 //! ```
 //!
-//! An **acquisitions file** (CSV) has the columns `time_utc,vza,vaa,srf` (UTC
-//! `YYYY-MM-DDTHH:MM:SSZ`; view zenith and azimuth in degrees, azimuth clockwise from North, of
-//! the direction from the site to the sensor; an SRF name or file). Each acquisition becomes one
-//! experiment — the Sun from NREL SPA at the site and time, E0 scaled by 1/r², the band sampled
-//! and weighted (`srf.rs`) — validated and run by the same code as `simulate run`, so every key
-//! error names the site file and key. The result per acquisition: band TOA radiance and
-//! reflectance with standard errors, the solar geometry and the Earth–Sun distance.
+//! An **acquisitions file** (CSV, `acquisitions`) has the columns `time_utc,vza,vaa,srf` (an RFC
+//! 3339 time, taken in UTC; view zenith and azimuth in degrees, azimuth clockwise from North, of
+//! the direction from the site to the sensor; an SRF name or file) and optionally `sza,saa` (the
+//! Sun's angles, replacing the computed ones). Each acquisition becomes one experiment — the Sun
+//! from NREL SPA at the site and time (unless given), E0 scaled by 1/r² with SPA's distance, the
+//! band sampled and weighted (`srf.rs`) — validated and run by the same code as `simulate run`,
+//! so every key error names the site file and key. The result per acquisition: band TOA
+//! radiance and reflectance with standard errors, the solar geometry and the Earth–Sun distance,
+//! written as `pics.csv` (`to_csv`) and CF netCDF `pics.nc` (`dataset`).
+//!
+//! A runnable example of the library API: `simulator/examples/pics.rs`.
 
 use std::path::Path;
+
+mod acquisitions;
+mod dataset;
+
+pub use acquisitions::{parse_acquisitions, read_acquisitions, Acquisition};
+pub use dataset::write_netcdf;
 
 use crate::config::Experiment;
 use crate::error::ConfigError;
 use crate::products::{band_rows, rows};
-
-/// One acquisition.
-#[derive(Clone, Debug)]
-pub struct Acquisition {
-    pub time_utc: String,
-    pub vza: f64,
-    pub vaa: f64,
-    pub srf: String,
-}
 
 /// The simulated result of one acquisition.
 #[derive(Clone, Debug)]
@@ -55,62 +56,6 @@ pub struct PicsRow {
     /// Band TOA radiance (W m⁻² sr⁻¹ nm⁻¹) and its standard error.
     pub radiance: (f64, f64),
     pub band_irradiance: f64,
-}
-
-/// Parse the acquisitions CSV; errors name the file and line.
-pub fn read_acquisitions(path: &Path) -> Result<Vec<Acquisition>, ConfigError> {
-    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
-        path: path.into(),
-        source,
-    })?;
-    let err = |line: usize, message: String| ConfigError::Invalid {
-        path: path.into(),
-        key: format!("line {line}"),
-        message,
-    };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .filter(|(_, l)| !l.trim().is_empty() && !l.starts_with('#'));
-    let (_, header) = lines.next().ok_or_else(|| err(1, "empty file".into()))?;
-    let cols: Vec<&str> = header.split(',').map(str::trim).collect();
-    let idx = |c: &str| {
-        cols.iter().position(|h| *h == c).ok_or_else(|| {
-            err(
-                1,
-                format!("missing column `{c}` (need time_utc,vza,vaa,srf)"),
-            )
-        })
-    };
-    let (it, iz, ia, is) = (idx("time_utc")?, idx("vza")?, idx("vaa")?, idx("srf")?);
-    let mut out = Vec::new();
-    for (n, l) in lines {
-        let f: Vec<&str> = l.split(',').map(str::trim).collect();
-        let get = |i: usize| {
-            f.get(i)
-                .copied()
-                .ok_or_else(|| err(n + 1, format!("expected {} columns", cols.len())))
-        };
-        let num = |i: usize, what: &str| -> Result<f64, ConfigError> {
-            let v: f64 = get(i)?
-                .parse()
-                .map_err(|_| err(n + 1, format!("`{what}` is not a number")))?;
-            if !v.is_finite() {
-                return Err(err(n + 1, format!("`{what}` is not finite")));
-            }
-            Ok(v)
-        };
-        out.push(Acquisition {
-            time_utc: get(it)?.to_string(),
-            vza: num(iz, "vza")?,
-            vaa: num(ia, "vaa")?,
-            srf: get(is)?.to_string(),
-        });
-    }
-    if out.is_empty() {
-        return Err(err(2, "no acquisitions".into()));
-    }
-    Ok(out)
 }
 
 /// The experiment text of one acquisition at a site (the site file's tables are kept verbatim).
@@ -181,10 +126,21 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
     }
     let mut ill = toml::Table::new();
     ill.insert("type".into(), toml::Value::String("directional".into()));
-    ill.insert("time".into(), toml::Value::String(acq.time_utc.clone()));
-    ill.insert("latitude".into(), toml::Value::Float(lat));
-    ill.insert("longitude".into(), toml::Value::Float(lon));
-    ill.insert("elevation".into(), toml::Value::Float(elev));
+    match acq.sun {
+        None => {
+            ill.insert("time".into(), toml::Value::String(acq.time_utc.clone()));
+            ill.insert("latitude".into(), toml::Value::Float(lat));
+            ill.insert("longitude".into(), toml::Value::Float(lon));
+            ill.insert("elevation".into(), toml::Value::Float(elev));
+        }
+        Some((sza, saa)) => {
+            // The user's Sun angles; the Earth–Sun distance still comes from SPA at the time.
+            let p = crate::sun_position::sun_position(&acq.time_utc, lat, lon, elev, None)?;
+            ill.insert("zenith".into(), toml::Value::Float(sza));
+            ill.insert("azimuth".into(), toml::Value::Float(saa));
+            ill.insert("distance_au".into(), toml::Value::Float(p.distance_au));
+        }
+    }
     if let Some(i) = site.get("irradiance") {
         ill.insert("irradiance".into(), i.clone());
     }
@@ -230,13 +186,9 @@ pub fn with_catalogue(mut site: toml::Table) -> Result<toml::Table, String> {
     Ok(crate::pics_catalogue::site_table(&entry, &site))
 }
 
-/// Run every acquisition; `site_path` names the site file in errors. Acquisition `k` uses seed
-/// `k`, so results do not depend on the order of other acquisitions or on threads.
-pub fn run(
-    site_path: &Path,
-    acquisitions: &[Acquisition],
-    progress: impl Fn(usize),
-) -> Result<Vec<PicsRow>, ConfigError> {
+/// Read a site file (`catalogue` resolved); a catalogue key given instead of a file is told how
+/// to write one.
+pub fn load_site(site_path: &Path) -> Result<toml::Table, ConfigError> {
     let text = match std::fs::read_to_string(site_path) {
         Ok(t) => t,
         Err(source) => {
@@ -269,33 +221,103 @@ pub fn run(
             path: site_path.into(),
             message: e.to_string(),
         })?;
-    let site = with_catalogue(site).map_err(|message| ConfigError::Invalid {
+    with_catalogue(site).map_err(|message| ConfigError::Invalid {
         path: site_path.into(),
         key: "catalogue".into(),
         message,
-    })?;
+    })
+}
+
+/// Whether a TOML document is a PICS site file rather than an experiment: it places the site
+/// (`latitude` or `catalogue`) and has neither `[illumination]` nor `[[measures]]`.
+pub fn is_site_file(doc: &toml::Table) -> bool {
+    (doc.contains_key("latitude") || doc.contains_key("catalogue"))
+        && !doc.contains_key("illumination")
+        && !doc.contains_key("measures")
+}
+
+/// The experiment of acquisition `k` (0-based; seed `k`) at a loaded site; errors name the site
+/// file and the acquisition.
+pub fn acquisition_experiment(
+    site: &toml::Table,
+    site_path: &Path,
+    acq: &Acquisition,
+    k: usize,
+) -> Result<Experiment, ConfigError> {
+    let exp_text =
+        experiment_text(site, acq, k as u64).map_err(|message| ConfigError::Invalid {
+            path: site_path.into(),
+            key: "site".into(),
+            message,
+        })?;
+    Experiment::from_str(&exp_text, site_path).map_err(|e| ConfigError::Invalid {
+        path: site_path.into(),
+        key: format!(
+            "acquisition {} ({}{})",
+            k + 1,
+            acq.time_utc,
+            if acq.sun.is_some() {
+                "; sza, saa from the acquisitions file"
+            } else {
+                ""
+            }
+        ),
+        message: e.to_string(),
+    })
+}
+
+/// The acquisition `simulate check` validates a site file with when no acquisitions are given:
+/// Sentinel-2A band 4, nadir view, the Sun at 30° zenith (so that any site has daylight).
+pub fn sample_acquisition() -> Acquisition {
+    Acquisition {
+        time_utc: "2020-06-21T10:00:00Z".into(),
+        vza: 0.0,
+        vaa: 0.0,
+        srf: "sentinel_2a-msi-4".into(),
+        sun: Some((30.0, 150.0)),
+    }
+}
+
+/// Validate a site file without running: every acquisition's experiment (or the
+/// `sample_acquisition`'s) resolves. Returns the resolved site table.
+pub fn check_site(
+    site_path: &Path,
+    acquisitions: Option<&[Acquisition]>,
+) -> Result<toml::Table, ConfigError> {
+    let site = load_site(site_path)?;
+    let sample = [sample_acquisition()];
+    for (k, acq) in acquisitions.unwrap_or(&sample).iter().enumerate() {
+        acquisition_experiment(&site, site_path, acq, k)?;
+    }
+    Ok(site)
+}
+
+/// Run every acquisition; `site_path` names the site file in errors. Acquisition `k` uses seed
+/// `k`, so results do not depend on the order of other acquisitions or on threads.
+pub fn run(
+    site_path: &Path,
+    acquisitions: &[Acquisition],
+    progress: impl Fn(usize),
+) -> Result<Vec<PicsRow>, ConfigError> {
+    let site = load_site(site_path)?;
     let mut out = Vec::with_capacity(acquisitions.len());
     // Keeps a 3D site's scene alive, so that every acquisition reuses it (built once).
     let mut _scene: Option<std::sync::Arc<crate::scene::Scene>> = None;
     for (k, acq) in acquisitions.iter().enumerate() {
-        let exp_text =
-            experiment_text(&site, acq, k as u64).map_err(|message| ConfigError::Invalid {
-                path: site_path.into(),
-                key: "site".into(),
-                message,
-            })?;
-        let exp = Experiment::from_str(&exp_text, site_path).map_err(|e| ConfigError::Invalid {
-            path: site_path.into(),
-            key: format!("acquisition {} ({})", k + 1, acq.time_utc),
-            message: e.to_string(),
-        })?;
+        let exp = acquisition_experiment(&site, site_path, acq, k)?;
         if _scene.is_none() {
             _scene = exp.scene.clone();
         }
         let res = crate::run::run(&exp, false);
         let r = rows(&exp, &res);
         let b = band_rows(&exp, &r);
-        let band = b.first().expect("one band row per acquisition");
+        let Some(band) = b.first() else {
+            return Err(ConfigError::Invalid {
+                path: site_path.into(),
+                key: format!("acquisition {} ({})", k + 1, acq.time_utc),
+                message: "the experiment gave no band result (is the band covered?)".into(),
+            });
+        };
         let d = exp.sun_distance_au.unwrap_or(f64::NAN);
         out.push(PicsRow {
             acquisition: acq.clone(),
@@ -323,7 +345,7 @@ pub fn to_csv(rows: &[PicsRow]) -> String {
             s,
             "{},{},{},{},{:.6},{:.6},{:.9},{:.8e},{:.3e},{:.8e},{:.3e},{:.8e}",
             a.time_utc,
-            a.srf,
+            csv_field(&a.srf),
             a.vza,
             a.vaa,
             r.sza,
@@ -339,114 +361,24 @@ pub fn to_csv(rows: &[PicsRow]) -> String {
     s
 }
 
-/// A netCDF column: name, units, long name, accessor.
-type Column = (
-    &'static str,
-    &'static str,
-    &'static str,
-    fn(&PicsRow) -> f64,
-);
-
-/// `pics.nc`: the same table as CF netCDF on the dimension `acquisition`.
-pub fn write_netcdf(
-    path: &Path,
-    site_path: &Path,
-    rows: &[PicsRow],
-) -> Result<(), crate::error::OutputError> {
-    let tmp = crate::products::tmp_path(path);
-    let _ = std::fs::remove_file(&tmp);
-    let nc = |source| crate::error::OutputError::Netcdf {
-        path: path.to_path_buf(),
-        source,
-    };
-    {
-        let _session = crate::netcdf_session();
-        let mut f = netcdf::create(&tmp).map_err(nc)?;
-        let mut inner = || -> Result<(), netcdf::Error> {
-            f.add_attribute("Conventions", "CF-1.10")?;
-            f.add_attribute("title", "Simulated TOA reflectance of a calibration site")?;
-            f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
-            f.add_attribute("site_file", site_path.display().to_string())?;
-            f.add_dimension("acquisition", rows.len())?;
-            {
-                let mut v = f.add_string_variable("time_utc", &["acquisition"])?;
-                for (i, r) in rows.iter().enumerate() {
-                    v.put_string(&r.acquisition.time_utc, [i])?;
-                }
-            }
-            {
-                let mut v = f.add_string_variable("srf", &["acquisition"])?;
-                for (i, r) in rows.iter().enumerate() {
-                    v.put_string(&r.acquisition.srf, [i])?;
-                }
-            }
-            let cols: [Column; 10] = [
-                ("vza", "degree", "view zenith angle", |r| r.acquisition.vza),
-                (
-                    "vaa",
-                    "degree",
-                    "view azimuth angle, clockwise from North (site to sensor)",
-                    |r| r.acquisition.vaa,
-                ),
-                (
-                    "sza",
-                    "degree",
-                    "solar zenith angle (NREL SPA, geometric)",
-                    |r| r.sza,
-                ),
-                (
-                    "saa",
-                    "degree",
-                    "solar azimuth angle, clockwise from North",
-                    |r| r.saa,
-                ),
-                ("earth_sun_distance", "au", "Earth-Sun distance", |r| {
-                    r.earth_sun_distance_au
-                }),
-                (
-                    "reflectance",
-                    "1",
-                    "band TOA reflectance pi L / (E0 cos SZA)",
-                    |r| r.reflectance.0,
-                ),
-                (
-                    "reflectance_stderr",
-                    "1",
-                    "standard error of reflectance",
-                    |r| r.reflectance.1,
-                ),
-                ("radiance", "W m-2 sr-1 nm-1", "band TOA radiance", |r| {
-                    r.radiance.0
-                }),
-                (
-                    "radiance_stderr",
-                    "W m-2 sr-1 nm-1",
-                    "standard error of radiance",
-                    |r| r.radiance.1,
-                ),
-                (
-                    "band_irradiance",
-                    "W m-2 nm-1",
-                    "band solar irradiance at the Earth-Sun distance",
-                    |r| r.band_irradiance,
-                ),
-            ];
-            for (name, units, long, get) in cols {
-                let data: Vec<f64> = rows.iter().map(get).collect();
-                let mut v = f.add_variable::<f64>(name, &["acquisition"])?;
-                v.put_attribute("units", units)?;
-                v.put_attribute("long_name", long)?;
-                v.put_values(&data, ..)?;
-            }
-            Ok(())
-        };
-        inner().map_err(|e| {
-            let _ = std::fs::remove_file(&tmp);
-            nc(e)
-        })?;
+/// A CSV field, quoted (RFC 4180) when it holds a comma, a quote or a line break: an SRF file
+/// name may.
+fn csv_field(v: &str) -> String {
+    if v.contains([',', '"', '\n', '\r']) {
+        format!("\"{}\"", v.replace('"', "\"\""))
+    } else {
+        v.to_string()
     }
-    std::fs::rename(&tmp, path).map_err(|source| crate::error::OutputError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn csv_fields_are_quoted_when_needed() {
+        assert_eq!(super::csv_field("sentinel_2a-msi-4"), "sentinel_2a-msi-4");
+        assert_eq!(
+            super::csv_field("my, \"srf\".csv"),
+            "\"my, \"\"srf\"\".csv\""
+        );
+    }
 }
