@@ -177,6 +177,17 @@ impl MeasureConfig {
         }
     }
 
+    /// Replace the samples per direction/pixel (`simulate run --spp`).
+    pub fn set_spp(&mut self, n: u64) {
+        match self {
+            MeasureConfig::Mdistant { spp, .. }
+            | MeasureConfig::Radiancemeter { spp, .. }
+            | MeasureConfig::DistantFlux { spp, .. }
+            | MeasureConfig::Ortho { spp, .. }
+            | MeasureConfig::Perspective { spp, .. } => *spp = n,
+        }
+    }
+
     /// The measure `measures[index]`; `earlier` are the measures before it (ids are unique).
     pub fn resolve(
         &self,
