@@ -64,7 +64,7 @@ enum Command {
         #[arg(long, default_value_t = 50_000)]
         max_instances: usize,
     },
-    /// A gridded terrain mesh (PLY, x east / y north / z up in metres around a site) to a
+    /// A gridded terrain mesh (PLY or OBJ, x east / y north / z up in metres around a site) to a
     /// GeoTIFF DEM in the site's local transverse Mercator CRS, for a region file's `[dem]`.
     MeshToDem {
         mesh: PathBuf,
@@ -139,11 +139,17 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Check { region } => {
             let r = Region::load(&region)?;
+            let dem = match &r.dem_mesh {
+                Some(m) => format!("DEM from mesh {}", m.path.display()),
+                None => format!("{} DEM file(s)", r.dem_files.len()),
+            };
+            let lc = match &r.landcover {
+                scenegen::region::LandcoverInput::File(p) => p.display().to_string(),
+                scenegen::region::LandcoverInput::Uniform(c) => format!("class {c} everywhere"),
+            };
             println!(
-                "{}: valid ({} DEM file(s), land cover {}, scheme {})",
+                "{}: valid ({dem}, land cover {lc}, scheme {})",
                 region.display(),
-                r.dem_files.len(),
-                r.landcover_file.display(),
                 r.scheme
             );
             Ok(())

@@ -636,7 +636,13 @@ pub fn load_landcover(
     grid: &Grid,
     scheme_nodata: Option<i64>,
 ) -> Result<(Vec<Option<i64>>, &'static str), ScenegenError> {
-    let path = &region.landcover_file;
+    let path = match &region.landcover {
+        crate::region::LandcoverInput::File(p) => p,
+        crate::region::LandcoverInput::Uniform(c) => {
+            let code = (Some(*c) != scheme_nodata).then_some(*c);
+            return Ok((vec![code; grid.width * grid.height], "uniform"));
+        }
+    };
     let ds = open_georeferenced(path, "land-cover raster")?;
     let e = [
         grid.x0 - 0.5 * grid.dx,
