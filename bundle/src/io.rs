@@ -921,6 +921,7 @@ mod tests {
                 count: 0,
                 per_template: vec![],
             },
+            area: None,
             provenance: Provenance {
                 generator: "test".into(),
                 generator_version: "0".into(),

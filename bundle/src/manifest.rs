@@ -25,6 +25,22 @@ pub struct Manifest {
     pub templates: Vec<Template>,
     pub instances: Instances,
     pub provenance: Provenance,
+    /// The area of interest as a polygon, when the region file gave one (`[area] polygon`);
+    /// the extent is then its bounding box.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub area: Option<AreaPolygon>,
+}
+
+/// A polygonal area of interest, in the working CRS.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AreaPolygon {
+    /// OGC WKT `MULTIPOLYGON` in working-CRS metres (the same coordinates as `extent`).
+    pub wkt: String,
+    /// Planar area in the working CRS, m².
+    pub area_m2: f64,
+    /// The polygon file named by the region file.
+    pub source: String,
 }
 
 /// The working (projected, metric) CRS.

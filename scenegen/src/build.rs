@@ -273,7 +273,7 @@ pub fn build(
     stage("tiles", &mut t);
 
     let pb = bar(opts, "instances");
-    let instances = place_all(
+    let mut instances = place_all(
         &tin,
         &grid,
         &mgrid,
@@ -282,6 +282,11 @@ pub fn build(
         region.seed,
         origin,
     );
+    // A polygonal area: instances only inside it (the terrain covers its bounding box).
+    if let Some(m) = &frame.mask {
+        instances
+            .retain(|i| m.contains(i.translation[0] + origin[0], i.translation[1] + origin[1]));
+    }
     pb.finish_and_clear();
     stage("instances", &mut t);
 
@@ -365,6 +370,14 @@ pub fn build(
             count: 0,
             per_template: vec![],
         },
+        area: frame.mask.as_ref().map(|m| bundle::AreaPolygon {
+            wkt: m.wkt(),
+            area_m2: crate::area_polygon::area_m2(&m.polygon),
+            source: match &region.area {
+                crate::region::Area::Polygon { path, .. } => path.display().to_string(),
+                _ => String::new(),
+            },
+        }),
         provenance: bundle::Provenance {
             generator: "scenegen".into(),
             generator_version: env!("CARGO_PKG_VERSION").into(),

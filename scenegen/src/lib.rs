@@ -9,6 +9,7 @@
 //! and OBJ terrain meshes to DEMs), [`mesh_region`] (a region's mesh DEM rasterised for a build).
 //! Units: metres, degrees for longitudes and latitudes.
 
+pub mod area_polygon;
 pub mod bench;
 pub mod build;
 pub mod error;

@@ -48,9 +48,15 @@ struct AreaConfig {
     /// Side (square) or [east-west, north-south], km.
     #[serde(default)]
     size_km: Option<SizeKm>,
+    /// A polygon file (WKT, GeoJSON or any OGR vector file).
+    #[serde(default)]
+    polygon: Option<PathBuf>,
+    /// The polygon's CRS (default: the file's own, else WGS 84 lon/lat).
+    #[serde(default)]
+    polygon_crs: Option<String>,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(untagged)]
 enum SizeKm {
     Square(f64),
@@ -146,6 +152,11 @@ pub enum Area {
     BBox([f64; 4]),
     /// Centre lon, lat (degrees) and size east-west, north-south (metres).
     Centre { lon_lat: [f64; 2], size_m: [f64; 2] },
+    /// A polygon read from `path`, in WGS 84 longitude/latitude (degrees).
+    Polygon {
+        path: PathBuf,
+        lon_lat: geo::MultiPolygon<f64>,
+    },
 }
 
 impl Area {
@@ -153,6 +164,10 @@ impl Area {
         match self {
             Area::BBox(b) => [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])],
             Area::Centre { lon_lat, .. } => *lon_lat,
+            Area::Polygon { lon_lat, .. } => {
+                let b = crate::area_polygon::bbox(lon_lat);
+                [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]
+            }
         }
     }
 }
@@ -231,8 +246,28 @@ impl Region {
         };
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
-        let area = match (raw.area.bbox, raw.area.centre, raw.area.size_km) {
-            (Some(b), None, None) => {
+        if raw.area.polygon_crs.is_some() && raw.area.polygon.is_none() {
+            return Err(inv("area.polygon_crs", "only with `polygon`".into()));
+        }
+        let a = &raw.area;
+        let area = match (a.bbox, a.centre, a.size_km.as_ref(), a.polygon.as_ref()) {
+            (None, None, None, Some(file)) => {
+                let file = base.join(file);
+                let lon_lat =
+                    crate::area_polygon::read_lon_lat(&file, raw.area.polygon_crs.as_deref())
+                        .map_err(|e| inv("area.polygon", e.to_string()))?;
+                Area::Polygon {
+                    path: file,
+                    lon_lat,
+                }
+            }
+            (_, _, _, Some(_)) => {
+                return Err(inv(
+                    "area.polygon",
+                    "give either `polygon`, `bbox`, or `centre` and `size_km`".into(),
+                ))
+            }
+            (Some(b), None, None, None) => {
                 if !(b.iter().all(|v| v.is_finite())
                     && b[0] < b[2]
                     && b[1] < b[3]
@@ -248,14 +283,14 @@ impl Region {
                 }
                 Area::BBox(b)
             }
-            (None, Some(c), Some(s)) => {
+            (None, Some(c), Some(s), None) => {
                 if !(c[0].abs() <= 180.0 && c[1].abs() < 89.0) {
                     return Err(inv(
                         "area.centre",
                         format!("{c:?} must be [lon, lat] in degrees (|lat| < 89)"),
                     ));
                 }
-                let s = match s {
+                let s = match *s {
                     SizeKm::Square(v) => [v, v],
                     SizeKm::Rect(v) => v,
                 };
@@ -273,7 +308,7 @@ impl Region {
             _ => {
                 return Err(inv(
                     "area",
-                    "give either `bbox` or both `centre` and `size_km`".into(),
+                    "give either `bbox`, both `centre` and `size_km`, or `polygon`".into(),
                 ))
             }
         };
