@@ -9,6 +9,13 @@
 //! wavelength, every BRF finite and physical (0 < BRF < 1.5); `results.nc` carries the same
 //! image (same values as the GeoTIFF), its CF conventions and the experiment text with the
 //! `--spp` override; `results.csv` has the area BRF with a standard error.
+//!
+//! A second test checks the polygonal area end to end (region `[area] polygon` → manifest
+//! `[area]` → the target area of a distant measure masked in `simulate`), on a flat scene whose
+//! south-east triangle is bright (Lambertian 0.6) and north-west triangle dark (0.05): over the
+//! polygon = the bright triangle, the nadir BRF is far above the BRF over the same square
+//! without the polygon (by more than 10 standard errors), and a target area outside the polygon
+//! is an error naming `measures[0].target_m` (exit 2).
 
 use std::path::Path;
 
@@ -17,6 +24,22 @@ use scenegen::synth::write_geotiff;
 
 const LOCAL: &str =
     "+proj=tmerc +lat_0=45.2 +lon_0=5.7 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs";
+
+/// The area BRF (value, standard error) of measure `id` in a results.csv.
+fn csv_brf(path: &Path, id: &str) -> (f64, f64) {
+    let csv = std::fs::read_to_string(path).unwrap();
+    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
+    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
+    let row = csv
+        .lines()
+        .find(|l| l.starts_with(&format!("{id},")))
+        .expect("measure row");
+    let f: Vec<&str> = row.split(',').collect();
+    (
+        f[col("brf")].parse().unwrap(),
+        f[col("brf_stderr")].parse().unwrap(),
+    )
+}
 
 /// 4 km × 4 km of hills at 50 m, and CORINE codes in 200 m blocks (urban, arable, forest,
 /// grassland), both in the local transverse Mercator frame, a little larger than the area.
@@ -163,21 +186,138 @@ fn region_to_products_through_the_command_line() {
     }
 
     // CSV: the area BRF with its standard error.
-    let csv = std::fs::read_to_string(out.join("results.csv")).unwrap();
-    let header: Vec<&str> = csv.lines().next().unwrap().split(',').collect();
-    let col = |n: &str| header.iter().position(|h| *h == n).unwrap();
-    let row = csv
-        .lines()
-        .find(|l| l.starts_with("area,"))
-        .expect("area row");
-    let f: Vec<&str> = row.split(',').collect();
-    let (brf, err): (f64, f64) = (
-        f[col("brf")].parse().unwrap(),
-        f[col("brf_stderr")].parse().unwrap(),
-    );
+    let (brf, err) = csv_brf(&out.join("results.csv"), "area");
     assert!(
         brf > 0.0 && brf < 1.0 && err > 0.0 && err < 0.1 * brf,
         "{brf} ± {err}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+#[test]
+fn polygon_area_masks_the_target_area() {
+    let (scenegen, simulate) = (binary("scenegen").unwrap(), binary("simulate").unwrap());
+    let dir = temp_dir("polygon");
+    let (n, px) = (90usize, 50.0);
+    let gt = [-2250.0, px, 0.0, 2250.0, 0.0, -px];
+    write_geotiff(
+        &dir.join("dem.tif"),
+        n,
+        n,
+        Some(gt),
+        Some(LOCAL),
+        None,
+        vec![300f32; n * n],
+    )
+    .unwrap();
+    // Code 30 (bright) where x > y (south-east of the diagonal), 31 (dark) elsewhere.
+    let lc: Vec<u8> = (0..n * n)
+        .map(|k| {
+            let (x, y) = (
+                gt[0] + ((k % n) as f64 + 0.5) * px,
+                gt[3] - ((k / n) as f64 + 0.5) * px,
+            );
+            if x > y {
+                30
+            } else {
+                31
+            }
+        })
+        .collect();
+    write_geotiff(
+        &dir.join("lc.tif"),
+        n,
+        n,
+        Some(gt),
+        Some(LOCAL),
+        Some(255.0),
+        lc,
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("triangle.wkt"),
+        "POLYGON ((-1500 -1500, 1500 -1500, 1500 1500, -1500 -1500))",
+    )
+    .unwrap();
+    let region = |area: &str| {
+        format!(
+            "{area}\n[dem]\nfiles = [\"dem.tif\"]\n[landcover]\nfile = \"lc.tif\"\nscheme = \"corine\"\nclass_materials = {{ \"30\" = \"bright\", \"31\" = \"dark\" }}\n\
+             [materials.bright]\nsource = \"test\"\nbrdf = {{ type = \"lambertian\", reflectance = 0.6 }}\n\
+             [materials.dark]\nsource = \"test\"\nbrdf = {{ type = \"lambertian\", reflectance = 0.05 }}\n"
+        )
+    };
+    std::fs::write(
+        dir.join("poly.toml"),
+        region(&format!(
+            "[area]\npolygon = \"triangle.wkt\"\npolygon_crs = \"{LOCAL}\""
+        )),
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("box.toml"),
+        region("[area]\ncentre = [5.7, 45.2]\nsize_km = 3"),
+    )
+    .unwrap();
+    let s = |v: &[&str]| v.iter().map(|a| a.to_string()).collect::<Vec<_>>();
+    for r in ["poly", "box"] {
+        let o = run(
+            &scenegen,
+            &s(&["build", &format!("{r}.toml"), "-o", r, "-q"]),
+            &dir,
+        );
+        assert_eq!(o.code, Some(0), "build {r}: {}", o.stderr);
+    }
+    let exp = |bundle: &str, target: &str| {
+        format!(
+            "seed = 2\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.1\n\
+             [illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[scene]\ntype = \"bundle\"\npath = \"{bundle}\"\n\
+             [[measures]]\nid = \"toa\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0]\nazimuths = [0.0]\nspp = 20000\n{target}"
+        )
+    };
+    let mut brf = Vec::new();
+    for r in ["poly", "box"] {
+        std::fs::write(dir.join(format!("{r}_exp.toml")), exp(r, "")).unwrap();
+        let o = run(
+            &simulate,
+            &s(&[
+                "run",
+                &format!("{r}_exp.toml"),
+                "-o",
+                &format!("out_{r}"),
+                "-q",
+            ]),
+            &dir,
+        );
+        assert_eq!(o.code, Some(0), "simulate {r}: {}", o.stderr);
+        brf.push(csv_brf(&dir.join(format!("out_{r}/results.csv")), "toa"));
+    }
+    let (p, b) = (brf[0], brf[1]);
+    println!(
+        "nadir BRF over the polygon {:.4} ± {:.4}, over its box {:.4} ± {:.4}",
+        p.0, p.1, b.0, b.1
+    );
+    assert!(
+        p.0 - b.0 > 10.0 * (p.1 * p.1 + b.1 * b.1).sqrt(),
+        "{p:?} vs {b:?}"
+    );
+    assert!(p.0 > 0.4 && b.0 < 0.45, "{p:?} vs {b:?}");
+
+    // A target area entirely outside the polygon (north-west corner) is refused.
+    std::fs::write(
+        dir.join("out_exp.toml"),
+        exp("poly", "target_m = [-1400.0, 900.0, -900.0, 1400.0]\n"),
+    )
+    .unwrap();
+    let o = run(
+        &simulate,
+        &s(&["run", "out_exp.toml", "-o", "out_out", "-q"]),
+        &dir,
+    );
+    assert_eq!(o.code, Some(2), "{}", o.stderr);
+    assert!(
+        o.stderr.contains("measures[0].target_m") && o.stderr.contains("area polygon"),
+        "{}",
+        o.stderr
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
