@@ -1,6 +1,7 @@
 //! The whole chain through the command-line tools, on synthetic inputs (no shared data needed):
 //! a DEM and a CORINE land cover written as GeoTIFFs → `scenegen build` of a region file →
-//! `scenegen info` of the bundle → `simulate run` of an experiment rendering it (an ortho image
+//! `scenegen info` and `export-gltf` of the bundle (into folders that do not exist yet) →
+//! `simulate run` of an experiment rendering it (an ortho image
 //! and a target-area BRF) → the products read back with GDAL (GeoTIFF) and netCDF.
 //!
 //! Rationale: each crate has its own tests; this one checks what they hand each other. Expected:
@@ -131,6 +132,14 @@ fn region_to_products_through_the_command_line() {
     assert_eq!(o.code, Some(0), "info: {}", o.stderr);
     let tri = format!("terrain: {} triangles", m.terrain.triangle_count);
     assert!(o.stdout.contains(&tri), "{}", o.stdout);
+    // Every output's parent folders are created (a fresh clone has no `out/`).
+    let o = run(
+        &scenegen,
+        &s(&["export-gltf", "bundle", "out/gltf/scene.glb"]),
+        &dir,
+    );
+    assert_eq!(o.code, Some(0), "export-gltf: {}", o.stderr);
+    assert!(dir.join("out/gltf/scene.glb").is_file());
 
     // Nested output folders are created.
     let o = run(

@@ -229,6 +229,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             output,
             max_instances,
         } => {
+            // A fresh tree has no `out/…` folders: create the output's parents.
+            if let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) {
+                std::fs::create_dir_all(parent)
+                    .with_context(|| format!("cannot create folder {}", parent.display()))?;
+            }
             let r = scenegen::gltf_export::export(&bundle, &output, max_instances)?;
             println!(
                 "{}: {} terrain tiles, {} templates, {} of {} instances, {}",
