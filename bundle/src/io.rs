@@ -481,14 +481,22 @@ impl Bundle {
             path: path.clone(),
             message: e.to_string(),
         })?;
-        serde_path_to_error::deserialize(de).map_err(|e| BundleError::Manifest {
-            path: path.clone(),
-            message: format!(
-                "at key `{}`: {}",
-                e.path(),
-                e.inner().to_string().trim_end()
-            ),
-        })
+        let m: Manifest =
+            serde_path_to_error::deserialize(de).map_err(|e| BundleError::Manifest {
+                path: path.clone(),
+                message: format!(
+                    "at key `{}`: {}",
+                    e.path(),
+                    e.inner().to_string().trim_end()
+                ),
+            })?;
+        if let Some(a) = &m.area {
+            a.polygons().map_err(|message| BundleError::Manifest {
+                path: path.clone(),
+                message: format!("at key `area.wkt`: {message}"),
+            })?;
+        }
+        Ok(m)
     }
 
     /// Read a whole bundle: every binary file is checked against the size and SHA-256 the
@@ -1044,6 +1052,7 @@ mod tests {
                 count: 0,
                 per_template: vec![],
             },
+            area: None,
             provenance: Provenance {
                 generator: "test".into(),
                 generator_version: "0".into(),

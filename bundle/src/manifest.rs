@@ -25,6 +25,123 @@ pub struct Manifest {
     pub templates: Vec<Template>,
     pub instances: Instances,
     pub provenance: Provenance,
+    /// The area of interest as a polygon, when the region file gave one (`[area] polygon`);
+    /// the extent is then its bounding box.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub area: Option<AreaPolygon>,
+}
+
+/// A polygonal area of interest, in the working CRS.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AreaPolygon {
+    /// OGC WKT `MULTIPOLYGON` in working-CRS metres (the same coordinates as `extent`).
+    pub wkt: String,
+    /// Planar area in the working CRS, m².
+    pub area_m2: f64,
+    /// The polygon file named by the region file.
+    pub source: String,
+}
+
+/// Rings (exterior first, then holes) of points (x, y).
+pub type PolygonRings = Vec<Vec<[f64; 2]>>;
+
+impl AreaPolygon {
+    /// The polygons of `wkt` (`MULTIPOLYGON (((x y, …), (…)), ((…)))` as scenegen writes it, or
+    /// a `POLYGON`): each a list of closed rings of at least 4 points.
+    pub fn polygons(&self) -> Result<Vec<PolygonRings>, String> {
+        let t = self.wkt.trim();
+        let upper = t.to_ascii_uppercase();
+        let (body, multi) = if let Some(r) = upper.strip_prefix("MULTIPOLYGON") {
+            (&t[t.len() - r.len()..], true)
+        } else if let Some(r) = upper.strip_prefix("POLYGON") {
+            (&t[t.len() - r.len()..], false)
+        } else {
+            return Err("not a WKT POLYGON or MULTIPOLYGON".into());
+        };
+        // Nesting depth of a ring's points: 3 in a multipolygon, 2 in a polygon.
+        let ring_depth = if multi { 3 } else { 2 };
+        let (mut depth, mut polys, mut cur, mut text) = (0, Vec::new(), Vec::new(), String::new());
+        for ch in body.trim().chars() {
+            match ch {
+                '(' => depth += 1,
+                ')' => {
+                    if depth == ring_depth {
+                        let ring: Result<Vec<[f64; 2]>, String> = text
+                            .split(',')
+                            .map(|p| {
+                                let v: Vec<f64> = p
+                                    .split_whitespace()
+                                    .map(|w| {
+                                        w.parse::<f64>().map_err(|_| format!("bad number `{w}`"))
+                                    })
+                                    .collect::<Result<_, _>>()?;
+                                match v[..] {
+                                    [x, y, ..] if x.is_finite() && y.is_finite() => Ok([x, y]),
+                                    _ => Err(format!("bad point `{}`", p.trim())),
+                                }
+                            })
+                            .collect();
+                        let ring = ring?;
+                        if ring.len() < 4 || ring[0] != ring[ring.len() - 1] {
+                            return Err("a ring must be closed and have at least 4 points".into());
+                        }
+                        cur.push(ring);
+                        text.clear();
+                    } else if depth == ring_depth - 1 {
+                        polys.push(std::mem::take(&mut cur));
+                    }
+                    depth -= 1;
+                }
+                c if depth == ring_depth => text.push(c),
+                c if c.is_whitespace() || c == ',' => {}
+                c => return Err(format!("unexpected `{c}`")),
+            }
+            if depth < 0 || depth > ring_depth {
+                return Err("unbalanced parentheses".into());
+            }
+        }
+        if depth != 0 || polys.is_empty() {
+            return Err("unbalanced parentheses or no polygon".into());
+        }
+        Ok(polys)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rationale: what scenegen writes reads back; broken text is an error, not a panic.
+    #[test]
+    fn area_polygon_wkt_round_trip() {
+        let a = |wkt: &str| AreaPolygon {
+            wkt: wkt.into(),
+            area_m2: 0.0,
+            source: String::new(),
+        };
+        let p = a("MULTIPOLYGON (((0 0, 10 0, 10 10, 0 0), (1 1, 2 1, 2 2, 1 1)), ((20 0, 30 0, 30 5, 20 0)))")
+            .polygons()
+            .unwrap();
+        assert_eq!(p.len(), 2);
+        assert_eq!(p[0].len(), 2);
+        assert_eq!(p[1][0][2], [30.0, 5.0]);
+        assert_eq!(
+            a("POLYGON ((0 0, 1 0, 1 1, 0 0))")
+                .polygons()
+                .unwrap()
+                .len(),
+            1
+        );
+        for bad in [
+            "LINESTRING (0 0, 1 1)",
+            "MULTIPOLYGON (((0 0, 1 0, 1 1)))",
+            "POLYGON ((0 0, x 0, 1 1, 0 0))",
+            "POLYGON ((0 0, 1 0, 1 1, 0 0)",
+        ] {
+            assert!(a(bad).polygons().is_err(), "{bad}");
+        }
+    }
 }
 
 /// The working (projected, metric) CRS.

@@ -22,7 +22,7 @@ use tiles::{Catalogue, PlacedInstance, PlacementRule};
 
 use crate::error::{input, ScenegenError};
 use crate::raster::{self, Grid, WorkingFrame};
-use crate::region::Region;
+use crate::region::{LandcoverInput, Region};
 use crate::tin::{self, HeightField, SurfaceHeight};
 
 /// Options of a build.
@@ -222,7 +222,9 @@ pub fn build(
     stage("templates", &mut t);
 
     let pb = bar(opts, "DEM: reading and warping");
-    let dem = raster::load_dem(region, &frame)?;
+    // A mesh DEM becomes a temporary GeoTIFF, removed when `_mesh_dem` drops.
+    let (rasterised, _mesh_dem) = crate::mesh_region::with_rasterised_mesh(region)?;
+    let dem = raster::load_dem(&rasterised, &frame)?;
     pb.finish_and_clear();
     let grid = dem.grid;
     stage("dem", &mut t);
@@ -230,7 +232,11 @@ pub fn build(
     let pb = bar(opts, "land cover: reading, warping, mapping");
     let mgrid = Grid::cells_over(&grid, region.lc_tile_m);
     let (codes, resampling) = raster::load_landcover(region, &frame, &mgrid, scheme.nodata)?;
-    let material_raster = materials.map_raster(&codes, &region.landcover_file, &scheme.name)?;
+    let lc_name = match &region.landcover {
+        LandcoverInput::File(p) => p.clone(),
+        LandcoverInput::Uniform(_) => region.path.clone(),
+    };
+    let material_raster = materials.map_raster(&codes, &lc_name, &scheme.name)?;
     pb.finish_and_clear();
     check_instance_budget(region, &mgrid, &codes)?;
     stage("landcover", &mut t);
@@ -268,7 +274,7 @@ pub fn build(
     stage("tiles", &mut t);
 
     let pb = bar(opts, "instances");
-    let instances = place_all(
+    let mut instances = place_all(
         &tin,
         &grid,
         &mgrid,
@@ -277,6 +283,11 @@ pub fn build(
         region.seed,
         origin,
     );
+    // A polygonal area: instances only inside it (the terrain covers its bounding box).
+    if let Some(m) = &frame.mask {
+        instances
+            .retain(|i| m.contains(i.translation[0] + origin[0], i.translation[1] + origin[1]));
+    }
     pb.finish_and_clear();
     stage("instances", &mut t);
 
@@ -292,10 +303,17 @@ pub fn build(
         });
         Ok(())
     };
-    for p in &region.dem_files {
-        add_input("dem", p)?;
+    match &region.dem_mesh {
+        Some(m) => add_input("dem_mesh", &m.path)?,
+        None => {
+            for p in &region.dem_files {
+                add_input("dem", p)?;
+            }
+        }
     }
-    add_input("landcover", &region.landcover_file)?;
+    if let LandcoverInput::File(p) = &region.landcover {
+        add_input("landcover", p)?;
+    }
     if region.scheme.ends_with(".toml") {
         add_input("scheme", Path::new(&region.scheme))?;
     }
@@ -353,6 +371,14 @@ pub fn build(
             count: 0,
             per_template: vec![],
         },
+        area: frame.mask.as_ref().map(|m| bundle::AreaPolygon {
+            wkt: m.wkt(),
+            area_m2: crate::area_polygon::area_m2(&m.polygon),
+            source: match &region.area {
+                crate::region::Area::Polygon { path, .. } => path.display().to_string(),
+                _ => String::new(),
+            },
+        }),
         provenance: bundle::Provenance {
             generator: "scenegen".into(),
             generator_version: env!("CARGO_PKG_VERSION").into(),

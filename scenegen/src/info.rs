@@ -66,6 +66,15 @@ pub fn summary(dir: &Path) -> Result<String, ScenegenError> {
         (e.max[0] - e.min[0]) / 1e3, (e.max[1] - e.min[1]) / 1e3, e.min[0], e.max[0], e.min[1], e.max[1],
         e.lon_lat_bbox[0], e.lon_lat_bbox[2], e.lon_lat_bbox[1], e.lon_lat_bbox[3], e.height_range[0], e.height_range[1]
     );
+    if let Some(a) = &m.area {
+        let _ = writeln!(
+            w,
+            "area: polygon from {}: {:.3} km² ({:.0} m², planar in the working CRS; the extent is its bounding box)",
+            a.source,
+            a.area_m2 / 1e6,
+            a.area_m2
+        );
+    }
     let t = &m.terrain;
     let _ = writeln!(
         w,

@@ -6,9 +6,10 @@
 //! warping, coverage and no-data checks), [`tin`] (greedy error-bounded triangulation with
 //! spade, tiling), [`build`](mod@build) (the pipeline), [`gltf_export`] (a GLB for a standard 3D viewer),
 //! [`info`] (bundle summaries), [`bench`](mod@bench) (the scale benchmark), [`mesh_dem`] (gridded PLY
-//! terrain meshes to DEMs).
+//! and OBJ terrain meshes to DEMs), [`mesh_region`] (a region's mesh DEM rasterised for a build).
 //! Units: metres, degrees for longitudes and latitudes.
 
+pub mod area_polygon;
 pub mod bench;
 pub mod build;
 pub mod dem_values;
@@ -16,6 +17,7 @@ pub mod error;
 pub mod gltf_export;
 pub mod info;
 pub mod mesh_dem;
+pub mod mesh_region;
 pub mod raster;
 pub mod region;
 pub mod synth;

@@ -98,7 +98,7 @@ enum Command {
         #[arg(long, value_name = "N", default_value_t = 1, value_parser = clap::value_parser!(u64).range(1..))]
         thin: u64,
     },
-    /// A gridded terrain mesh (PLY, x east / y north / z up in metres around a site) to a
+    /// A gridded terrain mesh (PLY or OBJ, x east / y north / z up in metres around a site) to a
     /// GeoTIFF DEM in the site's local transverse Mercator CRS, for a region file's `[dem]`.
     MeshToDem {
         /// Terrain mesh (PLY).
@@ -176,11 +176,17 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Check { region } => {
             let r = Region::load(&region)?;
+            let dem = match &r.dem_mesh {
+                Some(m) => format!("DEM from mesh {}", m.path.display()),
+                None => format!("{} DEM file(s)", r.dem_files.len()),
+            };
+            let lc = match &r.landcover {
+                scenegen::region::LandcoverInput::File(p) => p.display().to_string(),
+                scenegen::region::LandcoverInput::Uniform(c) => format!("class {c} everywhere"),
+            };
             println!(
-                "{}: valid ({} DEM file(s), land cover {}, scheme {})",
+                "{}: valid ({dem}, land cover {lc}, scheme {})",
                 region.display(),
-                r.dem_files.len(),
-                r.landcover_file.display(),
                 r.scheme
             );
             Ok(())
@@ -259,6 +265,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             output,
             thin,
         } => {
+            // A fresh tree has no `out/…` folders: create the output's parents.
+            if let Some(parent) = output.parent().filter(|p| !p.as_os_str().is_empty()) {
+                std::fs::create_dir_all(parent)
+                    .with_context(|| format!("cannot create folder {}", parent.display()))?;
+            }
             let thin = usize::try_from(thin).unwrap_or(usize::MAX);
             let r = scenegen::gltf_export::export(&bundle, &output, thin)?;
             println!(

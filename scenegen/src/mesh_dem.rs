@@ -2,7 +2,8 @@
 //! it like from any DEM (`scenegen mesh-to-dem`).
 //!
 //! Input: a PLY file (ASCII or binary little/big endian) whose `vertex` element has `x`, `y`, `z`
-//! properties (metres, any scalar type; other properties are ignored) in a local frame: x east,
+//! properties (metres, any scalar type; other properties are ignored), or a Wavefront OBJ file
+//! (extension `.obj`: its `v x y z` lines; here z is up, as in the PLY case), in a local frame: x east,
 //! y north, z height above sea level. The vertices must form a regular grid (every (x, y) pair of
 //! the distinct x and y values present exactly once, uniform spacing within 1e-6 of the step),
 //! which is what terrain meshes made from rasters are, e.g. the Libya-4 site mesh
@@ -19,6 +20,49 @@ use std::path::Path;
 
 use crate::error::ScenegenError;
 use crate::synth::write_geotiff;
+
+/// Vertex positions of a terrain mesh: OBJ when the extension is `.obj`, else PLY.
+pub fn read_mesh_vertices(path: &Path) -> Result<Vec<[f64; 3]>, ScenegenError> {
+    let is_obj = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("obj"));
+    if is_obj {
+        read_obj_vertices(path)
+    } else {
+        read_ply_vertices(path)
+    }
+}
+
+/// Vertex positions (`v x y z` lines) of a Wavefront OBJ file; faces and the rest are ignored.
+pub fn read_obj_vertices(path: &Path) -> Result<Vec<[f64; 3]>, ScenegenError> {
+    let bad = |m: String| ScenegenError::Input {
+        path: path.into(),
+        message: m,
+    };
+    let text = std::fs::read_to_string(path).map_err(|e| bad(format!("cannot read: {e}")))?;
+    let mut v = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        let mut w = line.split_whitespace();
+        if w.next() != Some("v") {
+            continue;
+        }
+        let mut p = [0.0; 3];
+        for c in &mut p {
+            *c = w
+                .next()
+                .and_then(|t| t.parse::<f64>().ok())
+                .filter(|x| x.is_finite())
+                .ok_or_else(|| bad(format!("line {}: `{line}` is not `v x y z`", i + 1)))?;
+        }
+        v.push(p);
+    }
+    if v.is_empty() {
+        return Err(bad(
+            "not an OBJ terrain mesh (no `v x y z` vertex lines)".into()
+        ));
+    }
+    Ok(v)
+}
 
 /// Vertex positions of a PLY file (x, y, z as f64).
 pub fn read_ply_vertices(path: &Path) -> Result<Vec<[f64; 3]>, ScenegenError> {
@@ -347,7 +391,7 @@ pub fn mesh_to_dem(
             message: format!("centre ({lon}, {lat}) is not a longitude in [-180, 180] and a latitude in (-89, 89)"),
         });
     }
-    let v = read_ply_vertices(mesh)?;
+    let v = read_mesh_vertices(mesh)?;
     let g = to_grid(mesh, &v)?;
     let gt = [g.x0 - 0.5 * g.dx, g.dx, 0.0, g.y0 + 0.5 * g.dy, 0.0, -g.dy];
     let crs = local_crs(lon, lat);
@@ -458,6 +502,21 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not a PLY"), "{e}");
+        // The same grid as OBJ `v` lines gives the same DEM.
+        let obj = dir.join("g.obj");
+        let text: String = verts
+            .iter()
+            .map(|v| format!("v {} {} {}\n", v[0], v[1], v[2]))
+            .collect();
+        std::fs::write(&obj, format!("# grid\n{text}f 1 2 5\n")).unwrap();
+        let g = mesh_to_dem(&obj, 23.39, 28.55, &dem, None).unwrap();
+        assert_eq!((g.width, g.height), (3, 2));
+        assert_eq!(g.z, vec![103.0, 104.0, 105.0, 100.0, 101.0, 102.0]);
+        std::fs::write(&obj, "v 1 2\n").unwrap();
+        let e = mesh_to_dem(&obj, 23.39, 28.55, &dem, None)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("g.obj") && e.contains("line 1"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 

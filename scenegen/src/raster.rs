@@ -39,6 +39,9 @@ pub struct WorkingFrame {
     pub extent: [f64; 4],
     /// WGS 84 bounding box of the area: west, south, east, north (degrees).
     pub lon_lat_bbox: [f64; 4],
+    /// The area's polygon in the working CRS when the region gives one (`extent` is its
+    /// bounding box).
+    pub mask: Option<crate::area_polygon::Mask>,
 }
 
 fn wgs84() -> Result<SpatialRef, ScenegenError> {
@@ -103,7 +106,15 @@ impl WorkingFrame {
         srs.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
         let geo = wgs84()?;
         let to_work = CoordTransform::new(&geo, &srs).map_err(gdal_err("WGS 84 → working CRS"))?;
+        let mut mask = None;
         let (extent, lon_lat_bbox) = match &region.area {
+            Area::Polygon { path, lon_lat } => {
+                let work = crate::area_polygon::reproject(path, lon_lat, &geo, &srs)?;
+                let m = crate::area_polygon::Mask::new(work);
+                let e = m.bbox;
+                mask = Some(m);
+                (e, crate::area_polygon::bbox(lon_lat))
+            }
             Area::BBox(b) => {
                 let (mut xs, mut ys) = ring(*b, 32);
                 to_work
@@ -144,6 +155,7 @@ impl WorkingFrame {
             centre_lon_lat: [lon, lat],
             extent,
             lon_lat_bbox,
+            mask,
         })
     }
 }
@@ -651,7 +663,13 @@ pub fn load_landcover(
     grid: &Grid,
     scheme_nodata: Option<i64>,
 ) -> Result<(Vec<Option<i64>>, &'static str), ScenegenError> {
-    let path = &region.landcover_file;
+    let path = match &region.landcover {
+        crate::region::LandcoverInput::File(p) => p,
+        crate::region::LandcoverInput::Uniform(c) => {
+            let code = (Some(*c) != scheme_nodata).then_some(*c);
+            return Ok((vec![code; grid.width * grid.height], "uniform"));
+        }
+    };
     let ds = open_georeferenced(path, "land-cover raster")?;
     let e = [
         grid.x0 - 0.5 * grid.dx,

@@ -48,9 +48,15 @@ struct AreaConfig {
     /// Side (square) or [east-west, north-south], km.
     #[serde(default)]
     size_km: Option<SizeKm>,
+    /// A polygon file (WKT, GeoJSON or any OGR vector file).
+    #[serde(default)]
+    polygon: Option<PathBuf>,
+    /// The polygon's CRS (default: the file's own, else WGS 84 lon/lat).
+    #[serde(default)]
+    polygon_crs: Option<String>,
 }
 
-#[derive(Debug, Deserialize)]
+#[derive(Clone, Copy, Debug, Deserialize)]
 #[serde(untagged)]
 enum SizeKm {
     Square(f64),
@@ -60,7 +66,14 @@ enum SizeKm {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct DemConfig {
+    #[serde(default)]
     files: Vec<PathBuf>,
+    /// A gridded terrain mesh (PLY or OBJ) instead of `files`.
+    #[serde(default)]
+    mesh: Option<PathBuf>,
+    /// [lon, lat] of the mesh's (0, 0), degrees.
+    #[serde(default)]
+    mesh_origin: Option<[f64; 2]>,
     #[serde(default)]
     spacing_m: Option<f64>,
     #[serde(default = "default_fill")]
@@ -99,7 +112,11 @@ fn default_terrain_tile() -> f64 {
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 struct LandcoverConfig {
-    file: PathBuf,
+    #[serde(default)]
+    file: Option<PathBuf>,
+    /// One class code everywhere, instead of `file`.
+    #[serde(default)]
+    class: Option<i64>,
     scheme: String,
     #[serde(default = "default_lc_tile")]
     tile_size_m: f64,
@@ -135,6 +152,11 @@ pub enum Area {
     BBox([f64; 4]),
     /// Centre lon, lat (degrees) and size east-west, north-south (metres).
     Centre { lon_lat: [f64; 2], size_m: [f64; 2] },
+    /// A polygon read from `path`, in WGS 84 longitude/latitude (degrees).
+    Polygon {
+        path: PathBuf,
+        lon_lat: geo::MultiPolygon<f64>,
+    },
 }
 
 impl Area {
@@ -142,8 +164,29 @@ impl Area {
         match self {
             Area::BBox(b) => [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])],
             Area::Centre { lon_lat, .. } => *lon_lat,
+            Area::Polygon { lon_lat, .. } => {
+                let b = crate::area_polygon::bbox(lon_lat);
+                [0.5 * (b[0] + b[2]), 0.5 * (b[1] + b[3])]
+            }
         }
     }
+}
+
+/// Where the land-cover classes come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LandcoverInput {
+    /// A raster (any GDAL format and CRS).
+    File(PathBuf),
+    /// One class code over the whole area (`landcover.class`).
+    Uniform(i64),
+}
+
+/// A gridded terrain mesh given as the DEM (`dem.mesh`), rasterised at build time.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshDem {
+    pub path: PathBuf,
+    /// Longitude and latitude of the mesh's (0, 0), degrees.
+    pub origin: [f64; 2],
 }
 
 /// A validated region.
@@ -155,12 +198,14 @@ pub struct Region {
     /// "local" or a CRS definition for GDAL (EPSG:n, WKT, PROJ).
     pub crs: String,
     pub area: Area,
+    /// DEM rasters; empty when the DEM is a mesh (`dem_mesh`) until the build rasterises it.
     pub dem_files: Vec<PathBuf>,
+    pub dem_mesh: Option<MeshDem>,
     pub dem_spacing_m: Option<f64>,
     pub max_fill_pixels: u64,
     pub tolerance_m: f64,
     pub terrain_tile_m: f64,
-    pub landcover_file: PathBuf,
+    pub landcover: LandcoverInput,
     pub scheme: String,
     pub lc_tile_m: f64,
     pub resampling: Resampling,
@@ -201,8 +246,28 @@ impl Region {
         };
         let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
 
-        let area = match (raw.area.bbox, raw.area.centre, raw.area.size_km) {
-            (Some(b), None, None) => {
+        if raw.area.polygon_crs.is_some() && raw.area.polygon.is_none() {
+            return Err(inv("area.polygon_crs", "only with `polygon`".into()));
+        }
+        let a = &raw.area;
+        let area = match (a.bbox, a.centre, a.size_km.as_ref(), a.polygon.as_ref()) {
+            (None, None, None, Some(file)) => {
+                let file = base.join(file);
+                let lon_lat =
+                    crate::area_polygon::read_lon_lat(&file, raw.area.polygon_crs.as_deref())
+                        .map_err(|e| inv("area.polygon", e.to_string()))?;
+                Area::Polygon {
+                    path: file,
+                    lon_lat,
+                }
+            }
+            (_, _, _, Some(_)) => {
+                return Err(inv(
+                    "area.polygon",
+                    "give either `polygon`, `bbox`, or `centre` and `size_km`".into(),
+                ))
+            }
+            (Some(b), None, None, None) => {
                 if !(b.iter().all(|v| v.is_finite())
                     && b[0] < b[2]
                     && b[1] < b[3]
@@ -218,14 +283,14 @@ impl Region {
                 }
                 Area::BBox(b)
             }
-            (None, Some(c), Some(s)) => {
+            (None, Some(c), Some(s), None) => {
                 if !(c[0].abs() <= 180.0 && c[1].abs() < 89.0) {
                     return Err(inv(
                         "area.centre",
                         format!("{c:?} must be [lon, lat] in degrees (|lat| < 89)"),
                     ));
                 }
-                let s = match s {
+                let s = match *s {
                     SizeKm::Square(v) => [v, v],
                     SizeKm::Rect(v) => v,
                 };
@@ -243,13 +308,48 @@ impl Region {
             _ => {
                 return Err(inv(
                     "area",
-                    "give either `bbox` or both `centre` and `size_km`".into(),
+                    "give either `bbox`, both `centre` and `size_km`, or `polygon`".into(),
                 ))
             }
         };
-        if raw.dem.files.is_empty() {
-            return Err(inv("dem.files", "at least one DEM file is needed".into()));
-        }
+        let dem_mesh = match (&raw.dem.mesh, raw.dem.mesh_origin, raw.dem.files.is_empty()) {
+            (None, None, false) => None,
+            (None, None, true) => return Err(inv(
+                "dem",
+                "give `files` (DEM rasters) or `mesh` and `mesh_origin` (a gridded terrain mesh)"
+                    .into(),
+            )),
+            (Some(_), _, false) => {
+                return Err(inv(
+                    "dem.mesh",
+                    "give either `files` or `mesh`, not both".into(),
+                ))
+            }
+            (None, Some(_), _) => {
+                return Err(inv(
+                    "dem.mesh_origin",
+                    "only with `mesh` (the mesh's origin)".into(),
+                ))
+            }
+            (Some(_), None, true) => {
+                return Err(inv(
+                    "dem.mesh_origin",
+                    "a mesh carries no georeference: give [lon, lat] of its (0, 0)".into(),
+                ))
+            }
+            (Some(m), Some(o), true) => {
+                if !(o[0].abs() <= 180.0 && o[1].abs() < 89.0) {
+                    return Err(inv(
+                        "dem.mesh_origin",
+                        format!("{o:?} must be [lon, lat] in degrees (|lat| < 89)"),
+                    ));
+                }
+                Some(MeshDem {
+                    path: base.join(m),
+                    origin: o,
+                })
+            }
+        };
         if let Some(s) = raw.dem.spacing_m {
             if !(s.is_finite() && (0.1..=10_000.0).contains(&s)) {
                 return Err(inv(
@@ -278,6 +378,15 @@ impl Region {
                 format!("{} must be in [1, 10000] m", lc.tile_size_m),
             ));
         }
+        let landcover = match (&lc.file, lc.class) {
+            (Some(f), None) => LandcoverInput::File(base.join(f)),
+            (None, Some(c)) => LandcoverInput::Uniform(c),
+            _ => return Err(inv(
+                "landcover",
+                "give either `file` (a land-cover raster) or `class` (one class code everywhere)"
+                    .into(),
+            )),
+        };
         let mut class_materials = BTreeMap::new();
         for (k, v) in &lc.class_materials {
             let code: i64 = k.parse().map_err(|_| {
@@ -312,11 +421,12 @@ impl Region {
             crs: raw.crs,
             area,
             dem_files: raw.dem.files.iter().map(|f| base.join(f)).collect(),
+            dem_mesh,
             dem_spacing_m: raw.dem.spacing_m,
             max_fill_pixels: raw.dem.max_fill_pixels,
             tolerance_m: t.tolerance_m,
             terrain_tile_m: t.tile_size_m,
-            landcover_file: base.join(&lc.file),
+            landcover,
             scheme: if lc.scheme.ends_with(".toml") {
                 base.join(&lc.scheme).display().to_string()
             } else {
@@ -380,6 +490,7 @@ scheme = "corine"
         assert_eq!(r.max_fill_pixels, 64);
         assert_eq!(r.crs, "local");
         assert_eq!(r.dem_files, vec![PathBuf::from("/x/dem.tif")]);
+        assert_eq!(r.landcover, LandcoverInput::File("/x/lc.tif".into()));
         assert_eq!(
             r.area,
             Area::Centre {
@@ -440,5 +551,56 @@ scheme = "corine"
         .unwrap_err()
         .to_string();
         assert!(e.contains("templates[0].file"), "{e}");
+    }
+
+    /// Rationale: a mesh DEM needs its georeference, excludes `files`, and its path and the
+    /// uniform land cover are taken as given; wrong combinations name the key.
+    #[test]
+    fn mesh_dem_and_uniform_landcover() {
+        let p = Path::new("/x/region.toml");
+        let mesh = OK
+            .replace(
+                "files = [\"dem.tif\"]",
+                "mesh = \"t.ply\"\nmesh_origin = [23.39, 28.55]",
+            )
+            .replace("file = \"lc.tif\"", "class = 60");
+        let r = Region::from_str(&mesh, p).unwrap();
+        assert_eq!(
+            r.dem_mesh,
+            Some(MeshDem {
+                path: "/x/t.ply".into(),
+                origin: [23.39, 28.55]
+            })
+        );
+        assert!(r.dem_files.is_empty());
+        assert_eq!(r.landcover, LandcoverInput::Uniform(60));
+        let cases = [
+            (
+                mesh.replace("mesh_origin = [23.39, 28.55]", ""),
+                "dem.mesh_origin",
+            ),
+            (
+                mesh.replace("[23.39, 28.55]", "[23.39, 95]"),
+                "dem.mesh_origin",
+            ),
+            (
+                mesh.replace("[dem]", "[dem]\nfiles = [\"d.tif\"]"),
+                "dem.mesh",
+            ),
+            (mesh.replace("mesh = \"t.ply\"", ""), "dem.mesh_origin"),
+            (mesh.replace("class = 60", ""), "`landcover`"),
+            (
+                mesh.replace("class = 60", "class = 60\nfile = \"lc.tif\""),
+                "`landcover`",
+            ),
+        ];
+        for (text, key) in cases {
+            let e = Region::from_str(&text, p).unwrap_err().to_string();
+            assert!(e.contains("region.toml") && e.contains(key), "{key}: {e}");
+        }
+        let e = Region::from_str(&OK.replace("files = [\"dem.tif\"]", ""), p)
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`dem`"), "{e}");
     }
 }

@@ -1,6 +1,6 @@
 //! The Libya-4 calibration site in 3D, end to end: the shared terrain mesh of the site
-//! (`terrain/libya4_20km.ply`) becomes a DEM (`scenegen mesh-to-dem`'s library call), the DEM a
-//! scene bundle (`examples/libya4/region.toml`), and the bundle a 3D PICS site
+//! (`terrain/libya4_20km.ply`) becomes a scene bundle (`examples/libya4/region.toml`, whose
+//! `[dem]` is the mesh itself, rasterised by the build), and the bundle a 3D PICS site
 //! (`examples/pics/libya4_3d_site.toml`) whose band TOA reflectance is compared with the 1D site
 //! (`examples/pics/libya4_site.toml`, the same RPV on a flat ground).
 //!
@@ -29,16 +29,8 @@ fn libya4_terrain_site_in_3d() {
     let ex = dir.join("repo/examples");
     std::fs::create_dir_all(ex.join("libya4")).unwrap();
     std::fs::create_dir_all(ex.join("pics")).unwrap();
-    // `out/libya4` is not created here: mesh-to-dem creates its output's parents (issue 20).
+    // `out/libya4` is not created here: the bundle writer creates its output's parents.
     let out = dir.join("repo/out/libya4");
-    scenegen::mesh_dem::mesh_to_dem(
-        &mesh,
-        23.39,
-        28.55,
-        &out.join("dem.tif"),
-        Some((60, &out.join("landcover.tif"))),
-    )
-    .unwrap();
     for f in [
         "libya4/region.toml",
         "pics/libya4_site.toml",

@@ -104,13 +104,28 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
         MeasureKind::Distant {
             directions, area, ..
         } => {
-            let a = area.expect("3D distant measures have an area");
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
-            let q = DVec3::new(
-                a.rect[0] + u1 * (a.rect[2] - a.rect[0]),
-                a.rect[1] + u2 * (a.rect[3] - a.rect[1]),
-                a.height,
-            );
+            let a = area.as_ref().expect("3D distant measures have an area");
+            let draw = |rng: &mut Stream| {
+                let (u1, u2) = (rng.next_f64(), rng.next_f64());
+                DVec3::new(
+                    a.rect[0] + u1 * (a.rect[2] - a.rect[0]),
+                    a.rect[1] + u2 * (a.rect[3] - a.rect[1]),
+                    a.height,
+                )
+            };
+            let mut q = draw(rng);
+            if let Some(m) = &a.mask {
+                // Uniform in the rectangle's part inside the polygon: redraw outside points. At
+                // least MIN_SHARE_INSIDE of the rectangle is inside (checked at resolve), so the
+                // cap is reached with probability below e^-100.
+                let cap = (100.0 / crate::measure::config::MIN_SHARE_INSIDE) as usize;
+                for _ in 0..cap {
+                    if m.contains(q.x, q.y) {
+                        break;
+                    }
+                    q = draw(rng);
+                }
+            }
             SceneAim::Through {
                 point: place(q),
                 view: directions[cell],

@@ -74,6 +74,10 @@ enum Command {
         /// run without --shard there to write the products (nothing is recomputed).
         #[arg(long)]
         shard: Option<String>,
+        /// Replace every measure's `spp` by N (quick runs, e.g. the examples in CI);
+        /// `target_rel_stderr` still applies.
+        #[arg(long, value_name = "N")]
+        spp: Option<u64>,
     },
     /// Simulated TOA reflectance of a calibration site for a list of acquisitions
     /// (columns time_utc,vza,vaa,srf and optionally sza,saa); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
@@ -266,9 +270,10 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             threads,
             fresh,
             shard,
+            spp,
         } => {
             set_threads(threads)?;
-            let exp = Experiment::load(&experiment)?;
+            let exp = Experiment::load_with_spp(&experiment, spp)?;
             std::fs::create_dir_all(&output)
                 .with_context(|| format!("cannot create output folder {}", output.display()))?;
             // One run per output folder (shards share theirs by design).

@@ -85,15 +85,34 @@ impl Experiment {
         Self::from_str(&text, path)
     }
 
+    /// [`Experiment::load`] with every measure's `spp` replaced by `spp` when given (the
+    /// `simulate run --spp N` override for quick runs: `target_rel_stderr` still applies, and
+    /// CKD rounding to whole g-point cycles happens after the override).
+    pub fn load_with_spp(path: &Path, spp: Option<u64>) -> Result<Experiment, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse_with_spp(&text, path, spp)
+    }
+
     /// Parse and resolve experiment text; `path` names it in errors and anchors relative paths.
     pub fn from_str(text: &str, path: &Path) -> Result<Experiment, ConfigError> {
+        Self::parse_with_spp(text, path, None)
+    }
+
+    fn parse_with_spp(
+        text: &str,
+        path: &Path,
+        spp: Option<u64>,
+    ) -> Result<Experiment, ConfigError> {
         use super::diagnostics::{cut_lines, line_of, quote, split_toml_message};
         let parse_err = |message: String| ConfigError::Parse {
             path: path.to_path_buf(),
             message: cut_lines(&message),
         };
         let de = toml::Deserializer::parse(text).map_err(|e| parse_err(e.to_string()))?;
-        let cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
+        let mut cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
             let key = e.path().to_string();
             let inner = e.into_inner().to_string().trim_end().to_string();
             let found = locate_offender(text, &inner);
@@ -130,7 +149,16 @@ impl Experiment {
                 .unwrap_or_default();
             parse_err(format!("{at}{core}{hint}{quoted}"))
         })?;
-        resolve(cfg, text, path)
+        if let Some(n) = spp {
+            cfg.measures.iter_mut().for_each(|m| m.set_spp(n));
+        }
+        let mut exp = resolve(cfg, text, path)?;
+        // The products' provenance and the checkpoints' hash must see the override.
+        if let Some(n) = spp {
+            exp.source_text
+                .push_str(&format!("\n# overridden on the command line: --spp {n}\n"));
+        }
+        Ok(exp)
     }
 }
 

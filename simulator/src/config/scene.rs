@@ -447,5 +447,6 @@ pub fn frame(scene: &Scene) -> SceneFrame {
         extent: scene.extent,
         top: scene.z_range[1],
         origin: scene.georef.as_ref().map(|g| (g.origin.x, g.origin.y)),
+        mask: scene.area_mask.clone(),
     }
 }

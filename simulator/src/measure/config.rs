@@ -112,7 +112,7 @@ pub enum Construct {
 }
 
 /// What measures need of a 3D scene, in its local frame (m).
-#[derive(Clone, Copy, Debug)]
+#[derive(Clone, Debug)]
 pub struct SceneFrame {
     /// Horizontal extent of the scene's content [xmin, ymin, xmax, ymax].
     pub extent: [f64; 4],
@@ -120,6 +120,8 @@ pub struct SceneFrame {
     pub top: f64,
     /// The experiment file's coordinates of the local origin (a bundle's working CRS), if any.
     pub origin: Option<(f64, f64)>,
+    /// A bundle's polygonal area of interest: target areas of distant measures are masked by it.
+    pub mask: Option<std::sync::Arc<crate::scene::area_mask::AreaMask>>,
 }
 
 impl SceneFrame {
@@ -174,6 +176,17 @@ impl MeasureConfig {
                 target_rel_stderr,
                 ..
             } => (id, *spp, *target_rel_stderr),
+        }
+    }
+
+    /// Replace the samples per direction/pixel (`simulate run --spp`).
+    pub fn set_spp(&mut self, n: u64) {
+        match self {
+            MeasureConfig::Mdistant { spp, .. }
+            | MeasureConfig::Radiancemeter { spp, .. }
+            | MeasureConfig::DistantFlux { spp, .. }
+            | MeasureConfig::Ortho { spp, .. }
+            | MeasureConfig::Perspective { spp, .. } => *spp = n,
         }
     }
 
@@ -243,7 +256,7 @@ impl MeasureConfig {
                     .collect();
                 let area = match (scene, target_m, target_height_m) {
                     (Some(sc), r, h) => Some(
-                        area(sc, *r, *h).map_err(|m| ctx.err(format!("{key}.target_m"), m))?,
+                        masked_area(sc, *r, *h).map_err(|m| ctx.err(format!("{key}.target_m"), m))?,
                     ),
                     (None, None, None) => None,
                     (None, _, _) => {
@@ -454,8 +467,37 @@ fn area(scene: &SceneFrame, rect: Option<[f64; 4]>, height: Option<f64>) -> Resu
     if !height.is_finite() {
         return Err(format!("target height {height} is not finite"));
     }
-    Ok(Area { rect, height })
+    Ok(Area {
+        rect,
+        height,
+        mask: None,
+    })
 }
+
+/// [`area`] masked by the bundle's area polygon, if any; refused when (almost) none of the
+/// rectangle lies inside it (the sample points are redrawn until inside, sensor.rs).
+fn masked_area(
+    scene: &SceneFrame,
+    rect: Option<[f64; 4]>,
+    height: Option<f64>,
+) -> Result<Area, String> {
+    let mut a = area(scene, rect, height)?;
+    if let Some(m) = &scene.mask {
+        let share = m.share_inside(a.rect);
+        if share < MIN_SHARE_INSIDE {
+            return Err(format!(
+                "only {:.3} % of the target area lies inside the bundle's area polygon (manifest [area]); at least {} % must",
+                100.0 * share,
+                100.0 * MIN_SHARE_INSIDE
+            ));
+        }
+        a.mask = Some(m.clone());
+    }
+    Ok(a)
+}
+
+/// The least inside share of a masked target area (bounds the redraws of a sample point).
+pub const MIN_SHARE_INSIDE: f64 = 1e-3;
 
 /// The pixel grid of an ortho measure, snapped outwards to whole pixels.
 fn ortho_grid(

@@ -66,12 +66,14 @@ pub enum MeasureKind {
     },
 }
 
-/// A horizontal rectangle in the scene's local frame, m.
-#[derive(Clone, Copy, Debug)]
+/// A horizontal rectangle in the scene's local frame, m, masked by the bundle's area polygon
+/// when it has one (the target is then the rectangle's part inside the polygon).
+#[derive(Clone, Debug)]
 pub struct Area {
     /// [xmin, ymin, xmax, ymax].
     pub rect: [f64; 4],
     pub height: f64,
+    pub mask: Option<std::sync::Arc<crate::scene::area_mask::AreaMask>>,
 }
 
 /// A north-up image grid with its view direction.

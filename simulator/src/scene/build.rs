@@ -237,6 +237,14 @@ pub fn from_bundle(
         + raster.data.len()
         + objects.as_ref().map_or(0, |o| o.memory_bytes());
     let reference_height = 0.5 * (m.extent.height_range[0] + m.extent.height_range[1]);
+    // `Bundle::open` has checked that the polygon's WKT reads.
+    let area_mask = match &m.area {
+        Some(a) => Some(std::sync::Arc::new(super::area_mask::AreaMask::new(
+            &a.polygons()?,
+            [origin.x, origin.y],
+        ))),
+        None => None,
+    };
     let scene = Scene {
         name: dir.display().to_string(),
         terrain: Some((terrain, raster)),
@@ -257,6 +265,7 @@ pub fn from_bundle(
                 .map(|t| t.bands.len() * t.width * t.height * 4)
                 .sum::<usize>(),
         periodic: None,
+        area_mask,
         curvature: bend,
         textures: tex,
         texture_of,
@@ -597,6 +606,7 @@ pub fn canopy(
         z_range,
         render_origin: DVec3::ZERO,
         memory_bytes,
+        area_mask: None,
         periodic,
         curvature: None,
         textures: Vec::new(),

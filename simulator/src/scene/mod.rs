@@ -9,6 +9,7 @@
 //! (computed from the f64 tile origin + f32 offsets), so the returned point is accurate to
 //! rounding of the stored vertices.
 
+pub mod area_mask;
 pub mod build;
 pub mod curvature;
 pub mod instances;

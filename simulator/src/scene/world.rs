@@ -163,6 +163,8 @@ pub struct Scene {
     /// Periodic scenes: the unit cell [xmin, ymin, xmax, ymax] (local frame); rays leaving it
     /// re-enter through the opposite wall.
     pub periodic: Option<[f64; 4]>,
+    /// A bundle's polygonal area of interest (local frame), when it has one.
+    pub area_mask: Option<std::sync::Arc<super::area_mask::AreaMask>>,
     /// Bent scenes (under spherical-shell atmospheres): the sphere the scene is bent onto; the
     /// scene's coordinates are then the bent frame of [`super::curvature`] and `z_range` holds
     /// bent heights.

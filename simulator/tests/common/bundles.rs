@@ -178,6 +178,7 @@ pub fn write_plane_with_indices(dir: &Path, p: &PlaneSpec, indices: &[u8]) -> Pa
             count: 0,
             per_template: vec![],
         },
+        area: None,
         provenance: Provenance {
             generator: "test".into(),
             generator_version: "0".into(),
