@@ -513,7 +513,10 @@ impl Bundle {
         ];
         let mut files = read_verified(dir, &manifest, &names)?;
         let mut read = |name: &str| -> Result<(PathBuf, Vec<u8>), BundleError> {
-            let k = names.iter().position(|n| *n == name).expect("a listed file");
+            let k = names
+                .iter()
+                .position(|n| *n == name)
+                .expect("a listed file");
             Ok(std::mem::take(&mut files[k]))
         };
         let slice = |path: &Path,
@@ -855,8 +858,16 @@ fn check_georeference(m: &Manifest, path: &Path) -> Result<(), BundleError> {
         )));
     }
     let e = &m.extent;
-    let finite = e.min.iter().chain(&e.max).chain(&e.height_range).all(|v| v.is_finite());
-    if !finite || e.min[0] >= e.max[0] || e.min[1] >= e.max[1] || e.height_range[0] > e.height_range[1]
+    let finite = e
+        .min
+        .iter()
+        .chain(&e.max)
+        .chain(&e.height_range)
+        .all(|v| v.is_finite());
+    if !finite
+        || e.min[0] >= e.max[0]
+        || e.min[1] >= e.max[1]
+        || e.height_range[0] > e.height_range[1]
     {
         return Err(bad(format!(
             "`extent` (min {:?}, max {:?}, height_range {:?}) is not finite or is inverted",
@@ -864,7 +875,10 @@ fn check_georeference(m: &Manifest, path: &Path) -> Result<(), BundleError> {
         )));
     }
     if !m.frame.origin.iter().all(|v| v.is_finite()) {
-        return Err(bad(format!("`frame.origin` {:?} is not finite", m.frame.origin)));
+        return Err(bad(format!(
+            "`frame.origin` {:?} is not finite",
+            m.frame.origin
+        )));
     }
     Ok(())
 }
@@ -1424,7 +1438,12 @@ mod damaged_input_tests {
     /// every file's size and SHA-256 and names the file.
     #[test]
     fn flipped_truncated_or_missing_buffers_are_refused_at_open() {
-        for file in ["terrain.bin", "templates.bin", "instances.bin", "materials.u8"] {
+        for file in [
+            "terrain.bin",
+            "templates.bin",
+            "instances.bin",
+            "materials.u8",
+        ] {
             let (dir, _) = written("flip");
             let path = dir.join(file);
             let mut bytes = std::fs::read(&path).unwrap();
@@ -1455,19 +1474,40 @@ mod damaged_input_tests {
         let good = m.clone();
         type Damage = Box<dyn Fn(&mut Manifest)>;
         let cases: Vec<(Damage, &str)> = vec![
-            (Box::new(|m| m.material_raster.geotransform[1] = f64::NAN), "geotransform"),
-            (Box::new(|m| m.material_raster.geotransform = [0.0; 6]), "geotransform"),
-            (Box::new(|m| m.material_raster.geotransform[2] = 0.5), "rotated"),
-            (Box::new(|m| m.extent.max[0] = m.extent.min[0] - 1.0), "extent"),
-            (Box::new(|m| m.extent.height_range = [10.0, -10.0]), "extent"),
-            (Box::new(|m| m.frame.origin[2] = f64::INFINITY), "frame.origin"),
+            (
+                Box::new(|m| m.material_raster.geotransform[1] = f64::NAN),
+                "geotransform",
+            ),
+            (
+                Box::new(|m| m.material_raster.geotransform = [0.0; 6]),
+                "geotransform",
+            ),
+            (
+                Box::new(|m| m.material_raster.geotransform[2] = 0.5),
+                "rotated",
+            ),
+            (
+                Box::new(|m| m.extent.max[0] = m.extent.min[0] - 1.0),
+                "extent",
+            ),
+            (
+                Box::new(|m| m.extent.height_range = [10.0, -10.0]),
+                "extent",
+            ),
+            (
+                Box::new(|m| m.frame.origin[2] = f64::INFINITY),
+                "frame.origin",
+            ),
         ];
         for (damage, needle) in cases {
             let mut m = good.clone();
             damage(&mut m);
             std::fs::write(&mpath, toml::to_string(&m).unwrap()).unwrap();
             let msg = Bundle::open(&dir).unwrap_err().to_string();
-            assert!(msg.contains("manifest.toml") && msg.contains(needle), "{needle}: {msg}");
+            assert!(
+                msg.contains("manifest.toml") && msg.contains(needle),
+                "{needle}: {msg}"
+            );
         }
         std::fs::remove_dir_all(&dir).unwrap();
     }

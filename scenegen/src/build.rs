@@ -443,7 +443,11 @@ fn check_instance_budget(
     let per_rule: Vec<f64> = rules
         .iter()
         .map(|r| {
-            let n: u64 = r.classes.iter().map(|c| cells.get(c).copied().unwrap_or(0)).sum();
+            let n: u64 = r
+                .classes
+                .iter()
+                .map(|c| cells.get(c).copied().unwrap_or(0))
+                .sum();
             n as f64 * cell_ha * r.density_per_ha
         })
         .collect();

@@ -79,9 +79,24 @@ fn build(dir: &Path, region: &Path) -> (i32, String) {
 fn bad_heights_are_refused_with_file_and_pixel() {
     let at = 20 * 40 + 17; // row 20, column 17
     let cases: Vec<(&str, Option<f64>, f32, &[&str])> = vec![
-        ("inf", Some(-32768.0), f32::INFINITY, &["inf", "column 17, row 20"]),
-        ("spike", Some(-32768.0), 1e30, &["1.000e30", "column 17, row 20"]),
-        ("void", None, -32768.0, &["-32768", "no-data", "gdal_edit", "column 17, row 20"]),
+        (
+            "inf",
+            Some(-32768.0),
+            f32::INFINITY,
+            &["inf", "column 17, row 20"],
+        ),
+        (
+            "spike",
+            Some(-32768.0),
+            1e30,
+            &["1.000e30", "column 17, row 20"],
+        ),
+        (
+            "void",
+            None,
+            -32768.0,
+            &["-32768", "no-data", "gdal_edit", "column 17, row 20"],
+        ),
         ("pit", None, -20000.0, &["-20000", "column 17, row 20"]),
     ];
     for (name, nodata, value, needles) in cases {
@@ -116,7 +131,12 @@ fn absurd_instance_density_is_refused_before_placement() {
     );
     let (code, stderr) = build(&dir, &region);
     assert_eq!(code, 2, "{stderr}");
-    for n in ["population[0].density_per_ha", "instances", "GiB", "region.toml"] {
+    for n in [
+        "population[0].density_per_ha",
+        "instances",
+        "GiB",
+        "region.toml",
+    ] {
         assert!(stderr.contains(n), "`{n}` not in {stderr}");
     }
     assert!(!dir.join("out").exists());

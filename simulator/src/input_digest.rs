@@ -95,7 +95,8 @@ mod tests {
         std::fs::write(d.join("phase.cdf"), "a").unwrap();
         std::fs::write(d.join("bundle/manifest.toml"), "x = 1").unwrap();
         let exp = d.join("exp.toml");
-        let text = "a = { file = \"phase.cdf\" }\n[scene]\npath = \"bundle\"\nid = \"not a file\"\n";
+        let text =
+            "a = { file = \"phase.cdf\" }\n[scene]\npath = \"bundle\"\nid = \"not a file\"\n";
         assert_eq!(
             named_inputs(text, &exp),
             vec![d.join("phase.cdf"), d.join("bundle")]

@@ -24,7 +24,10 @@ pub fn check(path: &Path) -> Result<(), String> {
     let Ok(mut f) = std::fs::File::open(path) else {
         return Ok(());
     };
-    let len = f.metadata().map_err(|e| format!("cannot read it: {e}"))?.len();
+    let len = f
+        .metadata()
+        .map_err(|e| format!("cannot read it: {e}"))?
+        .len();
     let mut magic = [0u8; 4];
     if f.read_exact(&mut magic).is_err() || &magic[..3] != b"CDF" {
         return Ok(());
@@ -44,7 +47,9 @@ pub fn check(path: &Path) -> Result<(), String> {
             .map_err(|e| format!("cannot read it: {e}"))?;
         match required_length(&head, version) {
             Ok(n) => break n,
-            Err(e) if e.contains("ends early") && head.len() as u64 == want && want < MAX_HEADER => {
+            Err(e)
+                if e.contains("ends early") && head.len() as u64 == want && want < MAX_HEADER =>
+            {
                 want *= 4;
             }
             Err(e) => return Err(format!("damaged classic netCDF header ({e})")),
@@ -169,12 +174,18 @@ fn required_length(b: &[u8], version: u8) -> Result<Option<(u64, String)>, Strin
         let mut shape = Vec::new();
         for _ in 0..rank {
             let id = h.count()? as usize;
-            shape.push(*dims.get(id).ok_or_else(|| format!("variable `{name}` names dimension {id} of {}", dims.len()))?);
+            shape.push(*dims.get(id).ok_or_else(|| {
+                format!("variable `{name}` names dimension {id} of {}", dims.len())
+            })?);
         }
         h.attributes()?;
         let ty = h.u32()?;
         let _vsize = h.count()?;
-        let begin = if version == 1 { h.u32()? as u64 } else { h.u64()? };
+        let begin = if version == 1 {
+            h.u32()? as u64
+        } else {
+            h.u64()?
+        };
         let record = shape.first() == Some(&0);
         // The size of one record (or of the whole fixed variable), from the shape: vsize is
         // not trustworthy beyond 4 GiB.
@@ -231,7 +242,9 @@ mod tests {
         let mut classic = Vec::new();
         let mut stack = vec![root];
         while let Some(d) = stack.pop() {
-            let Ok(rd) = std::fs::read_dir(&d) else { continue };
+            let Ok(rd) = std::fs::read_dir(&d) else {
+                continue;
+            };
             for e in rd.flatten() {
                 let p = e.path();
                 if p.is_dir() {

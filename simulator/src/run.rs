@@ -670,10 +670,7 @@ pub mod checkpoint {
         let text = std::fs::read_to_string(path(dir, iw, im)).ok()?;
         let s: Stored = serde_json::from_str(&text).ok()?;
         let m = &exp.measures[im];
-        if s.experiment_hash != key
-            || s.measure != m.id
-            || s.acc.n.len() != m.cell_count()
-        {
+        if s.experiment_hash != key || s.measure != m.id || s.acc.n.len() != m.cell_count() {
             return None;
         }
         let method = match s.method.as_str() {

@@ -72,7 +72,13 @@ fn full_disk_keeps_previous_products_and_names_the_cause() {
     let result = std::panic::catch_unwind(|| {
         let dir = tmp("fulldisk-exp");
         let out = mnt.join("out");
-        let (code, _, err) = simulate(&["run", "-q", rayleigh(&dir, 2000).to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let (code, _, err) = simulate(&[
+            "run",
+            "-q",
+            rayleigh(&dir, 2000).to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert_eq!(code, 0, "{err}");
         let before = listing(&out);
         assert!(before.iter().any(|(n, _)| n == "results.nc"));
@@ -81,7 +87,13 @@ fn full_disk_keeps_previous_products_and_names_the_cause() {
         let fill = vec![0u8; (free as usize).saturating_sub(12 << 10)];
         std::fs::write(mnt.join("fill"), &fill).unwrap();
         let exp2 = rayleigh(&dir, 3000);
-        let (code, _, err) = simulate(&["run", "-q", exp2.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let (code, _, err) = simulate(&[
+            "run",
+            "-q",
+            exp2.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert_eq!(code, 1, "{err}");
         assert!(err.contains("No space left on device"), "{err}");
         assert!(!err.contains("panicked"), "{err}");
@@ -96,7 +108,13 @@ fn full_disk_keeps_previous_products_and_names_the_cause() {
         assert!(hidden.is_empty(), "{hidden:?}");
         // Space freed: the run completes (from its checkpoints) and replaces the products.
         std::fs::remove_file(mnt.join("fill")).unwrap();
-        let (code, _, err) = simulate(&["run", "-q", exp2.to_str().unwrap(), "-o", out.to_str().unwrap()]);
+        let (code, _, err) = simulate(&[
+            "run",
+            "-q",
+            exp2.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
         assert_eq!(code, 0, "{err}");
         assert_ne!(listing(&out), before);
         std::fs::remove_dir_all(&dir).unwrap();
@@ -144,7 +162,10 @@ fn a_rebuilt_bundle_is_not_served_from_old_checkpoints() {
     let k = header.iter().position(|h| *h == "brf").unwrap();
     for line in csv.lines().skip(1) {
         let brf: f64 = line.split(',').nth(k).unwrap().parse().unwrap();
-        assert!((brf - 0.5).abs() < 0.02, "BRF {brf} is not the rebuilt bundle's 0.5: {line}");
+        assert!(
+            (brf - 0.5).abs() < 0.02,
+            "BRF {brf} is not the rebuilt bundle's 0.5: {line}"
+        );
     }
     std::fs::remove_dir_all(&dir).unwrap();
 }

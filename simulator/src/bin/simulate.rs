@@ -356,13 +356,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let committed = stage.commit()?;
             for (img, what) in images.iter().zip(&looks) {
                 for f in committed.iter().filter(|f| {
-                    f.file_name()
-                        .is_some_and(|n| {
-                            let n = n.to_string_lossy();
-                            n.starts_with(&format!("{}_", img.id))
-                                || n.starts_with(&format!("{}.", img.id))
-                        })
-                        && !f.to_string_lossy().ends_with(".aux.xml")
+                    f.file_name().is_some_and(|n| {
+                        let n = n.to_string_lossy();
+                        n.starts_with(&format!("{}_", img.id))
+                            || n.starts_with(&format!("{}.", img.id))
+                    }) && !f.to_string_lossy().ends_with(".aux.xml")
                 }) {
                     println!("{:<16} wrote {}", img.id, f.display());
                 }
@@ -550,7 +548,10 @@ fn print_summary(rows: &[products::Row]) {
 
 /// A product write error with its real cause: when the output's filesystem is (nearly) full,
 /// say so (HDF5 reports a full disk as "HDF error"). The previous products are intact.
-fn explain_write_error(e: simulator::error::OutputError, output: &std::path::Path) -> anyhow::Error {
+fn explain_write_error(
+    e: simulator::error::OutputError,
+    output: &std::path::Path,
+) -> anyhow::Error {
     let free = products::staging::free_bytes(output);
     let full = free.is_some_and(|f| f < 4 << 20);
     let e = anyhow::Error::new(e);

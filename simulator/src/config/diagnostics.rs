@@ -46,7 +46,10 @@ pub fn split_toml_message(message: &str) -> (Option<usize>, String) {
         .and_then(|d| d.parse().ok());
     // The core follows the caret line of the snippet.
     let lines: Vec<&str> = message.lines().collect();
-    let core = match lines.iter().rposition(|l| l.trim_start().starts_with('|') && l.contains('^')) {
+    let core = match lines
+        .iter()
+        .rposition(|l| l.trim_start().starts_with('|') && l.contains('^'))
+    {
         Some(k) => lines[k + 1..].join("\n"),
         None => lines[1..].join("\n"),
     };
@@ -72,9 +75,10 @@ pub fn line_of(text: &str, path: &str) -> Option<usize> {
     let header = |l: &str| -> Option<String> {
         let t = l.trim();
         let t = t.split('#').next()?.trim();
-        let inner = t.strip_prefix("[[").and_then(|s| s.strip_suffix("]]")).or_else(|| {
-            t.strip_prefix('[').and_then(|s| s.strip_suffix(']'))
-        })?;
+        let inner = t
+            .strip_prefix("[[")
+            .and_then(|s| s.strip_suffix("]]"))
+            .or_else(|| t.strip_prefix('[').and_then(|s| s.strip_suffix(']')))?;
         Some(inner.trim().to_string())
     };
     // Longest prefix of `parts` that is a table header, and where its section starts.
@@ -138,7 +142,10 @@ mod tests {
         assert_eq!(line_of(text, "measures[1].spp"), Some(10));
         assert_eq!(line_of(text, "measures[0].spp"), Some(7));
         assert_eq!(line_of(text, "atmosphere.nothing"), None);
-        assert_eq!(quote(text, 4).unwrap(), "    4 | optical_thickness = \"abc\"");
+        assert_eq!(
+            quote(text, 4).unwrap(),
+            "    4 | optical_thickness = \"abc\""
+        );
         let long = "x".repeat(200_000);
         let q = cut(&long);
         assert!(q.len() < 300 && q.contains("200000 characters"), "{q}");

@@ -50,7 +50,9 @@ pub fn estimate(exp: &Experiment) -> MemoryEstimate {
     let mut results: u64 = 0;
     let mut heaviest: Option<(String, u64)> = None;
     for (k, m) in exp.measures.iter().enumerate() {
-        let b = (m.cell_count() as u64).saturating_mul(nw).saturating_mul(per);
+        let b = (m.cell_count() as u64)
+            .saturating_mul(nw)
+            .saturating_mul(per);
         results = results.saturating_add(b);
         if heaviest.as_ref().is_none_or(|(_, h)| b > *h) {
             heaviest = Some((size_key(k, &m.kind), b));
@@ -134,7 +136,12 @@ mod tests {
         assert!(check(&big, Some(u64::MAX)).is_ok());
         assert!(check(&big, None).is_ok());
         let msg = check(&big, Some(100_000)).unwrap_err().to_string();
-        for n in ["mem.toml", "measures[0].directions", "20 wavelength(s)", "MiB"] {
+        for n in [
+            "mem.toml",
+            "measures[0].directions",
+            "20 wavelength(s)",
+            "MiB",
+        ] {
             assert!(msg.contains(n), "`{n}` not in {msg}");
         }
     }

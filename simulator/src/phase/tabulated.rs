@@ -486,7 +486,10 @@ mod tests {
         let err = Tabulated::load_libradtran(&cut, 350.0, 0)
             .unwrap_err()
             .to_string();
-        assert!(err.contains("truncated") && err.contains("waso-cut"), "{err}");
+        assert!(
+            err.contains("truncated") && err.contains("waso-cut"),
+            "{err}"
+        );
         std::fs::remove_file(&cut).unwrap();
     }
 }
