@@ -464,16 +464,11 @@ impl Bundle {
         }
         match table.get("format_version").and_then(|v| v.as_integer()) {
             Some(v) if v == FORMAT_VERSION as i64 => {}
-            Some(v) => {
-                return Err(BundleError::Version {
-                    path,
-                    found: v as u32,
-                })
-            }
+            Some(v) => return Err(BundleError::Version { path, found: v }),
             None => {
                 return Err(BundleError::Manifest {
                     path,
-                    message: "missing `format_version`".into(),
+                    message: "`format_version` is missing or not an integer".into(),
                 })
             }
         }

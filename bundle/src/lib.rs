@@ -62,7 +62,7 @@ pub enum BundleError {
     #[error("{}: invalid manifest: {message}", path.display())]
     Manifest { path: PathBuf, message: String },
     #[error("{}: bundle format version {found} is not supported (this build reads version {FORMAT_VERSION})", path.display())]
-    Version { path: PathBuf, found: u32 },
+    Version { path: PathBuf, found: i64 },
     #[error("{}: {message}", path.display())]
     Corrupt { path: PathBuf, message: String },
     #[error("output directory {} already exists (use --force to replace it)", path.display())]

@@ -19,6 +19,11 @@ pub enum Mode {
     Ckd,
 }
 
+/// Shortest wavelength a run accepts, nm (the far ultraviolet).
+pub const MIN_WAVELENGTH_NM: f64 = 100.0;
+/// Longest wavelength a run accepts, nm (1 mm, the end of the longwave k-distributions).
+pub const MAX_WAVELENGTH_NM: f64 = 1.0e6;
+
 /// A per-wavelength quantity: one number for every wavelength, or one per wavelength.
 #[derive(Clone, Debug)]
 pub enum SpectralValue {
@@ -229,10 +234,12 @@ impl SpectralConfig {
             return Err(ctx.err("spectral.wavelengths", "must list at least one wavelength"));
         }
         for (i, w) in wavelengths.iter().enumerate() {
-            if !w.is_finite() || *w <= 0.0 {
+            if !w.is_finite() || !(MIN_WAVELENGTH_NM..=MAX_WAVELENGTH_NM).contains(w) {
                 return Err(ctx.err(
                     format!("spectral.wavelengths[{i}]"),
-                    format!("{w} nm must be positive"),
+                    format!(
+                        "{w} nm is outside [{MIN_WAVELENGTH_NM}, {MAX_WAVELENGTH_NM}] nm (ultraviolet to far infrared; wavelengths are in nm)"
+                    ),
                 ));
             }
         }

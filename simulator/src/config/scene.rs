@@ -278,7 +278,10 @@ pub fn build_scene(
                 .collect();
             let dir = base.join(path);
             build::from_bundle(&dir, &bg, &overrides, &reqs, bend).map_err(|m| {
-                let key = if m.starts_with("texture") || m.contains("two textures") {
+                let key = if m.starts_with("texture")
+                    || m.contains("two textures")
+                    || m.contains("texture ")
+                {
                     "scene.textures"
                 } else {
                     "scene.path"

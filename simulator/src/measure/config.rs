@@ -524,9 +524,21 @@ fn ortho_grid(
     let width = ((r[2] - r[0]) / pixel).ceil().max(1.0) as usize;
     let height = ((r[3] - r[1]) / pixel).ceil().max(1.0) as usize;
     if width.saturating_mul(height) > 50_000_000 {
+        // Name the key that made the grid large: the window when one is given.
+        let (key, advice) = match window {
+            Some(w) => (
+                "window_m",
+                format!(
+                    "a {:.0} m × {:.0} m window at {pixel} m",
+                    w[2] - w[0],
+                    w[3] - w[1]
+                ),
+            ),
+            None => ("pixel_size_m", format!("the scene at {pixel} m")),
+        };
         return Err((
-            "pixel_size_m".into(),
-            format!("{width} × {height} pixels is too many (limit 5·10⁷); use a larger pixel or a window"),
+            key.into(),
+            format!("{advice} makes {width} × {height} pixels, too many (limit 5·10⁷); use a larger pixel_size_m or a smaller window_m"),
         ));
     }
     // Centre the snapped grid on the requested window.

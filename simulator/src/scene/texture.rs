@@ -39,7 +39,11 @@ impl Texture {
         origin: [f64; 2],
     ) -> Result<Texture, String> {
         let name = path.display();
-        let ds = Dataset::open(path).map_err(|e| format!("cannot open texture {name}: {e}"))?;
+        if !path.is_file() {
+            return Err(format!("texture {name}: file not found"));
+        }
+        let ds = Dataset::open(path)
+            .map_err(|e| format!("texture {name}: GDAL cannot open it as a raster ({e})"))?;
         let (width, height) = ds.raster_size();
         let nb = ds.raster_count();
         if nb == 0 || width == 0 || height == 0 {

@@ -1,0 +1,637 @@
+//! The hostile-input suite (issue 15): bad, damaged and absurd inputs to both tools, each
+//! asserting the exit code (2: bad input, 1: runtime failure), that the message names the file
+//! and the key (or line, or pixel), that nothing panicked or died of a signal, that a failed
+//! `simulate run` or `scenegen build` left no partial products, and that a previous output in
+//! the same folder is byte-for-byte untouched.
+//!
+//! Every case runs even when an earlier one fails; the test fails at the end with the list.
+//! Full disks, kill -9 and resume, stale checkpoints and concurrent runs have their own tests
+//! (`simulator/tests/{reliability,resume,cli}.rs`); bundle damage at the byte level also has
+//! unit tests in `bundle/src/io.rs`, DEM values in `scenegen/tests/dem_values.rs`.
+
+use std::path::{Path, PathBuf};
+
+use e2e::{binary, run, temp_dir, Outcome};
+use scenegen::synth::write_geotiff;
+
+const LOCAL: &str = "+proj=tmerc +lat_0=45 +lon_0=5.7 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m";
+
+/// A 1D experiment: Rayleigh layer over a Lambertian surface, three directions.
+const EXPERIMENT: &str = r#"seed = 3
+[spectral]
+wavelengths = [550.0]
+[atmosphere]
+type = "homogeneous"
+optical_thickness = 0.2
+single_scattering_albedo = 1.0
+phase = { type = "rayleigh" }
+[surface]
+type = "lambertian"
+reflectance = 0.3
+[illumination]
+type = "directional"
+zenith = 30.0
+azimuth = 0.0
+[[measures]]
+id = "pp"
+type = "mdistant"
+construct = "hplane"
+azimuth = 0.0
+zeniths = [-30.0, 0.0, 30.0]
+spp = 500
+"#;
+
+/// A 3D experiment over the bundle `bundle` (an ortho image).
+const SCENE_EXPERIMENT: &str = r#"seed = 3
+[spectral]
+wavelengths = [550.0]
+[scene]
+type = "bundle"
+path = "bundle"
+[illumination]
+type = "directional"
+zenith = 30.0
+azimuth = 0.0
+[[measures]]
+id = "img"
+type = "ortho"
+pixel_size_m = 400.0
+spp = 2
+"#;
+
+/// A region over the synthetic `dem.tif` and `lc.tif` (2.3 km, local transverse Mercator).
+const REGION: &str = r#"seed = 1
+[area]
+centre = [5.7, 45.0]
+size_km = 2.2
+[dem]
+files = ["dem.tif"]
+spacing_m = 60
+[landcover]
+file = "lc.tif"
+scheme = "corine"
+"#;
+
+struct Suite {
+    simulate: PathBuf,
+    scenegen: PathBuf,
+    root: PathBuf,
+    failures: Vec<String>,
+    cases: usize,
+}
+
+/// What a case expects.
+struct Expect<'a> {
+    code: i32,
+    needles: &'a [&'a str],
+}
+
+impl Suite {
+    fn check(&mut self, name: &str, o: &Outcome, e: &Expect) {
+        self.cases += 1;
+        let mut why = Vec::new();
+        match o.code {
+            None => why.push("killed by a signal".to_string()),
+            Some(c) if c != e.code => why.push(format!("exit {c}, expected {}", e.code)),
+            _ => {}
+        }
+        for n in e.needles {
+            if !o.stderr.contains(n) {
+                why.push(format!("`{n}` not in the message"));
+            }
+        }
+        if o.stderr.contains("panicked") || o.stderr.contains("RUST_BACKTRACE") {
+            why.push("panicked".into());
+        }
+        if o.stderr.len() > 4000 {
+            why.push(format!("message of {} bytes", o.stderr.len()));
+        }
+        if !why.is_empty() {
+            self.failures.push(format!(
+                "{name}: {}\n--- stderr:\n{}",
+                why.join("; "),
+                o.stderr
+            ));
+        }
+    }
+
+    fn simulate(&self, args: &[&str]) -> Outcome {
+        let a: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+        run(&self.simulate, &a, &self.root)
+    }
+
+    fn scenegen(&self, args: &[&str]) -> Outcome {
+        let a: Vec<String> = args.iter().map(|s| s.to_string()).collect();
+        run(&self.scenegen, &a, &self.root)
+    }
+
+    /// `simulate check` and `simulate run` of `text` written as `name.toml`: both must fail
+    /// with `e`; the run into a folder holding a previous run's products leaves them intact.
+    fn experiment(&mut self, name: &str, text: &str, e: &Expect) {
+        let file = self.root.join(format!("{name}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let f = file.to_str().unwrap().to_string();
+        let o = self.simulate(&["check", &f]);
+        self.check(&format!("{name} (check)"), &o, e);
+        let out = self.root.join("previous");
+        let before = listing(&out);
+        let o = self.simulate(&["run", "-q", &f, "-o", out.to_str().unwrap()]);
+        self.check(&format!("{name} (run)"), &o, e);
+        if listing(&out) != before {
+            self.failures
+                .push(format!("{name} (run): the previous products changed"));
+        }
+    }
+
+    /// `scenegen build` of `text` as `name.toml` must fail with `e` and leave no output.
+    fn region(&mut self, name: &str, text: &str, e: &Expect) {
+        let file = self.root.join(format!("{name}.toml"));
+        std::fs::write(&file, text).unwrap();
+        let out = self.root.join(format!("{name}-out"));
+        let o = self.scenegen(&[
+            "build",
+            "-q",
+            file.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+        ]);
+        self.check(name, &o, e);
+        if out.exists() {
+            self.failures
+                .push(format!("{name}: left {}", out.display()));
+        }
+    }
+}
+
+/// File names and contents of the plain files of `dir` (empty if absent).
+fn listing(dir: &Path) -> Vec<(String, Vec<u8>)> {
+    let mut v: Vec<(String, Vec<u8>)> = std::fs::read_dir(dir)
+        .map(|rd| {
+            rd.flatten()
+                .filter(|e| e.path().is_file())
+                .map(|e| {
+                    (
+                        e.file_name().to_string_lossy().into_owned(),
+                        std::fs::read(e.path()).unwrap(),
+                    )
+                })
+                .collect()
+        })
+        .unwrap_or_default();
+    v.sort();
+    v
+}
+
+fn write_dem(path: &Path, crs: Option<&str>, damage: impl Fn(&mut [f32])) {
+    let mut v: Vec<f32> = (0..40 * 40).map(|k| 300.0 + (k % 40) as f32).collect();
+    damage(&mut v);
+    write_geotiff(
+        path,
+        40,
+        40,
+        Some([-1200.0, 60.0, 0.0, 1200.0, 0.0, -60.0]),
+        crs,
+        Some(-32768.0),
+        v,
+    )
+    .unwrap();
+}
+
+fn write_lc(path: &Path, code: u8) {
+    write_geotiff(
+        path,
+        20,
+        20,
+        Some([-1200.0, 120.0, 0.0, 1200.0, 0.0, -120.0]),
+        Some(LOCAL),
+        Some(255.0),
+        vec![code; 400],
+    )
+    .unwrap();
+}
+
+fn copy_dir(from: &Path, to: &Path) {
+    std::fs::create_dir_all(to).unwrap();
+    for e in std::fs::read_dir(from).unwrap().flatten() {
+        std::fs::copy(e.path(), to.join(e.file_name())).unwrap();
+    }
+}
+
+#[test]
+fn hostile_inputs_fail_cleanly() {
+    let root = temp_dir("hostile");
+    let mut s = Suite {
+        simulate: binary("simulate").unwrap(),
+        scenegen: binary("scenegen").unwrap(),
+        root: root.clone(),
+        failures: Vec::new(),
+        cases: 0,
+    };
+    let e = |code, needles| Expect { code, needles };
+
+    // Fixtures: rasters, a bundle, and a previous run's products.
+    write_dem(&root.join("dem.tif"), Some(LOCAL), |_| {});
+    write_lc(&root.join("lc.tif"), 18);
+    std::fs::write(root.join("region.toml"), REGION).unwrap();
+    let o = s.scenegen(&["build", "-q", "region.toml", "-o", "bundle"]);
+    assert_eq!(o.code, Some(0), "fixture bundle: {}", o.stderr);
+    std::fs::write(root.join("base.toml"), EXPERIMENT).unwrap();
+    let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous"]);
+    assert_eq!(o.code, Some(0), "fixture run: {}", o.stderr);
+    assert!(root.join("previous/results.nc").is_file());
+
+    // ---- experiment files ----
+    let x = |from: &str, to: &str| {
+        assert!(EXPERIMENT.contains(from), "{from}");
+        EXPERIMENT.replacen(from, to, 1)
+    };
+    let o = s.simulate(&["check", "absent.toml"]);
+    s.check("missing experiment file", &o, &e(2, &["absent.toml"]));
+    s.experiment("empty", "", &e(2, &["empty.toml", "missing required key"]));
+    s.experiment(
+        "syntax",
+        &x("reflectance = 0.3", "reflectance = = 0.3"),
+        &e(2, &["syntax.toml", "line"]),
+    );
+    s.experiment(
+        "unknown-top-key",
+        &x("seed = 3", "sed = 3"),
+        &e(2, &["unknown-top-key.toml", "sed", "line 1"]),
+    );
+    s.experiment(
+        "unknown-nested-key",
+        &x("optical_thickness = 0.2", "optical_thicknes = 0.2"),
+        &e(2, &["optical_thicknes", "line 6"]),
+    );
+    s.experiment(
+        "wrong-type-in-tagged-table",
+        &x("optical_thickness = 0.2", "optical_thickness = \"abc\""),
+        &e(2, &["atmosphere.optical_thickness", "line 6", "\"abc\""]),
+    );
+    s.experiment(
+        "nan-optical-thickness",
+        &x("optical_thickness = 0.2", "optical_thickness = nan"),
+        &e(2, &["optical_thickness"]),
+    );
+    s.experiment(
+        "negative-optical-thickness",
+        &x("optical_thickness = 0.2", "optical_thickness = -1.0"),
+        &e(2, &["optical_thickness"]),
+    );
+    s.experiment(
+        "albedo-above-one",
+        &x(
+            "single_scattering_albedo = 1.0",
+            "single_scattering_albedo = 1.5",
+        ),
+        &e(2, &["single_scattering_albedo"]),
+    );
+    s.experiment(
+        "sun-below-horizon",
+        &x("zenith = 30.0", "zenith = 95.0"),
+        &e(2, &["zenith"]),
+    );
+    s.experiment(
+        "zenith-as-text",
+        &x("zenith = 30.0", "zenith = \"thirty\""),
+        &e(2, &["illumination.zenith", "thirty"]),
+    );
+    s.experiment(
+        "azimuth-inf",
+        &x("azimuth = 0.0\n[[", "azimuth = inf\n[["),
+        &e(2, &["azimuth"]),
+    );
+    s.experiment(
+        "no-wavelengths",
+        &x("wavelengths = [550.0]", "wavelengths = []"),
+        &e(2, &["wavelengths"]),
+    );
+    s.experiment(
+        "negative-wavelength",
+        &x("wavelengths = [550.0]", "wavelengths = [-550.0]"),
+        &e(2, &["wavelengths"]),
+    );
+    s.experiment(
+        "absurd-wavelength",
+        &x("wavelengths = [550.0]", "wavelengths = [1e9]"),
+        &e(2, &["wavelength"]),
+    );
+    s.experiment("zero-spp", &x("spp = 500", "spp = 0"), &e(2, &["spp"]));
+    s.experiment("negative-spp", &x("spp = 500", "spp = -5"), &e(2, &["spp"]));
+    s.experiment(
+        "unknown-phase",
+        &x("type = \"rayleigh\"", "type = \"rayleight\""),
+        &e(2, &["rayleight", "atmosphere.phase"]),
+    );
+    s.experiment(
+        "hg-g-out-of-range",
+        &x("{ type = \"rayleigh\" }", "{ type = \"hg\", g = 1.5 }"),
+        &e(2, &["phase", "g"]),
+    );
+    s.experiment(
+        "missing-phase-file",
+        &x(
+            "{ type = \"rayleigh\" }",
+            "{ type = \"tabulated\", file = \"nowhere.mie.cdf\" }",
+        ),
+        &e(2, &["nowhere.mie.cdf"]),
+    );
+    std::fs::write(root.join("garbage.mie.cdf"), "not a netCDF file\n").unwrap();
+    s.experiment(
+        "garbage-phase-file",
+        &x(
+            "{ type = \"rayleigh\" }",
+            "{ type = \"tabulated\", file = \"garbage.mie.cdf\" }",
+        ),
+        &e(2, &["garbage.mie.cdf"]),
+    );
+    let fixture = e2e::repo_root().join("simulator/tests/data/fixtures/waso.mie.cdf");
+    let bytes = std::fs::read(&fixture).unwrap();
+    std::fs::write(root.join("cut.mie.cdf"), &bytes[..bytes.len() * 2 / 3]).unwrap();
+    s.experiment(
+        "truncated-phase-file",
+        &x(
+            "{ type = \"rayleigh\" }",
+            "{ type = \"tabulated\", file = \"cut.mie.cdf\", wavelength = 350.0 }",
+        ),
+        &e(2, &["cut.mie.cdf", "truncated"]),
+    );
+    s.experiment(
+        "reflectance-above-one",
+        &x("reflectance = 0.3", "reflectance = 2.0"),
+        &e(2, &["reflectance"]),
+    );
+    s.experiment(
+        "unknown-surface",
+        &x("type = \"lambertian\"", "type = \"lambert\""),
+        &e(2, &["lambert", "surface"]),
+    );
+    let no_measures = EXPERIMENT[..EXPERIMENT.find("[[measures]]").unwrap()].to_string();
+    s.experiment("no-measures", &no_measures, &e(2, &["measures"]));
+    s.experiment(
+        "view-zenith-beyond-90",
+        &x("zeniths = [-30.0, 0.0, 30.0]", "zeniths = [120.0]"),
+        &e(2, &["zeniths"]),
+    );
+    s.experiment(
+        "tiny-layers",
+        &x(
+            "type = \"homogeneous\"\noptical_thickness = 0.2\nsingle_scattering_albedo = 1.0\nphase = { type = \"rayleigh\" }",
+            "type = \"molecular\"\nlayer_thickness = 1e-6",
+        ),
+        &e(2, &["atmosphere.layer_thickness", "layers"]),
+    );
+    s.experiment(
+        "zero-layers",
+        &x(
+            "type = \"homogeneous\"\noptical_thickness = 0.2\nsingle_scattering_albedo = 1.0\nphase = { type = \"rayleigh\" }",
+            "type = \"molecular\"\nlayer_thickness = 0.0",
+        ),
+        &e(2, &["atmosphere.layer_thickness"]),
+    );
+    s.experiment(
+        "detector-sampling-out-of-range",
+        &format!("{EXPERIMENT}[integrator]\ndetector_sampling = 0.9\n"),
+        &e(2, &["detector_sampling"]),
+    );
+    s.experiment(
+        "negative-seed",
+        &x("seed = 3", "seed = -1"),
+        &e(2, &["seed"]),
+    );
+    s.experiment(
+        "polarized-as-text",
+        &format!("polarized = \"yes\"\n{EXPERIMENT}"),
+        &e(2, &["polarized"]),
+    );
+    s.experiment(
+        "long-line",
+        &x(
+            "reflectance = 0.3",
+            &format!("reflectance = 0.3 ]] {}", "x".repeat(200_000)),
+        ),
+        &e(2, &["long-line.toml", "characters, cut"]),
+    );
+    s.experiment(
+        "missing-srf",
+        &x("wavelengths = [550.0]", "srf = \"no_such_band.csv\""),
+        &e(2, &["no_such_band"]),
+    );
+
+    // ---- scenes ----
+    let sx = |from: &str, to: &str| SCENE_EXPERIMENT.replacen(from, to, 1);
+    s.experiment(
+        "missing-bundle",
+        &sx("path = \"bundle\"", "path = \"no_bundle\""),
+        &e(2, &["scene.path", "no_bundle"]),
+    );
+    s.experiment(
+        "tiny-pixels",
+        &sx("pixel_size_m = 400.0", "pixel_size_m = 0.01"),
+        &e(2, &["pixel_size_m", "pixels"]),
+    );
+    s.experiment(
+        "huge-window",
+        &sx(
+            "pixel_size_m = 400.0",
+            "pixel_size_m = 1.0\nwindow_m = [-1e6, -1e6, 1e6, 1e6]",
+        ),
+        &e(2, &["window_m"]),
+    );
+    s.experiment(
+        "missing-texture",
+        &format!(
+            "{SCENE_EXPERIMENT}[[scene.textures]]\nmaterial = \"x\"\nfile = \"no_texture.tif\"\n"
+        )
+        .replacen("[[measures]]", "[[measures]]", 1),
+        &e(2, &["scene.textures"]),
+    );
+    let damaged = |s: &mut Suite, name: &str, damage: &dyn Fn(&Path), needles: &[&str]| {
+        let dir = root.join(format!("bundle-{name}"));
+        copy_dir(&root.join("bundle"), &dir);
+        damage(&dir);
+        let text = sx("path = \"bundle\"", &format!("path = \"bundle-{name}\""));
+        s.experiment(
+            &format!("bundle-{name}"),
+            &text,
+            &Expect { code: 2, needles },
+        );
+    };
+    damaged(
+        &mut s,
+        "flipped-byte",
+        &|d| {
+            let p = d.join("terrain.bin");
+            let mut b = std::fs::read(&p).unwrap();
+            b[100] ^= 1;
+            std::fs::write(&p, b).unwrap();
+        },
+        &["terrain.bin", "SHA-256"],
+    );
+    damaged(
+        &mut s,
+        "truncated-buffer",
+        &|d| {
+            let p = d.join("templates.bin");
+            let b = std::fs::read(&p).unwrap();
+            std::fs::write(&p, &b[..b.len().saturating_sub(1)]).unwrap();
+        },
+        &["templates.bin"],
+    );
+    damaged(
+        &mut s,
+        "missing-buffer",
+        &|d| std::fs::remove_file(d.join("materials.u8")).unwrap(),
+        &["materials.u8"],
+    );
+    let edit_manifest = |d: &Path, from: &str, to: &str| {
+        let p = d.join("manifest.toml");
+        let t = std::fs::read_to_string(&p).unwrap();
+        assert!(t.contains(from), "manifest has no `{from}`");
+        std::fs::write(&p, t.replacen(from, to, 1)).unwrap();
+    };
+    damaged(
+        &mut s,
+        "absurd-version",
+        &|d| edit_manifest(d, "format_version = 1", "format_version = 4294967297"),
+        &["manifest.toml", "4294967297"],
+    );
+    damaged(
+        &mut s,
+        "garbage-manifest",
+        &|d| std::fs::write(d.join("manifest.toml"), "\u{0}\u{1}garbage").unwrap(),
+        &["manifest.toml"],
+    );
+    damaged(
+        &mut s,
+        "nan-geotransform",
+        &|d| edit_manifest(d, "geotransform = [", "geotransform = [nan, "),
+        &["manifest.toml"],
+    );
+
+    // ---- output folders and command lines ----
+    std::fs::write(root.join("a-file"), "not a folder").unwrap();
+    let o = s.simulate(&["run", "-q", "base.toml", "-o", "a-file/out"]);
+    s.check("output under a file", &o, &e(1, &["a-file"]));
+    let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous", "--shard", "3/2"]);
+    s.check("shard out of range", &o, &e(2, &["--shard"]));
+    let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous", "--bogus"]);
+    s.check("unknown flag", &o, &e(2, &["--bogus"]));
+
+    // ---- region files and rasters ----
+    let r = |from: &str, to: &str| {
+        assert!(REGION.contains(from), "{from}");
+        REGION.replacen(from, to, 1)
+    };
+    let o = s.scenegen(&["build", "-q", "absent.toml", "-o", "x"]);
+    s.check("missing region file", &o, &e(2, &["absent.toml"]));
+    s.region(
+        "no-landcover",
+        &REGION[..REGION.find("[landcover]").unwrap()],
+        &e(2, &["no-landcover.toml", "landcover"]),
+    );
+    s.region(
+        "misspelt-dem-key",
+        &r("spacing_m = 60", "spacing_metres = 60"),
+        &e(2, &["spacing_metres"]),
+    );
+    s.region(
+        "missing-dem",
+        &r("files = [\"dem.tif\"]", "files = [\"nodem.tif\"]"),
+        &e(2, &["nodem.tif"]),
+    );
+    write_dem(&root.join("nocrs.tif"), None, |_| {});
+    s.region(
+        "dem-without-crs",
+        &r("files = [\"dem.tif\"]", "files = [\"nocrs.tif\"]"),
+        &e(2, &["nocrs.tif", "CRS"]),
+    );
+    write_dem(&root.join("inf.tif"), Some(LOCAL), |v| {
+        v[41 * 10] = f32::INFINITY
+    });
+    s.region(
+        "dem-inf-pixel",
+        &r("files = [\"dem.tif\"]", "files = [\"inf.tif\"]"),
+        &e(2, &["inf.tif", "pixel"]),
+    );
+    write_dem(&root.join("spike.tif"), Some(LOCAL), |v| v[500] = 1e30);
+    s.region(
+        "dem-spike",
+        &r("files = [\"dem.tif\"]", "files = [\"spike.tif\"]"),
+        &e(2, &["spike.tif", "pixel"]),
+    );
+    s.region(
+        "area-beyond-dem",
+        &r("size_km = 2.2", "size_km = 20"),
+        &e(2, &["dem.tif", "does not cover"]),
+    );
+    write_lc(&root.join("lc_unknown.tif"), 77);
+    s.region(
+        "unknown-landcover-class",
+        &r("file = \"lc.tif\"", "file = \"lc_unknown.tif\""),
+        &e(2, &["77"]),
+    );
+    std::fs::write(root.join("lc_text.tif"), "this is not a GeoTIFF").unwrap();
+    s.region(
+        "garbage-landcover",
+        &r("file = \"lc.tif\"", "file = \"lc_text.tif\""),
+        &e(2, &["lc_text.tif"]),
+    );
+    s.region(
+        "negative-size",
+        &r("size_km = 2.2", "size_km = -2"),
+        &e(2, &["size_km"]),
+    );
+    s.region(
+        "latitude-beyond-90",
+        &r("centre = [5.7, 45.0]", "centre = [5.7, 95.0]"),
+        &e(2, &["centre"]),
+    );
+    s.region(
+        "absurd-density",
+        &format!("{REGION}[[population]]\nclasses = [18]\ntemplate = \"tree\"\ndensity_per_ha = 1e7\n"),
+        &e(2, &["density_per_ha"]),
+    );
+    s.region(
+        "negative-tolerance",
+        &format!("{REGION}[terrain]\ntolerance_m = -1\n"),
+        &e(2, &["tolerance_m"]),
+    );
+    // --force never empties a folder that is not a bundle.
+    std::fs::create_dir_all(root.join("precious")).unwrap();
+    std::fs::write(root.join("precious/thesis.txt"), "years of work").unwrap();
+    let o = s.scenegen(&["build", "-q", "region.toml", "-o", "precious", "--force"]);
+    s.check(
+        "force onto a non-bundle",
+        &o,
+        &e(2, &["precious", "not a scene bundle"]),
+    );
+    if !root.join("precious/thesis.txt").is_file() {
+        s.failures
+            .push("force onto a non-bundle: the folder was emptied".into());
+    }
+    let o = s.scenegen(&["build", "-q", "region.toml", "-o", "bundle"]);
+    s.check(
+        "existing output without --force",
+        &o,
+        &e(2, &["already exists"]),
+    );
+    let info_damaged = root.join("bundle-info");
+    copy_dir(&root.join("bundle"), &info_damaged);
+    std::fs::remove_file(info_damaged.join("templates.bin")).unwrap();
+    let o = s.scenegen(&["info", info_damaged.to_str().unwrap()]);
+    s.check("info with a buffer deleted", &o, &e(2, &["templates.bin"]));
+    let o = s.scenegen(&["info", root.join("precious").to_str().unwrap()]);
+    s.check("info on a non-bundle", &o, &e(2, &["manifest.toml"]));
+
+    println!("{} hostile cases run", s.cases);
+    assert!(s.cases >= 60, "only {} cases", s.cases);
+    assert!(
+        s.failures.is_empty(),
+        "{} of {} cases failed:\n\n{}",
+        s.failures.len(),
+        s.cases,
+        s.failures.join("\n\n")
+    );
+    std::fs::remove_dir_all(&root).unwrap();
+}
