@@ -589,7 +589,9 @@ fn hostile_inputs_fail_cleanly() {
     );
     s.region(
         "absurd-density",
-        &format!("{REGION}[[population]]\nclasses = [18]\ntemplate = \"tree\"\ndensity_per_ha = 1e7\n"),
+        &format!(
+            "{REGION}[[population]]\nclasses = [18]\ntemplate = \"tree\"\ndensity_per_ha = 1e7\n"
+        ),
         &e(2, &["density_per_ha"]),
     );
     s.region(

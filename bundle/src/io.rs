@@ -1507,3 +1507,7 @@ mod damaged_input_tests {
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }
+
+#[cfg(test)]
+#[path = "io_proptests.rs"]
+mod proptests;
