@@ -131,9 +131,43 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
                 view: directions[cell],
             }
         }
+        MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => {
+            let (u1, u2) = (rng.next_f64(), rng.next_f64());
+            image_aim(scene, m, cell, u1, u2)
+        }
+        _ => unreachable!(
+            "the resolver allows only distant, ortho and perspective measures with a scene"
+        ),
+    }
+}
+
+/// The ray of an image measure through (`u1`, `u2`) ∈ [0, 1)² of pixel `cell`, as a ray
+/// from far above (ortho: the first hit is the surface seen) or from the camera: origin and
+/// unit direction, in scene coordinates. `None` for other measures.
+pub fn image_ray(
+    scene: &Scene,
+    m: &Measure,
+    cell: usize,
+    u1: f64,
+    u2: f64,
+) -> Option<(DVec3, DVec3)> {
+    if !m.is_image() {
+        return None;
+    }
+    Some(match image_aim(scene, m, cell, u1, u2) {
+        SceneAim::Through { point, view } => {
+            let up = (scene.z_range[1] - point.z).max(0.0) + 1.0;
+            (point + view * (up / view.z.max(1e-3)), -view)
+        }
+        SceneAim::From { origin, dir } => (origin, dir),
+    })
+}
+
+fn image_aim(scene: &Scene, m: &Measure, cell: usize, u1: f64, u2: f64) -> SceneAim {
+    let place = |p: DVec3| scene.curvature.map_or(p, |c| c.bend(p));
+    match &m.kind {
         MeasureKind::Ortho(g) => {
             let (col, row) = (cell % g.width, cell / g.width);
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
             let x = g.geotransform[0] + (col as f64 + u1) * g.geotransform[1];
             let y = g.geotransform[3] + (row as f64 + u2) * g.geotransform[5];
             let point = match scene.ground_height(x, y) {
@@ -147,7 +181,6 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
         }
         MeasureKind::Perspective(c) => {
             let (col, row) = (cell % c.width, cell / c.width);
-            let (u1, u2) = (rng.next_f64(), rng.next_f64());
             let x = (2.0 * (col as f64 + u1) / c.width as f64 - 1.0) * c.tan_x;
             let y = (2.0 * (row as f64 + u2) / c.height as f64 - 1.0) * c.tan_y;
             SceneAim::From {
@@ -155,9 +188,7 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
                 dir: (c.forward + c.right * x - c.up * y).normalize(),
             }
         }
-        _ => unreachable!(
-            "the resolver allows only distant, ortho and perspective measures with a scene"
-        ),
+        _ => unreachable!("image measures only"),
     }
 }
 

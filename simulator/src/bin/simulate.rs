@@ -94,6 +94,19 @@ enum Command {
         #[arg(short = 'j', long)]
         threads: Option<usize>,
     },
+    /// Quick look at a scene before a run: for every image measure, the material-index
+    /// GeoTIFF (colour table and class names), a shaded-relief PNG and the direct-Sun BRF
+    /// without atmosphere (docs/scenes.md, "Preview").
+    Preview {
+        /// Experiment file with a [scene] and at least one ortho or perspective measure.
+        experiment: PathBuf,
+        /// Output folder (created; existing preview files are replaced).
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Worker threads (default: all cores).
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+    },
     /// Validate an experiment file, or a PICS site file (detected by its `latitude` or
     /// `catalogue` key), without running it.
     Check {
@@ -212,6 +225,40 @@ fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
 fn dispatch(cli: Cli) -> anyhow::Result<()> {
     let quiet = cli.verbosity.quiet;
     match cli.command {
+        Command::Preview {
+            experiment,
+            output,
+            threads,
+        } => {
+            set_threads(threads)?;
+            let t0 = Instant::now();
+            let exp = Experiment::load(&experiment)?;
+            let t_load = t0.elapsed().as_secs_f64();
+            let previews = simulator::preview::render(&exp).map_err(|message| {
+                anyhow::Error::new(ConfigError::Invalid {
+                    path: experiment.clone(),
+                    key: "measures".into(),
+                    message,
+                })
+            })?;
+            std::fs::create_dir_all(&output)
+                .with_context(|| format!("cannot create output folder {}", output.display()))?;
+            let names: Vec<String> = exp
+                .scene
+                .as_ref()
+                .map(|s| s.materials.iter().map(|(n, _)| n.clone()).collect())
+                .unwrap_or_default();
+            for p in &previews {
+                for f in simulator::preview::write(&output, &exp, p, &names)? {
+                    println!("{:<16} wrote {}", p.id, f.display());
+                }
+            }
+            tracing::info!(
+                "preview done in {:.2} s (scene loaded in {t_load:.2} s)",
+                t0.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
         Command::Check {
             experiment,
             acquisitions,
