@@ -130,7 +130,11 @@ fn channel_walks(
     let k = Geometry::<ChannelPath>::light(&geometry).normalization;
     let mut acc = Accum::new(g.outputs());
     for s in range {
-        let mut rng = Stream::new(exp.seed, [key, im as u64, cell as u64, s]);
+        let mut rng = Stream::for_sample(
+            exp.seed,
+            [key, im as u64, cell as u64, s],
+            exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol,
+        );
         let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
         let t = backward::walk(
             &geometry,
@@ -233,7 +237,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
     let m = &exp.measures[im];
     let ids = [iw as u64, im as u64, cell as u64];
     let settings = &exp.integrator;
-    let stream = |s: u64| Stream::new(exp.seed, [ids[0], ids[1], ids[2], s]);
+    let sobol = settings.sampler == crate::integrator::settings::Sampler::Sobol;
+    let stream = |s: u64| Stream::for_sample(exp.seed, [ids[0], ids[1], ids[2], s], sobol);
     let hint = || sensor::frame_azimuth(m, cell);
     match method_for(exp, m) {
         Method::Forward => {

@@ -98,7 +98,7 @@ enum Command {
     /// GeoTIFF (colour table and class names), a shaded-relief PNG and the direct-Sun BRF
     /// without atmosphere (docs/scenes.md, "Preview").
     Preview {
-        /// Experiment file with a [scene] and at least one ortho or perspective measure.
+        /// Experiment file with a `scene` table and at least one ortho or perspective measure.
         experiment: PathBuf,
         /// Output folder (created; existing preview files are replaced).
         #[arg(short, long)]

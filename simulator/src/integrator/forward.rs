@@ -211,7 +211,11 @@ pub fn run_block<W: Photon>(
 ) {
     let mut scratch = Scratch::<W>::new(atmosphere, targets);
     for s in samples {
-        let mut rng = Stream::new(seed, [ids[0], ids[1], ids[2], s]);
+        let mut rng = Stream::for_sample(
+            seed,
+            [ids[0], ids[1], ids[2], s],
+            settings.sampler == super::settings::Sampler::Sobol,
+        );
         walk::<W>(
             atmosphere,
             surface,

@@ -37,6 +37,20 @@ pub struct IntegratorSettings {
     pub first_check_spp: Option<u64>,
     /// DDIS mixture weight ε at peaked phase functions (`integrator/peak_sampling.rs`); 0: off.
     pub detector_sampling: f64,
+    /// `integrator.sampler`: the first [`crate::rng::QMC_DIMS`] numbers of each sample from an
+    /// Owen-scrambled Sobol sequence (`rng.rs`) instead of Philox alone.
+    pub sampler: Sampler,
+}
+
+/// `integrator.sampler`: where each sample's random numbers come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Sampler {
+    /// Philox4x32 streams (independent samples).
+    #[default]
+    Random,
+    /// Owen-scrambled Sobol points per cell for the first dimensions, Philox beyond.
+    Sobol,
 }
 
 /// Default `integrator.detector_sampling`.
@@ -105,6 +119,9 @@ pub struct IntegratorConfig {
     /// ε in [0, 0.5] (default 0.1; 0 turns it off).
     #[serde(default)]
     pub detector_sampling: Option<f64>,
+    /// "random" (default) or "sobol" (quasi-random first dimensions, `rng.rs`).
+    #[serde(default)]
+    pub sampler: Sampler,
 }
 
 /// What of the rest of the run the integrator settings are checked against.
@@ -237,6 +254,7 @@ impl IntegratorSettings {
             }
         };
         Ok(IntegratorSettings {
+            sampler: cfg.sampler,
             detector_sampling,
             spectral_alis,
             kind,
