@@ -620,6 +620,7 @@ impl Bundle {
             });
         }
 
+        drop(bytes); // each raw buffer is freed once parsed
         let (path, bytes) = read(TEMPLATES_FILE)?;
         let mut templates = Vec::with_capacity(manifest.templates.len());
         for t in &manifest.templates {
@@ -667,6 +668,7 @@ impl Bundle {
             });
         }
 
+        drop(bytes); // each raw buffer is freed once parsed
         let (path, bytes) = read(&manifest.instances.file)?;
         if Some(bytes.len() as u64)
             != manifest
@@ -718,6 +720,7 @@ impl Bundle {
             });
         }
 
+        drop(bytes);
         let (path, material_raster) = read(&manifest.material_raster.file)?;
         let r = &manifest.material_raster;
         if material_raster.len() != r.width as usize * r.height as usize {

@@ -49,7 +49,9 @@ pub fn from_bundle(
     bend: Option<Curvature>,
 ) -> Result<Scene, String> {
     let t0 = Instant::now();
-    let bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
+    let mut bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
+    // The buffers are moved out of the bundle (and freed) as soon as their acceleration
+    // structures hold them, so the peak memory holds one copy of each.
     let m = &bundle.manifest;
     let origin = DVec3::from_array(m.frame.origin);
     let extent = [
@@ -133,9 +135,10 @@ pub fn from_bundle(
 
     let t1 = Instant::now();
     let terrain = TerrainBvh::new(&bundle, bend);
+    drop(std::mem::take(&mut bundle.terrain));
     let render_origin = terrain.render_origin();
     let gt = m.material_raster.geotransform;
-    let mut data = bundle.material_raster.clone();
+    let mut data = std::mem::take(&mut bundle.material_raster);
     if !identity {
         for v in &mut data {
             *v = scene_id[*v as usize];
@@ -158,8 +161,7 @@ pub fn from_bundle(
     {
         return Err("the material raster is empty".into());
     }
-    let templates: Vec<TemplateGeometry> = bundle
-        .templates
+    let templates: Vec<TemplateGeometry> = std::mem::take(&mut bundle.templates)
         .iter()
         .map(|t| {
             if identity {
@@ -173,8 +175,7 @@ pub fn from_bundle(
             }
         })
         .collect();
-    let instances: Vec<(u32, InstanceTransform)> = bundle
-        .instances
+    let instances: Vec<(u32, InstanceTransform)> = std::mem::take(&mut bundle.instances)
         .iter()
         .map(InstanceTransform::from_bundle)
         .map(|(k, mut tr)| {
