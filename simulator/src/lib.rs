@@ -40,6 +40,7 @@ pub mod nc_complete;
 pub mod optics;
 pub mod output_lock;
 pub mod phase;
+pub mod planck;
 pub mod pics;
 pub mod pics_catalogue;
 pub mod products;

@@ -311,7 +311,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     hint,
                 )
             } else {
-                let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir);
+                let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir)
+                    .with_emission(opt.surface_emission.as_ref(), exp.sun_shines);
                 backward_block::<_, B>(
                     &g,
                     settings,
