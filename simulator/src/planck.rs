@@ -78,7 +78,7 @@ mod tests {
     #[test]
     fn ten_microns_at_300_k() {
         let b = radiance(10_000.0, 300.0);
-        let nu = 1.0 / 10e-6; // m⁻¹
+        let nu: f64 = 1.0 / 10e-6; // m⁻¹
         let b_nu = 2.0 * H * C * C * nu.powi(3) / ((H * C * nu / (K_B * 300.0)).exp() - 1.0);
         let b_lambda = b_nu * nu * nu * 1e-9;
         assert!((b / b_lambda - 1.0).abs() < 1e-12, "{b} {b_lambda}");
