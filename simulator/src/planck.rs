@@ -105,8 +105,12 @@ mod tests {
 
     #[test]
     fn inverse_and_derivative() {
-        for &(l, t) in &[(4000.0, 250.0), (10_000.0, 300.0), (15_000.0, 190.0), (500.0, 5800.0)]
-        {
+        for &(l, t) in &[
+            (4000.0, 250.0),
+            (10_000.0, 300.0),
+            (15_000.0, 190.0),
+            (500.0, 5800.0),
+        ] {
             let b = radiance(l, t);
             assert!((brightness_temperature(l, b) - t).abs() < 1e-9 * t);
             let h = 1e-4;

@@ -284,7 +284,10 @@ fn disort_thermal(spp: u64, strict: bool) {
             worst_bt = worst_bt.max(d);
             worst_se = worst_se.max(se);
             let label = format!("{id} vza {} raa {}", want.1, want.2);
-            assert!(d <= 4.5 * se + 0.005, "{label}: |ΔBT| = {d} K, σ_BT = {se} K");
+            assert!(
+                d <= 4.5 * se + 0.005,
+                "{label}: |ΔBT| = {d} K, σ_BT = {se} K"
+            );
             if strict {
                 assert!(4.5 * se < 0.1, "{label}: σ_BT = {se} K");
                 assert!(d < 0.1, "{label}: |ΔBT| = {d} K");
@@ -299,7 +302,8 @@ fn disort_thermal(spp: u64, strict: bool) {
 /// Emission runs refuse what they do not carry, naming the key.
 #[test]
 fn unsupported_shapes_name_their_key() {
-    let ok_atm = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5\ntemperature = 250.0";
+    let ok_atm =
+        "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5\ntemperature = 250.0";
     let ok_surf = "type = \"lambertian\"\nreflectance = 0.1\ntemperature = 290.0";
     let m = mdistant_toml("toa", &[0.0], &[0.0], 10);
     let err = |text: String| {
@@ -307,15 +311,23 @@ fn unsupported_shapes_name_their_key() {
             .unwrap_err()
             .to_string()
     };
-    let e = err(head(ok_atm, ok_surf, "type = \"none\"") + "[integrator]\ntype = \"forward\"\n" + &m);
-    assert!(e.contains("integrator.type") && e.contains("test.toml"), "{e}");
+    let e =
+        err(head(ok_atm, ok_surf, "type = \"none\"") + "[integrator]\ntype = \"forward\"\n" + &m);
+    assert!(
+        e.contains("integrator.type") && e.contains("test.toml"),
+        "{e}"
+    );
     let e = err(head(
         "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5",
         ok_surf,
         "type = \"none\"",
     ) + &m);
     assert!(e.contains("atmosphere.temperature"), "{e}");
-    let e = err(head(ok_atm, "type = \"lambertian\"\nreflectance = 0.1", "type = \"none\"") + &m);
+    let e = err(head(
+        ok_atm,
+        "type = \"lambertian\"\nreflectance = 0.1",
+        "type = \"none\"",
+    ) + &m);
     assert!(e.contains("surface.temperature"), "{e}");
     let e = err(head(
         "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5\ntemperature = 250.0\ntemperature_top = 200.0",
@@ -331,11 +343,9 @@ fn unsupported_shapes_name_their_key() {
     assert!(e.contains("atmosphere.layers[0].temperature_top"), "{e}");
     let e = err(head(ok_atm, ok_surf, "type = \"none\"").replace("emission = true\n", "") + &m);
     assert!(e.contains("illumination.type"), "{e}");
-    let e = err(
-        head(ok_atm, ok_surf, "type = \"none\"")
-            + "[geometry]\ntype = \"spherical_shell\"\n"
-            + &m,
-    );
+    let e = err(head(ok_atm, ok_surf, "type = \"none\"")
+        + "[geometry]\ntype = \"spherical_shell\"\n"
+        + &m);
     assert!(e.contains("geometry.type"), "{e}");
 }
 

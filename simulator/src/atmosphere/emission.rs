@@ -157,7 +157,12 @@ mod tests {
             .collect();
         let mut many = atm(&thin);
         // B linear in τ = linear in altitude here (a homogeneous layer).
-        many.set_sources(|top, bottom| [bt + (bb - bt) * (100.0 - top) / 100.0, bt + (bb - bt) * (100.0 - bottom) / 100.0]);
+        many.set_sources(|top, bottom| {
+            [
+                bt + (bb - bt) * (100.0 - top) / 100.0,
+                bt + (bb - bt) * (100.0 - bottom) / 100.0,
+            ]
+        });
         for (t0, dz) in [(0.0, -mu), (tau, mu), (0.8, -mu), (0.8, mu)] {
             let e1 = one.expected_emission(t0, dz);
             let e2 = many.expected_emission(t0, dz);

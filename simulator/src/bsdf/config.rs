@@ -126,7 +126,7 @@ impl SurfaceConfig {
         let model = |m: String| ctx.err(key, m);
         let nw = ctx.nw;
         Ok(match self {
-            SurfaceConfig::Lambertian { reflectance , .. } => {
+            SurfaceConfig::Lambertian { reflectance, .. } => {
                 let name = format!("{key}.reflectance");
                 reflectance
                     .expand(ctx, &name, 0.0, 1.0)?
@@ -138,7 +138,9 @@ impl SurfaceConfig {
                     })
                     .collect::<Result<_, ConfigError>>()?
             }
-            SurfaceConfig::Rpv { rho_0, k, g, rho_c , .. } => {
+            SurfaceConfig::Rpv {
+                rho_0, k, g, rho_c, ..
+            } => {
                 let r0 = spectral("rho_0", rho_0)?;
                 let kk = spectral("k", k)?;
                 let gg = spectral("g", g)?;

@@ -107,14 +107,22 @@ mod tests {
         let flat = Bsdf::Rpv(Rpv::new(0.2, 1.0, 0.0, 1.0).unwrap());
         let e = SurfaceEmission::new(&flat, 1.0);
         for mu in [0.05, 0.3, 0.77, 1.0] {
-            assert!((e.emissivity(mu) - 0.8).abs() < 2e-3, "{}", e.emissivity(mu));
+            assert!(
+                (e.emissivity(mu) - 0.8).abs() < 2e-3,
+                "{}",
+                e.emissivity(mu)
+            );
         }
         let rpv = Bsdf::Rpv(Rpv::new(0.1, 0.543, -0.29, 0.1).unwrap());
         let e = SurfaceEmission::new(&rpv, 1.0);
         let mu = 0.5;
         let v = DVec3::new((1.0f64 - mu * mu).sqrt(), 0.0, mu);
         let want = 1.0 - reflectance(&rpv, v, 512);
-        assert!((e.emissivity(mu) - want).abs() < 2e-4, "{} {want}", e.emissivity(mu));
+        assert!(
+            (e.emissivity(mu) - want).abs() < 2e-4,
+            "{} {want}",
+            e.emissivity(mu)
+        );
         assert!((0.0..=1.0).contains(&e.emissivity(0.1)));
     }
 }

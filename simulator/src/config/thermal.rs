@@ -133,7 +133,12 @@ impl Thermal {
     }
 
     /// Set the sources of wavelength `iw` on `atm` and return the surface's emission.
-    pub fn apply(&self, iw: usize, atm: &mut PlaneParallel, surface: &Bsdf) -> Option<SurfaceEmission> {
+    pub fn apply(
+        &self,
+        iw: usize,
+        atm: &mut PlaneParallel,
+        surface: &Bsdf,
+    ) -> Option<SurfaceEmission> {
         let wl = self.wavelengths[iw];
         let k = 1.0 / self.norm[iw];
         let b = |t: f64| crate::planck::radiance(wl, t) * k;

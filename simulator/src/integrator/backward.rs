@@ -237,7 +237,13 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
         if emitted > 0.0 {
             w.see_emission(tally, order, emitted);
         }
-        let event = g.flight(pos, d, &mut w, (expected && shines).then_some(&mut acc), rng);
+        let event = g.flight(
+            pos,
+            d,
+            &mut w,
+            (expected && shines).then_some(&mut acc),
+            rng,
+        );
         if expected && shines && W::phase_intensity(&acc) > 0.0 {
             w.see_sun_volume(tally, order, &acc, d, sun, INV_4PI);
         }

@@ -141,11 +141,12 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 }
                 row.radiance = Some((t * to_rad, te * to_rad));
                 if exp.emission {
-                    row.brightness_temperature = Some(crate::planck::brightness_temperature_stderr(
-                        row.wavelength_nm,
-                        t * to_rad,
-                        te * to_rad,
-                    ));
+                    row.brightness_temperature =
+                        Some(crate::planck::brightness_temperature_stderr(
+                            row.wavelength_nm,
+                            t * to_rad,
+                            te * to_rad,
+                        ));
                 }
             }
             out.push(row);
