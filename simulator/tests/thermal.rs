@@ -375,4 +375,30 @@ fn products_carry_brightness_temperature() {
         assert!(bt > 220.0 && bt < 290.0, "{bt}");
         assert!(c[ib].is_empty());
     }
+    let dir = std::env::temp_dir().join(format!("thermal_nc_{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("results.nc");
+    simulator::products::netcdf::write(&path, &exp, &rows, &[], &[]).unwrap();
+    {
+        let _session = simulator::netcdf_session();
+        let f = netcdf::open(&path).unwrap();
+        for (name, units) in [
+            ("brightness_temperature", "K"),
+            ("brightness_temperature_stderr", "K"),
+            ("radiance", "W m-2 sr-1 nm-1"),
+        ] {
+            let v = f.variable(name).unwrap();
+            let u: String = v.attribute_value("units").unwrap().unwrap().try_into().unwrap();
+            assert_eq!(u, units, "{name}");
+        }
+        let bt: Vec<f64> = f
+            .variable("brightness_temperature")
+            .unwrap()
+            .get_values::<f64, _>(..)
+            .unwrap();
+        assert_eq!(bt[0], rows[0].brightness_temperature.unwrap().0);
+        let brf: Vec<f64> = f.variable("brf").unwrap().get_values::<f64, _>(..).unwrap();
+        assert!(brf.iter().all(|b| b.is_nan()));
+    }
+    let _ = std::fs::remove_dir_all(&dir);
 }

@@ -20,10 +20,12 @@
 
 use super::PlaneParallel;
 
-/// `(1 − e^{−D}(1 + D))/D` for `D ≥ 0`, accurate near 0.
+/// `(1 − e^{−D}(1 + D))/D` for `D ≥ 0`, to ~1e-12 relative: below D = 0.01 by its series
+/// `Σ_{k≥2} (−1)^k (k − 1) D^{k−1}/k!` (to k = 7), above by the closed form.
 fn g(d: f64) -> f64 {
-    if d < 1e-4 {
-        d * (0.5 - d / 3.0)
+    if d < 1e-2 {
+        d * (1.0 / 2.0
+            - d * (1.0 / 3.0 - d * (1.0 / 8.0 - d * (1.0 / 30.0 - d * (1.0 / 144.0 - d / 840.0)))))
     } else {
         // 1 − e^{−D}(1 + D) = −expm1(−D) − D·e^{−D}
         (-(-d).exp_m1() - d * (-d).exp()) / d
@@ -185,14 +187,17 @@ mod tests {
 
     #[test]
     fn small_segments_are_accurate() {
-        // Series d/2 − d²/3 + d³/8 near 0, the closed form further out.
-        for d in [1e-9, 1e-6, 9e-5] {
-            let want = d * (0.5 - d / 3.0 + d * d / 8.0);
-            assert!((g(d) / want - 1.0).abs() < 1e-9, "{d}");
+        // Series d/2 − d²/3 + d³/8 − d⁴/30 near 0, the closed form further out, and the two
+        // branches agree where they meet.
+        for d in [1e-9, 1e-6, 1e-4, 5e-3] {
+            let want = d * (0.5 - d / 3.0 + d * d / 8.0 - d * d * d / 30.0);
+            assert!((g(d) / want - 1.0).abs() < 1e-10, "{d}");
         }
-        for d in [1e-3, 0.1, 5.0, 800.0f64] {
+        for d in [1e-2, 0.1, 5.0, 800.0f64] {
             let want = (1.0 - (-d).exp() * (1.0 + d)) / d;
             assert!((g(d) / want - 1.0).abs() < 1e-9, "{d}");
         }
+        let (a, b) = (g(1e-2 * (1.0 - 1e-12)), g(1e-2));
+        assert!((a / b - 1.0).abs() < 1e-11, "{a} {b}");
     }
 }

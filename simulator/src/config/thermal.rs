@@ -88,7 +88,7 @@ pub fn resolve(
         }
     };
     if sun.shines {
-        if let Some(e) = sun.irradiance.iter().find(|e| !(**e > 0.0)) {
+        if let Some(e) = sun.irradiance.iter().find(|e| e.is_nan() || **e <= 0.0) {
             return Err(ctx.err(
                 "illumination.irradiance",
                 format!(
