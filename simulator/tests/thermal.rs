@@ -402,3 +402,68 @@ fn products_carry_brightness_temperature() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Rationale: the upwelling flux of a non-scattering isothermal layer over a black surface is
+/// `F = π[B(T)(1 − 2E₃(τ)) + B(T_s)·2E₃(τ)]` (the flux transmittance is 2E₃); the backward
+/// `distant_flux` measure (cosine-sampled paths) must reproduce it; and a radiancemeter on the
+/// ground looking up sees `B(T)(1 − e^{−τ/μ})` (cold space above).
+#[test]
+fn flux_and_downwelling_radiance_closed_forms() {
+    let (tau, t, ts) = (0.7, 240.0, 295.0);
+    let (b, bs) = (planck::radiance(WL, t), planck::radiance(WL, ts));
+    let text = head(
+        &format!("[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = {tau:?}\nsingle_scattering_albedo = 0.0\ntemperature = {t:?}"),
+        &format!("type = \"lambertian\"\nreflectance = 0.0\ntemperature = {ts:?}"),
+        "type = \"none\"",
+    ) + "[[measures]]\nid = \"f\"\ntype = \"distant_flux\"\nspp = 40000\n"
+        + "[[measures]]\nid = \"up\"\ntype = \"radiancemeter\"\norigin = [0.0, 0.0, 0.0]\ndirection = [0.6, 0.0, 0.8]\nspp = 10\n";
+    let rows = run(&text);
+    let t3 = 2.0 * e3(tau);
+    let want = std::f64::consts::PI * (b * (1.0 - t3) + bs * t3);
+    let (f, e) = rows[0].flux.unwrap();
+    assert!(rows[0].brightness_temperature.is_none());
+    let (l, _) = rows[1].radiance.unwrap();
+    let want_down = b * (1.0 - (-tau / 0.8f64).exp());
+    assert!((l / want_down - 1.0).abs() < 1e-12, "{l} {want_down}");
+    check_all(
+        "thermal flux",
+        &[Cmp {
+            label: "TOA upwelling flux".into(),
+            reference: want / (std::f64::consts::PI * bs),
+            value: f / (std::f64::consts::PI * bs),
+            stderr: e / (std::f64::consts::PI * bs),
+        }],
+    )
+    .unwrap();
+}
+
+/// Rationale: emission is unpolarized and a Mueller path adds it through its first column, so
+/// a polarized thermal run gives the scalar run's radiance within their standard errors where
+/// nothing polarizes (HG phase function and Lambertian ground depolarize; with Rayleigh
+/// scattering the scalar approximation itself differs by ~1 %).
+#[test]
+fn polarized_thermal_equals_scalar() {
+    let body = head(
+        "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.8\nsingle_scattering_albedo = 0.7\nphase = { type = \"hg\", g = 0.5 }\ntemperature_bottom = 280.0\ntemperature_top = 240.0",
+        "type = \"lambertian\"\nreflectance = 0.2\ntemperature = 290.0",
+        "type = \"directional\"\nzenith = 40.0\nirradiance = 0.03",
+    ) + &mdistant_toml("toa", &[0.0, 50.0], &[0.0, 180.0], 40_000);
+    let a = run(&body);
+    let b = run(&format!("polarized = true\n{body}"));
+    let bs = planck::radiance(WL, 290.0);
+    let cmps: Vec<Cmp> = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| {
+            let (la, ea) = x.radiance.unwrap();
+            let (lb, eb) = y.radiance.unwrap();
+            Cmp {
+                label: format!("vza {:?}", x.vza),
+                reference: la / bs,
+                value: lb / bs,
+                stderr: (ea * ea + eb * eb).sqrt() / bs,
+            }
+        })
+        .collect();
+    check_all("polarized vs scalar thermal", &cmps).unwrap();
+}
