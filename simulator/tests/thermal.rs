@@ -467,3 +467,22 @@ fn polarized_thermal_equals_scalar() {
         .collect();
     check_all("polarized vs scalar thermal", &cmps).unwrap();
 }
+
+/// Band rows (`spectral.srf`): the band radiance of a 300 K black body is inverted at the
+/// band's effective wavelength Σwλ/Σw; for MODIS band 31 (11 µm) that gives 299.9 K (the
+/// effective-wavelength approximation, not noise: the run has zero variance).
+#[test]
+fn band_brightness_temperature() {
+    let text = "emission = true\n[spectral]\nsrf = \"terra-modis-31\"\nwavelength_step = 20.0\n[surface]\ntype = \"lambertian\"\nreflectance = 0.0\ntemperature = 300.0\n[illumination]\ntype = \"none\"\n".to_string()
+        + &mdistant_toml("toa", &[0.0], &[0.0], 10);
+    let exp = experiment(&text);
+    let rows = run_rows(&exp);
+    let band = simulator::products::band_rows(&exp, &rows);
+    let w = &exp.band.as_ref().unwrap().weights;
+    let l_eff = w.iter().zip(&exp.wavelengths).map(|(w, l)| w * l).sum::<f64>()
+        / w.iter().sum::<f64>();
+    let (l, _) = band[0].radiance.unwrap();
+    let (t, _) = band[0].brightness_temperature.unwrap();
+    assert!((t - planck::brightness_temperature(l_eff, l)).abs() < 1e-9);
+    assert!((t - 300.0).abs() < 0.2, "{t}");
+}
