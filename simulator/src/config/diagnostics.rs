@@ -1,7 +1,7 @@
 //! Error messages about the experiment file that name the key path and its own line.
 //!
 //! serde reports a wrong value inside a tagged table (`[atmosphere]` with `type = ...`) at the
-//! table, and the TOML reader quotes the table's header line; [`super::resolve`] finds the real
+//! table, and the TOML reader quotes the table's header line; [`super::resolve()`] finds the real
 //! offender by its value or name, and these helpers quote *its* line instead, cut to a readable
 //! length (a 200 KB line is never echoed whole).
 
