@@ -244,6 +244,14 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 azimuth_hints: &hints,
             };
             let mut acc = F::accum(m.cell_count());
+            let thermal = exp.emission.then(|| {
+                forward::ThermalSources::new(
+                    &opt.atmosphere,
+                    opt.surface_emission.as_ref(),
+                    &dirs,
+                    exp.mu_norm(),
+                )
+            });
             forward::run_block::<F>(
                 &opt.atmosphere,
                 &opt.surface,
@@ -254,6 +262,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 ids,
                 range,
                 &mut acc,
+                thermal.as_ref(),
+                exp.sun_shines,
             );
             acc
         }

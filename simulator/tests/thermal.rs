@@ -185,7 +185,14 @@ fn reference() -> Vec<(String, f64, f64, f64)> {
 }
 
 fn experiment_for(case: &Table, vza: &[f64], raa: &[f64], spp: u64) -> String {
+    experiment_with(case, vza, raa, spp, "backward")
+}
+
+fn experiment_with(case: &Table, vza: &[f64], raa: &[f64], spp: u64, integrator: &str) -> String {
     let mut t = Table::new();
+    let mut integ = Table::new();
+    integ.insert("type".into(), Value::String(integrator.into()));
+    t.insert("integrator".into(), Value::Table(integ));
     t.insert("emission".into(), Value::Boolean(true));
     t.insert("seed".into(), Value::Integer(16));
     let mut spectral = Table::new();
@@ -307,12 +314,11 @@ fn unsupported_shapes_name_their_key() {
             .unwrap_err()
             .to_string()
     };
-    let e =
-        err(head(ok_atm, ok_surf, "type = \"none\"") + "[integrator]\ntype = \"forward\"\n" + &m);
-    assert!(
-        e.contains("integrator.type") && e.contains("test.toml"),
-        "{e}"
-    );
+    let e = err(head(ok_atm, ok_surf, "type = \"none\"")
+        + "[integrator]\ntype = \"forward\"\n"
+        + &m
+        + "[[measures]]\nid = \"f\"\ntype = \"distant_flux\"\nspp = 10\n");
+    assert!(e.contains("measures[1]") && e.contains("test.toml"), "{e}");
     let e = err(head(
         "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5",
         ok_surf,
@@ -490,4 +496,39 @@ fn band_brightness_temperature() {
     let (t, _) = band[0].brightness_temperature.unwrap();
     assert!((t - planck::brightness_temperature(l_eff, l)).abs() < 1e-9);
     assert!((t - 300.0).abs() < 0.2, "{t}");
+}
+
+/// Rationale: the forward estimator (emitted photons drawn in proportion to the emitted power,
+/// the directly transmitted emission in closed form) solves the same DISORT cases; one photon
+/// serves all 15 directions. Same statistical test as the backward run.
+#[test]
+fn disort_thermal_cases_forward() {
+    let refs = reference();
+    let mut worst_bt: f64 = 0.0;
+    for case in cases() {
+        let id = case["id"].as_str().unwrap();
+        let rows: Vec<_> = refs.iter().filter(|r| r.0 == id).collect();
+        let vza: Vec<f64> = rows.iter().map(|r| r.1).collect();
+        let raa: Vec<f64> = rows.iter().map(|r| r.2).collect();
+        let bs = planck::radiance(WL, case["surface"]["temperature"].as_float().unwrap());
+        let exp = experiment(&experiment_with(&case, &vza, &raa, 100_000, "forward"));
+        let out = run_rows_light_tailed(&exp);
+        let mut cmps = Vec::new();
+        for (r, want) in out.iter().zip(&rows) {
+            assert_eq!(r.method, "forward");
+            let (l, e) = r.radiance.unwrap();
+            cmps.push(Cmp {
+                label: format!("{id} vza {} raa {}", want.1, want.2),
+                reference: want.3 / bs,
+                value: l / bs,
+                stderr: e / bs,
+            });
+            let (bt, se) = r.brightness_temperature.unwrap();
+            let d = (bt - planck::brightness_temperature(WL, want.3)).abs();
+            worst_bt = worst_bt.max(d);
+            assert!(d <= 4.5 * se + 0.005, "{id}: |ΔBT| = {d} K, σ_BT = {se} K");
+        }
+        check_all(&format!("DISORT thermal forward {id}"), &cmps).unwrap();
+    }
+    println!("DISORT thermal forward: max |ΔBT| = {worst_bt:.4} K");
 }

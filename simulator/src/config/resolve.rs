@@ -388,7 +388,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     )?;
 
     if let Some(t) = &thermal {
-        t.check_integrator(&ctx, &mut integrator)?;
+        t.check_integrator(&ctx, &mut integrator, &measures)?;
     }
     if ckd && atmosphere.ckd.is_empty() {
         return Err(ctx.err(

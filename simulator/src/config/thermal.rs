@@ -9,7 +9,8 @@
 //! turn them into radiance as they turn reflected sunlight (`docs/transport.md`).
 //!
 //! Built for plane-parallel, monochromatic runs with the backward estimator (scalar or
-//! polarized); other shapes of run are refused with the key that selects them.
+//! polarized; the default) or, on request, the forward one (directional measures); other
+//! shapes of run are refused with the key that selects them.
 
 use super::ExperimentConfig;
 use crate::atmosphere::config::{Geometry, LayerTemperature};
@@ -18,6 +19,7 @@ use crate::bsdf::{Bsdf, SurfaceEmission};
 use crate::error::{ConfigCtx, ConfigError};
 use crate::illumination::Sun;
 use crate::integrator::settings::{IntegratorKind, IntegratorSettings};
+use crate::measure::Measure;
 use crate::spectral::Mode;
 
 /// The thermal sources of a run.
@@ -107,18 +109,21 @@ pub fn resolve(
 
 impl Thermal {
     /// Refuse the estimators that do not carry emission; `integrator.type = "auto"` becomes
-    /// the backward estimator.
+    /// the backward estimator (the forward one serves directional measures only, on request).
     pub fn check_integrator(
         &self,
         ctx: &ConfigCtx,
         s: &mut IntegratorSettings,
+        measures: &[Measure],
     ) -> Result<(), ConfigError> {
         match s.kind {
             IntegratorKind::Forward => {
-                return Err(ctx.err(
-                    "integrator.type",
-                    "thermal emission (`emission = true`) is built in the backward estimator only: use \"auto\" or \"backward\"",
-                ))
+                if let Some(i) = measures.iter().position(|m| m.is_flux()) {
+                    return Err(ctx.err(
+                        format!("measures[{i}]"),
+                        "a flux measure with thermal emission needs the backward estimator (`integrator.type = \"auto\"` or \"backward\")",
+                    ));
+                }
             }
             IntegratorKind::Auto => s.kind = IntegratorKind::Backward,
             IntegratorKind::Backward => {}
