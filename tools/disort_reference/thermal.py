@@ -26,8 +26,6 @@ import numpy as np
 
 import nanodisort as nd
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 OUT_DIR = REPO / "simulator" / "tests" / "data" / "disort"
