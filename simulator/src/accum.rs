@@ -134,9 +134,11 @@ impl Accum {
     }
 
     /// The heavy-tail diagnostic of the total in `cell`; `None` with fewer than
-    /// [`TAIL_MIN_SAMPLES`] samples or a zero variance. The central moments come from the power
-    /// sums; their cancellation matters only for nearly constant samples, whose VOV is ≈ 0
-    /// anyway (the result is clamped at 0).
+    /// [`TAIL_MIN_SAMPLES`] samples or a zero variance (relative to the sum of squares, below
+    /// 1e-12: samples constant to ~6 digits). The central moments come from the power sums;
+    /// their cancellation matters only for nearly constant samples, which is why those are
+    /// left out: with exactly constant samples it once reported a VOV of 1e10 (a thermal run
+    /// through a non-scattering layer, `tests/thermal.rs`).
     pub fn tail(&self, cell: usize) -> Option<Tail> {
         let n = self.n[cell];
         if n < TAIL_MIN_SAMPLES {
@@ -147,7 +149,10 @@ impl Accum {
         let (s1, s2, s3, s4) = (self.sum[o], self.sum2[o], self.sum3[cell], self.sum4[cell]);
         let m = s1 / nf;
         let m2 = s2 - nf * m * m;
-        if m2 <= 0.0 {
+        // Samples equal to within float rounding (a zero-variance estimator, e.g. thermal
+        // emission through a non-scattering layer over a black ground): the central moments
+        // are rounding noise and there is no tail to judge.
+        if m2 <= 1e-12 * s2 {
             return None;
         }
         let m4 = s4 - 4.0 * m * s3 + 6.0 * m * m * s2 - 3.0 * nf * m.powi(4);

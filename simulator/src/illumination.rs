@@ -45,6 +45,9 @@ pub enum IlluminationConfig {
         #[serde(default)]
         distance_au: Option<f64>,
     },
+    /// No Sun: thermal emission only (`emission = true`). Radiances are then normalised by a
+    /// nominal irradiance of 1 (no BRF).
+    None {},
 }
 
 /// Solar irradiance: numbers, or the name of a built-in spectrum / a CSV file.
@@ -70,8 +73,12 @@ pub struct Sun {
     pub dir: DVec3,
     /// Earth–Sun distance (AU) when the Sun comes from `time` (or `date`).
     pub distance_au: Option<f64>,
-    /// E0 at each run wavelength (W m⁻² nm⁻¹), scaled to the Earth–Sun distance when known.
+    /// E0 at each run wavelength (W m⁻² nm⁻¹), scaled to the Earth–Sun distance when known;
+    /// without a Sun, a nominal 1 (the unit of the tallies).
     pub irradiance: Vec<f64>,
+    /// Whether there is a Sun at all (`type = "none"`: false; the direction is then the
+    /// zenith, a placeholder).
+    pub shines: bool,
 }
 
 impl IlluminationConfig {
@@ -93,7 +100,17 @@ impl IlluminationConfig {
             longitude,
             elevation,
             distance_au: given_distance,
-        } = self;
+        } = self
+        else {
+            return Ok(Sun {
+                zenith_deg: 0.0,
+                azimuth_deg: 0.0,
+                dir: DVec3::Z,
+                distance_au: None,
+                irradiance: vec![1.0; wavelengths.len()],
+                shines: false,
+            });
+        };
         let mut sun_distance_factor = None;
         let mut distance_au = None;
         let (zenith, azimuth) = match (time, zenith) {
@@ -238,6 +255,7 @@ impl IlluminationConfig {
             dir: direction_from_angles(zenith.to_radians(), azimuth_deg.to_radians()),
             distance_au,
             irradiance,
+            shines: true,
         })
     }
 }

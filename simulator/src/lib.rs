@@ -42,6 +42,7 @@ pub mod output_lock;
 pub mod phase;
 pub mod pics;
 pub mod pics_catalogue;
+pub mod planck;
 pub mod preview;
 pub mod products;
 pub mod rng;

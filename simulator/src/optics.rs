@@ -13,6 +13,8 @@ pub struct OpticalState {
     /// The same layers as spherical shells, in spherical-shell experiments.
     pub shell: Option<SphericalShell>,
     pub surface: Bsdf,
+    /// The 1D surface's thermal emission (`emission = true` with a surface temperature).
+    pub surface_emission: Option<crate::bsdf::SurfaceEmission>,
     /// The 3D scene's material models at this wavelength (empty without a scene).
     pub scene_models: Vec<crate::scene::material::SurfaceModel>,
     /// Solar irradiance normal to the beam, W m⁻² nm⁻¹.

@@ -195,7 +195,10 @@ mod tests {
         for bin in &bins {
             assert!(bin.iter().all(|&c| c == 1), "a dimension is not stratified");
         }
-        assert!(q_err * 100.0 < r_err, "Sobol error² {q_err:e} vs random {r_err:e}");
+        assert!(
+            q_err * 100.0 < r_err,
+            "Sobol error² {q_err:e} vs random {r_err:e}"
+        );
     }
 
     /// Known-answer test from the Random123 distribution (kat_vectors, philox4x32_10).

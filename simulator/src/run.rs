@@ -249,6 +249,14 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 azimuth_hints: &hints,
             };
             let mut acc = F::accum(m.cell_count());
+            let thermal = exp.emission.then(|| {
+                forward::ThermalSources::new(
+                    &opt.atmosphere,
+                    opt.surface_emission.as_ref(),
+                    &dirs,
+                    exp.mu_norm(),
+                )
+            });
             forward::run_block::<F>(
                 &opt.atmosphere,
                 &opt.surface,
@@ -259,6 +267,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 ids,
                 range,
                 &mut acc,
+                thermal.as_ref(),
+                exp.sun_shines,
             );
             acc
         }
@@ -316,7 +326,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     hint,
                 )
             } else {
-                let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir);
+                let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir)
+                    .with_emission(opt.surface_emission.as_ref(), exp.sun_shines);
                 backward_block::<_, B>(
                     &g,
                     settings,

@@ -52,6 +52,7 @@ fn rows(exp: &Experiment) -> Vec<Row> {
                 brf_u: None,
                 brf_v: None,
                 dolp: None,
+                brightness_temperature: None,
                 n_samples: 100,
             });
         }

@@ -125,6 +125,16 @@ pub enum AtmosphereConfig {
         single_scattering_albedo: SpectralValue,
         #[serde(default)]
         phase: PhaseConfig,
+        /// K: an isothermal layer (thermal emission); or `temperature_bottom` and
+        /// `temperature_top`, the Planck source then linear in optical depth between them.
+        #[serde(default)]
+        temperature: Option<f64>,
+        /// K, at the layer's bottom.
+        #[serde(default)]
+        temperature_bottom: Option<f64>,
+        /// K, at the layer's top.
+        #[serde(default)]
+        temperature_top: Option<f64>,
     },
     /// Plane-parallel layers, each homogeneous.
     Layered { layers: Vec<LayerConfig> },
@@ -202,6 +212,16 @@ pub struct LayerConfig {
     pub single_scattering_albedo: Option<SpectralValue>,
     #[serde(default)]
     pub phase: PhaseConfig,
+    /// K: an isothermal layer (thermal emission); or `temperature_bottom` and
+    /// `temperature_top`, the Planck source then linear in optical depth between them.
+    #[serde(default)]
+    pub temperature: Option<f64>,
+    /// K, at the layer's bottom.
+    #[serde(default)]
+    pub temperature_bottom: Option<f64>,
+    /// K, at the layer's top.
+    #[serde(default)]
+    pub temperature_top: Option<f64>,
 }
 
 /// One `[[atmosphere.particle_layers]]` table (see `atmosphere::particles`).
@@ -243,6 +263,119 @@ pub enum DistributionConfig {
         mean: f64,
         std: f64,
     },
+}
+
+/// The temperature of one layer (thermal emission): boundaries in m, temperatures in K.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LayerTemperature {
+    pub bottom: f64,
+    pub top: f64,
+    pub t_bottom: f64,
+    pub t_top: f64,
+}
+
+/// `temperature`, or `temperature_bottom` and `temperature_top`, of the table at `key`:
+/// (bottom, top) in K. Temperatures must lie in (0, 10 000] K.
+fn layer_temperature(
+    ctx: &ConfigCtx,
+    key: &str,
+    t: Option<f64>,
+    bottom: Option<f64>,
+    top: Option<f64>,
+) -> Result<(f64, f64), ConfigError> {
+    let check = |name: &str, v: f64| -> Result<f64, ConfigError> {
+        let k = format!("{key}.{name}");
+        let v = ctx.finite(&k, v)?;
+        if v <= 0.0 || v > 10_000.0 {
+            return Err(ctx.err(k, format!("{v} K must lie in (0, 10000] K")));
+        }
+        Ok(v)
+    };
+    match (t, bottom, top) {
+        (Some(t), None, None) => {
+            let t = check("temperature", t)?;
+            Ok((t, t))
+        }
+        (None, Some(b), Some(t)) => Ok((
+            check("temperature_bottom", b)?,
+            check("temperature_top", t)?,
+        )),
+        (Some(_), _, _) => Err(ctx.err(
+            format!("{key}.temperature"),
+            "give `temperature` or `temperature_bottom` and `temperature_top`, not both",
+        )),
+        (None, Some(_), None) => Err(ctx.err(
+            format!("{key}.temperature_top"),
+            "is required with `temperature_bottom`",
+        )),
+        (None, None, Some(_)) => Err(ctx.err(
+            format!("{key}.temperature_bottom"),
+            "is required with `temperature_top`",
+        )),
+        (None, None, None) => Err(ctx.err(
+            format!("{key}.temperature"),
+            "is required with `emission = true` (or `temperature_bottom` and `temperature_top`)",
+        )),
+    }
+}
+
+impl AtmosphereConfig {
+    /// The layers' temperatures for thermal emission (`emission = true`): one entry per layer
+    /// of a homogeneous or layered atmosphere, none without an atmosphere. Errors name the
+    /// missing or bad key; a molecular atmosphere's temperatures (from its profile) are not
+    /// built yet and are refused at `atmosphere.type`.
+    pub fn temperatures(
+        &self,
+        ctx: &ConfigCtx,
+        geometry: &Geometry,
+    ) -> Result<Vec<LayerTemperature>, ConfigError> {
+        match self {
+            AtmosphereConfig::None {} => Ok(Vec::new()),
+            AtmosphereConfig::Homogeneous {
+                temperature,
+                temperature_bottom,
+                temperature_top,
+                ..
+            } => {
+                let (b, t) = layer_temperature(
+                    ctx,
+                    "atmosphere",
+                    *temperature,
+                    *temperature_bottom,
+                    *temperature_top,
+                )?;
+                Ok(vec![LayerTemperature {
+                    bottom: geometry.ground,
+                    top: geometry.toa,
+                    t_bottom: b,
+                    t_top: t,
+                }])
+            }
+            AtmosphereConfig::Layered { layers } => layers
+                .iter()
+                .enumerate()
+                .map(|(i, l)| {
+                    let (b, t) = layer_temperature(
+                        ctx,
+                        &format!("atmosphere.layers[{i}]"),
+                        l.temperature,
+                        l.temperature_bottom,
+                        l.temperature_top,
+                    )?;
+                    Ok(LayerTemperature {
+                        bottom: l.bottom * 1e3,
+                        top: l.top * 1e3,
+                        t_bottom: b,
+                        t_top: t,
+                    })
+                })
+                .collect(),
+            AtmosphereConfig::Molecular { .. } => Err(ctx.err(
+                "atmosphere.type",
+                "thermal emission (`emission = true`) with a molecular atmosphere is not built yet: use a homogeneous or layered atmosphere with temperatures",
+            )),
+        }
+    }
 }
 
 /// The resolved atmosphere: per run wavelength, its layers (bottom and top in m), and in CKD
@@ -289,6 +422,7 @@ impl AtmosphereConfig {
                 optical_thickness,
                 single_scattering_albedo,
                 phase,
+                ..
             } => {
                 let tau =
                     optical_thickness.expand(ctx, "atmosphere.optical_thickness", 0.0, 1e6)?;

@@ -15,6 +15,7 @@
 //! albedo is `tau_sca / (tau_sca + tau_abs)`.
 
 pub mod config;
+pub mod emission;
 pub mod molecular;
 pub mod particles;
 pub mod spherical;
@@ -44,6 +45,9 @@ pub struct PlaneParallel {
     albedo: Vec<f64>,
     phase: Vec<PhaseFunction>,
     total_tau: f64,
+    /// Thermal source per layer, top to bottom: the Planck radiance at the layer's top and
+    /// bottom boundary, in the units of the path tally (`emission.rs`); empty without emission.
+    source: Vec<[f64; 2]>,
 }
 
 impl PlaneParallel {
@@ -76,6 +80,7 @@ impl PlaneParallel {
             albedo,
             phase,
             total_tau,
+            source: Vec::new(),
         }
     }
 
@@ -99,6 +104,7 @@ impl PlaneParallel {
             albedo,
             phase: self.phase.clone(),
             total_tau,
+            source: self.source.clone(),
         }
     }
 

@@ -580,8 +580,14 @@ fn print_summary(rows: &[products::Row]) {
             x.map(|a| format!("{a:8.2}"))
                 .unwrap_or_else(|| format!("{:>8}", "-"))
         };
+        // Thermal runs: the brightness temperature and its standard error, K.
+        let bt = r
+            .brightness_temperature
+            .filter(|(t, _)| t.is_finite())
+            .map(|(t, se)| format!("  BT={t:.3} K ± {se:.3}"))
+            .unwrap_or_default();
         println!(
-            "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%",
+            "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%{bt}",
             r.measure,
             r.wavelength_nm,
             ang(r.vza),

@@ -15,6 +15,9 @@ use crate::spectral::SpectralValue;
 pub enum SurfaceConfig {
     Lambertian {
         reflectance: SpectralValue,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
     Rpv {
         rho_0: SpectralValue,
@@ -22,11 +25,17 @@ pub enum SurfaceConfig {
         g: SpectralValue,
         #[serde(default)]
         rho_c: Option<SpectralValue>,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
     Rtls {
         f_iso: SpectralValue,
         f_vol: SpectralValue,
         f_geo: SpectralValue,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
     /// RTLS with the Maignan et al. (2004) hot-spot factor (`rtls_hotspot.rs`).
     RtlsHotspot {
@@ -36,6 +45,9 @@ pub enum SurfaceConfig {
         /// degrees.
         #[serde(default = "default_xi0")]
         xi0: SpectralValue,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
     Hapke {
         w: SpectralValue,
@@ -46,6 +58,9 @@ pub enum SurfaceConfig {
         #[serde(rename = "B_0")]
         b_0: SpectralValue,
         h: SpectralValue,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
     /// Rough ocean (Cox–Munk, Fresnel, shadowing); polarizing.
     Ocean {
@@ -55,6 +70,9 @@ pub enum SurfaceConfig {
         refractive_index: Option<SpectralValue>,
         #[serde(default = "yes")]
         shadowing: bool,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
     /// A measured BRDF from a netCDF table (`tabulated.rs`: layout, interpolation).
     Tabulated {
@@ -62,6 +80,9 @@ pub enum SurfaceConfig {
         file: String,
         #[serde(default)]
         symmetrize: bool,
+        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+        #[serde(default)]
+        temperature: Option<f64>,
     },
 }
 
@@ -77,6 +98,19 @@ fn default_xi0() -> SpectralValue {
 const ANY: (f64, f64) = (-1e6, 1e6);
 
 impl SurfaceConfig {
+    /// `temperature` (K) of any model, if given.
+    pub fn temperature(&self) -> Option<f64> {
+        match self {
+            SurfaceConfig::Lambertian { temperature, .. }
+            | SurfaceConfig::Rpv { temperature, .. }
+            | SurfaceConfig::Rtls { temperature, .. }
+            | SurfaceConfig::RtlsHotspot { temperature, .. }
+            | SurfaceConfig::Hapke { temperature, .. }
+            | SurfaceConfig::Ocean { temperature, .. }
+            | SurfaceConfig::Tabulated { temperature, .. } => *temperature,
+        }
+    }
+
     /// One BRDF per run wavelength (`wavelengths`, nm). `key` is the table's key path
     /// (`surface`): a value that is not a finite number, or a list of the wrong length, is
     /// reported at `key.NAME`; a value out of its model's range at `key`, with the model's
@@ -92,7 +126,7 @@ impl SurfaceConfig {
         let model = |m: String| ctx.err(key, m);
         let nw = ctx.nw;
         Ok(match self {
-            SurfaceConfig::Lambertian { reflectance } => {
+            SurfaceConfig::Lambertian { reflectance, .. } => {
                 let name = format!("{key}.reflectance");
                 reflectance
                     .expand(ctx, &name, 0.0, 1.0)?
@@ -104,7 +138,9 @@ impl SurfaceConfig {
                     })
                     .collect::<Result<_, ConfigError>>()?
             }
-            SurfaceConfig::Rpv { rho_0, k, g, rho_c } => {
+            SurfaceConfig::Rpv {
+                rho_0, k, g, rho_c, ..
+            } => {
                 let r0 = spectral("rho_0", rho_0)?;
                 let kk = spectral("k", k)?;
                 let gg = spectral("g", g)?;
@@ -124,6 +160,7 @@ impl SurfaceConfig {
                 f_iso,
                 f_vol,
                 f_geo,
+                ..
             } => {
                 let a = spectral("f_iso", f_iso)?;
                 let b = spectral("f_vol", f_vol)?;
@@ -137,6 +174,7 @@ impl SurfaceConfig {
                 f_vol,
                 f_geo,
                 xi0,
+                ..
             } => {
                 let a = spectral("f_iso", f_iso)?;
                 let b = spectral("f_vol", f_vol)?;
@@ -154,6 +192,7 @@ impl SurfaceConfig {
                 wind_speed,
                 refractive_index,
                 shadowing,
+                ..
             } => {
                 let ws = wind_speed.expand(ctx, &format!("{key}.wind_speed"), 0.0, 40.0)?;
                 let n = refractive_index
@@ -168,7 +207,9 @@ impl SurfaceConfig {
                     })
                     .collect::<Result<_, ConfigError>>()?
             }
-            SurfaceConfig::Tabulated { file, symmetrize } => {
+            SurfaceConfig::Tabulated {
+                file, symmetrize, ..
+            } => {
                 let table = BrdfTable::load(&ctx.file(file))
                     .map_err(|m| ctx.err(format!("{key}.file"), m))?;
                 wavelengths
@@ -183,6 +224,7 @@ impl SurfaceConfig {
                 theta,
                 b_0,
                 h,
+                ..
             } => {
                 let w = spectral("w", w)?;
                 let b = spectral("b", b)?;

@@ -34,6 +34,7 @@
 //! [`SurfaceConfig::resolve`] (`config.rs`).
 
 pub mod config;
+pub mod emissivity;
 pub mod hapke;
 pub mod lambertian;
 pub mod ocean;
@@ -46,6 +47,7 @@ pub mod tabulated;
 use glam::DVec3;
 
 pub use config::SurfaceConfig;
+pub use emissivity::SurfaceEmission;
 pub use hapke::Hapke;
 pub use lambertian::Lambertian;
 pub use ocean::Ocean;

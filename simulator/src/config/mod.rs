@@ -27,6 +27,7 @@ pub mod diagnostics;
 pub mod memory;
 pub mod resolve;
 pub mod scene;
+pub mod thermal;
 
 use serde::Deserialize;
 
@@ -69,4 +70,8 @@ pub struct ExperimentConfig {
     /// Vector (Stokes) transport instead of scalar.
     #[serde(default)]
     pub polarized: bool,
+    /// Thermal emission of the layers and the surface (temperatures in `[atmosphere]` and
+    /// `[surface]`; `docs/experiment.md`, "Thermal emission").
+    #[serde(default)]
+    pub emission: bool,
 }

@@ -55,6 +55,10 @@ pub struct Experiment {
     pub planet_radius: Option<f64>,
     /// The 3D scene, when the experiment renders one (shared: it can be large).
     pub scene: Option<Arc<Scene>>,
+    /// Thermal emission (`emission = true`): radiances then carry brightness temperatures.
+    pub emission: bool,
+    /// Whether a Sun shines (`illumination.type = "none"`: false, no BRF).
+    pub sun_shines: bool,
     /// The experiment file's text (written into the products for provenance).
     pub source_text: String,
     pub source_path: PathBuf,
@@ -65,7 +69,7 @@ impl Experiment {
     /// horizon, else 1 (twilight in spherical shells: radiance only, no BRF).
     /// Whether the Sun is above the target's horizon (SZA below 90° by more than 0.2″).
     pub fn sun_up(&self) -> bool {
-        self.sun_dir.z > 1e-6
+        self.sun_shines && self.sun_dir.z > 1e-6
     }
 
     pub fn mu_norm(&self) -> f64 {
@@ -322,6 +326,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let sun = cfg
         .illumination
         .resolve(&ctx, &wavelengths, planet_radius.is_some())?;
+    let thermal = super::thermal::resolve(&cfg, &ctx, &geometry, &wavelengths, &sun)?;
 
     // Scene.
     let scene: Option<Arc<Scene>> = match &cfg.scene {
@@ -368,7 +373,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         measures.push(m);
     }
 
-    let integrator = IntegratorSettings::from_config(
+    let mut integrator = IntegratorSettings::from_config(
         &ctx,
         &cfg.integrator,
         RunShape {
@@ -382,6 +387,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         },
     )?;
 
+    if let Some(t) = &thermal {
+        t.check_integrator(&ctx, &mut integrator, &measures)?;
+    }
     if ckd && atmosphere.ckd.is_empty() {
         return Err(ctx.err(
             "atmosphere",
@@ -413,6 +421,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                                 atmosphere,
                                 shell,
                                 surface: surface.clone(),
+                                surface_emission: None,
                                 scene_models: Vec::new(),
                                 irradiance: sun.irradiance[iw],
                                 g_states: Vec::new(),
@@ -421,7 +430,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     })
                     .collect(),
             };
-            let atmosphere = PlaneParallel::new(layers, ground, toa);
+            let mut atmosphere = PlaneParallel::new(layers, ground, toa);
+            let surface_emission = match &thermal {
+                Some(t) => t.apply(iw, &mut atmosphere, &surface),
+                None => None,
+            };
             let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
             let scene_models = match &scene {
                 Some(sc) => sc
@@ -438,6 +451,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 atmosphere,
                 shell,
                 surface,
+                surface_emission,
                 scene_models,
                 irradiance: sun.irradiance[iw],
                 g_states,
@@ -472,6 +486,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         integrator,
         seed: cfg.seed,
         polarized: cfg.polarized,
+        emission: cfg.emission,
+        sun_shines: sun.shines,
         planet_radius,
         scene,
         source_text: text.to_string(),

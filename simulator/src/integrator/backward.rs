@@ -6,7 +6,11 @@
 //!
 //! * collision with single-scattering albedo ω: `w·ω·P(s·d)/(4π)·T_sun·V` (polarized: the
 //!   unpolarized sunlight scattered through `F` into the path's frame, [`Adjoint`]);
-//! * surface hit: `w·f(s, −d)·cos θ_s·T_sun·V`.
+//! * surface hit: `w·f(s, −d)·cos θ_s·T_sun·V`;
+//! * thermal emission (geometries that have it, [`Geometry::flight_emission`]): at every
+//!   flight, `w` times the expected emission of the flight's next collision (`(1 − ω)·B`) and,
+//!   where the flight reaches the ground, of the surface (`ε·B(T_s)` times the transmittance),
+//!   both in closed form; without a Sun ([`Geometry::sun_shines`]) no next-event estimate is made.
 //!
 //! By default (`integrator.local_estimate = "expected"`) the collision's estimate is replaced by
 //! its expectation over the next collision's position along each flight, which the geometry
@@ -57,9 +61,16 @@ pub trait Adjoint: Weight {
         sun: DVec3,
         visible: impl FnOnce() -> f64,
     );
+    /// Add unpolarized (thermal) radiance `r` (tally units) reaching the path's current vertex
+    /// along the path.
+    fn see_emission(&self, t: &mut Self::Tally, order: u32, r: f64);
 }
 
 impl Adjoint for Scalar {
+    #[inline]
+    fn see_emission(&self, t: &mut OrderSplit, order: u32, r: f64) {
+        t.add(order, self.0 * r);
+    }
     #[inline]
     fn see_sun_volume(
         &self,
@@ -93,6 +104,10 @@ impl Adjoint for Scalar {
 }
 
 impl Adjoint for MuellerPath {
+    #[inline]
+    fn see_emission(&self, t: &mut [f64; 5], order: u32, r: f64) {
+        self.see_unpolarized(t, order, r);
+    }
     #[inline]
     fn see_sun_volume(
         &self,
@@ -209,6 +224,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
 ) {
     let sun = g.light().sun;
     let expected = settings.expected_local_estimate;
+    let shines = g.sun_shines();
     let State {
         mut pos,
         mut d,
@@ -217,8 +233,18 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
     } = state;
     while order <= settings.max_depth {
         let mut acc = W::zero_phase();
-        let event = g.flight(pos, d, &mut w, expected.then_some(&mut acc), rng);
-        if expected && W::phase_intensity(&acc) > 0.0 {
+        let emitted = g.flight_emission(pos, d);
+        if emitted > 0.0 {
+            w.see_emission(tally, order, emitted);
+        }
+        let event = g.flight(
+            pos,
+            d,
+            &mut w,
+            (expected && shines).then_some(&mut acc),
+            rng,
+        );
+        if expected && shines && W::phase_intensity(&acc) > 0.0 {
             w.see_sun_volume(tally, order, &acc, d, sun, INV_4PI);
         }
         match event {
@@ -229,7 +255,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 phase,
             } => {
                 pos = p;
-                if !expected && omega > 0.0 {
+                if !expected && shines && omega > 0.0 {
                     let mut a = W::zero_phase();
                     g.collision_estimate(p, omega, phase, d, &mut w, &mut a);
                     if W::phase_intensity(&a) > 0.0 {
@@ -240,7 +266,9 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
             }
             Event::Surface(h) => {
                 let surface = g.surface(&h);
-                w.see_sun_surface(tally, order, &surface, d, sun, || g.sun_at_surface(&h));
+                if shines {
+                    w.see_sun_surface(tally, order, &surface, d, sun, || g.sun_at_surface(&h));
+                }
                 match w.reflect(&surface, d, rng) {
                     Some(d2) => {
                         pos = g.leave(&h, d2);

@@ -785,6 +785,10 @@ impl Weight for ChannelPath<'_> {
 }
 
 impl Adjoint for ChannelPath<'_> {
+    /// Spectral channels carry no thermal emission (the resolver refuses `emission = true`
+    /// with ALIS walks, `config/thermal.rs`), and their geometry gathers none.
+    #[inline]
+    fn see_emission(&self, _: &mut ChannelTally, _: u32, _: f64) {}
     #[inline]
     fn see_sun_volume(
         &self,

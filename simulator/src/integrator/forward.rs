@@ -20,11 +20,15 @@
 //! ground contribution is added as its expected value at each downward flight,
 //! `w·e^{−(τ*−τ)/|d_z|}·π f_r·e^{−τ*/μ_v}`, and the upward flux through a level as the expected
 //! crossing `w·e^{−(τ−τ_L)/d_z}` of every upward flight from below it (intensity only).
+//! Thermal emission (`emission = true`, directional measures): one emitted photon per sample
+//! beside the solar one, drawn in proportion to the emitted power, and the directly
+//! transmitted emission in closed form (`forward_emission.rs`).
 //! Derivation: Marchuk et al. (1980), "The Monte Carlo methods in atmospheric optics", ch. 2;
 //! Mayer (2009), "Radiative transfer in the cloudy atmosphere", EPJ Conf. 1, 75–99.
 
 use glam::DVec3;
 
+pub use super::forward_emission::ThermalSources;
 use super::peak_sampling::PeakSampling;
 use super::settings::IntegratorSettings;
 use super::surface::SurfaceAt;
@@ -77,6 +81,8 @@ pub trait Photon: Weight {
     );
     /// Add intensity `x` (flux measures).
     fn add_intensity(t: &mut Self::Tally, order: u32, x: f64);
+    /// Add `k` times the tally `o`.
+    fn add_scaled(t: &mut Self::Tally, o: &Self::Tally, k: f64);
 }
 
 impl Photon for Scalar {
@@ -114,6 +120,10 @@ impl Photon for Scalar {
     #[inline]
     fn add_intensity(t: &mut OrderSplit, order: u32, x: f64) {
         t.add(order, x);
+    }
+    fn add_scaled(t: &mut OrderSplit, o: &OrderSplit, k: f64) {
+        t.single += k * o.single;
+        t.multiple += k * o.multiple;
     }
 }
 
@@ -158,6 +168,11 @@ impl Photon for StokesPhoton {
     #[inline]
     fn add_intensity(t: &mut StokesTally, order: u32, x: f64) {
         t[if order == 1 { 0 } else { 1 }] += x;
+    }
+    fn add_scaled(t: &mut StokesTally, o: &StokesTally, k: f64) {
+        for (a, b) in t.iter_mut().zip(o) {
+            *a += k * b;
+        }
     }
 }
 
@@ -208,23 +223,59 @@ pub fn run_block<W: Photon>(
     ids: [u64; 3],
     samples: std::ops::Range<u64>,
     acc: &mut Accum,
+    thermal: Option<&ThermalSources>,
+    sun_shines: bool,
 ) {
     let mut scratch = Scratch::<W>::new(atmosphere, targets);
+    let mut emitted = thermal
+        .filter(|t| t.emits())
+        .map(|_| Scratch::<W>::new(atmosphere, targets));
     for s in samples {
         let mut rng = Stream::for_sample(
             seed,
             [ids[0], ids[1], ids[2], s],
             settings.sampler == super::settings::Sampler::Sobol,
         );
-        walk::<W>(
-            atmosphere,
-            surface,
-            sun_dir,
-            targets,
-            settings,
-            &mut rng,
-            &mut scratch,
-        );
+        if sun_shines {
+            walk::<W>(
+                atmosphere,
+                surface,
+                sun_dir,
+                targets,
+                settings,
+                &mut rng,
+                &mut scratch,
+            );
+        } else {
+            scratch.tally.iter_mut().for_each(|x| *x = W::zero_tally());
+        }
+        if let (Some(th), Some(em)) = (thermal, emitted.as_mut()) {
+            // One emitted photon (after the solar one, on the same stream), its score scaled
+            // by the emitted power, and the directly transmitted emission in closed form.
+            em.tally.iter_mut().for_each(|x| *x = W::zero_tally());
+            let (tau, d, k) = th.start(atmosphere, &mut rng);
+            let state = State {
+                tau,
+                d,
+                w: W::entering(d),
+                order: 1,
+            };
+            let mut budget = MAX_SPLITS;
+            walk_from(
+                atmosphere,
+                surface,
+                targets,
+                settings,
+                &mut rng,
+                em,
+                state,
+                &mut budget,
+            );
+            for (c, (t, e)) in scratch.tally.iter_mut().zip(&em.tally).enumerate() {
+                W::add_scaled(t, e, th.scale * k);
+                W::add_intensity(t, 1, th.direct[c]);
+            }
+        }
         for (c, t) in scratch.tally.iter().enumerate() {
             W::record(acc, c, t, 1.0);
         }

@@ -26,6 +26,7 @@
 pub mod backward;
 pub mod backward_alis;
 pub mod forward;
+pub mod forward_emission;
 pub mod geometry;
 pub mod peak_sampling;
 pub mod settings;

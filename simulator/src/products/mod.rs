@@ -5,7 +5,12 @@
 //! Quantities (units in `docs/conventions.md`):
 //! * `brf` = π·L/(E0·cos SZA) (dimensionless), its single- and multiple-scattering parts;
 //! * `radiance` L = brf·E0·cos SZA/π, W m⁻² sr⁻¹ nm⁻¹ when E0 is in W m⁻² nm⁻¹;
-//! * `albedo` = F↑/(E0·cos SZA) and `flux` F↑ (W m⁻² nm⁻¹) for `distant_flux`.
+//! * `albedo` = F↑/(E0·cos SZA) and `flux` F↑ (W m⁻² nm⁻¹) for `distant_flux`;
+//! * with thermal emission (`emission = true`), `brightness_temperature` (K): the inverse Planck
+//!   function (`planck.rs`) of the radiance at the wavelength (band rows: of the band radiance
+//!   at the band's effective wavelength Σwλ/Σw), its standard error by the delta method
+//!   σ_T = σ_L/(dB/dT). The radiance then includes the emitted radiance; without a Sun
+//!   (`illumination.type = "none"`) the BRF is left empty.
 //!
 //! Every quantity carries the Monte Carlo standard error of its mean.
 
@@ -43,6 +48,8 @@ pub struct Row {
     pub brf_u: Option<(f64, f64)>,
     pub brf_v: Option<(f64, f64)>,
     pub dolp: Option<(f64, f64)>,
+    /// Thermal runs: brightness temperature of the radiance (K).
+    pub brightness_temperature: Option<(f64, f64)>,
     pub n_samples: u64,
 }
 
@@ -107,6 +114,7 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 brf_u: None,
                 brf_v: None,
                 dolp: None,
+                brightness_temperature: None,
                 n_samples: r.acc.n[c],
             };
             if r.acc.is_polarized() && !m.is_flux() {
@@ -132,6 +140,14 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                     row.brf_multiple = Some(multiple);
                 }
                 row.radiance = Some((t * to_rad, te * to_rad));
+                if exp.emission {
+                    row.brightness_temperature =
+                        Some(crate::planck::brightness_temperature_stderr(
+                            row.wavelength_nm,
+                            t * to_rad,
+                            te * to_rad,
+                        ));
+                }
             }
             out.push(row);
         }
@@ -179,6 +195,9 @@ pub struct BandRow {
     pub albedo: Option<(f64, f64)>,
     /// Band irradiance E0_b (W m⁻² nm⁻¹).
     pub irradiance: f64,
+    /// Thermal runs: brightness temperature of the band radiance at the band's effective
+    /// wavelength (K).
+    pub brightness_temperature: Option<(f64, f64)>,
 }
 
 /// Band-weighted rows from per-wavelength rows (empty unless `spectral.srf` was given).
@@ -193,6 +212,13 @@ pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
         .iter()
         .zip(&e0)
         .map(|(w, e)| w * e)
+        .sum::<f64>()
+        / wsum;
+    let wl_eff = band
+        .weights
+        .iter()
+        .zip(&exp.wavelengths)
+        .map(|(w, l)| w * l)
         .sum::<f64>()
         / wsum;
     let mut out = Vec::new();
@@ -219,13 +245,18 @@ pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
                     }
                     Some((num / den, var.sqrt() / den))
                 };
+            let radiance = combine(&|r| r.radiance, false);
+            let brightness_temperature = radiance
+                .filter(|_| exp.emission && !m.is_flux())
+                .map(|(l, e)| crate::planck::brightness_temperature_stderr(wl_eff, l, e));
             out.push(BandRow {
                 measure: m.id.clone(),
                 kind: m.type_name(),
                 band: band.name.clone(),
                 vza: cells[0].vza,
                 vaa: cells[0].vaa,
-                radiance: combine(&|r| r.radiance, false),
+                radiance,
+                brightness_temperature,
                 flux: combine(&|r| r.flux, false),
                 brf: combine(&|r| r.brf, true),
                 albedo: combine(&|r| r.albedo, true),

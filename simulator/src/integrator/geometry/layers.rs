@@ -2,13 +2,15 @@
 //!
 //! Flights are sampled exactly ([`PlaneParallel::fly`]); the Sun's transmittance to depth τ is
 //! `exp(−τ/μ_s)`; the expected estimate of a flight's next collision is integrated exactly,
-//! layer by layer ([`PlaneParallel::flight_integrals`]: Marchuk et al. 1980, ch. 2).
+//! layer by layer ([`PlaneParallel::flight_integrals`]: Marchuk et al. 1980, ch. 2). Thermal
+//! emission of the layers and the surface is gathered in expectation at every flight
+//! ([`PlaneParallel::expected_emission`], the ground's `ε·B(T_s)·e^{−Δτ/|μ|}`).
 
 use glam::DVec3;
 
 use super::{Event, Geometry, Light};
 use crate::atmosphere::{FlightEnd, PlaneParallel};
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, SurfaceEmission};
 use crate::integrator::surface::SurfaceAt;
 use crate::integrator::weight::Weight;
 use crate::rng::Stream;
@@ -20,6 +22,10 @@ pub struct Layers<'a> {
     sun: DVec3,
     /// The Sun's transmittance to the ground, `exp(−τ*/μ_s)`.
     t_sun_ground: f64,
+    /// Whether the Sun shines (false: thermal emission only).
+    shines: bool,
+    /// The surface's thermal emission, if any.
+    surface_emission: Option<&'a SurfaceEmission>,
 }
 
 impl<'a> Layers<'a> {
@@ -29,7 +35,21 @@ impl<'a> Layers<'a> {
             surface,
             sun,
             t_sun_ground: (-atmosphere.total_tau() / sun.z).exp(),
+            shines: true,
+            surface_emission: None,
         }
+    }
+
+    /// With thermal emission: the surface's (`None`: it does not emit), and whether the Sun
+    /// shines as well.
+    pub fn with_emission(
+        mut self,
+        surface_emission: Option<&'a SurfaceEmission>,
+        shines: bool,
+    ) -> Self {
+        self.surface_emission = surface_emission;
+        self.shines = shines;
+        self
     }
 }
 
@@ -70,6 +90,29 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
                 }
             }
         }
+    }
+
+    #[inline]
+    fn sun_shines(&self) -> bool {
+        self.shines
+    }
+
+    #[inline]
+    fn flight_emission(&self, tau: f64, d: DVec3) -> f64 {
+        let atm = self.atmosphere;
+        let mut e = atm.expected_emission(tau, d.z);
+        if let Some(s) = self.surface_emission {
+            if d.z < 0.0 {
+                // Reaching the ground: transmittance from tau along d.
+                let t = if d.z.abs() < 1e-12 {
+                    0.0
+                } else {
+                    ((atm.total_tau() - tau) / d.z).exp()
+                };
+                e += t * s.radiance(-d.z);
+            }
+        }
+        e
     }
 
     #[inline]

@@ -103,6 +103,20 @@ pub trait Geometry<W: Weight> {
         }
     }
 
+    /// Whether the Sun shines (false: `illumination.type = "none"`, thermal emission only: the
+    /// estimator then makes no next-event estimate).
+    fn sun_shines(&self) -> bool {
+        true
+    }
+
+    /// Thermal emission a flight from `pos` along `d` gathers in expectation, in tally units:
+    /// the volume sources' `(1 − ω)·B` at its next collision, and the surface's `ε·B(T_s)` when
+    /// it reaches the ground, each times the probability of that end (0 for geometries without
+    /// emission).
+    fn flight_emission(&self, _pos: Self::Pos, _d: DVec3) -> f64 {
+        0.0
+    }
+
     /// The Sun's transmittance times the scene's visibility at an atmospheric point.
     fn sun_at(&self, pos: Self::Pos) -> f64;
     /// The surface at a hit.

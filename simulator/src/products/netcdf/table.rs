@@ -23,7 +23,10 @@
 //!   a `distant_flux` measure), polarized runs `brf_q`, `brf_u`, `brf_v`, `dolp` and `_stderr`;
 //!   `n_samples` (int64). Entries that do not apply to a measure (a BRF of a flux measure) are NaN.
 //! * band runs (`spectral.srf`), on `direction`: `band_brf`, `band_radiance`, `band_albedo`,
-//!   `band_flux` and `_stderr` (those with a finite value), attribute `band_irradiance`.
+//!   `band_flux`, `band_brightness_temperature` (thermal runs) and `_stderr` (those with a
+//!   finite value), attribute `band_irradiance`;
+//! * thermal runs (`emission = true`): `brightness_temperature` (K) and its `_stderr` on
+//!   `(wavelength, direction)`.
 
 use std::collections::HashMap;
 
@@ -118,6 +121,13 @@ const POLARIZED: [Quantity; 4] = [
     ),
 ];
 
+const THERMAL: [Quantity; 1] = [(
+    "brightness_temperature",
+    |r| r.brightness_temperature,
+    "K",
+    "brightness temperature: inverse Planck function of the radiance at the wavelength",
+)];
+
 const COORDINATES: &str = "vza vaa direction_measure direction_measure_id";
 
 /// Write the table of the non-image measures (nothing when there are none).
@@ -166,6 +176,9 @@ pub(super) fn write(
     }
     if rows.iter().any(|r| r.brf_q.is_some()) {
         quantities.extend(&POLARIZED);
+    }
+    if rows.iter().any(|r| r.brightness_temperature.is_some()) {
+        quantities.extend(&THERMAL);
     }
     let dims = ["wavelength", "direction"];
     for (name, get, units, long) in quantities {
@@ -317,11 +330,16 @@ pub(super) fn write_band(
         })
         .collect();
     type Get = fn(&BandRow) -> Option<(f64, f64)>;
-    let sets: [(&str, Get, &str); 4] = [
+    let sets: [(&str, Get, &str); 5] = [
         ("band_brf", |r| r.brf, "1"),
         ("band_radiance", |r| r.radiance, "W m-2 sr-1 nm-1"),
         ("band_albedo", |r| r.albedo, "1"),
         ("band_flux", |r| r.flux, "W m-2 nm-1"),
+        (
+            "band_brightness_temperature",
+            |r| r.brightness_temperature,
+            "K",
+        ),
     ];
     let irradiance = band.first().map_or(f64::NAN, |r| r.irradiance);
     for (name, get, units) in sets {
