@@ -311,6 +311,53 @@ fn polygon_area_masks_the_target_area() {
     );
     assert!(p.0 > 0.4 && b.0 < 0.45, "{p:?} vs {b:?}");
 
+    // An ortho image of the polygon's bundle: pixels whose centre is outside the triangle are
+    // NaN (no data), those inside are finite and bright.
+    std::fs::write(
+        dir.join("ortho_exp.toml"),
+        exp("poly", "").replace(
+            "type = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0]\nazimuths = [0.0]\nspp = 20000\n",
+            "type = \"ortho\"\npixel_size_m = 500.0\nspp = 16\n",
+        ),
+    )
+    .unwrap();
+    let o = run(
+        &simulate,
+        &s(&["run", "ortho_exp.toml", "-o", "out_ortho", "-q"]),
+        &dir,
+    );
+    assert_eq!(o.code, Some(0), "{}", o.stderr);
+    let ds = gdal::Dataset::open(dir.join("out_ortho/toa_brf.tif")).unwrap();
+    let g = ds.geo_transform().unwrap();
+    let (w, h) = ds.raster_size();
+    let v = ds.rasterband(1).unwrap().read_band_as::<f64>().unwrap();
+    let (mut inside, mut outside) = (0, 0);
+    for (k, b) in v.data().iter().enumerate() {
+        let x = g[0] + ((k % w) as f64 + 0.5) * g[1];
+        let y = g[3] + ((k / w) as f64 + 0.5) * g[5];
+        // The image spans the polygon's bounding box, so relative to the image centre the
+        // triangle is x > y, |x|, |y| < 1500 m.
+        let (cx, cy) = (
+            x - (g[0] + 0.5 * w as f64 * g[1]),
+            y - (g[3] + 0.5 * h as f64 * g[5]),
+        );
+        let margin = 0.75 * g[1];
+        if cx - cy > g[1] && cx.abs() < 1500.0 - 0.5 * g[1] && cy.abs() < 1500.0 - 0.5 * g[1] {
+            assert!(
+                b.is_finite() && *b > 0.3,
+                "pixel {k} inside the triangle: {b}"
+            );
+            inside += 1;
+        } else if cy - cx > margin || cx.abs() > 1500.0 + margin || cy.abs() > 1500.0 + margin {
+            assert!(b.is_nan(), "pixel {k} outside the triangle: {b}");
+            outside += 1;
+        }
+    }
+    assert!(
+        inside > 3 && outside > 3,
+        "{inside} inside, {outside} outside"
+    );
+
     // A target area entirely outside the polygon (north-west corner) is refused.
     std::fs::write(
         dir.join("out_exp.toml"),

@@ -139,7 +139,46 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
         }
         p.n_samples[iw] = r.acc.n.iter().copied().min().unwrap_or(0);
     }
+    mask_to_area(exp, &mut out);
     out
+}
+
+/// Ortho pixels whose centre lies outside the bundle's area polygon (`[area] polygon` of the
+/// region) are set to NaN in every image: the area of interest is the polygon, not its box.
+fn mask_to_area(exp: &Experiment, images: &mut [ImageProduct]) {
+    let Some(mask) = exp.scene.as_ref().and_then(|s| s.area_mask.as_ref()) else {
+        return;
+    };
+    for p in images.iter_mut() {
+        let MeasureKind::Ortho(g) = &exp.measures[p.measure].kind else {
+            continue;
+        };
+        let t = g.geotransform; // local frame
+        let outside: Vec<usize> = (0..p.width * p.height)
+            .filter(|&c| {
+                let (col, row) = ((c % p.width) as f64 + 0.5, (c / p.width) as f64 + 0.5);
+                !mask.contains(t[0] + col * t[1], t[3] + row * t[5])
+            })
+            .collect();
+        let mut images: Vec<&mut Vec<Vec<f64>>> = vec![
+            &mut p.brf,
+            &mut p.brf_stderr,
+            &mut p.brf_single,
+            &mut p.brf_multiple,
+            &mut p.radiance,
+            &mut p.radiance_stderr,
+        ];
+        if let Some(st) = p.stokes.as_mut() {
+            images.extend([&mut st.q, &mut st.u, &mut st.dolp, &mut st.dolp_stderr]);
+        }
+        for img in images {
+            for band in img.iter_mut() {
+                for &c in &outside {
+                    band[c] = f64::NAN;
+                }
+            }
+        }
+    }
 }
 
 /// Write the GeoTIFFs (ortho) and the PNG quicklook of one image into `dir`; returns the paths
