@@ -109,6 +109,9 @@ pub enum Construct {
     Hplane,
     /// Explicit (zenith, azimuth) pairs.
     Directions,
+    /// A hemispherical grid: every zenith of `zeniths` at every azimuth of `azimuths`
+    /// (zenith-major), as Eradiate's hemispherical construct.
+    Hemisphere,
 }
 
 /// What measures need of a 3D scene, in its local frame (m).
@@ -441,6 +444,43 @@ fn distant_directions(
                 let a = ctx.finite(&format!("{key}.azimuths[{i}]"), a)?;
                 vza.push(z);
                 vaa.push(a.rem_euclid(360.0));
+            }
+        }
+        Construct::Hemisphere => {
+            if azimuth.is_some() {
+                return Err(ctx.err(
+                    format!("{key}.azimuth"),
+                    "is not used by construct \"hemisphere\" (use `azimuths`)",
+                ));
+            }
+            let azs = azimuths.as_ref().filter(|a| !a.is_empty()).ok_or_else(|| {
+                ctx.err(
+                    format!("{key}.azimuths"),
+                    "is required by construct \"hemisphere\" (at least one azimuth)",
+                )
+            })?;
+            if zeniths.len().saturating_mul(azs.len()) > 1_000_000 {
+                return Err(ctx.err(
+                    format!("{key}.zeniths"),
+                    format!(
+                        "{} zeniths × {} azimuths is more than 10⁶ directions",
+                        zeniths.len(),
+                        azs.len()
+                    ),
+                ));
+            }
+            for (i, &z) in zeniths.iter().enumerate() {
+                if !z.is_finite() || !(0.0..90.0).contains(&z) {
+                    return Err(ctx.err(
+                        format!("{key}.zeniths[{i}]"),
+                        format!("{z} degrees must lie in [0, 90)"),
+                    ));
+                }
+                for (j, &a) in azs.iter().enumerate() {
+                    let a = ctx.finite(&format!("{key}.azimuths[{j}]"), a)?;
+                    vza.push(z);
+                    vaa.push(a.rem_euclid(360.0));
+                }
             }
         }
     }
