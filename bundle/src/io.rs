@@ -756,14 +756,7 @@ impl Bundle {
                 source,
             })?;
             if meta.len() != d.bytes {
-                return Err(BundleError::Corrupt {
-                    path,
-                    message: format!(
-                        "{} bytes, the manifest records {} (truncated or replaced)",
-                        meta.len(),
-                        d.bytes
-                    ),
-                });
+                return Err(size_mismatch(path, meta.len(), d.bytes));
             }
         }
         Ok(())
@@ -775,6 +768,14 @@ impl Bundle {
         let m = Self::read_manifest(dir)?;
         let names: Vec<&str> = m.provenance.files.iter().map(|d| d.file.as_str()).collect();
         read_verified(dir, &m, &names).map(|_| ())
+    }
+}
+
+/// A buffer whose size differs from the manifest's record.
+fn size_mismatch(path: PathBuf, got: u64, recorded: u64) -> BundleError {
+    BundleError::Corrupt {
+        path,
+        message: format!("{got} bytes, the manifest records {recorded} (truncated or replaced)"),
     }
 }
 
@@ -808,14 +809,7 @@ fn read_verified(
                         source,
                     })?;
                     if bytes.len() as u64 != expect.bytes {
-                        return Err(BundleError::Corrupt {
-                            path,
-                            message: format!(
-                                "{} bytes, the manifest records {} (truncated or replaced)",
-                                bytes.len(),
-                                expect.bytes
-                            ),
-                        });
+                        return Err(size_mismatch(path, bytes.len() as u64, expect.bytes));
                     }
                     let got = hex(&Sha256::digest(&bytes));
                     if got != expect.sha256 {

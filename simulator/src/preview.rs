@@ -23,7 +23,9 @@ use rayon::prelude::*;
 use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::measure::{Measure, MeasureKind};
-use crate::products::image::{sidecar_path, write_geotiff, write_quicklook_png, ImageBand};
+use crate::products::image::{
+    sidecar_path, write_geotiff, write_png, write_quicklook_png, ImageBand,
+};
 use crate::scene::material::SurfaceModel;
 use crate::scene::Scene;
 
@@ -194,7 +196,13 @@ pub fn write(
     written.push(path);
     let rgb: Vec<u8> = p.material.iter().flat_map(|&m| colour(m)).collect();
     let path = dir.join(format!("{}_materials.png", p.id));
-    write_png(&path, p.width, p.height, image::ColorType::Rgb8, &rgb)?;
+    write_png(
+        &path,
+        p.width as u32,
+        p.height as u32,
+        image::ExtendedColorType::Rgb8,
+        &rgb,
+    )?;
     written.push(path);
     let grey: Vec<u8> = p
         .relief
@@ -202,7 +210,13 @@ pub fn write(
         .map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8)
         .collect();
     let path = dir.join(format!("{}_relief.png", p.id));
-    write_png(&path, p.width, p.height, image::ColorType::L8, &grey)?;
+    write_png(
+        &path,
+        p.width as u32,
+        p.height as u32,
+        image::ExtendedColorType::L8,
+        &grey,
+    )?;
     written.push(path);
     if let Some(gt) = p.geotransform {
         let bands: Vec<ImageBand> = exp
@@ -227,28 +241,6 @@ pub fn write(
     write_quicklook_png(&path, p.width, p.height, &exp.wavelengths, &channels)?;
     written.push(path);
     Ok(written)
-}
-
-fn write_png(
-    path: &Path,
-    w: usize,
-    h: usize,
-    ty: image::ColorType,
-    data: &[u8],
-) -> Result<(), OutputError> {
-    let tmp = crate::products::tmp_path(path);
-    image::save_buffer_with_format(&tmp, data, w as u32, h as u32, ty, image::ImageFormat::Png)
-        .map_err(|source| {
-            let _ = std::fs::remove_file(&tmp);
-            OutputError::Image {
-                path: path.to_path_buf(),
-                source,
-            }
-        })?;
-    std::fs::rename(&tmp, path).map_err(|source| OutputError::Io {
-        path: path.to_path_buf(),
-        source,
-    })
 }
 
 /// The material raster as a `Byte` GeoTIFF with a colour table and category names.

@@ -424,20 +424,32 @@ pub fn write_quicklook_png(
         (px, ::image::ExtendedColorType::L8, d)
     };
 
+    write_png(path, w32, h32, color, &bytes)?;
+    Ok(description)
+}
+
+/// Encode `bytes` (`width × height` pixels of `color`) as a PNG in memory and write it to
+/// `path` atomically.
+pub fn write_png(
+    path: &Path,
+    width: u32,
+    height: u32,
+    color: ::image::ExtendedColorType,
+    bytes: &[u8],
+) -> Result<(), OutputError> {
     let mut png = Vec::new();
     ::image::ImageEncoder::write_image(
         ::image::codecs::png::PngEncoder::new(&mut png),
-        &bytes,
-        w32,
-        h32,
+        bytes,
+        width,
+        height,
         color,
     )
     .map_err(|source| OutputError::Image {
         path: path.to_path_buf(),
         source,
     })?;
-    write_atomic(path, &png)?;
-    Ok(description)
+    write_atomic(path, &png)
 }
 
 /// The value drawn as full white: the 99th percentile when positive, else 1.
