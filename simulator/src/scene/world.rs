@@ -330,8 +330,8 @@ impl Scene {
         let mut best: Option<SurfaceHit> = None;
         let mut tbest = tmax;
         if let Some((bvh, raster)) = &self.terrain {
-            if let Some(h) = bvh.intersect(o, d) {
-                if h.t > 0.0 && h.t < tbest {
+            if let Some(h) = bvh.intersect_within(o, d, tbest) {
+                {
                     tbest = h.t;
                     let p = o + d * h.t;
                     // The normal faces the ray: pointing down means the ray came from below.
@@ -414,7 +414,7 @@ impl Scene {
             }
         }
         if let Some((bvh, _)) = &self.terrain {
-            if bvh.intersect(o, d).is_some_and(|h| h.t > 0.0 && h.t < tmax) {
+            if bvh.occluded(o, d, tmax) {
                 return true;
             }
         }

@@ -1,0 +1,538 @@
+//! The terrain of a bundle: all its triangles under one 8-wide compressed BVH.
+//!
+//! **Structure.** obvhs 0.4's CWBVH (compressed wide BVH, 8 children per node with boxes
+//! quantized to 8 bits against the parent, traversed with SSE: Ylitie, Karras & Laine 2017,
+//! "Efficient incoherent ray traversal on GPUs through compressed wide BVHs"), built by PLOC
+//! with reinsertion (`BvhBuildParams::medium_build`) over the triangles' padded boxes, at most
+//! three triangles per leaf. The triangles are stored in leaf order, so a leaf slot indexes
+//! them directly.
+//!
+//! **Precision.** The bundle stores each tile in f32 relative to an f64 tile origin. The BVH is
+//! built in an f32 *render frame* whose origin is the centre of the terrain's bounding box, so
+//! over a 100 km scene f32 coordinates stay below ~7·10⁴ m (≈ 4 mm resolution). A ray (local
+//! frame, f64) is first clipped in f64 to the terrain's padded box and its origin moved there,
+//! so the f32 traversal works with coordinates of the scene's size even for rays starting
+//! 100 km away. The traversal only *proposes* candidates; each is decided in f64:
+//! 1. node boxes: every triangle box is padded by `1 mm + 10⁻⁶ × the terrain's size` (about
+//!    4 cm on a 40 km scene), more than the f32 rounding of the ray, so the f32 traversal never
+//!    drops a triangle the f64 ray meets. Direction components below 2.4·10⁻⁷ are set to zero
+//!    in the f32 ray (obvhs replaces the inverse of a tiny component by ±1/ε, which would shrink
+//!    the slab of a near-vertical ray); the ray then drifts from the f64 one by at most
+//!    2.4·10⁻⁷ × its length in the box, within the pad.
+//! 2. an f32 Möller–Trumbore *prefilter* with a barycentric margin: `max(10⁻², δ / h)` where
+//!    `h` is the triangle's smallest altitude and `δ = 1 mm + 5·10⁻⁷ × (largest render
+//!    coordinate + diagonal)` bounds the f32 errors of the ray and of the test in metres
+//!    (a sliver triangle gets a wide margin, never a false miss);
+//! 3. the exact test: f64 Möller–Trumbore on the f64 vertices (tile origin + f32 offset) with a
+//!    10⁻¹² barycentric margin that closes the rounding gaps along shared edges.
+//!
+//! The returned distance is the f64 one; the traversal's f32 bound is a copy rounded up.
+//! `simulator/tests/scene3d.rs::terrain_is_watertight_for_distant_rays` (300 000 rays from
+//! 100 km, a third exactly on edges) and the brute-force comparisons below hold it.
+//!
+//! **Memory per triangle**: the f32 prefilter record (40 B), the f64 vertices (72 B), the
+//! (tile, triangle) id (8 B) and about 1/3 of a CWBVH node (80 B per node).
+
+use glam::{DVec3, Vec3, Vec3A};
+use obvhs::aabb::Aabb;
+use obvhs::cwbvh::{builder::build_cwbvh, CwBvh};
+use obvhs::ray::{Ray, RayHit};
+use obvhs::BvhBuildParams;
+
+use super::curvature;
+use bundle::Bundle;
+
+/// A hit on the terrain.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TerrainHit {
+    /// Distance along the (unit) ray direction, m.
+    pub t: f64,
+    /// Tile index and triangle index within the tile.
+    pub tile: usize,
+    pub triangle: usize,
+    /// Geometric normal (unit, facing the ray origin's side).
+    pub normal: DVec3,
+}
+
+/// The f32 prefilter of one triangle (render frame): a vertex, two edges and the barycentric
+/// margin.
+#[derive(Clone, Copy, Debug)]
+struct Tri32 {
+    a: Vec3,
+    e1: Vec3,
+    e2: Vec3,
+    margin: f32,
+}
+
+impl Tri32 {
+    /// Whether the f32 ray `o + t d` may meet the triangle (barycentric test with the margin;
+    /// the distance is left to the f64 test).
+    #[inline(always)]
+    fn may_hit(&self, o: Vec3A, d: Vec3A) -> bool {
+        let e1 = Vec3A::from(self.e1);
+        let e2 = Vec3A::from(self.e2);
+        let p = d.cross(e2);
+        let det = e1.dot(p);
+        // A ray in the triangle's plane (or a degenerate triangle): let f64 decide.
+        if det.abs() < 1e-20 {
+            return true;
+        }
+        let inv = 1.0 / det;
+        let s = o - Vec3A::from(self.a);
+        let u = s.dot(p) * inv;
+        let m = self.margin;
+        if !(u >= -m && u <= 1.0 + m) {
+            return !(u.is_finite());
+        }
+        let v = d.dot(s.cross(e1)) * inv;
+        (v >= -m && u + v <= 1.0 + m) || !v.is_finite()
+    }
+}
+
+/// All terrain triangles of a bundle under one CWBVH.
+pub struct TerrainBvh {
+    bvh: CwBvh,
+    /// Prefilter records, in leaf order.
+    tris: Vec<Tri32>,
+    /// f64 vertices of each triangle in the local frame (every hit is decided with them), in
+    /// leaf order.
+    verts: Vec<[DVec3; 3]>,
+    /// (tile, triangle) of each triangle, in leaf order.
+    ids: Vec<(u32, u32)>,
+    /// Render-frame origin in the bundle's local frame, m.
+    render_origin: DVec3,
+    /// Bounding box of the terrain (local frame), padded, for clipping rays in f64.
+    lo: DVec3,
+    hi: DVec3,
+    /// Box padding (m), also the lower bound of the f32 traversal interval.
+    pad: f32,
+}
+
+impl TerrainBvh {
+    /// The bundle's terrain, bent onto a sphere when `bend` is given ([`curvature`]).
+    pub fn new(bundle: &Bundle, bend: Option<curvature::Curvature>) -> Self {
+        Self::from_tiles_bent(&bundle.terrain, bend)
+    }
+
+    /// Build from terrain tiles (f32 offsets from f64 origins).
+    pub fn from_tiles(terrain: &[bundle::TerrainTile]) -> Self {
+        Self::from_tiles_bent(terrain, None)
+    }
+
+    /// Build from terrain tiles, every vertex bent onto a sphere (in f64) when `bend` is given.
+    pub fn from_tiles_bent(
+        terrain: &[bundle::TerrainTile],
+        bend: Option<curvature::Curvature>,
+    ) -> Self {
+        let place = |q: DVec3| bend.map_or(q, |c| c.bend(q));
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY));
+        let mut verts = Vec::with_capacity(terrain.iter().map(|t| t.indices.len()).sum());
+        let mut ids = Vec::with_capacity(verts.capacity());
+        for (it, t) in terrain.iter().enumerate() {
+            let o = DVec3::from_array(t.origin);
+            let v = |i: u32| {
+                let p = t.positions[i as usize];
+                place(o + DVec3::new(p[0] as f64, p[1] as f64, p[2] as f64))
+            };
+            for (k, tri) in t.indices.iter().enumerate() {
+                let w = [v(tri[0]), v(tri[1]), v(tri[2])];
+                for q in w {
+                    lo = lo.min(q);
+                    hi = hi.max(q);
+                }
+                verts.push(w);
+                ids.push((it as u32, k as u32));
+            }
+        }
+        if verts.is_empty() {
+            return Self {
+                bvh: CwBvh::default(),
+                tris: Vec::new(),
+                verts,
+                ids,
+                render_origin: DVec3::ZERO,
+                lo: DVec3::ZERO,
+                hi: DVec3::ZERO,
+                pad: 0.0,
+            };
+        }
+        let render_origin = 0.5 * (lo + hi);
+        let size = (hi - lo).max_element();
+        let diagonal = (hi - lo).length();
+        let reach = (hi - render_origin).abs().max((lo - render_origin).abs());
+        // Box padding and the prefilter's error bound (module header).
+        let pad = (1e-3 + 1e-6 * size) as f32;
+        let delta = 1e-3 + 5e-7 * (reach.max_element() + diagonal);
+        let r = |q: DVec3| (q - render_origin).as_vec3();
+        let boxes: Vec<Aabb> = verts
+            .iter()
+            .map(|w| {
+                let (a, b, c) = (r(w[0]), r(w[1]), r(w[2]));
+                Aabb::new(
+                    Vec3A::from(a.min(b).min(c)) - Vec3A::splat(pad),
+                    Vec3A::from(a.max(b).max(c)) + Vec3A::splat(pad),
+                )
+            })
+            .collect();
+        let mut params = BvhBuildParams::medium_build();
+        params.max_prims_per_leaf = 3;
+        let mut bvh = build_cwbvh(&boxes, params, &mut std::time::Duration::default());
+        drop(boxes);
+        // Leaf order: slot k of the BVH is triangle primitive_indices[k].
+        let order = std::mem::take(&mut bvh.primitive_indices);
+        let verts: Vec<[DVec3; 3]> = order.iter().map(|&i| verts[i as usize]).collect();
+        let ids: Vec<(u32, u32)> = order.iter().map(|&i| ids[i as usize]).collect();
+        bvh.primitive_indices = (0..order.len() as u32).collect();
+        let tris = verts
+            .iter()
+            .map(|w| {
+                let (e1, e2) = (w[1] - w[0], w[2] - w[0]);
+                let longest = e1.length().max(e2.length()).max((w[2] - w[1]).length());
+                let h = e1.cross(e2).length() / longest.max(f64::MIN_POSITIVE);
+                let margin = (delta / h).max(1e-2);
+                Tri32 {
+                    a: r(w[0]),
+                    e1: e1.as_vec3(),
+                    e2: e2.as_vec3(),
+                    margin: if margin.is_finite() {
+                        margin as f32
+                    } else {
+                        f32::INFINITY
+                    },
+                }
+            })
+            .collect();
+        let padv = DVec3::splat(1.0 + 1e-5 * size);
+        Self {
+            bvh,
+            tris,
+            verts,
+            ids,
+            render_origin,
+            lo: lo - padv,
+            hi: hi + padv,
+            pad,
+        }
+    }
+
+    pub fn triangle_count(&self) -> usize {
+        self.verts.len()
+    }
+
+    /// The terrain's bounding box (local frame, padded by about a metre).
+    pub fn bounds(&self) -> (DVec3, DVec3) {
+        (self.lo, self.hi)
+    }
+
+    /// The render-frame origin (centre of the terrain's bounding box, local frame).
+    pub fn render_origin(&self) -> DVec3 {
+        self.render_origin
+    }
+
+    /// Approximate memory of triangles, f64 copies, ids and BVH nodes, bytes.
+    pub fn memory_bytes(&self) -> usize {
+        self.verts.len()
+            * (std::mem::size_of::<Tri32>()
+                + std::mem::size_of::<[DVec3; 3]>()
+                + std::mem::size_of::<(u32, u32)>()
+                + 4)
+            + self.bvh.nodes.len() * std::mem::size_of::<obvhs::cwbvh::node::CwBvhNode>()
+    }
+
+    /// Closest terrain hit of the ray `origin + t·dir` (local frame, `dir` unit), `t > 0`.
+    pub fn intersect(&self, origin: DVec3, dir: DVec3) -> Option<TerrainHit> {
+        self.intersect_within(origin, dir, f64::INFINITY)
+    }
+
+    /// Closest terrain hit with `0 < t < tmax`.
+    pub fn intersect_within(&self, origin: DVec3, dir: DVec3, tmax: f64) -> Option<TerrainHit> {
+        let (t0, k, t) = self.trace::<false>(origin, dir, tmax)?;
+        let [a, b, c] = self.verts[k];
+        let mut n = (b - a).cross(c - a).normalize();
+        if n.dot(dir) > 0.0 {
+            n = -n;
+        }
+        let (tile, triangle) = self.ids[k];
+        Some(TerrainHit {
+            t: t0 + t,
+            tile: tile as usize,
+            triangle: triangle as usize,
+            normal: n,
+        })
+    }
+
+    /// Whether the terrain blocks `origin + t·dir` for `0 < t < tmax` (any-hit traversal that
+    /// stops at the first hit found).
+    pub fn occluded(&self, origin: DVec3, dir: DVec3, tmax: f64) -> bool {
+        self.trace::<true>(origin, dir, tmax).is_some()
+    }
+
+    /// The traversal: (clip start `t0`, leaf slot, `t` from the clip start) of the closest hit
+    /// (with `ANY`, of the first hit found).
+    #[inline]
+    fn trace<const ANY: bool>(
+        &self,
+        origin: DVec3,
+        dir: DVec3,
+        tmax: f64,
+    ) -> Option<(f64, usize, f64)> {
+        if self.verts.is_empty() || !origin.is_finite() || !dir.is_finite() || tmax.is_nan() {
+            return None;
+        }
+        // Slab test in f64 against the padded terrain box.
+        let inv = DVec3::ONE / dir;
+        let ta = (self.lo - origin) * inv;
+        let tb = (self.hi - origin) * inv;
+        let tnear = ta.min(tb);
+        let tfar = ta.max(tb);
+        let pick = |a: f64, b: f64| if a.is_nan() { b } else { a };
+        let t0 = pick(tnear.x, f64::NEG_INFINITY)
+            .max(pick(tnear.y, f64::NEG_INFINITY))
+            .max(pick(tnear.z, f64::NEG_INFINITY))
+            .max(0.0);
+        let t1 = pick(tfar.x, f64::INFINITY)
+            .min(pick(tfar.y, f64::INFINITY))
+            .min(pick(tfar.z, f64::INFINITY))
+            .min(tmax);
+        if t1 < t0 {
+            return None;
+        }
+        let o2 = origin + dir * t0;
+        let o = Vec3A::from((o2 - self.render_origin).as_vec3());
+        let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
+        let d32 = dir.as_vec3();
+        let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
+        // The f64 segment is (−t0, t1 − t0) from the clip start (t > 0 in the caller's frame).
+        let (lo, hi) = (-t0, t1 - t0);
+        let ray = Ray::new(o, d, -self.pad, up(hi) + self.pad);
+        let mut best = (hi, usize::MAX);
+        let test = |id: usize, best_t: f64| -> Option<f64> {
+            if !self.tris[id].may_hit(o, d) {
+                return None;
+            }
+            moller_trumbore(o2, dir, &self.verts[id]).filter(|&t| t > lo && t < best_t)
+        };
+        if ANY {
+            let miss = self.bvh.ray_traverse_miss(ray, |_, id| match test(id, hi) {
+                Some(t) => {
+                    best = (t, id);
+                    0.0
+                }
+                None => f32::INFINITY,
+            });
+            return (!miss).then_some((t0, best.1, best.0));
+        }
+        let mut hit = RayHit::none();
+        self.bvh
+            .ray_traverse(ray, &mut hit, |_, id| match test(id, best.0) {
+                Some(t) => {
+                    best = (t, id);
+                    up(t)
+                }
+                None => f32::INFINITY,
+            });
+        (best.1 != usize::MAX).then_some((t0, best.1, best.0))
+    }
+}
+
+/// An f64 distance as an f32 bound that is never below it (and never below the smallest
+/// positive f32, so a hit at the clip start still bounds the traversal).
+#[inline(always)]
+fn up(t: f64) -> f32 {
+    if t.is_infinite() {
+        return f32::INFINITY;
+    }
+    (t as f32).max(f32::MIN_POSITIVE) * (1.0 + 4.0 * f32::EPSILON)
+}
+
+/// Ray–triangle distance in f64 (Möller & Trumbore 1997), two-sided; `None` for a miss or a
+/// ray parallel to the triangle.
+#[inline]
+fn moller_trumbore(o: DVec3, d: DVec3, v: &[DVec3; 3]) -> Option<f64> {
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    // A margin of 1e-12 in barycentric coordinates (≈ 1e-10 m on a 100 m triangle) closes
+    // the rounding gaps along shared edges: a ray through an edge hits both neighbours (at the
+    // same distance) instead of possibly neither.
+    const EPS: f64 = 1e-12;
+    let inv = 1.0 / det;
+    let s = o - v[0];
+    let u = s.dot(p) * inv;
+    if !(-EPS..=1.0 + EPS).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let w = d.dot(q) * inv;
+    if w < -EPS || u + w > 1.0 + EPS {
+        return None;
+    }
+    Some(e2.dot(q) * inv)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use bundle::TerrainTile;
+
+    /// A bundle with a tilted plane z = 300 + 0.1·x + 0.05·y made of two tiles far from the origin
+    /// (x ≈ 40 km), each tile a grid of triangles in f32 offsets from its f64 origin.
+    fn plane_bundle() -> Vec<TerrainTile> {
+        let h = |x: f64, y: f64| 300.0 + 0.1 * x + 0.05 * y;
+        let mut tiles = Vec::new();
+        for (k, x0) in [40_000.0, 41_000.0].into_iter().enumerate() {
+            let origin = [x0, -500.0, 300.0];
+            let n = 10;
+            let step = 100.0;
+            let mut positions = Vec::new();
+            for j in 0..=n {
+                for i in 0..=n {
+                    let (x, y) = (x0 + i as f64 * step, -500.0 + j as f64 * step);
+                    positions.push([
+                        (x - origin[0]) as f32,
+                        (y - origin[1]) as f32,
+                        (h(x, y) - origin[2]) as f32,
+                    ]);
+                }
+            }
+            let mut indices = Vec::new();
+            for j in 0..n {
+                for i in 0..n {
+                    let a = (j * (n + 1) + i) as u32;
+                    let (b, c, d) = (a + 1, a + (n + 1) as u32, a + (n + 2) as u32);
+                    indices.push([a, b, d]);
+                    indices.push([a, d, c]);
+                }
+            }
+            tiles.push(TerrainTile {
+                id: [k as u32, 0],
+                origin,
+                uvs: vec![[0.0, 0.0]; positions.len()],
+                positions,
+                indices,
+            });
+        }
+        tiles
+    }
+
+    /// The BVH agrees with a brute-force f64 Möller–Trumbore search over every triangle (same
+    /// closest triangle, same distance to 1 mm) for random rays, including grazing ones.
+    #[test]
+    fn bvh_equals_brute_force() {
+        let terrain = plane_bundle();
+        let bvh = TerrainBvh::from_tiles(&terrain);
+        let brute = |o: DVec3, d: DVec3| -> Option<f64> {
+            let mut best: Option<f64> = None;
+            for t in &terrain {
+                let org = DVec3::from_array(t.origin);
+                let v = |i: u32| {
+                    org + DVec3::new(
+                        t.positions[i as usize][0] as f64,
+                        t.positions[i as usize][1] as f64,
+                        t.positions[i as usize][2] as f64,
+                    )
+                };
+                for tri in &t.indices {
+                    let (a, b, c) = (v(tri[0]), v(tri[1]), v(tri[2]));
+                    let (e1, e2) = (b - a, c - a);
+                    let p = d.cross(e2);
+                    let det = e1.dot(p);
+                    if det.abs() < 1e-12 {
+                        continue;
+                    }
+                    let s = o - a;
+                    let u = s.dot(p) / det;
+                    let q = s.cross(e1);
+                    let w = d.dot(q) / det;
+                    let tt = e2.dot(q) / det;
+                    if u >= 0.0
+                        && w >= 0.0
+                        && u + w <= 1.0
+                        && tt > 0.0
+                        && best.is_none_or(|b| tt < b)
+                    {
+                        best = Some(tt);
+                    }
+                }
+            }
+            best
+        };
+        let mut rng = crate::rng::Stream::new(6, [0, 0, 0, 0]);
+        let mut n_hits = 0;
+        for _ in 0..300 {
+            let o = DVec3::new(
+                39_800.0 + 2_400.0 * rng.next_f64(),
+                -700.0 + 1_400.0 * rng.next_f64(),
+                4_500.0 + 3_000.0 * rng.next_f64(),
+            );
+            let d = crate::frame::direction_from_angles(
+                std::f64::consts::FRAC_PI_2 + 1.4 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
+            );
+            match (bvh.intersect(o, d), brute(o, d)) {
+                (Some(h), Some(t)) => {
+                    assert!((h.t - t).abs() < 1e-3, "{} vs {t}", h.t);
+                    n_hits += 1;
+                }
+                (None, None) => {}
+                (a, b) => panic!("BVH {a:?} vs brute force {b:?}"),
+            }
+        }
+        assert!(n_hits > 50, "{n_hits}");
+    }
+
+    /// Vertical and oblique rays hit the plane where the analytic plane says, to millimetres,
+    /// 40 km from the frame origin; rays beside the terrain miss; the normal faces the ray.
+    #[test]
+    fn rays_hit_a_far_plane_exactly() {
+        let terrain = plane_bundle();
+        let bvh = TerrainBvh::from_tiles(&terrain);
+        assert_eq!(bvh.triangle_count(), 400);
+        let h = |x: f64, y: f64| 300.0 + 0.1 * x + 0.05 * y;
+        let mut rng = crate::rng::Stream::new(5, [0, 0, 0, 0]);
+        let mut hits = 0;
+        for _ in 0..2000 {
+            let (x, y) = (
+                40_010.0 + 1_980.0 * rng.next_f64(),
+                -490.0 + 980.0 * rng.next_f64(),
+            );
+            let dir = crate::frame::direction_from_angles(
+                std::f64::consts::PI - 0.6 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
+            );
+            // Start 2 km above the target point, back along the ray.
+            let target = DVec3::new(x, y, h(x, y));
+            let origin = target - dir * (2000.0 / -dir.z);
+            // The target point lies on the terrain, so the ray must hit it (or terrain before it).
+            let hit = bvh
+                .intersect(origin, dir)
+                .expect("a ray aimed at the terrain hits it");
+            hits += 1;
+            let p = origin + dir * hit.t;
+            assert!(
+                (p.z - h(p.x, p.y)).abs() < 2e-3,
+                "off the plane by {}",
+                p.z - h(p.x, p.y)
+            );
+            assert!(hit.normal.dot(dir) < 0.0);
+        }
+        assert_eq!(hits, 2000);
+        // Straight down onto every tile centre: always a hit at the right height.
+        for x in [40_500.0, 41_500.0] {
+            let hit = bvh
+                .intersect(DVec3::new(x, 10.0, 5_000.0), -DVec3::Z)
+                .unwrap();
+            assert!((5_000.0 - hit.t - h(x, 10.0)).abs() < 1e-3);
+        }
+        assert!(bvh
+            .intersect(DVec3::new(10_000.0, 0.0, 5_000.0), -DVec3::Z)
+            .is_none());
+        assert!(bvh
+            .intersect(DVec3::new(40_500.0, 0.0, 5_000.0), DVec3::Z)
+            .is_none());
+    }
+}
