@@ -8,7 +8,8 @@
 # socket in DIR, then slurmctld and slurmd (as root: every state and spool folder is under DIR),
 # exports SLURM_CONF so that sbatch, squeue and sacct... find it, and waits until the node is idle.
 # Any step that fails prints the reason with the tail of the daemon's log and returns 1.
-# cluster_stop ends the three daemons it started (by their pid files).
+# cluster_stop cancels the jobs still queued, then ends the three daemons it started (by their
+# pid files).
 
 cluster_fail() {
     echo "slurm test cluster: $1" >&2
@@ -72,6 +73,7 @@ MpiDefault=none
 ReturnToService=2
 SlurmctldTimeout=30
 SlurmdTimeout=30
+MailProg=/bin/true
 MinJobAge=600
 NodeName=localnode NodeHostname=$(hostname) NodeAddr=127.0.0.1 CPUs=$cpus RealMemory=$mem State=UNKNOWN
 PartitionName=test Nodes=localnode Default=YES MaxTime=INFINITE State=UP
@@ -99,6 +101,14 @@ CONF
 cluster_stop() {
     local dir="${CLUSTER_DIR:-}"
     [ -n "$dir" ] || return 0
+    # Cancel what is still queued or running, and let slurmd reap it, before the daemons go.
+    if [ -f "$dir/slurmctld.pid" ] && kill -0 "$(cat "$dir/slurmctld.pid")" 2>/dev/null; then
+        scancel --quiet --user="$(id -un)" 2>/dev/null || true
+        for _ in $(seq 1 50); do
+            [ -z "$(squeue -h 2>/dev/null)" ] && break
+            sleep 0.2
+        done
+    fi
     for f in slurmd.pid slurmctld.pid munge/munged.pid; do
         if [ -f "$dir/$f" ]; then
             local pid
