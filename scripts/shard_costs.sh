@@ -3,7 +3,7 @@
 # `simulate plan --shards N`, runs every array task of OUT/job.sh one after the other on this
 # machine (no Slurm needed: SLURM_ARRAY_TASK_ID and SLURM_CPUS_PER_TASK are set by hand) under
 # /usr/bin/time -v, then `simulate merge OUT`; prints one line per shard and one for the merge:
-# wall time and peak resident memory.
+# wall time, CPU time (user + system) and peak resident memory.
 #
 #   scripts/shard_costs.sh EXPERIMENT N OUT [CPUS] [extra `simulate plan` options, e.g. --spp 32]
 set -euo pipefail
@@ -19,7 +19,8 @@ measure() { # label, log, command...
     shift 2
     /usr/bin/time -v "$@" >"$log" 2>&1 || { tail -n 30 "$log" >&2; echo "$label failed" >&2; exit 1; }
     awk -v l="$label" -F': ' '/Elapsed \(wall clock\)/ { w = $2 } /Maximum resident/ { r = $2 }
-        END { printf "%-10s wall %s, peak RSS %.0f MiB\n", l, w, r / 1024 }' "$log"
+        /User time/ { u = $2 } /System time/ { y = $2 }
+        END { printf "%-10s wall %s, CPU %.1f s, peak RSS %.0f MiB\n", l, w, u + y, r / 1024 }' "$log"
 }
 for k in $(seq 0 $((n - 1))); do
     SLURM_ARRAY_TASK_ID=$k SLURM_CPUS_PER_TASK=$cpus measure "shard $k" "$out/logs/shard_$k.log" bash "$out/job.sh"

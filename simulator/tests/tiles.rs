@@ -98,6 +98,7 @@ fn merge_names_a_shard_that_left_nothing() {
             results_mib: 0.0,
             max_shard_cpu_seconds: 0.0,
             total_cpu_seconds: 0.0,
+            shard_cpu_seconds: Vec::new(),
         },
     };
     for k in [0, 2] {

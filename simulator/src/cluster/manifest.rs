@@ -36,6 +36,9 @@ pub struct Estimate {
     pub max_shard_cpu_seconds: f64,
     /// Projected CPU seconds of transport of the whole run.
     pub total_cpu_seconds: f64,
+    /// Projected CPU seconds of transport of each shard.
+    #[serde(default)]
+    pub shard_cpu_seconds: Vec<f64>,
 }
 
 /// The manifest.

@@ -141,6 +141,7 @@ pub fn plan(experiment: &Path, out: &Path, o: &Options) -> anyhow::Result<Plan> 
             results_mib: results_bytes as f64 / (1 << 20) as f64,
             max_shard_cpu_seconds: max_cpu,
             total_cpu_seconds: shard_cpu.iter().sum(),
+            shard_cpu_seconds: shard_cpu.clone(),
         },
     };
     std::fs::create_dir_all(out.join("logs"))
