@@ -69,9 +69,10 @@ enum Command {
         /// Ignore checkpoints of an earlier, interrupted run in OUTDIR/checkpoints.
         #[arg(long)]
         fresh: bool,
-        /// Run only shard K of N (`K/N`, K from 0): its (wavelength, measure) tasks are written to
-        /// OUTDIR/checkpoints; copy the checkpoints of all shards into one OUTDIR/checkpoints and
-        /// run without --shard there to write the products (nothing is recomputed).
+        /// Run only shard K of N (`K/N`, K from 0): its work units ((wavelength, measure) tasks,
+        /// or pixel tiles of images without a target) are written to OUTDIR/checkpoints; copy the
+        /// checkpoints of all shards into one OUTDIR/checkpoints and run without --shard there to
+        /// write the products (nothing is recomputed), or use `simulate plan` and `simulate merge`.
         #[arg(long)]
         shard: Option<String>,
         /// Replace every measure's `spp` by N (quick runs, e.g. the examples in CI);
@@ -363,6 +364,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             std::fs::create_dir_all(&output)
                 .with_context(|| format!("cannot create output folder {}", output.display()))?;
             // One run per output folder (shards share theirs by design).
+            let sharded = shard.is_some();
             let _lock = match shard {
                 None => Some(simulator::output_lock::lock(&output)?),
                 Some(_) => None,
@@ -417,8 +419,11 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             }
             let results: Vec<_> = results.into_iter().flatten().collect();
             let (csv, nc) = write_products(&exp, &results, &output)?;
-            // Products are complete: the checkpoints are no longer needed.
-            let _ = std::fs::remove_dir_all(&ckpt);
+            // Products are complete: the checkpoints are no longer needed, except those of an
+            // explicit shard (`--shard 0/1`, a one-shard plan), which `simulate merge` reads.
+            if !sharded {
+                let _ = std::fs::remove_dir_all(&ckpt);
+            }
             tracing::info!(
                 "done in {:.2} s: wrote {} and {}",
                 t0.elapsed().as_secs_f64(),
