@@ -6,7 +6,8 @@ set -euo pipefail
 
 cd "$(dirname "$0")/.."
 
-PKGS=(pkg-config libnetcdf-dev libhdf5-dev netcdf-bin libgdal-dev)
+# slurm-wlm and munge: the Slurm test (tests/slurm.rs) starts a one-node cluster on this machine.
+PKGS=(pkg-config libnetcdf-dev libhdf5-dev netcdf-bin libgdal-dev slurm-wlm munge)
 
 missing=()
 for p in "${PKGS[@]}"; do

@@ -25,6 +25,7 @@ pub mod bench;
 pub mod bench_polarized;
 pub mod bench_scene;
 pub mod bsdf;
+pub mod cluster;
 /// The scene-bundle format, now its own crate (`bundle/`); re-exported so that
 /// `simulator::bundle::…` and `crate::bundle::…` keep working.
 pub use bundle;

@@ -367,6 +367,30 @@ fn backward_block<G: Geometry<W>, W: Adjoint + AtSensor>(
     acc
 }
 
+/// One block of samples `range` for each of `cells` of measure `im` at wavelength group
+/// `group`, in parallel, sums discarded: the pilot that `simulate plan` times to size its
+/// jobs (`cluster/cost.rs`). Forward measures walk cell 0 only (one walk serves every cell).
+pub fn pilot_blocks(
+    exp: &Experiment,
+    group: &[usize],
+    im: usize,
+    cells: &[usize],
+    range: std::ops::Range<u64>,
+) {
+    let spectral = exp
+        .integrator
+        .spectral_alis
+        .map(|_| SpectralGroup::new(exp, group));
+    let ckd_alis = alis_layers(exp, group[0]);
+    cells.par_iter().for_each(|&c| {
+        let r = range.clone();
+        match &spectral {
+            Some(sg) => drop(run_block_spectral(exp, sg, group, im, c, r)),
+            None => drop(run_block(exp, group[0], im, c, r, ckd_alis.as_ref())),
+        }
+    });
+}
+
 /// Walks a measure costs per sample index (a forward walk serves every direction).
 fn walks_per_sample(exp: &Experiment, m: &Measure) -> u64 {
     if method_for(exp, m) == Method::Forward {
@@ -415,7 +439,8 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
         .into_par_iter()
         .map(|(group, im)| {
             bar.set_message(task_message(exp, &group, im));
-            run_task(exp, &group, im, &bar)
+            let cells = 0..exp.measures[im].cell_count();
+            run_task(exp, &group, im, cells, &bar)
         })
         .collect();
     bar.finish_and_clear();
@@ -486,7 +511,8 @@ fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_gr
 
 /// Run one measure at one wavelength, in rounds when a target precision is set.
 pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) -> MeasureResult {
-    run_task(exp, &[iw], im, bar)
+    let cells = 0..exp.measures[im].cell_count();
+    run_task(exp, &[iw], im, cells, bar)
         .pop()
         .expect("one result per wavelength")
 }
@@ -494,7 +520,15 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
 /// Run one measure at the wavelengths of `group` (one wavelength, or a spectral ALIS group whose
 /// walks serve all of them), in rounds when a target precision is set: the group stops when
 /// every wavelength meets the target (or at `spp`). One result per wavelength of the group.
-fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> Vec<MeasureResult> {
+/// `tile`: the cells to walk (all of them, or a pixel tile of a backward measure,
+/// `units.rs`); the results hold those cells only, in order.
+fn run_task(
+    exp: &Experiment,
+    group: &[usize],
+    im: usize,
+    tile: std::ops::Range<usize>,
+    bar: &ProgressBar,
+) -> Vec<MeasureResult> {
     let m = &exp.measures[im];
     let method = method_for(exp, m);
     let bs = m.block_size();
@@ -512,11 +546,11 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
         exp.optics[iw0].g_states.len().max(1)
     };
     let unit = bs * cycle as u64;
-    let cells = m.cell_count();
-    let walk_cells: Vec<usize> = if method == Method::Forward {
-        vec![0]
+    let first_cell = tile.start;
+    let (cells, walk_cells): (usize, Vec<usize>) = if method == Method::Forward {
+        (m.cell_count(), vec![0])
     } else {
-        (0..cells).collect()
+        (tile.len(), tile.collect())
     };
     let new_acc = || {
         if exp.polarized {
@@ -568,7 +602,7 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
                 if method == Method::Forward {
                     acc.merge(p);
                 } else {
-                    acc.merge_cell(*c, p, 0);
+                    acc.merge_cell(*c - first_cell, p, 0);
                 }
             }
         }
@@ -594,7 +628,7 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
         let reached = m.target_rel_stderr.is_some_and(|t| rel <= t) && trusted();
         if done >= m.spp || reached {
             if reached && done < m.spp {
-                bar.inc((m.spp - done) * walks_per_sample(exp, m) * per_walk);
+                bar.inc((m.spp - done) * walk_cells.len() as u64 * per_walk);
             }
             break;
         }
@@ -627,103 +661,8 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
         .collect()
 }
 
-/// Checkpoints: after each (wavelength, measure) task its sums are written to
-/// `DIR/wWWW_mMMM.json` (atomically), stamped with a hash of the experiment text, the
-/// simulator version and every input file the experiment names (`input_digest.rs`: a rebuilt
-/// bundle, a replaced phase table). A later run of the same experiment into the same folder
-/// reuses them, so an interrupted run resumes where it stopped; any change to the experiment
-/// or its inputs invalidates them.
-pub mod checkpoint {
-    use std::path::{Path, PathBuf};
-
-    use serde::{Deserialize, Serialize};
-
-    use super::{MeasureResult, Method};
-    use crate::config::resolve::Experiment;
-    use crate::error::OutputError;
-    use crate::integrator::Accum;
-
-    #[derive(Serialize, Deserialize)]
-    struct Stored {
-        experiment_hash: String,
-        version: String,
-        measure: String,
-        wavelength_nm: f64,
-        method: String,
-        acc: Accum,
-    }
-
-    /// FNV-1a 64 of the experiment text, the simulator's version and the digest of every
-    /// input file the experiment names ([`crate::input_digest`]): identifies the run a
-    /// checkpoint belongs to. Computed once per run (it reads the inputs).
-    pub fn experiment_hash(exp: &Experiment) -> String {
-        let inputs = crate::input_digest::digest(&exp.source_text, &exp.source_path);
-        let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-        for b in exp
-            .source_text
-            .bytes()
-            .chain(env!("CARGO_PKG_VERSION").bytes())
-            .chain(inputs.bytes())
-        {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-        format!("{h:016x}")
-    }
-
-    fn path(dir: &Path, iw: usize, im: usize) -> PathBuf {
-        dir.join(format!("w{iw:03}_m{im:03}.json"))
-    }
-
-    /// A stored result for this task, if one exists and belongs to this experiment.
-    pub fn load(
-        dir: &Path,
-        exp: &Experiment,
-        key: &str,
-        iw: usize,
-        im: usize,
-    ) -> Option<MeasureResult> {
-        let text = std::fs::read_to_string(path(dir, iw, im)).ok()?;
-        let s: Stored = serde_json::from_str(&text).ok()?;
-        let m = &exp.measures[im];
-        if s.experiment_hash != key || s.measure != m.id || s.acc.n.len() != m.cell_count() {
-            return None;
-        }
-        let method = match s.method.as_str() {
-            "forward" => Method::Forward,
-            "scene" => Method::Scene,
-            _ => Method::Backward,
-        };
-        Some(MeasureResult {
-            measure: im,
-            wavelength: iw,
-            method,
-            acc: s.acc,
-        })
-    }
-
-    pub fn store(
-        dir: &Path,
-        exp: &Experiment,
-        key: &str,
-        r: &MeasureResult,
-    ) -> Result<(), OutputError> {
-        std::fs::create_dir_all(dir).map_err(|source| OutputError::Io {
-            path: dir.to_path_buf(),
-            source,
-        })?;
-        let s = Stored {
-            experiment_hash: key.to_string(),
-            version: env!("CARGO_PKG_VERSION").into(),
-            measure: exp.measures[r.measure].id.clone(),
-            wavelength_nm: exp.wavelengths[r.wavelength],
-            method: r.method.name().into(),
-            acc: r.acc.clone(),
-        };
-        let text = serde_json::to_string(&s).expect("checkpoint serialises");
-        crate::products::write_atomic(&path(dir, r.wavelength, r.measure), text.as_bytes())
-    }
-}
+pub mod checkpoint;
+pub mod units;
 
 /// [`run`] with checkpoints in `dir`: completed tasks are loaded instead of recomputed, and
 /// each newly completed task is stored before the next starts. Returns the results and the
@@ -742,13 +681,14 @@ pub fn run_resumable(
     ))
 }
 
-/// Run only the tasks (wavelength group, measure) whose index in `tasks` order (`iw·measures +
-/// im` without spectral groups) is `shard` modulo `shards`, storing each wavelength's result in
-/// `dir`; tasks of other shards are loaded from `dir` when present (so collecting the checkpoint
-/// files of all shards in one folder and running shard 0/1 there writes the products without
-/// recomputing anything: runs split across machines merge exactly). A group is loaded only when
-/// every one of its wavelengths is stored. Returns one entry per (wavelength, measure),
-/// wavelength-major (`None`: another shard's task not available), and the count loaded.
+/// Run only the work units (`units.rs`: a (wavelength group, measure) task or a pixel tile of
+/// one) whose index is `shard` modulo `shards`, storing each unit's results in `dir`; units of
+/// other shards are loaded from `dir` when present (so collecting the checkpoint files of all
+/// shards in one folder and running shard 0/1 there writes the products without recomputing
+/// anything: runs split across machines merge exactly, bit for bit). A group is loaded only
+/// when every one of its wavelengths is stored. Returns one entry per (wavelength, measure),
+/// wavelength-major (`None`: a unit of another shard not available), and the count of
+/// (wavelength, unit) results loaded.
 pub fn run_shard(
     exp: &Experiment,
     progress: bool,
@@ -757,44 +697,72 @@ pub fn run_shard(
     shards: usize,
 ) -> Result<(Vec<Option<MeasureResult>>, usize), crate::error::OutputError> {
     let bar = progress_bar(exp, progress);
-    let nm = exp.measures.len();
     let resumed = std::sync::atomic::AtomicUsize::new(0);
     let key = checkpoint::experiment_hash(exp);
-    // Tasks run concurrently (see `run`); each stores its checkpoints as soon as it is done.
-    let parts = tasks(exp)
+    // Units run concurrently (see `run`); each stores its checkpoints as soon as it is done.
+    let parts = units::units(exp, shards)
         .into_par_iter()
         .enumerate()
-        .map(|(k, (group, im))| {
-            let m = &exp.measures[im];
-            let per = walks_per_sample(exp, m) * group.len() as u64;
-            let loaded: Option<Vec<MeasureResult>> = group
+        .map(|(k, u)| {
+            let m = &exp.measures[u.measure];
+            let walks = if method_for(exp, m) == Method::Forward {
+                1
+            } else {
+                u.cells.len() as u64
+            };
+            let per = walks * u.group.len() as u64;
+            let loaded: Option<Vec<MeasureResult>> = u
+                .group
                 .iter()
-                .map(|&iw| checkpoint::load(dir, exp, &key, iw, im))
+                .map(|&iw| checkpoint::load(dir, exp, &key, iw, &u))
                 .collect();
             if let Some(rs) = loaded {
                 bar.inc(m.spp * per);
                 resumed.fetch_add(rs.len(), std::sync::atomic::Ordering::Relaxed);
-                return Ok(rs);
+                return Ok(Some((u, rs)));
             }
             if k % shards != shard {
                 bar.inc(m.spp * per);
-                return Ok(Vec::new());
+                return Ok(None);
             }
-            bar.set_message(task_message(exp, &group, im));
-            let rs = run_task(exp, &group, im, &bar);
+            bar.set_message(task_message(exp, &u.group, u.measure));
+            let rs = run_task(exp, &u.group, u.measure, u.cells.clone(), &bar);
             for r in &rs {
-                checkpoint::store(dir, exp, &key, r)?;
+                checkpoint::store(dir, exp, &key, &u, r)?;
             }
-            Ok(rs)
+            Ok(Some((u, rs)))
         })
-        .collect::<Result<Vec<Vec<MeasureResult>>, crate::error::OutputError>>()?;
+        .collect::<Result<Vec<_>, crate::error::OutputError>>()?;
     bar.finish_and_clear();
-    let mut out: Vec<Option<MeasureResult>> =
-        (0..exp.wavelengths.len() * nm).map(|_| None).collect();
-    for r in parts.into_iter().flatten() {
-        let k = r.wavelength * nm + r.measure;
-        out[k] = Some(r);
-    }
+    let out = gather(exp, parts.into_iter().flatten());
     crate::heavy_tail::warn(exp, out.iter().flatten());
     Ok((out, resumed.into_inner()))
+}
+
+/// One entry per (wavelength, measure), wavelength-major, assembled from unit results (`None`
+/// where a tile or the whole task is missing).
+pub fn gather(
+    exp: &Experiment,
+    parts: impl IntoIterator<Item = (units::Unit, Vec<MeasureResult>)>,
+) -> Vec<Option<MeasureResult>> {
+    let nm = exp.measures.len();
+    let mut pieces: Vec<Vec<(std::ops::Range<usize>, MeasureResult)>> = (0..exp.wavelengths.len()
+        * nm)
+        .map(|_| Vec::new())
+        .collect();
+    for (u, rs) in parts {
+        for r in rs {
+            pieces[r.wavelength * nm + r.measure].push((u.cells.clone(), r));
+        }
+    }
+    pieces
+        .into_iter()
+        .map(|p| {
+            if p.is_empty() {
+                None
+            } else {
+                units::assemble(exp, p)
+            }
+        })
+        .collect()
 }

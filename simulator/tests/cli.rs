@@ -406,3 +406,73 @@ fn quiet_and_verbose_set_the_log_level() {
     let overridden = run(&["-q"], &[], Some("debug"));
     assert!(overridden.contains("DEBUG"), "{overridden}");
 }
+
+/// Rationale (issue 19): `simulate plan` writes a job array whose task, run by hand as Slurm
+/// would run it, leaves a shard that `simulate merge` turns into products identical byte for
+/// byte to an unsplit run's; asking for more shards than work units, or a Slurm value with a
+/// blank, is a bad-input error naming the option; merging a folder without a plan names the
+/// missing plan.toml.
+#[test]
+fn plan_and_merge_one_shard_equal_an_unsplit_run() {
+    let dir = tmpdir("plan");
+    let exp = example_at(&dir, 4096);
+    let full = dir.join("full");
+    let o = run_quiet(&exp, &full);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let plan = dir.join("plan");
+    let plan_args = |shards: &str, extra: &[&str]| {
+        let mut a = vec![
+            "-q",
+            "plan",
+            exp.to_str().unwrap(),
+            "--shards",
+            shards,
+            "-o",
+            plan.to_str().unwrap(),
+        ];
+        a.extend_from_slice(extra);
+        bin().args(&a).current_dir(&dir).output().unwrap()
+    };
+    let o = plan_args("2", &[]);
+    assert_eq!(o.status.code(), Some(2));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        err.contains("--shards") && err.contains("at most 1"),
+        "{err}"
+    );
+    let o = plan_args("1", &["--mem", "8 G"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("--mem"));
+    let o = plan_args("1", &["--cpus-per-task", "1"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let script = std::fs::read_to_string(plan.join("job.sh")).unwrap();
+    assert!(script.contains("#SBATCH --array=0-0\n"), "{script}");
+    assert!(script.contains("#SBATCH --cpus-per-task=1\n"), "{script}");
+    let o = Command::new("bash")
+        .arg(plan.join("job.sh"))
+        .env("SLURM_ARRAY_TASK_ID", "0")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    assert_eq!(
+        std::fs::read_to_string(plan.join("shards/0/status")).unwrap(),
+        "0\n"
+    );
+    let o = bin()
+        .args(["-q", "merge", plan.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    for f in ["results.csv", "results.nc"] {
+        assert!(
+            std::fs::read(full.join(f)).unwrap() == std::fs::read(plan.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+    let o = bin()
+        .args(["-q", "merge", dir.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("plan.toml"));
+}

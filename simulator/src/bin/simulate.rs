@@ -69,15 +69,55 @@ enum Command {
         /// Ignore checkpoints of an earlier, interrupted run in OUTDIR/checkpoints.
         #[arg(long)]
         fresh: bool,
-        /// Run only shard K of N (`K/N`, K from 0): its (wavelength, measure) tasks are written to
-        /// OUTDIR/checkpoints; copy the checkpoints of all shards into one OUTDIR/checkpoints and
-        /// run without --shard there to write the products (nothing is recomputed).
+        /// Run only shard K of N (`K/N`, K from 0): its work units ((wavelength, measure) tasks,
+        /// or pixel tiles of images without a target) are written to OUTDIR/checkpoints; copy the
+        /// checkpoints of all shards into one OUTDIR/checkpoints and run without --shard there to
+        /// write the products (nothing is recomputed), or use `simulate plan` and `simulate merge`.
         #[arg(long)]
         shard: Option<String>,
         /// Replace every measure's `spp` by N (quick runs, e.g. the examples in CI);
         /// `target_rel_stderr` still applies.
         #[arg(long, value_name = "N")]
         spp: Option<u64>,
+    },
+    /// Split a run over a Slurm cluster: write OUTDIR/plan.toml and the job-array script
+    /// OUTDIR/job.sh (submit it with sbatch; then `simulate merge OUTDIR`; docs/scaling.md).
+    Plan {
+        /// Experiment file (TOML; keys in docs/experiment.md).
+        experiment: PathBuf,
+        /// Number of shards (array tasks).
+        #[arg(long)]
+        shards: usize,
+        /// Plan folder (created): manifest, script, and the shards' folders and logs.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// Replace every measure's `spp` by N in every shard (as `run --spp`).
+        #[arg(long, value_name = "N")]
+        spp: Option<u64>,
+        /// CPUs of each array task (its `simulate` runs that many threads).
+        #[arg(long, default_value_t = 4)]
+        cpus_per_task: usize,
+        /// Memory of each task in Slurm's syntax, e.g. 8G (default: measured, see docs/scaling.md).
+        #[arg(long)]
+        mem: Option<String>,
+        /// Time limit of each task in Slurm's syntax, e.g. 02:00:00 (default: measured).
+        #[arg(long)]
+        time: Option<String>,
+        /// Slurm partition.
+        #[arg(long)]
+        partition: Option<String>,
+        /// Slurm account.
+        #[arg(long)]
+        account: Option<String>,
+        /// Worker threads of the pilot that times the run (default: all cores).
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+    },
+    /// Check that every shard of a plan is complete and consistent, and write the products
+    /// into the plan folder (as `simulate run` writes them, bit for bit).
+    Merge {
+        /// Plan folder (from `simulate plan`).
+        plan: PathBuf,
     },
     /// Simulated TOA reflectance of a calibration site for a list of acquisitions
     /// (columns time_utc,vza,vaa,srf and optionally sza,saa); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
@@ -324,6 +364,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             std::fs::create_dir_all(&output)
                 .with_context(|| format!("cannot create output folder {}", output.display()))?;
             // One run per output folder (shards share theirs by design).
+            let sharded = shard.is_some();
             let _lock = match shard {
                 None => Some(simulator::output_lock::lock(&output)?),
                 Some(_) => None,
@@ -377,66 +418,12 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 return Ok(());
             }
             let results: Vec<_> = results.into_iter().flatten().collect();
-            let rows = products::rows(&exp, &results);
-            let band = products::band_rows(&exp, &rows);
-            let images = products::imagery::image_products(&exp, &results);
-            // Every product goes to a staging folder and is moved in only when all are
-            // written: a failure (a full disk) leaves the previous products as they were.
-            let mut stage = products::staging::Staging::new(&output)?;
-            let mut looks = Vec::new();
-            let written = (|| -> Result<(), simulator::error::OutputError> {
-                products::csv::write(&stage.path("results.csv"), &rows)?;
-                products::netcdf::write(&stage.path("results.nc"), &exp, &rows, &band, &images)?;
-                for img in &images {
-                    looks.push(products::imagery::write_files(stage.dir(), &exp, img)?.1);
-                }
-                if !band.is_empty() {
-                    products::csv::write_band(&stage.path("results_band.csv"), &band)?;
-                }
-                Ok(())
-            })();
-            if let Err(e) = written {
-                return Err(explain_write_error(e, &output));
+            let (csv, nc) = write_products(&exp, &results, &output)?;
+            // Products are complete: the checkpoints are no longer needed, except those of an
+            // explicit shard (`--shard 0/1`, a one-shard plan), which `simulate merge` reads.
+            if !sharded {
+                let _ = std::fs::remove_dir_all(&ckpt);
             }
-            let csv = stage.final_path("results.csv");
-            let nc = stage.final_path("results.nc");
-            let committed = stage.commit()?;
-            for (img, what) in images.iter().zip(&looks) {
-                for f in committed.iter().filter(|f| {
-                    f.file_name().is_some_and(|n| {
-                        let n = n.to_string_lossy();
-                        n.starts_with(&format!("{}_", img.id))
-                            || n.starts_with(&format!("{}.", img.id))
-                    }) && !f.to_string_lossy().ends_with(".aux.xml")
-                }) {
-                    println!("{:<16} wrote {}", img.id, f.display());
-                }
-                println!(
-                    "{:<16} {} × {} px, quicklook: {what}",
-                    img.id, img.width, img.height
-                );
-                for (w, (b, e, s)) in exp.wavelengths.iter().zip(products::imagery::medians(img)) {
-                    println!(
-                        "{:<16} {w:>8.2} nm: median BRF {b:.5}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
-                        img.id,
-                        100.0 * e,
-                        s
-                    );
-                }
-            }
-            for b in &band {
-                if let Some((v, e)) = b.brf.or(b.albedo) {
-                    println!(
-                        "{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}",
-                        b.measure,
-                        b.band,
-                        b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into())
-                    );
-                }
-            }
-            print_summary(&rows);
-            // Products are complete: the checkpoints are no longer needed.
-            let _ = std::fs::remove_dir_all(&ckpt);
             tracing::info!(
                 "done in {:.2} s: wrote {} and {}",
                 t0.elapsed().as_secs_f64(),
@@ -445,6 +432,37 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             );
             Ok(())
         }
+        Command::Plan {
+            experiment,
+            shards,
+            output,
+            spp,
+            cpus_per_task,
+            mem,
+            time,
+            partition,
+            account,
+            threads,
+        } => {
+            set_threads(threads)?;
+            plan_command(
+                &experiment,
+                &output,
+                simulator::cluster::plan::Options {
+                    shards,
+                    spp,
+                    cpus_per_task,
+                    mem,
+                    time,
+                    partition,
+                    account,
+                    simulate: std::env::current_exe()
+                        .and_then(|p| p.canonicalize())
+                        .context("the path of this simulate executable")?,
+                },
+            )
+        }
+        Command::Merge { plan } => merge_command(&plan),
         Command::Pics {
             acquisitions,
             site,
@@ -514,6 +532,179 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             simulator::bench::run(target, &method, polarized, spherical)
         }
     }
+}
+
+/// `simulate plan`: the plan, and what to do next.
+fn plan_command(
+    experiment: &std::path::Path,
+    output: &std::path::Path,
+    options: simulator::cluster::plan::Options,
+) -> anyhow::Result<()> {
+    std::fs::create_dir_all(output)
+        .with_context(|| format!("cannot create output folder {}", output.display()))?;
+    let out = output
+        .canonicalize()
+        .with_context(|| format!("cannot resolve {}", output.display()))?;
+    let plan = simulator::cluster::plan::plan(experiment, &out, &options)?;
+    let e = &plan.estimate;
+    println!(
+        "plan: {} work unit(s) over {} shard(s) ({} to {} per shard)",
+        plan.units,
+        plan.shards,
+        plan.units_per_shard.iter().min().unwrap_or(&0),
+        plan.units_per_shard.iter().max().unwrap_or(&0)
+    );
+    println!(
+        "pilot: load {:.1} s, peak memory {:.0} MiB; projected {:.0} CPU s in all, {:.0} CPU s for the heaviest shard",
+        e.load_seconds, e.peak_rss_mib, e.total_cpu_seconds, e.max_shard_cpu_seconds
+    );
+    let r = &plan.resources;
+    println!(
+        "each task: --cpus-per-task={} --mem={} --time={}",
+        r.cpus_per_task, r.mem, r.time
+    );
+    if plan.shards > 1000 {
+        println!(
+            "note: {} array tasks exceed Slurm's default MaxArraySize (1001); ask your centre, or submit in parts with --array=A-B",
+            plan.shards
+        );
+    }
+    let script = out.join(simulator::cluster::SCRIPT_FILE);
+    println!(
+        "wrote {} and {}",
+        out.join(simulator::cluster::PLAN_FILE).display(),
+        script.display()
+    );
+    println!(
+        "next: sbatch {}; then simulate merge {}",
+        script.display(),
+        out.display()
+    );
+    Ok(())
+}
+
+/// `simulate merge`: check the shards of a plan and write the products into its folder.
+fn merge_command(plan_dir: &std::path::Path) -> anyhow::Result<()> {
+    use simulator::cluster::{manifest::Plan, merge};
+    let t0 = Instant::now();
+    let out = plan_dir
+        .canonicalize()
+        .with_context(|| format!("plan folder {}", plan_dir.display()))?;
+    let plan = Plan::read(&out).map_err(anyhow::Error::msg)?;
+    if plan.simulator_version != env!("CARGO_PKG_VERSION") {
+        anyhow::bail!(
+            "{}: planned with simulator {}, this is {}: merge with the version that ran the shards",
+            out.join(simulator::cluster::PLAN_FILE).display(),
+            plan.simulator_version,
+            env!("CARGO_PKG_VERSION")
+        );
+    }
+    // The experiment is read from the folder the plan was made in, as the tasks read it (the
+    // products then name it exactly as an unsplit run from there does).
+    std::env::set_current_dir(&plan.workdir).with_context(|| {
+        format!(
+            "the plan's working folder {} (workdir in {})",
+            plan.workdir.display(),
+            out.join(simulator::cluster::PLAN_FILE).display()
+        )
+    })?;
+    let exp = Experiment::load_with_spp(&plan.experiment, plan.spp)?;
+    let _lock = simulator::output_lock::lock(&out)?;
+    let now = simulator::run::checkpoint::experiment_hash(&exp);
+    if now != plan.experiment_hash {
+        anyhow::bail!(
+            "{} or an input file it names changed since the plan was written (hash {} then, {now} now): the shards ran another experiment; restore it, or plan and run again",
+            plan.experiment_path().display(),
+            plan.experiment_hash
+        );
+    }
+    let parts = merge::collect(&out, &plan, &exp)
+        .map_err(|bad| anyhow::anyhow!(merge::report(&out, &bad, plan.shards)))?;
+    let results: Option<Vec<_>> = simulator::run::gather(&exp, parts).into_iter().collect();
+    let results = results.context("the shards' units do not cover every (wavelength, measure): was the plan written for another shard count?")?;
+    crate::heavy_tail_warn(&exp, &results);
+    let (csv, nc) = write_products(&exp, &results, &out)?;
+    tracing::info!(
+        "merged {} shard(s) in {:.2} s: wrote {} and {}",
+        plan.shards,
+        t0.elapsed().as_secs_f64(),
+        csv.display(),
+        nc.display()
+    );
+    Ok(())
+}
+
+/// Heavy-tail warnings of merged results (as a run gives them).
+fn heavy_tail_warn(exp: &Experiment, results: &[simulator::run::MeasureResult]) {
+    simulator::heavy_tail::warn(exp, results.iter());
+}
+
+/// Write every product of `results` into `output` through a staging folder (a failure leaves
+/// the previous products as they were) and print what was written; the paths of
+/// `results.csv` and `results.nc`.
+fn write_products(
+    exp: &Experiment,
+    results: &[simulator::run::MeasureResult],
+    output: &std::path::Path,
+) -> anyhow::Result<(PathBuf, PathBuf)> {
+    let rows = products::rows(exp, results);
+    let band = products::band_rows(exp, &rows);
+    let images = products::imagery::image_products(exp, results);
+    // Every product goes to a staging folder and is moved in only when all are
+    // written: a failure (a full disk) leaves the previous products as they were.
+    let mut stage = products::staging::Staging::new(output)?;
+    let mut looks = Vec::new();
+    let written = (|| -> Result<(), simulator::error::OutputError> {
+        products::csv::write(&stage.path("results.csv"), &rows)?;
+        products::netcdf::write(&stage.path("results.nc"), exp, &rows, &band, &images)?;
+        for img in &images {
+            looks.push(products::imagery::write_files(stage.dir(), exp, img)?.1);
+        }
+        if !band.is_empty() {
+            products::csv::write_band(&stage.path("results_band.csv"), &band)?;
+        }
+        Ok(())
+    })();
+    if let Err(e) = written {
+        return Err(explain_write_error(e, output));
+    }
+    let csv = stage.final_path("results.csv");
+    let nc = stage.final_path("results.nc");
+    let committed = stage.commit()?;
+    for (img, what) in images.iter().zip(&looks) {
+        for f in committed.iter().filter(|f| {
+            f.file_name().is_some_and(|n| {
+                let n = n.to_string_lossy();
+                n.starts_with(&format!("{}_", img.id)) || n.starts_with(&format!("{}.", img.id))
+            }) && !f.to_string_lossy().ends_with(".aux.xml")
+        }) {
+            println!("{:<16} wrote {}", img.id, f.display());
+        }
+        println!(
+            "{:<16} {} × {} px, quicklook: {what}",
+            img.id, img.width, img.height
+        );
+        for (w, (b, e, s)) in exp.wavelengths.iter().zip(products::imagery::medians(img)) {
+            println!(
+                "{:<16} {w:>8.2} nm: median BRF {b:.5}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
+                img.id,
+                100.0 * e,
+                s
+            );
+        }
+    }
+    for b in &band {
+        if let Some((v, e)) = b.brf.or(b.albedo) {
+            println!(
+                "{:<16} band {:<22} vza {:>8} BRF/albedo {v:.5} ± {e:.1e}",
+                b.measure,
+                b.band,
+                b.vza.map(|z| format!("{z:.2}")).unwrap_or("-".into())
+            );
+        }
+    }
+    print_summary(&rows);
+    Ok((csv, nc))
 }
 
 /// `simulate check` of a PICS site file: `None` when `path` is not one (an experiment, or TOML
