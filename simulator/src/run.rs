@@ -3,6 +3,8 @@
 //! and random streams depend only on sample indices, so the result is bit-identical for any
 //! thread count.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -376,8 +378,9 @@ fn walks_per_sample(exp: &Experiment, m: &Measure) -> u64 {
     }
 }
 
-/// The run's progress bar (hidden when `progress` is false), counted in walks.
-fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
+/// The run's progress bar (hidden when `progress` is false), counted in walks; a hidden bar
+/// still counts (its `position` and `length`), for callers that draw progress themselves.
+pub fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
     if !progress {
         return ProgressBar::hidden();
     }
@@ -404,9 +407,23 @@ fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
     b
 }
 
+/// Never set: the cancellation flag of runs that cannot be cancelled.
+static NEVER: AtomicBool = AtomicBool::new(false);
+
 /// Run `exp` completely. `progress`: draw a progress bar on stderr.
 pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
-    let bar = progress_bar(exp, progress);
+    run_cancellable(exp, &progress_bar(exp, progress), &NEVER)
+        .expect("a run without cancellation completes")
+}
+
+/// [`run`] counting its walks on `bar` ([`progress_bar`]) and checking `cancel` before every
+/// block: once it is set, the remaining blocks are skipped and `None` is returned (the Python
+/// package's Ctrl-C). A run that is not cancelled returns exactly what [`run`] returns.
+pub fn run_cancellable(
+    exp: &Experiment,
+    bar: &ProgressBar,
+    cancel: &AtomicBool,
+) -> Option<Vec<MeasureResult>> {
     // Tasks (a wavelength or a spectral ALIS group, and a measure) run concurrently as well as
     // their blocks: a task whose round is a single block (precise CKD/ALIS walks) would
     // otherwise leave cores idle. Each task's result depends only on its own random streams, so
@@ -415,10 +432,13 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
         .into_par_iter()
         .map(|(group, im)| {
             bar.set_message(task_message(exp, &group, im));
-            run_task(exp, &group, im, &bar)
+            run_task(exp, &group, im, bar, cancel)
         })
         .collect();
     bar.finish_and_clear();
+    if cancel.load(Ordering::Relaxed) {
+        return None;
+    }
     let mut slots: Vec<Option<MeasureResult>> = (0..exp.wavelengths.len() * exp.measures.len())
         .map(|_| None)
         .collect();
@@ -432,7 +452,7 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
         .map(|r| r.expect("every (wavelength, measure) pair has a task"))
         .collect();
     crate::heavy_tail::warn(exp, &out);
-    out
+    Some(out)
 }
 
 /// The progress bar's message for a task.
@@ -486,7 +506,7 @@ fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_gr
 
 /// Run one measure at one wavelength, in rounds when a target precision is set.
 pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) -> MeasureResult {
-    run_task(exp, &[iw], im, bar)
+    run_task(exp, &[iw], im, bar, &NEVER)
         .pop()
         .expect("one result per wavelength")
 }
@@ -494,7 +514,14 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
 /// Run one measure at the wavelengths of `group` (one wavelength, or a spectral ALIS group whose
 /// walks serve all of them), in rounds when a target precision is set: the group stops when
 /// every wavelength meets the target (or at `spp`). One result per wavelength of the group.
-fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> Vec<MeasureResult> {
+/// Once `cancel` is set, blocks are skipped and the (meaningless) partial sums returned.
+fn run_task(
+    exp: &Experiment,
+    group: &[usize],
+    im: usize,
+    bar: &ProgressBar,
+    cancel: &AtomicBool,
+) -> Vec<MeasureResult> {
     let m = &exp.measures[im];
     let method = method_for(exp, m);
     let bs = m.block_size();
@@ -553,6 +580,9 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
         let parts: Vec<(usize, Vec<Accum>)> = blocks
             .par_iter()
             .map(|&(c, b)| {
+                if cancel.load(Ordering::Relaxed) {
+                    return (c, Vec::new());
+                }
                 let range = (b * bs).max(done)..((b + 1) * bs).min(next);
                 let n = range.end - range.start;
                 let a = match &spectral {
@@ -573,6 +603,9 @@ fn run_task(exp: &Experiment, group: &[usize], im: usize, bar: &ProgressBar) -> 
             }
         }
         done = next;
+        if cancel.load(Ordering::Relaxed) {
+            break;
+        }
         // Images stop on the median pixel error, other measures on the worst cell (the worst
         // wavelength of a group).
         let rel = accs
@@ -781,7 +814,7 @@ pub fn run_shard(
                 return Ok(Vec::new());
             }
             bar.set_message(task_message(exp, &group, im));
-            let rs = run_task(exp, &group, im, &bar);
+            let rs = run_task(exp, &group, im, &bar, &NEVER);
             for r in &rs {
                 checkpoint::store(dir, exp, &key, r)?;
             }

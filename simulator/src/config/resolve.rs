@@ -105,7 +105,9 @@ impl Experiment {
         Self::parse_with_spp(text, path, None)
     }
 
-    fn parse_with_spp(
+    /// [`Experiment::from_str`] with every measure's `spp` replaced by `spp` when given (see
+    /// [`Experiment::load_with_spp`]).
+    pub fn parse_with_spp(
         text: &str,
         path: &Path,
         spp: Option<u64>,

@@ -1,0 +1,124 @@
+"""PICS sweeps: one calibration site, many acquisitions (and optionally many values of one site
+parameter), run in this process in one call; one ``xarray.Dataset`` as ``pics.nc`` holds it,
+with ``time`` as the acquisitions' coordinate."""
+
+from __future__ import annotations
+
+import copy
+import os
+import re
+from typing import Any, Iterable, Mapping, Optional
+
+import xarray as xr
+
+from . import _native
+from ._dataset import to_dataset
+from ._progress import reporter
+from ._sources import Source, as_dict, toml_source
+
+_COLUMNS = ("time_utc", "vza", "vaa", "srf", "sza", "saa")
+
+
+def _num(v):
+    if v is None:
+        return None
+    try:
+        import math
+
+        f = float(v)
+        return None if math.isnan(f) else f
+    except (TypeError, ValueError):
+        return v
+
+
+def _rows(acquisitions) -> list:
+    """Acquisitions as ``(time_utc, vza, vaa, srf, sza, saa)`` tuples: a CSV path (checked by
+    the simulator), a pandas DataFrame, or a list of dicts with those keys."""
+    if isinstance(acquisitions, (str, os.PathLike)):
+        return _native.read_acquisitions(os.fspath(acquisitions))
+    if hasattr(acquisitions, "to_dict"):  # pandas DataFrame
+        acquisitions = acquisitions.to_dict("records")
+    rows = []
+    for k, a in enumerate(acquisitions):
+        if not isinstance(a, Mapping):
+            raise _native.ConfigError(f"acquisitions[{k}]: expected a dict with keys {_COLUMNS}")
+        unknown = set(a) - set(_COLUMNS)
+        if unknown:
+            raise _native.ConfigError(
+                f"acquisitions[{k}]: unknown key(s) {sorted(unknown)} (known: {', '.join(_COLUMNS)})"
+            )
+        missing = [c for c in _COLUMNS[:4] if c not in a]
+        if missing:
+            raise _native.ConfigError(f"acquisitions[{k}]: missing key(s) {missing}")
+        t = a["time_utc"]
+        t = t.isoformat() if hasattr(t, "isoformat") else str(t)
+        if "T" in t and not (t.endswith("Z") or re.search(r"[+-]\d\d:\d\d$", t)):
+            t += "Z"  # naive times are UTC
+        rows.append(
+            (t, float(a["vza"]), float(a["vaa"]), str(a["srf"]), _num(a.get("sza")), _num(a.get("saa")))
+        )
+    return rows
+
+
+_STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
+
+
+def _set(d: dict, key: str, value: Any) -> None:
+    """Set ``value`` at key path ``key`` (``atmosphere.particle_layers[0].optical_thickness``)."""
+    steps = [m.group(1) if m.group(1) is not None else int(m.group(2)) for m in _STEP.finditer(key)]
+    node = d
+    for i, s in enumerate(steps):
+        last = i == len(steps) - 1
+        try:
+            if last:
+                node[s] = value
+            else:
+                if isinstance(s, str) and s not in node:
+                    node[s] = {}
+                node = node[s]
+        except (KeyError, IndexError, TypeError):
+            raise _native.ConfigError(
+                f"vary: `{key}`: the site has no `{'.'.join(map(str, steps[: i + 1]))}`"
+            ) from None
+
+
+def pics(
+    site: Source,
+    acquisitions,
+    *,
+    vary: Optional[Mapping[str, Iterable]] = None,
+    progress=True,
+    threads: Optional[int] = None,
+    base_dir=None,
+) -> xr.Dataset:
+    """Simulate the TOA reflectance of a PICS site for each acquisition.
+
+    ``site``: a site file (``docs/pics.md``), TOML string or dict. ``acquisitions``: an
+    acquisitions CSV, a pandas DataFrame or a list of dicts with ``time_utc, vza, vaa, srf``
+    (and optionally ``sza, saa``). ``vary``: ``{key path: values}`` of one site key (e.g.
+    ``{"atmosphere.particle_layers[0].optical_thickness": [0.1, 0.2]}``): the result gains a
+    dimension named by the key path. Acquisition ``k`` uses seed ``k`` as in ``simulate pics``.
+    The site's data and scene are loaded in this process and reused across acquisitions.
+    """
+    rows = _rows(acquisitions)
+    if not vary:
+        text, path = toml_source(site, base_dir)
+        return _sweep(text, path, rows, progress, threads)
+    if len(vary) != 1:
+        raise _native.ConfigError("vary: give one key path (nest calls to vary more)")
+    (key, values), = vary.items()
+    values = list(values)
+    base, path = as_dict(site, base_dir)
+    parts = []
+    for v in values:
+        d = copy.deepcopy(base)
+        _set(d, key, v)
+        parts.append(_sweep(_native.dict_to_toml(d), path, rows, progress, threads))
+    return xr.concat(parts, dim=xr.DataArray(values, dims=key, name=key), data_vars="different",
+                     coords="minimal", compat="override")
+
+
+def _sweep(text, path, rows, progress, threads) -> xr.Dataset:
+    with reporter(progress, "pics", "acq") as cb:
+        raw = _native.pics_sweep(text, path, rows, cb, threads)
+    return to_dataset(raw)
