@@ -381,15 +381,17 @@ fn walks_per_sample(exp: &Experiment, m: &Measure) -> u64 {
 /// The run's progress bar (hidden when `progress` is false), counted in walks; a hidden bar
 /// still counts (its `position` and `length`), for callers that draw progress themselves.
 pub fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
-    if !progress {
-        return ProgressBar::hidden();
-    }
     let total: u64 = exp
         .measures
         .iter()
         .map(|m| m.spp * walks_per_sample(exp, m))
         .sum::<u64>()
         * exp.wavelengths.len() as u64;
+    if !progress {
+        let b = ProgressBar::hidden();
+        b.set_length(total);
+        return b;
+    }
     let b = ProgressBar::new(total);
     // The bar counts walks (one per sample and direction cell of a backward walk, one per sample
     // of a forward walk), so its rate is in walks per second, said with the unit.
