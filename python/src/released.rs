@@ -37,6 +37,16 @@ fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
     }
 }
 
+/// Turn off HDF5's printing of its error stack on this thread. netCDF turns it off when it
+/// initialises, but only for the thread that initialised it (HDF5's error stacks are per thread),
+/// and its probes for optional attributes print pages of `HDF5-DIAG` lines otherwise.
+fn silence_hdf5() {
+    // Safety: plain FFI call; a null handler and client data disable automatic printing.
+    unsafe {
+        hdf5_sys::h5e::H5Eset_auto2(hdf5_sys::h5e::H5E_DEFAULT, None, std::ptr::null_mut());
+    }
+}
+
 fn panic_message(p: Box<dyn std::any::Any + Send>) -> String {
     p.downcast_ref::<&str>()
         .map(|s| s.to_string())
@@ -65,9 +75,16 @@ pub fn run<T: Send>(
     std::thread::scope(|s| {
         let (tx, mut rx) = mpsc::channel::<()>();
         let h = s.spawn(move || {
+            silence_hdf5();
             let r = match &pool {
-                Some(p) => p.install(|| work(shared)),
-                None => work(shared),
+                Some(p) => p.install(|| {
+                    p.broadcast(|_| silence_hdf5());
+                    work(shared)
+                }),
+                None => {
+                    rayon::broadcast(|_| silence_hdf5());
+                    work(shared)
+                }
             };
             let _ = tx.send(());
             r
