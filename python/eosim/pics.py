@@ -64,22 +64,24 @@ _STEP = re.compile(r"([^.\[\]]+)|\[(\d+)\]")
 
 
 def _set(d: dict, key: str, value: Any) -> None:
-    """Set ``value`` at key path ``key`` (``atmosphere.particle_layers[0].optical_thickness``)."""
+    """Set ``value`` at key path ``key`` (``atmosphere.particle_layers[0].optical_thickness``);
+    every table and list on the way must exist (the last key may be new)."""
     steps = [m.group(1) if m.group(1) is not None else int(m.group(2)) for m in _STEP.finditer(key)]
+
+    def shown(n):
+        return "".join(f"[{s}]" if isinstance(s, int) else ("." if i else "") + s
+                       for i, s in enumerate(steps[:n]))
+
     node = d
     for i, s in enumerate(steps):
-        last = i == len(steps) - 1
-        try:
-            if last:
-                node[s] = value
-            else:
-                if isinstance(s, str) and s not in node:
-                    node[s] = {}
-                node = node[s]
-        except (KeyError, IndexError, TypeError):
-            raise _native.ConfigError(
-                f"vary: `{key}`: the site has no `{'.'.join(map(str, steps[: i + 1]))}`"
-            ) from None
+        ok = (isinstance(s, int) and isinstance(node, list) and s < len(node)) or (
+            isinstance(s, str) and isinstance(node, dict) and (s in node or i == len(steps) - 1))
+        if not ok:
+            raise _native.ConfigError(f"vary: `{key}`: the site has no `{shown(i + 1)}`")
+        if i == len(steps) - 1:
+            node[s] = value
+        else:
+            node = node[s]
 
 
 def pics(
@@ -114,8 +116,9 @@ def pics(
         d = copy.deepcopy(base)
         _set(d, key, v)
         parts.append(_sweep(_native.dict_to_toml(d), path, rows, progress, threads))
-    return xr.concat(parts, dim=xr.DataArray(values, dims=key, name=key), data_vars="different",
-                     coords="minimal", compat="override")
+    # Every data variable gains the dimension (the acquisitions' own columns repeat).
+    return xr.concat(parts, dim=xr.DataArray(values, dims=key, name=key), data_vars="all",
+                     coords="minimal", compat="equals", join="exact")
 
 
 def _sweep(text, path, rows, progress, threads) -> xr.Dataset:
