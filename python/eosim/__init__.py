@@ -9,6 +9,7 @@ one call. See ``docs/python.md``.
 from ._native import ConfigError, SimulationError, __version__
 from .bundles import Bundle, build_bundle, open_bundle
 from .experiment import Experiment, load, run
+from ._sources import read_toml
 from .pics import pics
 
 __all__ = [
@@ -21,5 +22,6 @@ __all__ = [
     "load",
     "open_bundle",
     "pics",
+    "read_toml",
     "run",
 ]

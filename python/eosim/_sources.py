@@ -33,3 +33,10 @@ def as_dict(source: Source, base_dir: str | os.PathLike | None = None) -> tuple[
     """The source as a dict (a copy) and its path."""
     text, path = toml_source(source, base_dir)
     return _native.toml_to_dict(text, str(path)), path
+
+
+def read_toml(source: Source, base_dir: str | os.PathLike | None = None) -> dict:
+    """A TOML file (or TOML string, or dict: copied) as a dict, e.g. to change a few keys of an
+    experiment, site or region file before running it (pass ``base_dir`` = the file's folder
+    then, so that its relative paths still resolve)."""
+    return as_dict(source, base_dir)[0]

@@ -60,7 +60,7 @@ def grenoble_bundle(tmp_path_factory, shared):
     houses), built through the package."""
     import eosim
 
-    region = eosim._sources.as_dict(REPO / "examples" / "grenoble" / "region.toml")[0]
+    region = eosim.read_toml(REPO / "examples" / "grenoble" / "region.toml")
     region["area"]["bbox"] = [5.70, 45.15, 5.76, 45.20]
     out = tmp_path_factory.mktemp("bundle") / "grenoble_small"
     return eosim.build_bundle(region, out, base_dir=REPO / "examples" / "grenoble")

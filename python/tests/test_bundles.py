@@ -21,7 +21,7 @@ def test_build_and_open(grenoble_bundle):
 
 
 def test_existing_output_is_refused_without_force(grenoble_bundle):
-    region = eosim._sources.as_dict(REPO / "examples" / "grenoble" / "region.toml")[0]
+    region = eosim.read_toml(REPO / "examples" / "grenoble" / "region.toml")
     region["area"]["bbox"] = [5.70, 45.15, 5.76, 45.20]
     with pytest.raises(eosim.SimulationError, match="exists"):
         eosim.build_bundle(region, grenoble_bundle.path, base_dir=REPO / "examples" / "grenoble")

@@ -178,3 +178,16 @@ def test_the_gil_is_released_during_runs():
 def test_example_file_runs_from_its_folder():
     ds = eosim.run(REPO / "examples" / "rayleigh_lambertian.toml", spp=200, progress=False)
     assert ds.attrs["history"].endswith("rayleigh_lambertian.toml`")
+
+
+def test_read_toml_and_runs_write_no_files(tmp_path, monkeypatch):
+    d = eosim.read_toml(REPO / "examples" / "rayleigh_lambertian.toml")
+    assert d["spectral"]["wavelengths"] == [550.0]
+    assert eosim.read_toml(d) == d and eosim.read_toml(d) is not d
+    # Nothing is written: not in the current folder, not in the temporary folder.
+    (tmp_path / "cwd").mkdir()
+    (tmp_path / "tmp").mkdir()
+    monkeypatch.chdir(tmp_path / "cwd")
+    monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
+    eosim.run(d, spp=100, progress=False, base_dir=REPO / "examples")
+    assert not any((tmp_path / "cwd").iterdir()) and not any((tmp_path / "tmp").iterdir())

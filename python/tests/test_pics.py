@@ -118,7 +118,7 @@ def test_errors_name_the_key():
 
 def test_example_site_with_its_data(shared):
     site = REPO / "examples" / "pics" / "libya4_site.toml"
-    d, _ = eosim._sources.as_dict(site)
+    d = eosim.read_toml(site)
     d["spp"] = 200
     d.pop("target_rel_stderr")
     d["integrator"] = {"ckd_walk": "alis"}
