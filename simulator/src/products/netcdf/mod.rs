@@ -58,7 +58,7 @@ pub fn write(
 }
 
 /// Every dimension, variable and attribute of `results.nc`, written into an open file `f` (a
-/// file on disk for [`write`], or a diskless one for the Python package, which reads it back
+/// file on disk for [`write()`], or a diskless one for the Python package, which reads it back
 /// into an `xarray.Dataset` without touching the disk).
 pub fn fill(
     f: &mut netcdf::FileMut,
