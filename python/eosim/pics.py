@@ -95,13 +95,18 @@ def pics(
 ) -> xr.Dataset:
     """Simulate the TOA reflectance of a PICS site for each acquisition.
 
-    ``site``: a site file (``docs/pics.md``), TOML string or dict. ``acquisitions``: an
+    ``site``: a site file (``docs/pics.md``), TOML string or dict, or a list of them: the
+    result then gains a dimension ``site`` (coordinate: each site's ``name``, else its file
+    name or position). ``acquisitions``: an
     acquisitions CSV, a pandas DataFrame or a list of dicts with ``time_utc, vza, vaa, srf``
     (and optionally ``sza, saa``). ``vary``: ``{key path: values}`` of one site key (e.g.
     ``{"atmosphere.particle_layers[0].optical_thickness": [0.1, 0.2]}``): the result gains a
     dimension named by the key path. Acquisition ``k`` uses seed ``k`` as in ``simulate pics``.
     The site's data and scene are loaded in this process and reused across acquisitions.
     """
+    if isinstance(site, (list, tuple)):
+        return _sites(site, acquisitions, vary=vary, progress=progress, threads=threads,
+                      base_dir=base_dir)
     rows = _rows(acquisitions)
     if not vary:
         text, path = toml_source(site, base_dir)
@@ -125,3 +130,19 @@ def _sweep(text, path, rows, progress, threads) -> xr.Dataset:
     with reporter(progress, "pics", "acq") as cb:
         raw = _native.pics_sweep(text, path, rows, cb, threads)
     return to_dataset(raw)
+
+
+def _sites(sites, acquisitions, **kw) -> xr.Dataset:
+    """The same acquisitions at several sites, along a dimension ``site``."""
+    names, parts = [], []
+    for k, s in enumerate(sites):
+        d, path = as_dict(s, kw.get("base_dir"))
+        names.append(str(d.get("name") or d.get("catalogue") or
+                         (path.stem if path.name not in ("<dict>", "<string>") else k)))
+        parts.append(pics(s, acquisitions, **kw))
+    if len(set(names)) != len(names):
+        names = [f"{n}#{k}" for k, n in enumerate(names)]
+    ds = xr.concat(parts, dim=xr.DataArray(names, dims="site", name="site"), data_vars="all",
+                   coords="minimal", compat="equals", join="exact")
+    ds.attrs["site_file"] = [str(p.attrs.get("site_file", "")) for p in parts]
+    return ds

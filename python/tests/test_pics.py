@@ -126,3 +126,13 @@ def test_example_site_with_its_data(shared):
                     base_dir=site.parent)
     assert ds.sizes["acquisition"] == 6
     assert np.all(np.isfinite(ds.reflectance))
+
+
+def test_several_sites_add_a_site_dimension():
+    other = {**SITE, "name": "brighter", "surface": {"type": "lambertian", "reflectance": 0.6}}
+    ds = eosim.pics([SITE, other], ACQS[:2], progress=False)
+    assert ds.reflectance.dims == ("site", "acquisition")
+    assert list(ds.site.values) == ["test_site", "brighter"]
+    assert np.all(ds.reflectance.sel(site="brighter") > ds.reflectance.sel(site="test_site"))
+    xr.testing.assert_equal(ds.isel(site=0).drop_vars("site"),
+                            eosim.pics(SITE, ACQS[:2], progress=False))
