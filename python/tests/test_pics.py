@@ -136,3 +136,15 @@ def test_several_sites_add_a_site_dimension():
     assert np.all(ds.reflectance.sel(site="brighter") > ds.reflectance.sel(site="test_site"))
     xr.testing.assert_equal(ds.isel(site=0).drop_vars("site"),
                             eosim.pics(SITE, ACQS[:2], progress=False))
+
+
+def test_ctrl_c_interrupts_a_sweep():
+    import _thread
+    import threading
+
+    long = {**SITE, "spp": 2_000_000_000}
+    timer = threading.Timer(0.5, _thread.interrupt_main)
+    timer.start()
+    with pytest.raises(KeyboardInterrupt):
+        eosim.pics(long, ACQS, progress=False)
+    timer.cancel()
