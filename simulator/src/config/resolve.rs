@@ -184,7 +184,8 @@ fn plain_closed_choice(message: &str) -> String {
         return message;
     };
     let value = &rest[..end];
-    let line_end = rest.find('\n').unwrap_or(rest.len());
+    // The line ends after the value (a value may itself hold a line break).
+    let line_end = rest[end..].find('\n').map_or(rest.len(), |k| end + k);
     let expected = &rest[end + 1..line_end];
     // The allowed values are the back-quoted words of the rest of the line.
     let known: Vec<String> = expected
@@ -527,6 +528,11 @@ mod tests {
         assert_eq!(
             plain_closed_choice("wanted string or table"),
             "invalid type: expected a string"
+        );
+        // A value holding a line break (found by proptest_config: it used to panic).
+        assert_eq!(
+            plain_closed_choice("unknown variant `a\nb`, expected `hplane` or `directions`\nx"),
+            "\"a\nb\" is unknown (known: \"hplane\", \"directions\")\nx"
         );
     }
 }
