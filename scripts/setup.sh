@@ -1,6 +1,8 @@
 #!/usr/bin/env bash
 # Idempotent set-up of a Debian machine for this workspace: system libraries (netCDF, HDF5,
-# GDAL headers), then the Rust crates and a release build. Safe to run again: it installs only
+# GDAL headers), then the Rust crates and a release build, then the Python virtual environment
+# `.venv/` of the Python package (python/requirements-dev.txt; built and tested by
+# scripts/test-python.sh). Safe to run again: it installs only
 # what is missing. Used by the README's first command and by .ci/run.
 set -euo pipefail
 
@@ -8,6 +10,8 @@ cd "$(dirname "$0")/.."
 
 # slurm-wlm and munge: the Slurm test (tests/slurm.rs) starts a one-node cluster on this machine.
 PKGS=(pkg-config libnetcdf-dev libhdf5-dev netcdf-bin libgdal-dev slurm-wlm munge)
+# The Python package needs python3 (>= 3.10) with venv and ensurepip (Debian splits them off).
+if ! python3 -c "import venv, ensurepip" >/dev/null 2>&1; then PKGS+=(python3 python3-venv); fi
 
 missing=()
 for p in "${PKGS[@]}"; do
@@ -38,4 +42,20 @@ fi
 echo "setup: fetching crates and building (release)"
 cargo fetch --locked 2>/dev/null || cargo fetch
 cargo build --release --workspace --bins
+
+# The Python package's environment: created once, its packages installed again only when
+# python/requirements-dev.txt changes.
+if [ ! -x .venv/bin/python ]; then
+    echo "setup: creating .venv (Python package)"
+    python3 -m venv .venv
+fi
+REQ=python/requirements-dev.txt
+if ! cmp -s "$REQ" .venv/.requirements-installed; then
+    echo "setup: installing Python packages from $REQ into .venv"
+    .venv/bin/python -m pip install -q --upgrade pip
+    .venv/bin/python -m pip install -q -r "$REQ"
+    cp "$REQ" .venv/.requirements-installed
+else
+    echo "setup: .venv up to date"
+fi
 echo "setup: done"

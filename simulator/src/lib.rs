@@ -31,6 +31,7 @@ pub mod cluster;
 pub use bundle;
 pub mod config;
 pub mod error;
+pub mod file_cache;
 pub mod frame;
 pub mod heavy_tail;
 pub mod illumination;

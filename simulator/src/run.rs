@@ -3,6 +3,8 @@
 //! and random streams depend only on sample indices, so the result is bit-identical for any
 //! thread count.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+
 use glam::DVec3;
 use indicatif::{ProgressBar, ProgressStyle};
 use rayon::prelude::*;
@@ -400,17 +402,20 @@ fn walks_per_sample(exp: &Experiment, m: &Measure) -> u64 {
     }
 }
 
-/// The run's progress bar (hidden when `progress` is false), counted in walks.
-fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
-    if !progress {
-        return ProgressBar::hidden();
-    }
+/// The run's progress bar (hidden when `progress` is false), counted in walks; a hidden bar
+/// still counts (its `position` and `length`), for callers that draw progress themselves.
+pub fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
     let total: u64 = exp
         .measures
         .iter()
         .map(|m| m.spp * walks_per_sample(exp, m))
         .sum::<u64>()
         * exp.wavelengths.len() as u64;
+    if !progress {
+        let b = ProgressBar::hidden();
+        b.set_length(total);
+        return b;
+    }
     let b = ProgressBar::new(total);
     // The bar counts walks (one per sample and direction cell of a backward walk, one per sample
     // of a forward walk), so its rate is in walks per second, said with the unit.
@@ -428,9 +433,23 @@ fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
     b
 }
 
+/// Never set: the cancellation flag of runs that cannot be cancelled.
+static NEVER: AtomicBool = AtomicBool::new(false);
+
 /// Run `exp` completely. `progress`: draw a progress bar on stderr.
 pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
-    let bar = progress_bar(exp, progress);
+    run_cancellable(exp, &progress_bar(exp, progress), &NEVER)
+        .expect("a run without cancellation completes")
+}
+
+/// [`run`] counting its walks on `bar` ([`progress_bar`]) and checking `cancel` before every
+/// block: once it is set, the remaining blocks are skipped and `None` is returned (the Python
+/// package's Ctrl-C). A run that is not cancelled returns exactly what [`run`] returns.
+pub fn run_cancellable(
+    exp: &Experiment,
+    bar: &ProgressBar,
+    cancel: &AtomicBool,
+) -> Option<Vec<MeasureResult>> {
     // Tasks (a wavelength or a spectral ALIS group, and a measure) run concurrently as well as
     // their blocks: a task whose round is a single block (precise CKD/ALIS walks) would
     // otherwise leave cores idle. Each task's result depends only on its own random streams, so
@@ -440,10 +459,13 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
         .map(|(group, im)| {
             bar.set_message(task_message(exp, &group, im));
             let cells = 0..exp.measures[im].cell_count();
-            run_task(exp, &group, im, cells, &bar)
+            run_task(exp, &group, im, cells, bar, cancel)
         })
         .collect();
     bar.finish_and_clear();
+    if cancel.load(Ordering::Relaxed) {
+        return None;
+    }
     let mut slots: Vec<Option<MeasureResult>> = (0..exp.wavelengths.len() * exp.measures.len())
         .map(|_| None)
         .collect();
@@ -457,7 +479,7 @@ pub fn run(exp: &Experiment, progress: bool) -> Vec<MeasureResult> {
         .map(|r| r.expect("every (wavelength, measure) pair has a task"))
         .collect();
     crate::heavy_tail::warn(exp, &out);
-    out
+    Some(out)
 }
 
 /// The progress bar's message for a task.
@@ -512,7 +534,7 @@ fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_gr
 /// Run one measure at one wavelength, in rounds when a target precision is set.
 pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) -> MeasureResult {
     let cells = 0..exp.measures[im].cell_count();
-    run_task(exp, &[iw], im, cells, bar)
+    run_task(exp, &[iw], im, cells, bar, &NEVER)
         .pop()
         .expect("one result per wavelength")
 }
@@ -522,12 +544,14 @@ pub fn run_measure(exp: &Experiment, iw: usize, im: usize, bar: &ProgressBar) ->
 /// every wavelength meets the target (or at `spp`). One result per wavelength of the group.
 /// `tile`: the cells to walk (all of them, or a pixel tile of a backward measure,
 /// `units.rs`); the results hold those cells only, in order.
+/// Once `cancel` is set, blocks are skipped and the (meaningless) partial sums returned.
 fn run_task(
     exp: &Experiment,
     group: &[usize],
     im: usize,
     tile: std::ops::Range<usize>,
     bar: &ProgressBar,
+    cancel: &AtomicBool,
 ) -> Vec<MeasureResult> {
     let m = &exp.measures[im];
     let method = method_for(exp, m);
@@ -587,6 +611,9 @@ fn run_task(
         let parts: Vec<(usize, Vec<Accum>)> = blocks
             .par_iter()
             .map(|&(c, b)| {
+                if cancel.load(Ordering::Relaxed) {
+                    return (c, Vec::new());
+                }
                 let range = (b * bs).max(done)..((b + 1) * bs).min(next);
                 let n = range.end - range.start;
                 let a = match &spectral {
@@ -607,6 +634,9 @@ fn run_task(
             }
         }
         done = next;
+        if cancel.load(Ordering::Relaxed) {
+            break;
+        }
         // Images stop on the median pixel error, other measures on the worst cell (the worst
         // wavelength of a group).
         let rel = accs
@@ -726,7 +756,7 @@ pub fn run_shard(
                 return Ok(None);
             }
             bar.set_message(task_message(exp, &u.group, u.measure));
-            let rs = run_task(exp, &u.group, u.measure, u.cells.clone(), &bar);
+            let rs = run_task(exp, &u.group, u.measure, u.cells.clone(), &bar, &NEVER);
             for r in &rs {
                 checkpoint::store(dir, exp, &key, &u, r)?;
             }

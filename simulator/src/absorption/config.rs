@@ -247,7 +247,8 @@ pub fn resolve_ckd(
             ),
         ));
     }
-    let db = EradiateV0Ckd::open(file, None).map_err(|e| ctx.err(KEY, e.to_string()))?;
+    let db = crate::file_cache::cached(file, "", || EradiateV0Ckd::open(file, None))
+        .map_err(|e| ctx.err(KEY, e.to_string()))?;
     let mut out = Vec::with_capacity(wavelengths.len());
     for (iw, &wl) in wavelengths.iter().enumerate() {
         let bin = db.bin_containing(wl).ok_or_else(|| {
@@ -313,8 +314,8 @@ pub fn ckd_bins(
     } else if is_rrtmgp(&path) {
         Ok(None)
     } else {
-        let db =
-            super::EradiateV0Ckd::open(&path, None).map_err(|e| ctx.err(KEY, e.to_string()))?;
+        let db = crate::file_cache::cached(&path, "", || super::EradiateV0Ckd::open(&path, None))
+            .map_err(|e| ctx.err(KEY, e.to_string()))?;
         Ok(Some(
             db.bins().iter().map(|b| (b.lower_nm, b.upper_nm)).collect(),
         ))

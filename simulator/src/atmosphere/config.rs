@@ -733,7 +733,7 @@ fn resolve_particle_layers(
 ) -> Result<Vec<ResolvedParticles>, ConfigError> {
     let (ground, toa) = (grid[0].0, grid[grid.len() - 1].1);
     // Datasets and phase functions shared between layers: (file, size_index) and run wavelength.
-    let mut datasets: Vec<(PathBuf, usize, ParticleDataset)> = Vec::new();
+    let mut datasets: Vec<(PathBuf, usize, std::sync::Arc<ParticleDataset>)> = Vec::new();
     let mut phases: Vec<(usize, usize, PhaseFunction)> = Vec::new();
     let mut out = Vec::with_capacity(layers.len());
     for (ip, l) in layers.iter().enumerate() {
@@ -793,8 +793,10 @@ fn resolve_particle_layers(
                         ctx.err(k("dataset"), format!("file {} not found", fpath.display()))
                     );
                 }
-                let d = ParticleDataset::load(&fpath, l.size_index)
-                    .map_err(|e| ctx.err(k("dataset"), e.to_string()))?;
+                let d = crate::file_cache::cached(&fpath, &l.size_index.to_string(), || {
+                    ParticleDataset::load(&fpath, l.size_index)
+                })
+                .map_err(|e| ctx.err(k("dataset"), e.to_string()))?;
                 datasets.push((fpath.clone(), l.size_index, d));
                 datasets.len() - 1
             }

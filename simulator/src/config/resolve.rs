@@ -105,7 +105,9 @@ impl Experiment {
         Self::parse_with_spp(text, path, None)
     }
 
-    fn parse_with_spp(
+    /// [`Experiment::from_str`] with every measure's `spp` replaced by `spp` when given (see
+    /// [`Experiment::load_with_spp`]).
+    pub fn parse_with_spp(
         text: &str,
         path: &Path,
         spp: Option<u64>,
@@ -182,7 +184,8 @@ fn plain_closed_choice(message: &str) -> String {
         return message;
     };
     let value = &rest[..end];
-    let line_end = rest.find('\n').unwrap_or(rest.len());
+    // The line ends after the value (a value may itself hold a line break).
+    let line_end = rest[end..].find('\n').map_or(rest.len(), |k| end + k);
     let expected = &rest[end + 1..line_end];
     // The allowed values are the back-quoted words of the rest of the line.
     let known: Vec<String> = expected
@@ -525,6 +528,11 @@ mod tests {
         assert_eq!(
             plain_closed_choice("wanted string or table"),
             "invalid type: expected a string"
+        );
+        // A value holding a line break (found by proptest_config: it used to panic).
+        assert_eq!(
+            plain_closed_choice("unknown variant `a\nb`, expected `hplane` or `directions`\nx"),
+            "\"a\nb\" is unknown (known: \"hplane\", \"directions\")\nx"
         );
     }
 }

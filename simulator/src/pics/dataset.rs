@@ -79,16 +79,19 @@ const COLUMNS: [Column; 10] = [
     ),
 ];
 
+/// The acquisition times of `rows`, seconds since 1970-01-01 UTC.
+pub fn times(rows: &[PicsRow]) -> Result<Vec<f64>, String> {
+    rows.iter()
+        .map(|r| parse_time(&r.acquisition.time_utc).map(|t| unix_seconds(&t)))
+        .collect()
+}
+
 /// Write `pics.nc` at `path`; `site_path` is recorded as an attribute.
 pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(), OutputError> {
-    let times: Vec<f64> = rows
-        .iter()
-        .map(|r| parse_time(&r.acquisition.time_utc).map(|t| unix_seconds(&t)))
-        .collect::<Result<_, _>>()
-        .map_err(|m| OutputError::Io {
-            path: path.to_path_buf(),
-            source: std::io::Error::new(std::io::ErrorKind::InvalidData, m),
-        })?;
+    let times = times(rows).map_err(|m| OutputError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, m),
+    })?;
     let tmp = crate::products::tmp_path(path);
     let _ = std::fs::remove_file(&tmp);
     let nc = |source| OutputError::Netcdf {
@@ -98,71 +101,7 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
     {
         let _session = crate::netcdf_session();
         let mut f = netcdf::create(&tmp).map_err(nc)?;
-        let mut inner = || -> Result<(), netcdf::Error> {
-            f.add_attribute("Conventions", "CF-1.10")?;
-            f.add_attribute("title", "Simulated TOA reflectance of a calibration site")?;
-            f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
-            f.add_attribute("site_file", site_path.display().to_string())?;
-            f.add_dimension("acquisition", rows.len())?;
-            {
-                let mut v = f.add_variable::<i32>("acquisition", &["acquisition"])?;
-                v.put_attribute(
-                    "long_name",
-                    "acquisition number (row of the acquisitions file, from 1)",
-                )?;
-                let idx: Vec<i32> = (1..=rows.len() as i32).collect();
-                v.put_values(&idx, ..)?;
-            }
-            {
-                let mut v = f.add_variable::<f64>("time", &["acquisition"])?;
-                v.put_attribute("standard_name", "time")?;
-                v.put_attribute("long_name", "acquisition time")?;
-                v.put_attribute("units", "seconds since 1970-01-01T00:00:00Z")?;
-                v.put_attribute("calendar", "standard")?;
-                v.put_attribute("axis", "T")?;
-                v.put_values(&times, ..)?;
-            }
-            {
-                let mut v = f.add_string_variable("time_utc", &["acquisition"])?;
-                v.put_attribute("long_name", "acquisition time, RFC 3339 UTC")?;
-                for (i, r) in rows.iter().enumerate() {
-                    v.put_string(&r.acquisition.time_utc, [i])?;
-                }
-            }
-            {
-                let mut v = f.add_string_variable("srf", &["acquisition"])?;
-                v.put_attribute("long_name", "spectral response function (name or file)")?;
-                v.put_attribute("coordinates", "time")?;
-                for (i, r) in rows.iter().enumerate() {
-                    v.put_string(&r.acquisition.srf, [i])?;
-                }
-            }
-            {
-                let mut v = f.add_variable::<i8>("sun_angles_given", &["acquisition"])?;
-                v.put_attribute(
-                    "long_name",
-                    "whether sza and saa come from the acquisitions file",
-                )?;
-                v.put_attribute("flag_values", vec![0i8, 1])?;
-                v.put_attribute("flag_meanings", "computed_by_spa given_in_csv")?;
-                v.put_attribute("coordinates", "time")?;
-                let given: Vec<i8> = rows
-                    .iter()
-                    .map(|r| i8::from(r.acquisition.sun.is_some()))
-                    .collect();
-                v.put_values(&given, ..)?;
-            }
-            for (name, units, long, get) in COLUMNS {
-                let data: Vec<f64> = rows.iter().map(get).collect();
-                let mut v = f.add_variable::<f64>(name, &["acquisition"])?;
-                v.put_attribute("units", units)?;
-                v.put_attribute("long_name", long)?;
-                v.put_attribute("coordinates", "time")?;
-                v.put_values(&data, ..)?;
-            }
-            Ok(())
-        };
-        inner().map_err(|e| {
+        fill(&mut f, site_path, rows, &times).map_err(|e| {
             let _ = std::fs::remove_file(&tmp);
             nc(e)
         })?;
@@ -171,4 +110,76 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
         path: path.to_path_buf(),
         source,
     })
+}
+
+/// Every dimension, variable and attribute of `pics.nc` written into an open file `f` (on disk
+/// for [`write_netcdf`], diskless for the Python package); `times` from [`times`].
+pub fn fill(
+    f: &mut netcdf::FileMut,
+    site_path: &Path,
+    rows: &[PicsRow],
+    times: &[f64],
+) -> Result<(), netcdf::Error> {
+    f.add_attribute("Conventions", "CF-1.10")?;
+    f.add_attribute("title", "Simulated TOA reflectance of a calibration site")?;
+    f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
+    f.add_attribute("site_file", site_path.display().to_string())?;
+    f.add_dimension("acquisition", rows.len())?;
+    {
+        let mut v = f.add_variable::<i32>("acquisition", &["acquisition"])?;
+        v.put_attribute(
+            "long_name",
+            "acquisition number (row of the acquisitions file, from 1)",
+        )?;
+        let idx: Vec<i32> = (1..=rows.len() as i32).collect();
+        v.put_values(&idx, ..)?;
+    }
+    {
+        let mut v = f.add_variable::<f64>("time", &["acquisition"])?;
+        v.put_attribute("standard_name", "time")?;
+        v.put_attribute("long_name", "acquisition time")?;
+        v.put_attribute("units", "seconds since 1970-01-01T00:00:00Z")?;
+        v.put_attribute("calendar", "standard")?;
+        v.put_attribute("axis", "T")?;
+        v.put_values(times, ..)?;
+    }
+    {
+        let mut v = f.add_string_variable("time_utc", &["acquisition"])?;
+        v.put_attribute("long_name", "acquisition time, RFC 3339 UTC")?;
+        for (i, r) in rows.iter().enumerate() {
+            v.put_string(&r.acquisition.time_utc, [i])?;
+        }
+    }
+    {
+        let mut v = f.add_string_variable("srf", &["acquisition"])?;
+        v.put_attribute("long_name", "spectral response function (name or file)")?;
+        v.put_attribute("coordinates", "time")?;
+        for (i, r) in rows.iter().enumerate() {
+            v.put_string(&r.acquisition.srf, [i])?;
+        }
+    }
+    {
+        let mut v = f.add_variable::<i8>("sun_angles_given", &["acquisition"])?;
+        v.put_attribute(
+            "long_name",
+            "whether sza and saa come from the acquisitions file",
+        )?;
+        v.put_attribute("flag_values", vec![0i8, 1])?;
+        v.put_attribute("flag_meanings", "computed_by_spa given_in_csv")?;
+        v.put_attribute("coordinates", "time")?;
+        let given: Vec<i8> = rows
+            .iter()
+            .map(|r| i8::from(r.acquisition.sun.is_some()))
+            .collect();
+        v.put_values(&given, ..)?;
+    }
+    for (name, units, long, get) in COLUMNS {
+        let data: Vec<f64> = rows.iter().map(get).collect();
+        let mut v = f.add_variable::<f64>(name, &["acquisition"])?;
+        v.put_attribute("units", units)?;
+        v.put_attribute("long_name", long)?;
+        v.put_attribute("coordinates", "time")?;
+        v.put_values(&data, ..)?;
+    }
+    Ok(())
 }

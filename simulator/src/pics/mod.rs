@@ -38,7 +38,7 @@ mod acquisitions;
 mod dataset;
 
 pub use acquisitions::{parse_acquisitions, read_acquisitions, Acquisition};
-pub use dataset::write_netcdf;
+pub use dataset::{fill as fill_netcdf, times as acquisition_times, write_netcdf};
 
 use crate::config::Experiment;
 use crate::error::ConfigError;
@@ -300,15 +300,33 @@ pub fn run(
     progress: impl Fn(usize),
 ) -> Result<Vec<PicsRow>, ConfigError> {
     let site = load_site(site_path)?;
+    let never = std::sync::atomic::AtomicBool::new(false);
+    Ok(run_site(&site, site_path, acquisitions, progress, &never)?
+        .expect("a run without cancellation completes"))
+}
+
+/// [`run`] of a loaded site table ([`load_site`], or a table built in memory; `site_path` names
+/// it in errors and anchors its relative paths), checking `cancel` between and inside
+/// acquisitions: `Ok(None)` once it is set.
+pub fn run_site(
+    site: &toml::Table,
+    site_path: &Path,
+    acquisitions: &[Acquisition],
+    progress: impl Fn(usize),
+    cancel: &std::sync::atomic::AtomicBool,
+) -> Result<Option<Vec<PicsRow>>, ConfigError> {
     let mut out = Vec::with_capacity(acquisitions.len());
     // Keeps a 3D site's scene alive, so that every acquisition reuses it (built once).
     let mut _scene: Option<std::sync::Arc<crate::scene::Scene>> = None;
     for (k, acq) in acquisitions.iter().enumerate() {
-        let exp = acquisition_experiment(&site, site_path, acq, k)?;
+        let exp = acquisition_experiment(site, site_path, acq, k)?;
         if _scene.is_none() {
             _scene = exp.scene.clone();
         }
-        let res = crate::run::run(&exp, false);
+        let bar = indicatif::ProgressBar::hidden();
+        let Some(res) = crate::run::run_cancellable(&exp, &bar, cancel) else {
+            return Ok(None);
+        };
         let r = rows(&exp, &res);
         let b = band_rows(&exp, &r);
         let Some(band) = b.first() else {
@@ -330,7 +348,7 @@ pub fn run(
         });
         progress(k + 1);
     }
-    Ok(out)
+    Ok(Some(out))
 }
 
 /// `pics.csv`: one row per acquisition.

@@ -46,19 +46,31 @@ pub fn write(
     {
         let _session = crate::netcdf_session();
         let mut f = netcdf::create(&tmp).map_err(nc)?;
-        write_globals(&mut f, exp)
-            .and_then(|_| table::write(&mut f, exp, rows))
-            .and_then(|_| images.iter().try_for_each(|p| image::write(&mut f, p)))
-            .and_then(|_| table::write_band(&mut f, exp, band))
-            .map_err(|e| {
-                let _ = std::fs::remove_file(&tmp);
-                nc(e)
-            })?;
+        fill(&mut f, exp, rows, band, images).map_err(|e| {
+            let _ = std::fs::remove_file(&tmp);
+            nc(e)
+        })?;
     }
     std::fs::rename(&tmp, path).map_err(|source| OutputError::Io {
         path: path.to_path_buf(),
         source,
     })
+}
+
+/// Every dimension, variable and attribute of `results.nc`, written into an open file `f` (a
+/// file on disk for [`write()`], or a diskless one for the Python package, which reads it back
+/// into an `xarray.Dataset` without touching the disk).
+pub fn fill(
+    f: &mut netcdf::FileMut,
+    exp: &Experiment,
+    rows: &[Row],
+    band: &[super::BandRow],
+    images: &[super::imagery::ImageProduct],
+) -> Result<(), netcdf::Error> {
+    write_globals(f, exp)?;
+    table::write(f, exp, rows)?;
+    images.iter().try_for_each(|p| image::write(f, p))?;
+    table::write_band(f, exp, band)
 }
 
 /// Global attributes and the `wavelength` coordinate.

@@ -1,0 +1,27 @@
+"""eosim: the Earth-observation scene simulator from Python.
+
+Experiments (from a TOML file, a TOML string or a dict with the same keys) run in this process
+with the GIL released and return ``xarray.Dataset`` objects holding exactly what ``results.nc``
+holds; scene bundles are built and inspected; PICS sweeps run many acquisitions of one site in
+one call. See ``docs/python.md``.
+"""
+
+from ._native import ConfigError, SimulationError, __version__
+from .bundles import Bundle, build_bundle, open_bundle
+from .experiment import Experiment, load, run
+from ._sources import read_toml
+from .pics import pics
+
+__all__ = [
+    "Bundle",
+    "ConfigError",
+    "Experiment",
+    "SimulationError",
+    "__version__",
+    "build_bundle",
+    "load",
+    "open_bundle",
+    "pics",
+    "read_toml",
+    "run",
+]
