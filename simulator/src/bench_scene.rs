@@ -18,20 +18,10 @@ use crate::scene::build::{from_bundle, Background};
 
 pub use bundle::peak_rss_bytes;
 
-/// CPU time of the calling thread, s (`CLOCK_THREAD_CPUTIME_ID`): ray rates are per CPU-second
-/// of one thread, so a busy machine (other processes on the same cores) slows them less than
-/// wall time would (cache sharing still does).
+/// CPU time of this thread ([`crate::cpu_time`]): ray rates are per CPU-second of one thread,
+/// so a busy machine slows them less than wall time would; NaN where it cannot be read.
 fn thread_cpu_seconds() -> f64 {
-    let mut ts = libc::timespec {
-        tv_sec: 0,
-        tv_nsec: 0,
-    };
-    // SAFETY: `ts` is a valid timespec to write into; the clock id is a constant.
-    let rc = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) };
-    if rc != 0 {
-        return f64::NAN;
-    }
-    ts.tv_sec as f64 + 1e-9 * ts.tv_nsec as f64
+    crate::cpu_time::thread_seconds().unwrap_or(f64::NAN)
 }
 
 /// Rays per CPU-second of `f` applied to every ray (one thread), and how many returned true.

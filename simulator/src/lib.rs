@@ -30,6 +30,7 @@ pub mod cluster;
 /// `simulator::bundle::…` and `crate::bundle::…` keep working.
 pub use bundle;
 pub mod config;
+pub mod cpu_time;
 pub mod error;
 pub mod file_cache;
 pub mod frame;

@@ -47,11 +47,11 @@ pub fn pilot(exp: &Experiment) -> Vec<Vec<f64>> {
                     // and page faults in a freshly loaded scene.
                     let cpu = (0..2)
                         .map(|_| {
-                            let (c0, t0) = (process_cpu_seconds(), Instant::now());
+                            let (c0, t0) = (crate::cpu_time::process_seconds(), Instant::now());
                             crate::run::pilot_blocks(exp, group, im, &cells, 0..samples);
                             let wall = t0.elapsed().as_secs_f64();
                             // Where the process's CPU time is unknown: wall × threads.
-                            c0.zip(process_cpu_seconds())
+                            c0.zip(crate::cpu_time::process_seconds())
                                 .map(|(a, b)| b - a)
                                 .unwrap_or(wall * threads)
                         })
@@ -61,17 +61,6 @@ pub fn pilot(exp: &Experiment) -> Vec<Vec<f64>> {
                 .collect()
         })
         .collect()
-}
-
-/// CPU time (user + system) this process has used so far, seconds (`getrusage`).
-fn process_cpu_seconds() -> Option<f64> {
-    // SAFETY: getrusage writes into the zeroed struct it is given and reads nothing else.
-    let mut u: libc::rusage = unsafe { std::mem::zeroed() };
-    if unsafe { libc::getrusage(libc::RUSAGE_SELF, &mut u) } != 0 {
-        return None;
-    }
-    let t = |v: libc::timeval| v.tv_sec as f64 + v.tv_usec as f64 * 1e-6;
-    Some(t(u.ru_utime) + t(u.ru_stime))
 }
 
 /// Walks per sample of unit `u`.

@@ -68,6 +68,8 @@ use obvhs::bvh2::builder::build_bvh2;
 use obvhs::bvh2::node::Bvh2Node;
 use obvhs::BvhBuildParams;
 
+use super::clip;
+
 /// A disc (thin leaf): centre, unit normal, radius, in template coordinates (m).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Disc {
@@ -1093,25 +1095,6 @@ impl InstanceBvh {
     }
 }
 
-/// Clip the ray `o + t d`, `t ∈ [t0, t1]`, to the box `[lo, hi]` (f64); `None` if it misses.
-#[inline(always)]
-fn clip(o: DVec3, d: DVec3, lo: DVec3, hi: DVec3, t0: f64, t1: f64) -> Option<(f64, f64)> {
-    let (mut a, mut b) = (t0, t1);
-    for k in 0..3 {
-        if d[k] == 0.0 {
-            if o[k] < lo[k] || o[k] > hi[k] {
-                return None;
-            }
-        } else {
-            let inv = 1.0 / d[k];
-            let (x, y) = ((lo[k] - o[k]) * inv, (hi[k] - o[k]) * inv);
-            a = a.max(x.min(y));
-            b = b.min(x.max(y));
-        }
-    }
-    (a <= b).then_some((a, b))
-}
-
 impl InstanceBvh {
     /// Closest hit with `t` in `(tmin, tmax)` of the ray `origin + t·dir` (world frame, f64,
     /// `dir` unit).
@@ -1786,14 +1769,9 @@ mod tests {
         assert!((h.normal - n).length() < 1e-6, "{}", h.normal);
     }
 
-    /// CPU time of the calling thread, s (Linux; 0 elsewhere): timings robust to other
-    /// processes sharing the cores.
+    /// CPU time of the calling thread, s ([`crate::cpu_time`]; 0 where it cannot be read).
     fn thread_cpu_seconds() -> f64 {
-        std::fs::read_to_string("/proc/thread-self/schedstat")
-            .ok()
-            .and_then(|s| s.split_whitespace().next()?.parse::<f64>().ok())
-            .unwrap_or(0.0)
-            * 1e-9
+        crate::cpu_time::thread_seconds().unwrap_or(0.0)
     }
 
     /// A slab test of a node pair agrees with obvhs' reference ray–box test, and the empty

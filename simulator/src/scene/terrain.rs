@@ -39,7 +39,7 @@ use obvhs::cwbvh::{builder::build_cwbvh, CwBvh};
 use obvhs::ray::{Ray, RayHit};
 use obvhs::BvhBuildParams;
 
-use super::curvature;
+use super::{clip, curvature};
 use bundle::Bundle;
 
 /// A hit on the terrain.
@@ -279,24 +279,8 @@ impl TerrainBvh {
         if self.verts.is_empty() || !origin.is_finite() || !dir.is_finite() || tmax.is_nan() {
             return None;
         }
-        // Slab test in f64 against the padded terrain box.
-        let inv = DVec3::ONE / dir;
-        let ta = (self.lo - origin) * inv;
-        let tb = (self.hi - origin) * inv;
-        let tnear = ta.min(tb);
-        let tfar = ta.max(tb);
-        let pick = |a: f64, b: f64| if a.is_nan() { b } else { a };
-        let t0 = pick(tnear.x, f64::NEG_INFINITY)
-            .max(pick(tnear.y, f64::NEG_INFINITY))
-            .max(pick(tnear.z, f64::NEG_INFINITY))
-            .max(0.0);
-        let t1 = pick(tfar.x, f64::INFINITY)
-            .min(pick(tfar.y, f64::INFINITY))
-            .min(pick(tfar.z, f64::INFINITY))
-            .min(tmax);
-        if t1 < t0 {
-            return None;
-        }
+        // Clip in f64 to the padded terrain box.
+        let (t0, t1) = clip(origin, dir, self.lo, self.hi, 0.0, tmax)?;
         let o2 = origin + dir * t0;
         let o = Vec3A::from((o2 - self.render_origin).as_vec3());
         let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
