@@ -31,6 +31,7 @@ pub mod cluster;
 pub use bundle;
 pub mod config;
 pub mod cpu_time;
+pub mod direct_flux;
 pub mod error;
 pub mod file_cache;
 pub mod frame;

@@ -244,10 +244,10 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
     let hint = || sensor::frame_azimuth(m, cell);
     match method_for(exp, m) {
         Method::Forward => {
-            let (dirs, flux_tau, hints) = sensor::forward_targets(m, opt);
+            let (dirs, flux, hints) = sensor::forward_targets(m, opt);
             let targets = ForwardTargets {
                 directions: &dirs,
-                flux_tau,
+                flux,
                 azimuth_hints: &hints,
             };
             let mut acc = F::accum(m.cell_count());

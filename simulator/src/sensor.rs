@@ -15,7 +15,7 @@ use crate::atmosphere::spherical::SphericalShell;
 use crate::frame::sample_cosine_hemisphere;
 use crate::integrator::geometry::scene_layers::SceneInLayers;
 use crate::integrator::geometry::scene_shells::SceneInShells;
-use crate::measure::{Measure, MeasureKind};
+use crate::measure::{FluxDirection, Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::rng::Stream;
 use crate::scene::Scene;
@@ -33,8 +33,12 @@ pub fn frame_azimuth(m: &Measure, cell: usize) -> f64 {
 }
 
 /// What a forward walk of a 1D distant or flux measure scores: the directions, the flux
-/// level's optical depth and the azimuths of the directions' Stokes frames (radians).
-pub fn forward_targets(m: &Measure, opt: &OpticalState) -> (Vec<DVec3>, Option<f64>, Vec<f64>) {
+/// level's optical depth with its direction, and the azimuths of the directions' Stokes frames
+/// (radians).
+pub fn forward_targets(
+    m: &Measure,
+    opt: &OpticalState,
+) -> (Vec<DVec3>, Option<(f64, FluxDirection)>, Vec<f64>) {
     match &m.kind {
         MeasureKind::Distant {
             directions, vaa, ..
@@ -43,9 +47,12 @@ pub fn forward_targets(m: &Measure, opt: &OpticalState) -> (Vec<DVec3>, Option<f
             None,
             vaa.iter().map(|a| a.to_radians()).collect(),
         ),
-        MeasureKind::DistantFlux { altitude } => (
+        MeasureKind::DistantFlux {
+            altitude,
+            direction,
+        } => (
             Vec::new(),
-            Some(opt.atmosphere.tau_at_altitude(*altitude)),
+            Some((opt.atmosphere.tau_at_altitude(*altitude), *direction)),
             Vec::new(),
         ),
         MeasureKind::Radiancemeter { .. } | MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => {
@@ -78,9 +85,12 @@ pub fn spherical_start(
             let p = DVec3::new(origin.x, origin.y, shell.planet_radius + origin.z);
             (shell.entry_point(p, *look)?, *look)
         }
-        MeasureKind::DistantFlux { altitude } => {
-            let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
-            (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), -up)
+        MeasureKind::DistantFlux {
+            altitude,
+            direction,
+        } => {
+            let d = flux_path_direction(*direction, rng);
+            (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), d)
         }
         MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
     };
@@ -234,6 +244,19 @@ pub fn scene_start_sph(
     Some((p, l, d))
 }
 
+/// The direction a backward path of a flux cell travels: cosine-distributed about the downward
+/// vertical for upwelling flux (the path looks down), about the upward one for downwelling flux.
+/// Its mean BRF-normalised radiance is then the flux divided by E0·cos SZA. The direct solar
+/// beam is a delta no sampled direction meets: downwelling flux adds it in closed form
+/// ([`crate::direct_flux`]).
+fn flux_path_direction(direction: FluxDirection, rng: &mut Stream) -> DVec3 {
+    let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
+    match direction {
+        FluxDirection::Up => -up,
+        FluxDirection::Down => up,
+    }
+}
+
 /// Starting altitude and path direction of a backward sample (distant measures start at TOA).
 pub fn backward_start_altitude(
     toa: f64,
@@ -244,10 +267,10 @@ pub fn backward_start_altitude(
     match &m.kind {
         MeasureKind::Distant { directions, .. } => (toa, -directions[cell]),
         MeasureKind::Radiancemeter { origin, look, .. } => (origin.z, *look),
-        MeasureKind::DistantFlux { altitude } => {
-            let up = sample_cosine_hemisphere(rng.next_f64(), rng.next_f64());
-            (*altitude, -up)
-        }
+        MeasureKind::DistantFlux {
+            altitude,
+            direction,
+        } => (*altitude, flux_path_direction(*direction, rng)),
         MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
     }
 }

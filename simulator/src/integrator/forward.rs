@@ -19,7 +19,9 @@
 //! noise at all. `"collision"` scores at the sampled collision (a cross-check). Likewise the
 //! ground contribution is added as its expected value at each downward flight,
 //! `w·e^{−(τ*−τ)/|d_z|}·π f_r·e^{−τ*/μ_v}`, and the upward flux through a level as the expected
-//! crossing `w·e^{−(τ−τ_L)/d_z}` of every upward flight from below it (intensity only).
+//! crossing `w·e^{−(τ−τ_L)/d_z}` of every upward flight from below it (intensity only); the
+//! downwelling diffuse flux likewise from every downward flight from above it after the first
+//! scattering (the direct beam is exact, `direct_flux.rs`).
 //! Thermal emission (`emission = true`, directional measures): one emitted photon per sample
 //! beside the solar one, drawn in proportion to the emitted power, and the directly
 //! transmitted emission in closed form (`forward_emission.rs`).
@@ -39,6 +41,7 @@ use super::weight::{
 use crate::accum::Accum;
 use crate::atmosphere::{FlightEnd, PlaneParallel};
 use crate::bsdf::Bsdf;
+use crate::measure::FluxDirection;
 use crate::rng::Stream;
 use crate::stokes::meridian_axis;
 
@@ -46,8 +49,9 @@ use crate::stokes::meridian_axis;
 pub struct ForwardTargets<'a> {
     /// Directions towards the sensor (`z > 0`), one cell each.
     pub directions: &'a [DVec3],
-    /// Optical depth of a flux level (one cell), if the measure is a flux.
-    pub flux_tau: Option<f64>,
+    /// Optical depth of a flux level (one cell) and the flux's direction, if the measure is a
+    /// flux.
+    pub flux: Option<(f64, FluxDirection)>,
     /// Azimuth (radians) fixing the meridian plane of zenith directions (polarized runs).
     pub azimuth_hints: &'a [f64],
 }
@@ -384,9 +388,15 @@ fn walk_from<W: Photon>(
                 }
             }
         }
-        if let Some(tl) = targets.flux_tau {
-            if d.z > 0.0 && tau >= tl && order > 1 {
-                let x = w.intensity() * (-(tau - tl) / d.z).exp();
+        if let Some((tl, dir)) = targets.flux {
+            // The expected crossing of the level by this flight. Downwelling: only scattered
+            // light (order > 1); the direct beam is added in closed form by the products.
+            let crosses = match dir {
+                FluxDirection::Up => d.z > 0.0 && tau >= tl,
+                FluxDirection::Down => d.z < 0.0 && tau <= tl,
+            };
+            if crosses && order > 1 {
+                let x = w.intensity() * (-(tau - tl).abs() / d.z.abs()).exp();
                 W::add_intensity(&mut scratch.tally[0], order - 1, x);
             }
         }

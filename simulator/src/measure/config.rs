@@ -7,7 +7,7 @@
 use glam::DVec3;
 use serde::Deserialize;
 
-use super::{Area, Camera, Measure, MeasureKind, OrthoGrid};
+use super::{Area, Camera, FluxDirection, Measure, MeasureKind, OrthoGrid};
 use crate::error::{ConfigCtx, ConfigError};
 use crate::frame::direction_from_angles;
 
@@ -95,6 +95,9 @@ pub enum MeasureConfig {
         /// km; default: top of the atmosphere.
         #[serde(default)]
         altitude: Option<f64>,
+        /// "up" (default): upwelling flux; "down": downwelling (direct + diffuse).
+        #[serde(default)]
+        direction: Option<FluxDirection>,
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
@@ -352,7 +355,11 @@ impl MeasureConfig {
                     frame_azimuth,
                 }
             }
-            MeasureConfig::DistantFlux { altitude, .. } => {
+            MeasureConfig::DistantFlux {
+                altitude,
+                direction,
+                ..
+            } => {
                 let a = altitude.map(|a| a * 1e3).unwrap_or(at.toa);
                 if !a.is_finite() || a < at.ground || a > at.toa {
                     return Err(ctx.err(
@@ -363,7 +370,10 @@ impl MeasureConfig {
                         ),
                     ));
                 }
-                MeasureKind::DistantFlux { altitude: a }
+                MeasureKind::DistantFlux {
+                    altitude: a,
+                    direction: direction.unwrap_or(FluxDirection::Up),
+                }
             }
         };
         Ok(Measure {

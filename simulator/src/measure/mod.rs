@@ -6,8 +6,10 @@
 //! * `Radiancemeter`: radiance arriving at a point along one direction (the instrument looks along
 //!   `look`; the radiance travels along `−look`). The directly transmitted solar beam is a delta
 //!   in direction and is not part of it.
-//! * `DistantFlux`: upwelling hemispherical flux (radiosity) through a horizontal level, and the
-//!   albedo = flux / (E0·cos SZA).
+//! * `DistantFlux`: hemispherical flux through a horizontal level, upwelling (radiosity) or
+//!   downwelling (irradiance), and the same divided by E0·cos SZA (`albedo`). Downwelling flux
+//!   is the attenuated solar beam (direct, exact: [`crate::direct_flux`]) plus the scattered
+//!   (diffuse) light, which is what the walks estimate.
 //! * `Ortho` (3D scenes): an image on a north-up grid, each pixel the mean radiance leaving
 //!   the terrain within the pixel towards one direction (parallel projection onto the terrain:
 //!   orthorectified).
@@ -63,7 +65,26 @@ pub enum MeasureKind {
     DistantFlux {
         /// Altitude of the level, m.
         altitude: f64,
+        /// Upwelling or downwelling.
+        direction: FluxDirection,
     },
+}
+
+/// Which hemisphere a flux measure integrates: the light travelling up or down.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum FluxDirection {
+    Up,
+    Down,
+}
+
+impl FluxDirection {
+    pub fn name(self) -> &'static str {
+        match self {
+            FluxDirection::Up => "up",
+            FluxDirection::Down => "down",
+        }
+    }
 }
 
 /// A horizontal rectangle in the scene's local frame, m, masked by the bundle's area polygon

@@ -3,8 +3,11 @@
 //! Columns: `measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,
 //! brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,
 //! flux_stderr,n_samples,brf_q,brf_q_stderr,brf_u,brf_u_stderr,brf_v,brf_v_stderr,dolp,dolp_stderr,
-//! brightness_temperature,brightness_temperature_stderr`
-//! (the last two filled in thermal runs only, `emission = true`, in K; the eight before them
+//! brightness_temperature,brightness_temperature_stderr,flux_direct,flux_direct_stderr,
+//! flux_diffuse,flux_diffuse_stderr`
+//! (the last four filled for `distant_flux` measures only: the direct solar beam's part of
+//! `flux`, exact, and the scattered light's part; the two before them
+//! in thermal runs only, `emission = true`, in K; the eight before those
 //! in polarized runs only: Stokes Q, U, V normalised like the BRF, in the
 //! meridian frame of the view direction, and the degree of linear polarization). Angles in degrees (`vaa` clockwise from North, direction from the
 //! target to the sensor); empty cells where a quantity does not apply to the measure type.
@@ -18,7 +21,7 @@ use crate::error::OutputError;
 pub const HEADER: &str = "measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,\
 brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,flux_stderr,n_samples,\
 brf_q,brf_q_stderr,brf_u,brf_u_stderr,brf_v,brf_v_stderr,dolp,dolp_stderr,\
-brightness_temperature,brightness_temperature_stderr";
+brightness_temperature,brightness_temperature_stderr,flux_direct,flux_direct_stderr,flux_diffuse,flux_diffuse_stderr";
 
 fn opt(x: Option<f64>) -> String {
     x.map(|v| format!("{v:.10e}")).unwrap_or_default()
@@ -38,7 +41,7 @@ pub fn to_string(rows: &[Row]) -> String {
         let angle = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.measure,
             r.kind,
             r.method,
@@ -56,7 +59,9 @@ pub fn to_string(rows: &[Row]) -> String {
             pair(r.brf_u),
             pair(r.brf_v),
             pair(r.dolp),
-            pair(r.brightness_temperature)
+            pair(r.brightness_temperature),
+            pair(r.flux_direct),
+            pair(r.flux_diffuse)
         );
     }
     s
@@ -67,7 +72,7 @@ pub fn write(path: &Path, rows: &[Row]) -> Result<(), OutputError> {
 }
 
 pub const BAND_HEADER: &str =
-    "measure,type,band,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,flux,flux_stderr,albedo,albedo_stderr,band_irradiance,brightness_temperature,brightness_temperature_stderr";
+    "measure,type,band,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,flux,flux_stderr,albedo,albedo_stderr,band_irradiance,brightness_temperature,brightness_temperature_stderr,flux_direct,flux_direct_stderr,flux_diffuse,flux_diffuse_stderr";
 
 /// `results_band.csv`: band-weighted quantities (runs with `spectral.srf`).
 pub fn band_to_string(rows: &[super::BandRow]) -> String {
@@ -77,7 +82,7 @@ pub fn band_to_string(rows: &[super::BandRow]) -> String {
         let angle = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{:.10e},{}",
+            "{},{},{},{},{},{},{},{},{},{:.10e},{},{},{}",
             r.measure,
             r.kind,
             r.band,
@@ -88,7 +93,9 @@ pub fn band_to_string(rows: &[super::BandRow]) -> String {
             pair(r.flux),
             pair(r.albedo),
             r.irradiance,
-            pair(r.brightness_temperature)
+            pair(r.brightness_temperature),
+            pair(r.flux_direct),
+            pair(r.flux_diffuse)
         );
     }
     s

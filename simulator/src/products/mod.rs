@@ -5,7 +5,10 @@
 //! Quantities (units in `docs/conventions.md`):
 //! * `brf` = π·L/(E0·cos SZA) (dimensionless), its single- and multiple-scattering parts;
 //! * `radiance` L = brf·E0·cos SZA/π, W m⁻² sr⁻¹ nm⁻¹ when E0 is in W m⁻² nm⁻¹;
-//! * `albedo` = F↑/(E0·cos SZA) and `flux` F↑ (W m⁻² nm⁻¹) for `distant_flux`;
+//! * `flux` F (W m⁻² nm⁻¹) for `distant_flux`, upwelling or downwelling, and `albedo` =
+//!   F/(E0·cos SZA); `flux_direct` (the attenuated solar beam, exact: `direct_flux.rs`; 0 for
+//!   upwelling flux) and `flux_diffuse` (scattered light, the Monte Carlo estimate) with
+//!   `flux = flux_direct + flux_diffuse`;
 //! * with thermal emission (`emission = true`), `brightness_temperature` (K): the inverse Planck
 //!   function (`planck.rs`) of the radiance at the wavelength (band rows: of the band radiance
 //!   at the band's effective wavelength Σwλ/Σw), its standard error by the delta method
@@ -25,6 +28,7 @@ use std::path::Path;
 use crate::accum::MeasureResult;
 use crate::config::resolve::Experiment;
 use crate::error::OutputError;
+use crate::measure::{FluxDirection, MeasureKind};
 
 /// One output row: one measure, wavelength and direction.
 #[derive(Clone, Debug)]
@@ -42,6 +46,9 @@ pub struct Row {
     pub brf_multiple: Option<(f64, f64)>,
     pub albedo: Option<(f64, f64)>,
     pub flux: Option<(f64, f64)>,
+    /// Flux measures: the direct solar beam's and the scattered light's parts of `flux`.
+    pub flux_direct: Option<(f64, f64)>,
+    pub flux_diffuse: Option<(f64, f64)>,
     /// Polarized runs: BRF-normalised Stokes Q, U, V (π·Q/(E0 cos SZA), meridian frame of the
     /// view direction) and the degree of linear polarization √(Q²+U²)/I.
     pub brf_q: Option<(f64, f64)>,
@@ -110,6 +117,8 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 brf_multiple: None,
                 albedo: None,
                 flux: None,
+                flux_direct: None,
+                flux_diffuse: None,
                 brf_q: None,
                 brf_u: None,
                 brf_v: None,
@@ -128,11 +137,28 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 row.vza = Some(z);
                 row.vaa = Some(a);
             }
-            if m.is_flux() {
+            if let MeasureKind::DistantFlux {
+                altitude,
+                direction,
+            } = m.kind
+            {
+                // The walks estimate the scattered light; a downwelling flux adds the direct
+                // beam, exact (in the tally's units, E0·cos SZA).
+                let direct = match direction {
+                    FluxDirection::Down if sun_up => crate::direct_flux::direct_transmittance(
+                        &exp.optics[r.wavelength],
+                        exp.sun_dir,
+                        altitude,
+                    ),
+                    _ => 0.0,
+                };
                 if sun_up {
-                    row.albedo = Some((t, te));
+                    row.albedo = Some((t + direct, te));
                 }
-                row.flux = Some((t * e0 * mu_s, te * e0 * mu_s));
+                let k = e0 * mu_s;
+                row.flux = Some(((t + direct) * k, te * k));
+                row.flux_direct = Some((direct * k, 0.0));
+                row.flux_diffuse = Some((t * k, te * k));
             } else {
                 if sun_up {
                     row.brf = Some((t, te));
@@ -190,6 +216,9 @@ pub struct BandRow {
     /// Band radiance (W m⁻² sr⁻¹ nm⁻¹) or flux (W m⁻² nm⁻¹), and its standard error.
     pub radiance: Option<(f64, f64)>,
     pub flux: Option<(f64, f64)>,
+    /// Flux measures: the band's direct and diffuse parts of `flux`.
+    pub flux_direct: Option<(f64, f64)>,
+    pub flux_diffuse: Option<(f64, f64)>,
     /// Band BRF or albedo, and its standard error.
     pub brf: Option<(f64, f64)>,
     pub albedo: Option<(f64, f64)>,
@@ -258,6 +287,8 @@ pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
                 radiance,
                 brightness_temperature,
                 flux: combine(&|r| r.flux, false),
+                flux_direct: combine(&|r| r.flux_direct, false),
+                flux_diffuse: combine(&|r| r.flux_diffuse, false),
                 brf: combine(&|r| r.brf, true),
                 albedo: combine(&|r| r.albedo, true),
                 irradiance: e0_b,

@@ -14,16 +14,17 @@
 //! * on `measure`: `measure_id` (string), `measure_type` (string, as in the CSV `type` column),
 //!   `measure_direction_count` (int, CF contiguous ragged array: `sample_dimension = "direction"`,
 //!   the measures' directions are consecutive in the `direction` dimension, in measure order),
-//!   `flux_altitude` (m, NaN for other measures);
+//!   `flux_altitude` (m, NaN for other measures), `flux_direction` ("up"/"down", empty for other
+//!   measures; runs with a `distant_flux` measure);
 //! * on `direction`: `vza`, `vaa` (degrees, target → sensor), `direction_measure` (int index into
 //!   `measure`) and `direction_measure_id` (string), all four named in each data variable's
 //!   `coordinates` attribute;
 //! * on `(wavelength, direction)`: `brf`, `radiance`, `brf_single`, `brf_multiple` with their
-//!   `_stderr` (when the run has a directional measure), `albedo`, `flux` and `_stderr` (when it has
-//!   a `distant_flux` measure), polarized runs `brf_q`, `brf_u`, `brf_v`, `dolp` and `_stderr`;
+//!   `_stderr` (when the run has a directional measure), `albedo`, `flux`, `flux_direct`,
+//!   `flux_diffuse` and `_stderr` (when it has a `distant_flux` measure), polarized runs `brf_q`, `brf_u`, `brf_v`, `dolp` and `_stderr`;
 //!   `n_samples` (int64). Entries that do not apply to a measure (a BRF of a flux measure) are NaN.
 //! * band runs (`spectral.srf`), on `direction`: `band_brf`, `band_radiance`, `band_albedo`,
-//!   `band_flux`, `band_brightness_temperature` (thermal runs) and `_stderr` (those with a
+//!   `band_flux`, `band_flux_direct`, `band_flux_diffuse`, `band_brightness_temperature` (thermal runs) and `_stderr` (those with a
 //!   finite value), attribute `band_irradiance`;
 //! * thermal runs (`emission = true`): `brightness_temperature` (K) and its `_stderr` on
 //!   `(wavelength, direction)`.
@@ -89,13 +90,30 @@ const DIRECTIONAL: [Quantity; 4] = [
     ("radiance", |r| r.radiance, "W m-2 sr-1 nm-1", "radiance"),
 ];
 
-const FLUX: [Quantity; 2] = [
-    ("albedo", |r| r.albedo, "1", "upwelling flux / (E0 cos SZA)"),
+const FLUX: [Quantity; 4] = [
+    (
+        "albedo",
+        |r| r.albedo,
+        "1",
+        "hemispherical flux / (E0 cos SZA), upwelling or downwelling (flux_direction)",
+    ),
     (
         "flux",
         |r| r.flux,
         "W m-2 nm-1",
-        "upwelling hemispherical flux",
+        "hemispherical flux, upwelling or downwelling (flux_direction)",
+    ),
+    (
+        "flux_direct",
+        |r| r.flux_direct,
+        "W m-2 nm-1",
+        "direct solar beam's part of flux (exact; 0 upwelling)",
+    ),
+    (
+        "flux_diffuse",
+        |r| r.flux_diffuse,
+        "W m-2 nm-1",
+        "scattered light's part of flux",
     ),
 ];
 
@@ -245,7 +263,7 @@ fn write_measures(f: &mut netcdf::FileMut, lay: &Layout) -> Result<(), netcdf::E
         .measures
         .iter()
         .map(|m| match m.kind {
-            crate::measure::MeasureKind::DistantFlux { altitude } => altitude,
+            crate::measure::MeasureKind::DistantFlux { altitude, .. } => altitude,
             _ => f64::NAN,
         })
         .collect();
@@ -253,6 +271,22 @@ fn write_measures(f: &mut netcdf::FileMut, lay: &Layout) -> Result<(), netcdf::E
     v.put_attribute("units", "m")?;
     v.put_attribute("long_name", "altitude of a distant_flux measure's level")?;
     v.put_values(&alt, ..)?;
+    if lay.measures.iter().any(|m| m.is_flux()) {
+        let dirs: Vec<&str> = lay
+            .measures
+            .iter()
+            .map(|m| match m.kind {
+                crate::measure::MeasureKind::DistantFlux { direction, .. } => direction.name(),
+                _ => "",
+            })
+            .collect();
+        let mut v = f.add_string_variable("flux_direction", &["measure"])?;
+        v.put_attribute(
+            "long_name",
+            "hemisphere of a distant_flux measure: up (upwelling) or down (downwelling); empty for other measures",
+        )?;
+        put_strings(&mut v, &dirs)?;
+    }
     Ok(())
 }
 
@@ -330,11 +364,13 @@ pub(super) fn write_band(
         })
         .collect();
     type Get = fn(&BandRow) -> Option<(f64, f64)>;
-    let sets: [(&str, Get, &str); 5] = [
+    let sets: [(&str, Get, &str); 7] = [
         ("band_brf", |r| r.brf, "1"),
         ("band_radiance", |r| r.radiance, "W m-2 sr-1 nm-1"),
         ("band_albedo", |r| r.albedo, "1"),
         ("band_flux", |r| r.flux, "W m-2 nm-1"),
+        ("band_flux_direct", |r| r.flux_direct, "W m-2 nm-1"),
+        ("band_flux_diffuse", |r| r.flux_diffuse, "W m-2 nm-1"),
         (
             "band_brightness_temperature",
             |r| r.brightness_temperature,
