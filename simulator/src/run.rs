@@ -39,7 +39,7 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
         return Method::Backward;
     }
     match (exp.integrator.kind, &m.kind) {
-        (_, MeasureKind::Radiancemeter { .. }) => Method::Backward,
+        (_, MeasureKind::Radiancemeter { .. } | MeasureKind::Hdrf { .. }) => Method::Backward,
         (IntegratorKind::Backward, _) => Method::Backward,
         _ => Method::Forward,
     }

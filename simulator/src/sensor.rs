@@ -27,6 +27,7 @@ pub fn frame_azimuth(m: &Measure, cell: usize) -> f64 {
         MeasureKind::Distant { vaa, .. } => vaa[cell].to_radians(),
         MeasureKind::Radiancemeter { frame_azimuth, .. } => *frame_azimuth,
         MeasureKind::DistantFlux { .. } => 0.0,
+        MeasureKind::Hdrf { vaa, .. } => vaa.get(cell).map_or(0.0, |a| a.to_radians()),
         MeasureKind::Ortho(g) => g.vaa.to_radians(),
         MeasureKind::Perspective(c) => c.up.x.atan2(c.up.y),
     }
@@ -55,8 +56,11 @@ pub fn forward_targets(
             Some((opt.atmosphere.tau_at_altitude(*altitude), *direction)),
             Vec::new(),
         ),
-        MeasureKind::Radiancemeter { .. } | MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => {
-            unreachable!("the resolver forbids forward radiancemeters; images use scenes")
+        MeasureKind::Radiancemeter { .. }
+        | MeasureKind::Hdrf { .. }
+        | MeasureKind::Ortho(_)
+        | MeasureKind::Perspective(_) => {
+            unreachable!("radiancemeters and HDRFs are backward measures; images use scenes")
         }
     }
 }
@@ -90,6 +94,14 @@ pub fn spherical_start(
             direction,
         } => {
             let d = flux_path_direction(*direction, rng);
+            (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), d)
+        }
+        MeasureKind::Hdrf {
+            directions,
+            altitude,
+            ..
+        } => {
+            let d = hdrf_path_direction(directions, cell, rng);
             (DVec3::new(0.0, 0.0, shell.planet_radius + altitude), d)
         }
         MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
@@ -257,6 +269,15 @@ fn flux_path_direction(direction: FluxDirection, rng: &mut Stream) -> DVec3 {
     }
 }
 
+/// The path direction of cell `cell` of an HDRF measure: looking down against a view
+/// direction, or (the last cell) a downwelling-flux path.
+fn hdrf_path_direction(directions: &[DVec3], cell: usize, rng: &mut Stream) -> DVec3 {
+    match directions.get(cell) {
+        Some(v) => -*v,
+        None => flux_path_direction(FluxDirection::Down, rng),
+    }
+}
+
 /// Starting altitude and path direction of a backward sample (distant measures start at TOA).
 pub fn backward_start_altitude(
     toa: f64,
@@ -271,6 +292,11 @@ pub fn backward_start_altitude(
             altitude,
             direction,
         } => (*altitude, flux_path_direction(*direction, rng)),
+        MeasureKind::Hdrf {
+            directions,
+            altitude,
+            ..
+        } => (*altitude, hdrf_path_direction(directions, cell, rng)),
         MeasureKind::Ortho(_) | MeasureKind::Perspective(_) => unreachable!("scene walk"),
     }
 }

@@ -22,6 +22,13 @@ Solver: nanodisort (cdisort) with 128 streams, fluxes only, delta-M off (moment 
 checked against 96 streams (the difference is printed and asserted below 1e-6).  Checks:
 direct flux = exp(-tau/mu0) (closed form) and energy conservation of the conservative cases
 (absorbed = 0: TOA net flux equals the surface's absorbed flux).
+It also writes ``simulator/tests/data/disort/hdrf.csv``
+(``case,tau,sza,rho_0,k,g,raa,vza,quantity,value``, quantity ``hdrf``): the surface's
+hemispherical-directional reflectance factor pi L_up(BOA, v) / E_down(BOA) of the RPV cases E1
+and E2 of ``generate.py`` (Rayleigh tau 0.2, SZA 30) from DisORT++ (96 streams, checked against
+80) with its directly reflected beam replaced by the exact RPV BRDF, as ``generate.py`` does at
+the top of the atmosphere (at the surface the beam is attenuated once, by exp(-tau/mu0)).
+
 Run from the repository root with the venv of README.md: ``python tools/disort_reference/fluxes.py``.
 """
 from __future__ import annotations
@@ -32,11 +39,16 @@ from pathlib import Path
 
 import numpy as np
 
+import disortpp as dpp
 import nanodisort as nd
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 OUT = REPO / "simulator" / "tests" / "data" / "disort" / "fluxes.csv"
+OUT_HDRF = OUT.with_name("hdrf.csv")
+HDRF_VZA = np.arange(0.0, 81.0, 10.0)
+HDRF_RAA = (0.0, 90.0, 180.0)
+HDRF_CASES = [("E1", 0.1, 0.543, -0.29), ("E2", 0.25, 1.2, 0.15)]  # generate.py's case E
 NSTR = (128, 96)
 
 
@@ -114,5 +126,96 @@ def main():
     print(f"wrote {OUT} ({len(out)} rows)")
 
 
+def rpv_brf(rho0, k, g, sza, vza, raa):
+    """RPV BRF (Rahman et al. 1993, rho_c = rho_0), raa = 0 on the Sun's side; the formula of
+    generate.py."""
+    ti, to, dphi = np.radians(sza), np.radians(vza), np.radians(raa)
+    ci, co = np.cos(ti), np.cos(to)
+    m = (ci * co * (ci + co)) ** (k - 1)
+    cos_g = ci * co + np.sin(ti) * np.sin(to) * np.cos(dphi)
+    f = (1 - g * g) / (1 + 2 * g * cos_g + g * g) ** 1.5
+    big_g = np.sqrt(np.maximum(0.0, np.tan(ti) ** 2 + np.tan(to) ** 2
+                               - 2 * np.tan(ti) * np.tan(to) * np.cos(dphi)))
+    return rho0 * m * f * (1 + (1 - rho0) / (1 + big_g))
+
+
+def disortpp_rpv(tau, sza, rpv, umu, phis, nstr):
+    """Rayleigh layer over an RPV surface; returns (uu[level][mu][phi] at TOA and BOA,
+    diffuse downwelling flux at BOA)."""
+    cfg = dpp.DisortConfig(1, nstr, nstr)
+    cfg.flags.use_lambertian_surface = False
+    cfg.flags.use_user_tau = cfg.flags.use_user_mu = True
+    cfg.flags.comp_only_fluxes = False
+    cfg.flags.intensity_corr_buras = False
+    cfg.flags.intensity_corr_nakajima = False
+    cfg.flags.use_delta_m_plus = False
+    cfg.num_user_tau, cfg.num_user_mu, cfg.num_phi = 2, len(umu), len(phis)
+    cfg.flags.brdf_type = dpp.BrdfType.RPV
+    spec = dpp.RpvBrdfSpec()
+    spec.rho0, spec.k, spec.theta = rpv
+    spec.sigma = spec.t1 = spec.t2 = 0.0
+    spec.scale = 1.0
+    cfg.brdf.set_rpv(spec)
+    cfg.allocate()
+    cfg.delta_tau = [float(tau)]
+    cfg.single_scat_albedo = [1.0]
+    pm = np.zeros((1, nstr + 1))
+    pm[0, :nstr] = chi(None, nstr)
+    cfg.phase_function_moments = pm.tolist()
+    cfg.tau_user = [0.0, float(tau)]
+    cfg.mu_user = [float(u) for u in umu]
+    cfg.phi_user = [float(p) for p in phis]
+    cfg.bc.direct_beam_flux = 1.0
+    cfg.bc.direct_beam_mu = math.cos(math.radians(sza))
+    cfg.bc.direct_beam_phi = 0.0
+    cfg.bc.surface_albedo = 0.0
+    cfg.accuracy_fourier_series = 0.0
+    r = dpp.DisortSolver().solve(cfg)
+    return np.array(r.intensity), float(np.array(r.flux_down)[1])
+
+
+def hdrf_case(tau, sza, rpv, nstr):
+    """{(raa, vza): HDRF} at the surface."""
+    mu0 = math.cos(math.radians(sza))
+    umu = np.sort(np.cos(np.radians(HDRF_VZA)))
+    vza_sorted = np.degrees(np.arccos(umu))
+    phis = [180.0 - r for r in HDRF_RAA]
+    uu, fdn = disortpp_rpv(tau, sza, rpv, umu, phis, nstr)
+    surf, _ = disortpp_rpv(1e-12, sza, rpv, umu, phis, nstr)
+    e_down = mu0 * math.exp(-tau / mu0) + fdn
+    out = {}
+    for j, raa in enumerate(HDRF_RAA):
+        # DisORT++'s Fourier reconstruction of the directly reflected beam (a bare surface),
+        # replaced by the exact BRDF; in pi L / mu0 units, attenuated once at the surface.
+        s_v = np.pi * surf[0][:, j] / mu0
+        exact = rpv_brf(rpv[0], rpv[1], rpv[2], sza, vza_sorted, raa)
+        boa = np.pi * uu[1][:, j] / mu0 + (exact - s_v) * math.exp(-tau / mu0)
+        for z, v in zip(vza_sorted, boa * mu0 / e_down):
+            out[(raa, round(float(z), 6))] = float(v)
+    return out
+
+
+def main_hdrf():
+    tau, sza = 0.2, 30.0
+    node = np.min(np.abs(np.cos(np.radians(np.r_[HDRF_VZA, sza]))[:, None]
+                         - (0.5 * (np.polynomial.legendre.leggauss(48)[0] + 1))[None, :]))
+    assert node > 1e-4, node
+    rows, worst = [], 0.0
+    for cid, rho0, k, g in HDRF_CASES:
+        a = hdrf_case(tau, sza, (rho0, k, g), 96)
+        b = hdrf_case(tau, sza, (rho0, k, g), 80)
+        worst = max(worst, max(abs(b[key] / a[key] - 1) for key in a))
+        for (raa, vza), v in sorted(a.items()):
+            rows.append([cid, tau, sza, rho0, k, g, raa, vza, "hdrf", f"{v:.10e}"])
+    print(f"[check] HDRF 96 vs 80 streams: max rel diff {worst:.2e}")
+    assert worst < 2e-4, worst
+    with open(OUT_HDRF, "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["case", "tau", "sza", "rho_0", "k", "g", "raa", "vza", "quantity", "value"])
+        w.writerows(rows)
+    print(f"wrote {OUT_HDRF} ({len(rows)} rows)")
+
+
 if __name__ == "__main__":
     main()
+    main_hdrf()

@@ -40,6 +40,7 @@ fn size_key(k: usize, kind: &MeasureKind) -> String {
         MeasureKind::Ortho(_) => format!("measures[{k}].pixel_size_m"),
         MeasureKind::Perspective(_) => format!("measures[{k}].width"),
         MeasureKind::Distant { .. } => format!("measures[{k}].directions"),
+        MeasureKind::Hdrf { .. } => format!("measures[{k}].zeniths"),
         _ => format!("measures[{k}]"),
     }
 }

@@ -384,9 +384,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             polarized: cfg.polarized,
             spherical: planet_radius.is_some(),
             scene: scene.is_some(),
-            radiancemeter: measures
-                .iter()
-                .position(|m| matches!(m.kind, MeasureKind::Radiancemeter { .. })),
+            radiancemeter: measures.iter().position(|m| {
+                matches!(
+                    m.kind,
+                    MeasureKind::Radiancemeter { .. } | MeasureKind::Hdrf { .. }
+                )
+            }),
         },
     )?;
 

@@ -134,7 +134,8 @@ pub struct RunShape {
     pub spherical: bool,
     /// A 3D scene.
     pub scene: bool,
-    /// The index of the first radiancemeter among the measures, if any.
+    /// The index of the first measure only the backward estimator computes (a radiancemeter or
+    /// an HDRF), if any.
     pub radiancemeter: Option<usize>,
 }
 
@@ -155,7 +156,7 @@ impl IntegratorSettings {
         }
         if kind == IntegratorKind::Forward {
             if let Some(im) = run.radiancemeter {
-                return Err(ctx.err(format!("measures[{im}]"), "a radiancemeter needs the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
+                return Err(ctx.err(format!("measures[{im}]"), "radiancemeters and hdrf measures need the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
             }
         }
         if run.scene && kind == IntegratorKind::Forward {

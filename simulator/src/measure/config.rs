@@ -102,6 +102,27 @@ pub enum MeasureConfig {
         #[serde(default)]
         target_rel_stderr: Option<f64>,
     },
+    /// The hemispherical–directional reflectance factor at a level of a 1D atmosphere (the
+    /// surface by default) in a list of directions laid out as an `mdistant`'s.
+    Hdrf {
+        id: String,
+        /// km; default: the ground (BOA).
+        #[serde(default)]
+        altitude: Option<f64>,
+        #[serde(default)]
+        construct: Option<Construct>,
+        /// degrees; hplane: the half-plane azimuth.
+        #[serde(default)]
+        azimuth: Option<f64>,
+        /// degrees.
+        zeniths: Vec<f64>,
+        /// degrees.
+        #[serde(default)]
+        azimuths: Option<Vec<f64>>,
+        spp: u64,
+        #[serde(default)]
+        target_rel_stderr: Option<f64>,
+    },
 }
 
 /// `mdistant.construct`: how the directions are laid out.
@@ -170,6 +191,12 @@ impl MeasureConfig {
                 target_rel_stderr,
                 ..
             }
+            | MeasureConfig::Hdrf {
+                id,
+                spp,
+                target_rel_stderr,
+                ..
+            }
             | MeasureConfig::Ortho {
                 id,
                 spp,
@@ -191,6 +218,7 @@ impl MeasureConfig {
             MeasureConfig::Mdistant { spp, .. }
             | MeasureConfig::Radiancemeter { spp, .. }
             | MeasureConfig::DistantFlux { spp, .. }
+            | MeasureConfig::Hdrf { spp, .. }
             | MeasureConfig::Ortho { spp, .. }
             | MeasureConfig::Perspective { spp, .. } => *spp = n,
         }
@@ -310,13 +338,57 @@ impl MeasureConfig {
                         .map_err(|(k, m)| ctx.err(format!("{key}.{k}"), m))?,
                 )
             }
-            MeasureConfig::Radiancemeter { .. } | MeasureConfig::DistantFlux { .. }
+            MeasureConfig::Radiancemeter { .. }
+            | MeasureConfig::DistantFlux { .. }
+            | MeasureConfig::Hdrf { .. }
                 if scene.is_some() =>
             {
                 return Err(ctx.err(
                     key.clone(),
-                    "radiancemeter and distant_flux measures are 1D; with a 3D scene use `perspective` or an `mdistant` with a target area",
+                    "radiancemeter, distant_flux and hdrf measures are 1D; with a 3D scene use `perspective` or an `mdistant` with a target area",
                 ))
+            }
+            MeasureConfig::Hdrf {
+                altitude,
+                construct,
+                azimuth,
+                zeniths,
+                azimuths,
+                ..
+            } => {
+                let a = altitude.map(|a| a * 1e3).unwrap_or(at.ground);
+                if !a.is_finite() || a < at.ground || a > at.toa {
+                    return Err(ctx.err(
+                        format!("{key}.altitude"),
+                        format!(
+                            "{} km must lie between the ground and the top of the atmosphere",
+                            a / 1e3
+                        ),
+                    ));
+                }
+                let construct = construct.unwrap_or(if azimuths.is_some() {
+                    Construct::Directions
+                } else {
+                    Construct::Hplane
+                });
+                if zeniths.is_empty() {
+                    return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
+                }
+                let (vza, vaa) =
+                    distant_directions(ctx, &key, construct, *azimuth, zeniths, azimuths)?;
+                let directions = vza
+                    .iter()
+                    .zip(&vaa)
+                    .map(|(z, a): (&f64, &f64)| {
+                        direction_from_angles(z.to_radians(), a.to_radians())
+                    })
+                    .collect();
+                MeasureKind::Hdrf {
+                    directions,
+                    vza,
+                    vaa,
+                    altitude: a,
+                }
             }
             MeasureConfig::Radiancemeter {
                 origin,

@@ -10,6 +10,10 @@
 //!   downwelling (irradiance), and the same divided by E0·cos SZA (`albedo`). Downwelling flux
 //!   is the attenuated solar beam (direct, exact: [`crate::direct_flux`]) plus the scattered
 //!   (diffuse) light, which is what the walks estimate.
+//! * `Hdrf`: the hemispherical–directional reflectance factor at a level (the surface by
+//!   default): upwelling radiance at the level in a list of directions over the downwelling
+//!   flux there, `HDRF = π·L↑(v)/E↓` (Schaepman-Strub et al. 2006, *Remote Sens. Environ.*
+//!   103, 27–42, case 8), each cell a radiance and one more cell the diffuse downwelling flux.
 //! * `Ortho` (3D scenes): an image on a north-up grid, each pixel the mean radiance leaving
 //!   the terrain within the pixel towards one direction (parallel projection onto the terrain:
 //!   orthorectified).
@@ -67,6 +71,17 @@ pub enum MeasureKind {
         altitude: f64,
         /// Upwelling or downwelling.
         direction: FluxDirection,
+    },
+    /// Cells `0..n`: upwelling radiance at the level towards `directions[k]`; cell `n`: the
+    /// diffuse downwelling flux there (the direct part is exact, `direct_flux.rs`).
+    Hdrf {
+        /// Unit vectors towards the sensor, `z > 0`.
+        directions: Vec<DVec3>,
+        /// degrees (azimuth clockwise from North), for the products.
+        vza: Vec<f64>,
+        vaa: Vec<f64>,
+        /// Altitude of the level, m.
+        altitude: f64,
     },
 }
 
@@ -134,10 +149,11 @@ impl Measure {
         )
     }
 
-    /// Number of output cells (directions, or 1).
+    /// Number of simulated cells (directions, or 1; an HDRF's directions and its flux).
     pub fn cell_count(&self) -> usize {
         match &self.kind {
             MeasureKind::Distant { directions, .. } => directions.len(),
+            MeasureKind::Hdrf { directions, .. } => directions.len() + 1,
             MeasureKind::Ortho(g) => g.width * g.height,
             MeasureKind::Perspective(c) => c.width * c.height,
             _ => 1,
@@ -149,6 +165,7 @@ impl Measure {
             MeasureKind::Distant { .. } => "mdistant",
             MeasureKind::Radiancemeter { .. } => "radiancemeter",
             MeasureKind::DistantFlux { .. } => "distant_flux",
+            MeasureKind::Hdrf { .. } => "hdrf",
             MeasureKind::Ortho(_) => "ortho",
             MeasureKind::Perspective(_) => "perspective",
         }
@@ -163,7 +180,9 @@ impl Measure {
     /// result rows (None for fluxes and images, whose pixels have their own products).
     pub fn view_angles(&self, cell: usize) -> Option<(f64, f64)> {
         match &self.kind {
-            MeasureKind::Distant { vza, vaa, .. } => Some((vza[cell], vaa[cell])),
+            MeasureKind::Distant { vza, vaa, .. } | MeasureKind::Hdrf { vza, vaa, .. } => {
+                Some((vza[cell], vaa[cell]))
+            }
             MeasureKind::Radiancemeter { look, .. } => {
                 let (z, a) = crate::frame::angles_from_direction(-*look);
                 Some((z.to_degrees(), a.to_degrees()))
@@ -176,6 +195,15 @@ impl Measure {
 }
 
 impl Measure {
+    /// Number of output rows of a non-image measure: its cells, less an HDRF's flux cell (which
+    /// only normalises the others).
+    pub fn row_count(&self) -> usize {
+        match &self.kind {
+            MeasureKind::Hdrf { directions, .. } => directions.len(),
+            _ => self.cell_count(),
+        }
+    }
+
     /// Samples per block of this measure (the unit of parallel work and of merging).
     pub fn block_size(&self) -> u64 {
         if self.is_image() {

@@ -4,8 +4,9 @@
 //! brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,
 //! flux_stderr,n_samples,brf_q,brf_q_stderr,brf_u,brf_u_stderr,brf_v,brf_v_stderr,dolp,dolp_stderr,
 //! brightness_temperature,brightness_temperature_stderr,flux_direct,flux_direct_stderr,
-//! flux_diffuse,flux_diffuse_stderr`
-//! (the last four filled for `distant_flux` measures only: the direct solar beam's part of
+//! flux_diffuse,flux_diffuse_stderr,hdrf,hdrf_stderr`
+//! (the last two for `hdrf` measures only, π·L↑/E↓ at their level; the four before them
+//! for `distant_flux` measures only: the direct solar beam's part of
 //! `flux`, exact, and the scattered light's part; the two before them
 //! in thermal runs only, `emission = true`, in K; the eight before those
 //! in polarized runs only: Stokes Q, U, V normalised like the BRF, in the
@@ -21,7 +22,8 @@ use crate::error::OutputError;
 pub const HEADER: &str = "measure,type,method,wavelength_nm,vza,vaa,radiance,radiance_stderr,brf,brf_stderr,\
 brf_single,brf_single_stderr,brf_multiple,brf_multiple_stderr,albedo,albedo_stderr,flux,flux_stderr,n_samples,\
 brf_q,brf_q_stderr,brf_u,brf_u_stderr,brf_v,brf_v_stderr,dolp,dolp_stderr,\
-brightness_temperature,brightness_temperature_stderr,flux_direct,flux_direct_stderr,flux_diffuse,flux_diffuse_stderr";
+brightness_temperature,brightness_temperature_stderr,flux_direct,flux_direct_stderr,flux_diffuse,flux_diffuse_stderr,\
+hdrf,hdrf_stderr";
 
 fn opt(x: Option<f64>) -> String {
     x.map(|v| format!("{v:.10e}")).unwrap_or_default()
@@ -41,7 +43,7 @@ pub fn to_string(rows: &[Row]) -> String {
         let angle = |x: Option<f64>| x.map(|v| format!("{v:.6}")).unwrap_or_default();
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
             r.measure,
             r.kind,
             r.method,
@@ -61,7 +63,8 @@ pub fn to_string(rows: &[Row]) -> String {
             pair(r.dolp),
             pair(r.brightness_temperature),
             pair(r.flux_direct),
-            pair(r.flux_diffuse)
+            pair(r.flux_diffuse),
+            pair(r.hdrf)
         );
     }
     s

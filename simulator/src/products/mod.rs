@@ -9,6 +9,10 @@
 //!   F/(E0·cos SZA); `flux_direct` (the attenuated solar beam, exact: `direct_flux.rs`; 0 for
 //!   upwelling flux) and `flux_diffuse` (scattered light, the Monte Carlo estimate) with
 //!   `flux = flux_direct + flux_diffuse`;
+//! * `hdrf` = π·L↑(v)/E↓ for `hdrf` measures (radiance and downwelling flux at the level,
+//!   independent estimates: standard error by the delta method for a ratio of independent
+//!   means, `σ² = (σ_L/E)² + (L·σ_E/E²)²` in normalised units); their `radiance` and `brf`
+//!   columns hold the upwelling radiance at the level and π·L/(E0·cos SZA);
 //! * with thermal emission (`emission = true`), `brightness_temperature` (K): the inverse Planck
 //!   function (`planck.rs`) of the radiance at the wavelength (band rows: of the band radiance
 //!   at the band's effective wavelength Σwλ/Σw), its standard error by the delta method
@@ -49,6 +53,8 @@ pub struct Row {
     /// Flux measures: the direct solar beam's and the scattered light's parts of `flux`.
     pub flux_direct: Option<(f64, f64)>,
     pub flux_diffuse: Option<(f64, f64)>,
+    /// `hdrf` measures: the hemispherical–directional reflectance factor.
+    pub hdrf: Option<(f64, f64)>,
     /// Polarized runs: BRF-normalised Stokes Q, U, V (π·Q/(E0 cos SZA), meridian frame of the
     /// view direction) and the degree of linear polarization √(Q²+U²)/I.
     pub brf_q: Option<(f64, f64)>,
@@ -100,7 +106,29 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
         }
         let e0 = exp.optics[r.wavelength].irradiance;
         let to_rad = e0 * mu_s / std::f64::consts::PI;
-        for c in 0..m.cell_count() {
+        // An HDRF's downwelling flux at its level (normalised by E0·cos SZA), from its last cell
+        // and the exact direct beam.
+        let hdrf_flux = match &m.kind {
+            MeasureKind::Hdrf {
+                directions,
+                altitude,
+                ..
+            } => {
+                let (d, de) = r.acc.mean_stderr(directions.len(), 0);
+                let direct = if sun_up {
+                    crate::direct_flux::direct_transmittance(
+                        &exp.optics[r.wavelength],
+                        exp.sun_dir,
+                        *altitude,
+                    )
+                } else {
+                    0.0
+                };
+                Some((d + direct, de))
+            }
+            _ => None,
+        };
+        for c in 0..m.row_count() {
             let (t, te) = r.acc.mean_stderr(c, 0);
             let single = r.acc.mean_stderr(c, 1);
             let multiple = r.acc.mean_stderr(c, 2);
@@ -119,6 +147,7 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 flux: None,
                 flux_direct: None,
                 flux_diffuse: None,
+                hdrf: None,
                 brf_q: None,
                 brf_u: None,
                 brf_v: None,
@@ -166,6 +195,10 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                     row.brf_multiple = Some(multiple);
                 }
                 row.radiance = Some((t * to_rad, te * to_rad));
+                if let Some((e, ee)) = hdrf_flux {
+                    let h = t / e;
+                    row.hdrf = Some((h, ((te / e).powi(2) + (h * ee / e).powi(2)).sqrt()));
+                }
                 if exp.emission {
                     row.brightness_temperature =
                         Some(crate::planck::brightness_temperature_stderr(
@@ -252,13 +285,13 @@ pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
         / wsum;
     let mut out = Vec::new();
     for m in &exp.measures {
-        for c in 0..m.cell_count() {
+        for c in 0..m.row_count() {
             // Rows of this measure and cell, one per wavelength, in wavelength order.
             let cells: Vec<&Row> = rows
                 .iter()
                 .filter(|r| r.measure == m.id)
                 .skip(c)
-                .step_by(m.cell_count())
+                .step_by(m.row_count())
                 .collect();
             let combine =
                 |get: &dyn Fn(&Row) -> Option<(f64, f64)>, by_e0: bool| -> Option<(f64, f64)> {

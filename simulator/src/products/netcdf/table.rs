@@ -27,7 +27,9 @@
 //!   `band_flux`, `band_flux_direct`, `band_flux_diffuse`, `band_brightness_temperature` (thermal runs) and `_stderr` (those with a
 //!   finite value), attribute `band_irradiance`;
 //! * thermal runs (`emission = true`): `brightness_temperature` (K) and its `_stderr` on
-//!   `(wavelength, direction)`.
+//!   `(wavelength, direction)`;
+//! * runs with an `hdrf` measure: `hdrf` and its `_stderr` on `(wavelength, direction)` (NaN
+//!   for other measures).
 
 use std::collections::HashMap;
 
@@ -49,8 +51,8 @@ impl<'a> Layout<'a> {
         let mut offsets = HashMap::new();
         let mut len = 0;
         for m in &measures {
-            offsets.insert(m.id.as_str(), (len, m.cell_count()));
-            len += m.cell_count();
+            offsets.insert(m.id.as_str(), (len, m.row_count()));
+            len += m.row_count();
         }
         Layout {
             measures,
@@ -139,6 +141,13 @@ const POLARIZED: [Quantity; 4] = [
     ),
 ];
 
+const HDRF: [Quantity; 1] = [(
+    "hdrf",
+    |r| r.hdrf,
+    "1",
+    "hemispherical-directional reflectance factor pi L_up / E_down at the measure's level",
+)];
+
 const THERMAL: [Quantity; 1] = [(
     "brightness_temperature",
     |r| r.brightness_temperature,
@@ -198,6 +207,9 @@ pub(super) fn write(
     if rows.iter().any(|r| r.brightness_temperature.is_some()) {
         quantities.extend(&THERMAL);
     }
+    if rows.iter().any(|r| r.hdrf.is_some()) {
+        quantities.extend(&HDRF);
+    }
     let dims = ["wavelength", "direction"];
     for (name, get, units, long) in quantities {
         let mut val = vec![f64::NAN; nw * nd];
@@ -251,7 +263,7 @@ fn write_measures(f: &mut netcdf::FileMut, lay: &Layout) -> Result<(), netcdf::E
     let mut v = f.add_string_variable("measure_type", &["measure"])?;
     v.put_attribute("long_name", "measure type")?;
     put_strings(&mut v, &types)?;
-    let counts: Vec<i32> = lay.measures.iter().map(|m| m.cell_count() as i32).collect();
+    let counts: Vec<i32> = lay.measures.iter().map(|m| m.row_count() as i32).collect();
     let mut v = f.add_variable::<i32>("measure_direction_count", &["measure"])?;
     v.put_attribute(
         "long_name",
@@ -308,7 +320,7 @@ fn write_directions(
     let mut owner = Vec::with_capacity(nd);
     let mut owner_id = Vec::with_capacity(nd);
     for (k, m) in lay.measures.iter().enumerate() {
-        for _ in 0..m.cell_count() {
+        for _ in 0..m.row_count() {
             owner.push(k as i32);
             owner_id.push(m.id.as_str());
         }
