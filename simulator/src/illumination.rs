@@ -45,6 +45,26 @@ pub enum IlluminationConfig {
         #[serde(default)]
         distance_au: Option<f64>,
     },
+    /// The Moon as the source (`moon.rs`): its position for a time and place, its irradiance
+    /// from a lunar spectrum or the grey magnitude law with its phase dependence.
+    Moon {
+        /// RFC 3339 time (any offset, converted to UTC).
+        time: String,
+        /// degrees north.
+        latitude: f64,
+        /// degrees east.
+        longitude: f64,
+        /// m above the ellipsoid.
+        #[serde(default)]
+        elevation: Option<f64>,
+        /// W m⁻² nm⁻¹ normal to the beam: a lunar irradiance spectrum used as given (number,
+        /// list, built-in name or CSV file). Default: the magnitude law times `solar_spectrum`.
+        #[serde(default)]
+        irradiance: Option<IrradianceValue>,
+        /// The solar spectrum the magnitude law scales (default "thuillier_2003").
+        #[serde(default)]
+        solar_spectrum: Option<String>,
+    },
     /// No Sun: thermal emission only (`emission = true`). Radiances are then normalised by a
     /// nominal irradiance of 1 (no BRF).
     None {},
@@ -90,6 +110,25 @@ impl IlluminationConfig {
         wavelengths: &[f64],
         spherical: bool,
     ) -> Result<Sun, ConfigError> {
+        if let IlluminationConfig::Moon {
+            time,
+            latitude,
+            longitude,
+            elevation,
+            irradiance,
+            solar_spectrum,
+        } = self
+        {
+            return resolve_moon(
+                ctx,
+                wavelengths,
+                spherical,
+                time,
+                (*latitude, *longitude, elevation.unwrap_or(0.0)),
+                irradiance.as_ref(),
+                solar_spectrum.as_deref(),
+            );
+        }
         let IlluminationConfig::Directional {
             zenith,
             azimuth,
@@ -188,41 +227,8 @@ impl IlluminationConfig {
                 format!("{azimuth} degrees must lie in [-360, 360]"),
             ));
         }
-        let mut irradiance = match irradiance {
-            IrradianceValue::Value(v) => v.expand(ctx, "illumination.irradiance", 0.0, 1e9)?,
-            IrradianceValue::Spectrum(name) => {
-                let spectrum = match Spectrum::builtin(name) {
-                    Some(s) => s,
-                    None => {
-                        let fpath = ctx.file(name);
-                        let text = std::fs::read_to_string(&fpath).map_err(|e| {
-                            ctx.err("illumination.irradiance", format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
-                        })?;
-                        Spectrum::from_csv(name, &text).map_err(|m| {
-                            ctx.err(
-                                "illumination.irradiance",
-                                format!("{}: {m}", fpath.display()),
-                            )
-                        })?
-                    }
-                };
-                wavelengths
-                    .iter()
-                    .map(|&w| {
-                        spectrum.at(w).ok_or_else(|| {
-                            ctx.err(
-                                "illumination.irradiance",
-                                format!(
-                                    "wavelength {w} nm is outside the spectrum \"{name}\" ({}–{} nm)",
-                                    spectrum.wavelength[0],
-                                    spectrum.wavelength[spectrum.wavelength.len() - 1]
-                                ),
-                            )
-                        })
-                    })
-                    .collect::<Result<Vec<f64>, _>>()?
-            }
-        };
+        let mut irradiance =
+            irradiance_at(ctx, "illumination.irradiance", irradiance, wavelengths)?;
         if let Some(d) = given_distance {
             if time.is_some() || date.is_some() {
                 return Err(ctx.err(
@@ -258,6 +264,104 @@ impl IlluminationConfig {
             shines: true,
         })
     }
+}
+
+/// E0 at each run wavelength from an irradiance value (numbers, a built-in spectrum or a CSV
+/// file) given at `key`, W m⁻² nm⁻¹.
+fn irradiance_at(
+    ctx: &ConfigCtx,
+    key: &str,
+    irradiance: &IrradianceValue,
+    wavelengths: &[f64],
+) -> Result<Vec<f64>, ConfigError> {
+    Ok(match irradiance {
+        IrradianceValue::Value(v) => v.expand(ctx, key, 0.0, 1e9)?,
+        IrradianceValue::Spectrum(name) => {
+            let spectrum = match Spectrum::builtin(name) {
+                Some(s) => s,
+                None => {
+                    let fpath = ctx.file(name);
+                    let text = std::fs::read_to_string(&fpath).map_err(|e| {
+                            ctx.err(key, format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
+                        })?;
+                    Spectrum::from_csv(name, &text)
+                        .map_err(|m| ctx.err(key, format!("{}: {m}", fpath.display())))?
+                }
+            };
+            wavelengths
+                .iter()
+                .map(|&w| {
+                    spectrum.at(w).ok_or_else(|| {
+                        ctx.err(
+                            key,
+                            format!(
+                                "wavelength {w} nm is outside the spectrum \"{name}\" ({}–{} nm)",
+                                spectrum.wavelength[0],
+                                spectrum.wavelength[spectrum.wavelength.len() - 1]
+                            ),
+                        )
+                    })
+                })
+                .collect::<Result<Vec<f64>, _>>()?
+        }
+    })
+}
+
+/// `type = "moon"`: the Moon's position at `time` and place, and its irradiance.
+fn resolve_moon(
+    ctx: &ConfigCtx,
+    wavelengths: &[f64],
+    spherical: bool,
+    time: &str,
+    (lat, lon, elevation): (f64, f64, f64),
+    irradiance: Option<&IrradianceValue>,
+    solar_spectrum: Option<&str>,
+) -> Result<Sun, ConfigError> {
+    if irradiance.is_some() && solar_spectrum.is_some() {
+        return Err(ctx.err(
+            "illumination.solar_spectrum",
+            "is used only by the lunar model, not with a given `irradiance`",
+        ));
+    }
+    let lat = ctx.finite("illumination.latitude", lat)?;
+    let lon = ctx.finite("illumination.longitude", lon)?;
+    let elevation = ctx.finite("illumination.elevation", elevation)?;
+    let p = crate::moon::moon_position(time, lat, lon, elevation)
+        .map_err(|m| ctx.err("illumination.time", m))?;
+    tracing::info!(
+        "Moon at {time}: zenith {:.4}°, azimuth {:.4}°, phase angle {:.2}°, distance {:.0} km",
+        p.zenith,
+        p.azimuth,
+        p.phase_angle,
+        p.distance_km
+    );
+    if !spherical && p.zenith >= 90.0 {
+        return Err(ctx.err(
+            "illumination.time",
+            format!("the Moon is below the horizon at {time} (zenith {:.2}°); a plane-parallel atmosphere has no twilight (use geometry.type = \"spherical_shell\")", p.zenith),
+        ));
+    }
+    let e0 = match (irradiance, solar_spectrum) {
+        (Some(_), Some(_)) => unreachable!("checked above"),
+        (Some(v), None) => irradiance_at(ctx, "illumination.irradiance", v, wavelengths)?,
+        (None, name) => {
+            let ratio =
+                crate::moon::irradiance_ratio(&p).map_err(|m| ctx.err("illumination.time", m))?;
+            let spectrum = IrradianceValue::Spectrum(name.unwrap_or("thuillier_2003").to_string());
+            irradiance_at(ctx, "illumination.solar_spectrum", &spectrum, wavelengths)?
+                .into_iter()
+                .map(|e| e * ratio)
+                .collect()
+        }
+    };
+    Ok(Sun {
+        zenith_deg: p.zenith,
+        azimuth_deg: p.azimuth,
+        dir: direction_from_angles(p.zenith.to_radians(), p.azimuth.to_radians()),
+        distance_au: None,
+        irradiance: e0,
+        shines: true,
+    })
 }
 
 #[cfg(test)]

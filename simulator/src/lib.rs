@@ -40,6 +40,7 @@ pub mod illumination;
 pub mod input_digest;
 pub mod integrator;
 pub mod measure;
+pub mod moon;
 pub mod nc_complete;
 pub mod optics;
 pub mod output_lock;
