@@ -100,6 +100,9 @@ type = "{integrator}"
     )
 }
 
+/// Which part of a flux row a reference row compares with.
+type Part = fn(&simulator::products::Row) -> (f64, f64);
+
 fn run_case(all: &[RefRow], case: &str, integrator: &str, spp: u64) -> Result<(), String> {
     let refs: Vec<&RefRow> = all.iter().filter(|r| r.case == case).collect();
     let first = refs[0];
@@ -109,17 +112,16 @@ fn run_case(all: &[RefRow], case: &str, integrator: &str, spp: u64) -> Result<()
     let mut cmps = Vec::new();
     let mut direct_err: f64 = 0.0;
     for r in &refs {
-        let (id, get): (String, fn(&simulator::products::Row) -> (f64, f64)) =
-            match r.quantity.as_str() {
-                "up" => (format!("up{}", r.altitude_km as i64), |o| o.flux.unwrap()),
-                "down_direct" => (format!("down{}", r.altitude_km as i64), |o| {
-                    o.flux_direct.unwrap()
-                }),
-                "down_diffuse" => (format!("down{}", r.altitude_km as i64), |o| {
-                    o.flux_diffuse.unwrap()
-                }),
-                q => panic!("unknown quantity {q}"),
-            };
+        let (id, get): (String, Part) = match r.quantity.as_str() {
+            "up" => (format!("up{}", r.altitude_km as i64), |o| o.flux.unwrap()),
+            "down_direct" => (format!("down{}", r.altitude_km as i64), |o| {
+                o.flux_direct.unwrap()
+            }),
+            "down_diffuse" => (format!("down{}", r.altitude_km as i64), |o| {
+                o.flux_diffuse.unwrap()
+            }),
+            q => panic!("unknown quantity {q}"),
+        };
         let row = out.iter().find(|o| o.measure == id).unwrap();
         let (v, e) = get(row);
         let (v, e) = (v / mu0, e / mu0);
