@@ -904,6 +904,12 @@ pub(crate) fn check_material_table(materials: &[Material], path: &Path) -> Resul
             name: m.name.clone(),
             source,
         })?;
+        if let Some(Err((key, message))) = m.solver.as_ref().map(|s| s.validate()) {
+            return Err(BundleError::Manifest {
+                path: path.into(),
+                message: format!("materials[{k}] (`{}`): solver.{key}: {message}", m.name),
+            });
+        }
     }
     Ok(())
 }
@@ -1037,6 +1043,7 @@ mod tests {
                     },
                     class_codes: vec![30],
                     source: "test".into(),
+                    solver: None,
                 },
                 Material {
                     index: 1,
@@ -1050,6 +1057,7 @@ mod tests {
                     },
                     class_codes: vec![],
                     source: "test".into(),
+                    solver: None,
                 },
             ],
             templates: vec![],

@@ -30,12 +30,14 @@
 mod brdf;
 mod io;
 mod manifest;
+mod solver;
 
 pub use brdf::*;
 pub use io::{
     check_replaceable, Bundle, Instance, TemplateMesh, TerrainTile, INSTANCE_RECORD_BYTES,
 };
 pub use manifest::*;
+pub use solver::*;
 
 use std::path::PathBuf;
 

@@ -256,6 +256,9 @@ pub struct Material {
     /// Where the parameters come from.
     #[serde(default)]
     pub source: String,
+    /// The radiometry solver of the material (absent: the default `generic` solver).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub solver: Option<crate::SolverSpec>,
 }
 
 /// A template mesh stored once in `templates.bin`.

@@ -87,6 +87,9 @@ pub struct MaterialDef {
     pub brdf: BrdfSpec,
     #[serde(default)]
     pub source: String,
+    /// The material's radiometry solver (absent: the default `generic` solver).
+    #[serde(default)]
+    pub solver: Option<bundle::SolverSpec>,
 }
 
 /// One land-cover class.
@@ -362,6 +365,7 @@ impl MaterialMap {
                 brdf: def.brdf.clone(),
                 class_codes: code.map(|c| vec![c as u32]).unwrap_or_default(),
                 source: def.source.clone(),
+                solver: def.solver.clone(),
             });
             Ok(index)
         };
@@ -412,6 +416,7 @@ impl MaterialMap {
             brdf: def.brdf.clone(),
             class_codes: vec![],
             source: def.source.clone(),
+            solver: def.solver.clone(),
         });
         Ok(index)
     }

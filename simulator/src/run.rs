@@ -318,6 +318,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     surface: &opt.surface,
                     sun: exp.sun_dir,
                     mu_norm: exp.mu_norm(),
+                    solver: settings.surface_solver,
                 };
                 backward_block::<_, B>(
                     &g,
@@ -329,7 +330,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 )
             } else {
                 let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir)
-                    .with_emission(opt.surface_emission.as_ref(), exp.sun_shines);
+                    .with_emission(opt.surface_emission.as_ref(), exp.sun_shines)
+                    .with_solver(settings.surface_solver);
                 backward_block::<_, B>(
                     &g,
                     settings,

@@ -29,6 +29,14 @@ and E2 of ``generate.py`` (Rayleigh tau 0.2, SZA 30) from DisORT++ (96 streams, 
 80) with its directly reflected beam replaced by the exact RPV BRDF, as ``generate.py`` does at
 the top of the atmosphere (at the surface the beam is attenuated once, by exp(-tau/mu0)).
 
+And ``simulator/tests/data/disort/mirror.csv`` (``case,tau,sza,raa,vza,quantity,value``,
+quantity ``brf``): the TOA BRF of a conservative Rayleigh layer of optical thickness tau over a
+perfect specular reflector (R = 1), by the method of images: unfolding the mirror makes a
+symmetric slab of thickness 2 tau over a black surface, whose reflected radiance at its top plus
+transmitted diffuse radiance at its bottom (in the mirrored direction) is the upwelling radiance
+of the real layer; views away from the specular direction of the Sun (whose direct beam is a
+delta). cdisort (nanodisort), 128 streams, checked against 96.
+
 Run from the repository root with the venv of README.md: ``python tools/disort_reference/fluxes.py``.
 """
 from __future__ import annotations
@@ -216,6 +224,63 @@ def main_hdrf():
     print(f"wrote {OUT_HDRF} ({len(rows)} rows)")
 
 
+def mirror_case(tau, sza, nstr):
+    """{(raa, vza): BRF} over a perfect mirror (method of images: a 2 tau slab over black)."""
+    mu0 = math.cos(math.radians(sza))
+    mus = np.cos(np.radians(HDRF_VZA))
+    umu = np.sort(np.r_[-mus, mus])
+    phis = [180.0 - r for r in HDRF_RAA]
+    ds = nd.DisortState()
+    ds.nstr, ds.nlyr, ds.nmom, ds.ntau = nstr, 1, nstr, 2
+    ds.numu, ds.nphi, ds.nphase = len(umu), len(phis), 0
+    ds.usrtau = ds.usrang = ds.lamber = ds.quiet = True
+    ds.onlyfl = ds.planck = ds.spher = False
+    ds.intensity_correction = False
+    ds.old_intensity_correction = True
+    ds.allocate()
+    ds.dtauc = np.array([2 * tau])
+    ds.ssalb = np.array([1.0])
+    pm = np.zeros((nstr + 1, 1))
+    pm[:nstr, 0] = chi(None, nstr)
+    ds.pmom = pm
+    ds.utau = np.array([0.0, 2 * tau])
+    ds.umu = umu
+    ds.phi = np.asarray(phis, dtype=float)
+    ds.fbeam, ds.umu0, ds.phi0, ds.fisot = 1.0, mu0, 0.0, 0.0
+    ds.albedo = 0.0
+    ds.accur = 0.0
+    ds.solve()
+    uu = np.array(ds.uu)  # [umu, utau, phi]
+    out = {}
+    for j, raa in enumerate(HDRF_RAA):
+        for mu, vza in zip(mus, HDRF_VZA):
+            up = uu[int(np.where(np.isclose(umu, mu))[0][0]), 0, j]
+            down = uu[int(np.where(np.isclose(umu, -mu))[0][0]), 1, j]
+            out[(raa, float(vza))] = math.pi * (up + down) / mu0
+    return out
+
+
+def main_mirror():
+    rows, worst = [], 0.0
+    for cid, tau, sza in (("M1", 0.25, 30.0), ("M2", 0.1, 60.0)):
+        a = mirror_case(tau, sza, 128)
+        b = mirror_case(tau, sza, 96)
+        worst = max(worst, max(abs(b[k] / a[k] - 1) for k in a))
+        for (raa, vza), v in sorted(a.items()):
+            if raa == 180.0 and abs(vza - sza) < 1e-9:
+                continue  # the Sun's specular direction
+            rows.append([cid, tau, sza, raa, vza, "brf", f"{v:.10e}"])
+    print(f"[check] mirror 128 vs 96 streams: max rel diff {worst:.2e}")
+    assert worst < 1e-5, worst
+    out = OUT.with_name("mirror.csv")
+    with open(out, "w", newline="") as f:
+        w = csv.writer(f, lineterminator="\n")
+        w.writerow(["case", "tau", "sza", "raa", "vza", "quantity", "value"])
+        w.writerows(rows)
+    print(f"wrote {out} ({len(rows)} rows)")
+
+
 if __name__ == "__main__":
     main()
     main_hdrf()
+    main_mirror()

@@ -18,6 +18,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
     Rpv {
         rho_0: SpectralValue,
@@ -28,6 +31,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
     Rtls {
         f_iso: SpectralValue,
@@ -36,6 +42,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
     /// RTLS with the Maignan et al. (2004) hot-spot factor (`rtls_hotspot.rs`).
     RtlsHotspot {
@@ -48,6 +57,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
     Hapke {
         w: SpectralValue,
@@ -61,6 +73,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
     /// Rough ocean (Cox–Munk, Fresnel, shadowing); polarizing.
     Ocean {
@@ -73,6 +88,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
     /// A measured BRDF from a netCDF table (`tabulated.rs`: layout, interpolation).
     Tabulated {
@@ -83,6 +101,9 @@ pub enum SurfaceConfig {
         /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
         #[serde(default)]
         temperature: Option<f64>,
+        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+        #[serde(default)]
+        solver: Option<bundle::SolverSpec>,
     },
 }
 
@@ -99,6 +120,19 @@ const ANY: (f64, f64) = (-1e6, 1e6);
 
 impl SurfaceConfig {
     /// `temperature` (K) of any model, if given.
+    /// The surface's radiometry solver, if given.
+    pub fn solver(&self) -> Option<bundle::SolverSpec> {
+        match self {
+            SurfaceConfig::Lambertian { solver, .. }
+            | SurfaceConfig::Rpv { solver, .. }
+            | SurfaceConfig::Rtls { solver, .. }
+            | SurfaceConfig::RtlsHotspot { solver, .. }
+            | SurfaceConfig::Hapke { solver, .. }
+            | SurfaceConfig::Ocean { solver, .. }
+            | SurfaceConfig::Tabulated { solver, .. } => *solver,
+        }
+    }
+
     pub fn temperature(&self) -> Option<f64> {
         match self {
             SurfaceConfig::Lambertian { temperature, .. }

@@ -396,6 +396,40 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if let Some(t) = &thermal {
         t.check_integrator(&ctx, &mut integrator, &measures)?;
     }
+    if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver()) {
+        solver
+            .validate()
+            .map_err(|(k, m)| ctx.err(format!("surface.solver.{k}"), m))?;
+        if !solver.is_default() {
+            use crate::integrator::settings::IntegratorKind;
+            // The solvers act in the backward estimator (`integrator/solver.rs`).
+            match integrator.kind {
+                IntegratorKind::Forward => {
+                    return Err(ctx.err(
+                        "surface.solver",
+                        format!("the `{}` solver needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")", solver.type_name()),
+                    ))
+                }
+                IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
+                IntegratorKind::Backward => {}
+            }
+            if matches!(solver, bundle::SolverSpec::Mirror { .. })
+                && (cfg.polarized || planet_radius.is_some())
+            {
+                return Err(ctx.err(
+                    "surface.solver",
+                    "a `mirror` ground is built for scalar plane-parallel runs (its reflected sunbeam lights the layers through a mirror-image Sun; polarized and spherical-shell runs lack it)",
+                ));
+            }
+            if integrator.alis || integrator.spectral_alis.is_some() {
+                return Err(ctx.err(
+                    "surface.solver",
+                    format!("the `{}` solver is not built into ALIS walks: drop `integrator.ckd_walk = \"alis\"` or `integrator.spectral_walk = \"alis\"`", solver.type_name()),
+                ));
+            }
+        }
+        integrator.surface_solver = solver;
+    }
     if ckd && atmosphere.ckd.is_empty() {
         return Err(ctx.err(
             "atmosphere",

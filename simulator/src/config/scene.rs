@@ -32,6 +32,10 @@ pub enum SceneConfig {
         /// Spatially varying reflectance of Lambertian materials on the terrain.
         #[serde(default)]
         textures: Vec<TextureConfig>,
+        /// Radiometry solvers of materials by name (`[scene.solvers.water] type = "mirror" …`),
+        /// replacing the bundle's (`integrator/solver.rs`).
+        #[serde(default)]
+        solvers: BTreeMap<String, bundle::SolverSpec>,
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
@@ -236,7 +240,12 @@ pub fn build_scene(
             background,
             materials,
             textures,
+            solvers,
         } => {
+            for (name, spec) in solvers {
+                spec.validate()
+                    .map_err(|(k, m)| (format!("scene.solvers.{name}.{k}"), m))?;
+            }
             let bg = match background {
                 None => Background::Flat {
                     altitude: None,
@@ -277,17 +286,41 @@ pub fn build_scene(
                 })
                 .collect();
             let dir = base.join(path);
-            build::from_bundle(&dir, &bg, &overrides, &reqs, bend).map_err(|m| {
-                let key = if m.starts_with("texture")
-                    || m.contains("two textures")
-                    || m.contains("texture ")
-                {
-                    "scene.textures"
-                } else {
-                    "scene.path"
-                };
-                (key.into(), m)
-            })
+            let mut scene =
+                build::from_bundle(&dir, &bg, &overrides, &reqs, bend).map_err(|m| {
+                    let key = if m.starts_with("texture")
+                        || m.contains("two textures")
+                        || m.contains("texture ")
+                    {
+                        "scene.textures"
+                    } else {
+                        "scene.path"
+                    };
+                    (key.into(), m)
+                })?;
+            if !solvers.is_empty() {
+                let mut table = scene.solvers.clone();
+                table.resize(scene.materials.len(), bundle::SolverSpec::default());
+                for (name, spec) in solvers {
+                    let Some(id) = scene.materials.iter().position(|(n, _)| n == name) else {
+                        return Err((
+                            format!("scene.solvers.{name}"),
+                            format!(
+                                "material `{name}` is not in the bundle (its materials: {})",
+                                scene
+                                    .materials
+                                    .iter()
+                                    .map(|(n, _)| n.as_str())
+                                    .collect::<Vec<_>>()
+                                    .join(", ")
+                            ),
+                        ));
+                    };
+                    table[id] = *spec;
+                }
+                scene.set_solvers(table);
+            }
+            Ok(scene)
         }
         SceneConfig::Canopy {
             objects,

@@ -30,6 +30,7 @@ use glam::DVec3;
 use super::geometry::{Event, Geometry};
 use super::peak_sampling::PeakSampling;
 use super::settings::IntegratorSettings;
+use super::solver::{self, SolverSpec};
 use super::surface::SurfaceAt;
 use super::weight::{
     split_count, survives, MuellerPath, OrderSplit, Scalar, Weight, INV_4PI, MAX_SPLITS,
@@ -199,6 +200,7 @@ pub fn walk<G: Geometry<W>, W: Adjoint>(
         d: d0,
         w,
         order: 1,
+        generation: 0,
     };
     walk_from(g, state, settings, &peak, rng, &mut tally, &mut budget);
     tally
@@ -211,6 +213,8 @@ struct State<P, W> {
     w: W,
     /// Order of the next interaction (1 = first).
     order: u32,
+    /// Surface interactions so far (the solvers' generations, `solver.rs`).
+    generation: u32,
 }
 
 fn walk_from<G: Geometry<W>, W: Adjoint>(
@@ -230,7 +234,10 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
         mut d,
         mut w,
         mut order,
+        mut generation,
     } = state;
+    // A path crossing `null` surfaces: at most this many in a row before it is dropped.
+    let mut pass_through = 0u32;
     while order <= settings.max_depth {
         let mut acc = W::zero_phase();
         let emitted = g.flight_emission(pos, d);
@@ -255,6 +262,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 phase,
             } => {
                 pos = p;
+                pass_through = 0;
                 if !expected && shines && omega > 0.0 {
                     let mut a = W::zero_phase();
                     g.collision_estimate(p, omega, phase, d, &mut w, &mut a);
@@ -265,11 +273,64 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 d = w.scatter(phase, omega, d, peak, rng);
             }
             Event::Surface(h) => {
-                let surface = g.surface(&h);
-                if shines {
-                    w.see_sun_surface(tally, order, &surface, d, sun, || g.sun_at_surface(&h));
+                let solver = g.solver(&h);
+                if let SolverSpec::Null {} = solver {
+                    // Pass-through: the same flight goes on beyond the surface (memoryless,
+                    // so a fresh free path is unbiased); no interaction is counted.
+                    pass_through += 1;
+                    if pass_through > MAX_PASS_THROUGH {
+                        break;
+                    }
+                    pos = g.leave(&h, d);
+                    continue;
                 }
-                match w.reflect(&surface, d, rng) {
+                pass_through = 0;
+                generation += 1;
+                let base = g.surface(&h);
+                let mirror = match solver {
+                    SolverSpec::Mirror {
+                        refractive_index,
+                        absorption_index,
+                    } => Some(SurfaceAt::Mirror {
+                        n: base.normal(),
+                        index: (refractive_index, absorption_index),
+                    }),
+                    _ => None,
+                };
+                let surface = mirror.as_ref().unwrap_or(&base);
+                if shines && mirror.is_none() {
+                    w.see_sun_surface(tally, order, surface, d, sun, || g.sun_at_surface(&h));
+                }
+                // How many directions continue the path from this surface.
+                let fan = match solver {
+                    SolverSpec::Simple {} => break,
+                    SolverSpec::Generic {
+                        max_generations: Some(gmax),
+                        ..
+                    } if generation >= gmax => break,
+                    SolverSpec::Generic {
+                        first_bounce_samples,
+                        decay,
+                        ..
+                    } => Fan::Sampled(solver::generic_samples(
+                        first_bounce_samples,
+                        decay,
+                        generation,
+                    )),
+                    SolverSpec::Classic { zeniths, azimuths } if generation == 1 => {
+                        Fan::Classic(zeniths, azimuths)
+                    }
+                    _ => Fan::Sampled(1),
+                };
+                if fan.is_fan() && w.splittable().is_some() {
+                    // Fan out: each copy continues on the same stream, one after another.
+                    fan_out(
+                        g, &h, surface, &w, d, order, generation, fan, settings, peak, rng, tally,
+                        budget,
+                    );
+                    return;
+                }
+                match w.reflect(surface, d, rng) {
                     Some(d2) => {
                         pos = g.leave(&h, d2);
                         d = d2;
@@ -289,10 +350,98 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                     d,
                     w: copy.splittable().expect("a split weight copies"),
                     order,
+                    generation,
                 };
                 walk_from(g, next, settings, peak, rng, tally, budget);
             }
             return;
+        }
+    }
+}
+
+/// Most `null` surfaces a path crosses in a row before it is dropped (a guard against a ray
+/// caught between coincident pass-through surfaces).
+const MAX_PASS_THROUGH: u32 = 64;
+
+/// How a surface continues a path: `n` directions drawn from its sampler, or the `classic`
+/// quadrature's `n_θ × n_φ` fixed nodes.
+#[derive(Clone, Copy)]
+enum Fan {
+    Sampled(u32),
+    Classic(u32, u32),
+}
+
+impl Fan {
+    fn is_fan(self) -> bool {
+        !matches!(self, Fan::Sampled(1))
+    }
+}
+
+/// Continue the path `w` (arriving along `d` at hit `h` of `surface`) in every direction of
+/// `fan`: each copy reflects (a sampled direction with weight `1/n`, or a quadrature node with
+/// its own weight) and walks on from there, before the next copy starts.
+#[allow(clippy::too_many_arguments)]
+fn fan_out<G: Geometry<W>, W: Adjoint>(
+    g: &G,
+    h: &G::Hit,
+    surface: &SurfaceAt,
+    w: &W,
+    d: DVec3,
+    order: u32,
+    generation: u32,
+    fan: Fan,
+    settings: &IntegratorSettings,
+    peak: &PeakSampling,
+    rng: &mut Stream,
+    tally: &mut W::Tally,
+    budget: &mut u32,
+) {
+    let continue_from =
+        |mut c: W, d2: DVec3, rng: &mut Stream, tally: &mut W::Tally, budget: &mut u32| {
+            let next_order = order + 1;
+            if !survives(&mut c, next_order, settings.rr_depth, rng) {
+                return;
+            }
+            let next = State {
+                pos: g.leave(h, d2),
+                d: d2,
+                w: c,
+                order: next_order,
+                generation,
+            };
+            walk_from(g, next, settings, peak, rng, tally, budget);
+        };
+    match fan {
+        Fan::Sampled(n) => {
+            let k = 1.0 / f64::from(n);
+            for _ in 0..n {
+                let mut c = w.splittable().expect("fan-out weights copy");
+                let i = c.intensity();
+                if i > 0.0 {
+                    c.rescale_to(i * k, i);
+                }
+                if let Some(d2) = c.reflect(surface, d, rng) {
+                    continue_from(c, d2, rng, tally, budget);
+                }
+            }
+        }
+        Fan::Classic(nz, na) => {
+            let wo = -d;
+            let nodes =
+                solver::classic_nodes(surface.normal(), nz, na, |wi| surface.eval_cos(wi, wo));
+            for node in nodes {
+                if node.weight <= 0.0 {
+                    continue;
+                }
+                let forced = SurfaceAt::Forced {
+                    base: surface,
+                    sample: node,
+                };
+                let mut c = w.splittable().expect("fan-out weights copy");
+                if let Some(d2) = c.reflect(&forced, d, rng) {
+                    continue_from(c, d2, rng, tally, budget);
+                }
+            }
         }
     }
 }

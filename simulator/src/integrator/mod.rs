@@ -13,6 +13,9 @@
 //!   or neighbouring wavelengths): one path sampled in a reference atmosphere, one weight per
 //!   channel (Emde et al. 2011).
 //!
+//! Per-material radiometry solvers ([`solver`]: generic with per-generation sample counts,
+//! classic quadrature, simple, mirror, null) act in the backward estimator's one loop.
+//!
 //! What lives once: Russian roulette and the weights' scattering and reflection
 //! ([`weight`]), the surfaces seen by paths ([`surface`]), the expected-value and stratified
 //! next-event estimates ([`geometry`]), and the single/multiple split of scores (the first
@@ -30,6 +33,7 @@ pub mod forward_emission;
 pub mod geometry;
 pub mod peak_sampling;
 pub mod settings;
+pub mod solver;
 pub mod stokes_sampling;
 pub mod surface;
 pub mod weight;

@@ -40,6 +40,9 @@ pub struct IntegratorSettings {
     /// `integrator.sampler`: the first [`crate::rng::QMC_DIMS`] numbers of each sample from an
     /// Owen-scrambled Sobol sequence (`rng.rs`) instead of Philox alone.
     pub sampler: Sampler,
+    /// The 1D surface's radiometry solver (`[surface] solver`, `solver.rs`); scene materials
+    /// carry theirs in the scene.
+    pub surface_solver: super::solver::SolverSpec,
 }
 
 /// `integrator.sampler`: where each sample's random numbers come from.
@@ -255,6 +258,7 @@ impl IntegratorSettings {
             }
         };
         Ok(IntegratorSettings {
+            surface_solver: Default::default(),
             sampler: cfg.sampler,
             detector_sampling,
             spectral_alis,

@@ -53,6 +53,16 @@ pub enum SurfaceAt<'a> {
         model: Cow<'a, SurfaceModel>,
         n: DVec3,
     },
+    /// A perfect mirror with the Fresnel reflectance of the complex index `n + ik` (the
+    /// `mirror` solver, `solver.rs`): a delta BRDF, so `eval_cos` is 0 and `sample` returns the
+    /// mirror direction with weight `R(θ)`.
+    Mirror { n: DVec3, index: (f64, f64) },
+    /// `base` with one fixed sample (the `classic` solver's quadrature nodes): `sample` returns
+    /// it and draws no random number; everything else is `base`'s.
+    Forced {
+        base: &'a SurfaceAt<'a>,
+        sample: SurfaceSample,
+    },
 }
 
 impl SurfaceAt<'_> {
@@ -77,6 +87,19 @@ impl SurfaceAt<'_> {
                 bsdf.eval(f.local(wi), f.local(wo)) * ci
             }
             SurfaceAt::Scene { model, n } => model.eval_cos(*n, wi, wo),
+            SurfaceAt::Mirror { .. } => 0.0,
+            SurfaceAt::Forced { base, .. } => base.eval_cos(wi, wo),
+        }
+    }
+
+    /// The unit normal on the side paths arrive from.
+    #[inline]
+    pub fn normal(&self) -> DVec3 {
+        match self {
+            SurfaceAt::Flat { frame: None, .. } => DVec3::Z,
+            SurfaceAt::Flat { frame: Some(f), .. } => f.n,
+            SurfaceAt::Scene { n, .. } | SurfaceAt::Mirror { n, .. } => *n,
+            SurfaceAt::Forced { base, .. } => base.normal(),
         }
     }
 
@@ -98,6 +121,12 @@ impl SurfaceAt<'_> {
                 }
                 _ => None,
             },
+            SurfaceAt::Mirror { n, index } => Some(super::solver::fresnel_matrix(
+                index.0,
+                index.1,
+                wi.dot(*n).abs(),
+            )),
+            SurfaceAt::Forced { base, .. } => base.matrix(wi, wo),
         }
     }
 
@@ -107,7 +136,8 @@ impl SurfaceAt<'_> {
         match self {
             SurfaceAt::Flat { frame: None, .. } => wi.z,
             SurfaceAt::Flat { frame: Some(f), .. } => wi.dot(f.n),
-            SurfaceAt::Scene { n, .. } => wi.dot(*n),
+            SurfaceAt::Scene { n, .. } | SurfaceAt::Mirror { n, .. } => wi.dot(*n),
+            SurfaceAt::Forced { base, .. } => base.cos(wi),
         }
     }
 
@@ -130,6 +160,15 @@ impl SurfaceAt<'_> {
             SurfaceAt::Scene { model, n } => {
                 model.sample(*n, wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()])
             }
+            SurfaceAt::Mirror { n, index } => {
+                let c = wo.dot(*n);
+                (c > 0.0).then(|| SurfaceSample {
+                    wi: super::solver::mirror(-wo, *n),
+                    weight: super::solver::fresnel_reflectance(index.0, index.1, c),
+                    pdf: 1.0,
+                })
+            }
+            SurfaceAt::Forced { sample, .. } => Some(*sample),
         }
     }
 }

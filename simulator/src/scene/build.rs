@@ -246,12 +246,20 @@ pub fn from_bundle(
         ))),
         None => None,
     };
-    let scene = Scene {
+    let mut solvers: Vec<bundle::SolverSpec> = m
+        .materials
+        .iter()
+        .map(|x| x.solver.unwrap_or_default())
+        .collect();
+    solvers.resize(materials.len(), bundle::SolverSpec::default());
+    let mut scene = Scene {
         name: dir.display().to_string(),
         terrain: Some((terrain, raster)),
         objects,
         ground,
         materials,
+        solvers: Vec::new(),
+        has_null: false,
         georef: Some(Georef {
             wkt: m.crs.wkt.clone(),
             origin,
@@ -273,6 +281,7 @@ pub fn from_bundle(
         load_seconds: t_load,
         build_seconds: t_bvh,
     };
+    scene.set_solvers(solvers);
     tracing::info!(
         "{} (load {t_load:.2} s, BVH build {t_bvh:.2} s)",
         scene.summary()
@@ -602,6 +611,8 @@ pub fn canopy(
         reference_height: ground.as_ref().map_or(z_range[0], |g| g.altitude),
         ground,
         materials,
+        solvers: Vec::new(),
+        has_null: false,
         georef: None,
         extent,
         z_range,

@@ -149,6 +149,11 @@ pub struct Scene {
     pub ground: Option<GroundPlane>,
     /// (name, model) per material id.
     pub materials: Vec<(String, BrdfSpec)>,
+    /// The radiometry solver per material id (`integrator/solver.rs`); set with
+    /// [`Scene::set_solvers`], which keeps [`Scene::has_null`] in step.
+    pub solvers: Vec<bundle::SolverSpec>,
+    /// Whether a material is `null` (pass-through): shadow rays then skip such surfaces.
+    pub has_null: bool,
     pub georef: Option<Georef>,
     /// Horizontal extent of the scene's content [xmin, ymin, xmax, ymax] (local frame), m.
     pub extent: [f64; 4],
@@ -385,6 +390,9 @@ impl Scene {
 
     /// Whether anything blocks `o + t·d` for `0 < t < tmax` (shadow rays).
     pub fn occluded(&self, o: DVec3, d: DVec3, tmax: f64) -> bool {
+        if self.has_null {
+            return self.occluded_by_non_null(o, d, tmax);
+        }
         match self.periodic {
             None => self.occluded_once(o, d, tmax),
             Some(cell) => {
@@ -396,6 +404,42 @@ impl Scene {
                 blocked
             }
         }
+    }
+
+    /// The solver of material id `material` (the default for ids without a material).
+    #[inline]
+    pub fn solver(&self, material: u16) -> bundle::SolverSpec {
+        self.solvers
+            .get(material as usize)
+            .copied()
+            .unwrap_or_default()
+    }
+
+    /// Set the solver of every material id (missing ones: the default).
+    pub fn set_solvers(&mut self, solvers: Vec<bundle::SolverSpec>) {
+        self.has_null = solvers
+            .iter()
+            .any(|s| matches!(s, bundle::SolverSpec::Null {}));
+        self.solvers = solvers;
+    }
+
+    /// Occlusion that looks through `null` materials: closest hits, stepping past each null
+    /// surface (a scene with a null material pays a closest-hit search per shadow ray).
+    fn occluded_by_non_null(&self, mut o: DVec3, d: DVec3, tmax: f64) -> bool {
+        let mut left = tmax;
+        for _ in 0..1024 {
+            match self.intersect(o, d, left) {
+                None => return false,
+                Some(h) => {
+                    if !matches!(self.solver(h.material), bundle::SolverSpec::Null {}) {
+                        return true;
+                    }
+                    left -= h.t;
+                    o = self.offset(h.point, h.normal, d);
+                }
+            }
+        }
+        true
     }
 
     fn occluded_once(&self, o: DVec3, d: DVec3, tmax: f64) -> bool {

@@ -170,6 +170,7 @@ pub fn write_plane_with_indices(dir: &Path, p: &PlaneSpec, indices: &[u8]) -> Pa
                 brdf: brdf.clone(),
                 class_codes: vec![i as u32],
                 source: "test".into(),
+                solver: None,
             })
             .collect(),
         templates: vec![],
@@ -215,4 +216,48 @@ pub fn reseal(dir: &Path) {
             .collect();
     }
     std::fs::write(dir.join("manifest.toml"), toml::to_string(&m).unwrap()).unwrap();
+}
+
+/// A copy of the bundle `src` in `out` with one more material (`index`, `name`, `brdf`,
+/// `solver`) and a horizontal square plate of it, `2·half` m wide, centred on (`cx`, `cy`) at
+/// height `z` (local frame), as one instanced template.
+#[allow(clippy::too_many_arguments)]
+pub fn with_plate(
+    src: &Path,
+    out: &Path,
+    (cx, cy, z): (f64, f64, f64),
+    half: f32,
+    index: u8,
+    name: &str,
+    brdf: BrdfSpec,
+    solver: Option<SolverSpec>,
+) -> PathBuf {
+    let mut b = Bundle::open(src).unwrap();
+    b.manifest.materials.push(Material {
+        index,
+        name: name.into(),
+        brdf,
+        class_codes: vec![],
+        source: "test".into(),
+        solver,
+    });
+    b.templates.push(TemplateMesh {
+        name: "plate".into(),
+        source: "test".into(),
+        positions: vec![
+            [-half, -half, 0.0],
+            [half, -half, 0.0],
+            [half, half, 0.0],
+            [-half, half, 0.0],
+        ],
+        indices: vec![[0, 1, 2], [0, 2, 3]],
+        materials: vec![index; 2],
+    });
+    b.instances.push(Instance {
+        translation: [cx, cy, z],
+        linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        template: (b.templates.len() - 1) as u32,
+    });
+    b.write(out, true).unwrap();
+    out.to_path_buf()
 }

@@ -26,6 +26,13 @@ pub struct Layers<'a> {
     shines: bool,
     /// The surface's thermal emission, if any.
     surface_emission: Option<&'a SurfaceEmission>,
+    /// The surface's radiometry solver.
+    solver: crate::integrator::solver::SolverSpec,
+    /// A `mirror` surface: the Sun's image below it, as (unit vector towards the image,
+    /// `R(μ_s)·e^{−2τ*/μ_s}`): the specularly reflected beam lights the layers from below with
+    /// transmittance `R·e^{−(2τ* − τ)/μ_s}` at depth τ. Next-event estimates add it, since no
+    /// sampled direction meets a delta-reflected beam.
+    image_sun: Option<(DVec3, f64)>,
 }
 
 impl<'a> Layers<'a> {
@@ -37,7 +44,29 @@ impl<'a> Layers<'a> {
             t_sun_ground: (-atmosphere.total_tau() / sun.z).exp(),
             shines: true,
             surface_emission: None,
+            solver: Default::default(),
+            image_sun: None,
         }
+    }
+
+    /// With the surface's radiometry solver (`solver.rs`).
+    pub fn with_solver(mut self, solver: crate::integrator::solver::SolverSpec) -> Self {
+        self.solver = solver;
+        if let crate::integrator::solver::SolverSpec::Mirror {
+            refractive_index,
+            absorption_index,
+        } = solver
+        {
+            let mu = self.sun.z;
+            let r = crate::integrator::solver::fresnel_reflectance(
+                refractive_index,
+                absorption_index,
+                mu,
+            );
+            let k = r * (-2.0 * self.atmosphere.total_tau() / mu).exp();
+            self.image_sun = Some((DVec3::new(self.sun.x, self.sun.y, -self.sun.z), k));
+        }
+        self
     }
 
     /// With thermal emission: the surface's (`None`: it does not emit), and whether the Sun
@@ -76,6 +105,13 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
             atm.flight_integrals(tau, d.z, 1.0 / self.sun.z, |l, i| {
                 W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), i);
             });
+            if let Some((image, k)) = self.image_sun {
+                // Transmittance k·e^{+τ/μ_s}: b = −1/μ_s.
+                let cos = image.dot(d);
+                atm.flight_integrals(tau, d.z, -1.0 / self.sun.z, |l, i| {
+                    W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), k * i);
+                });
+            }
         }
         let s = -rng.next_f64_open0().ln();
         match atm.fly(tau, d.z, s) {
@@ -119,6 +155,33 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
     fn sun_at(&self, tau: f64) -> f64 {
         (-tau / self.sun.z).exp()
     }
+
+    fn collision_estimate(
+        &self,
+        tau: f64,
+        omega: f64,
+        phase: &crate::phase::PhaseFunction,
+        d: DVec3,
+        _w: &mut W,
+        acc: &mut W::Phase,
+    ) {
+        W::accumulate(
+            acc,
+            phase,
+            self.sun.dot(d),
+            omega,
+            (-tau / self.sun.z).exp(),
+        );
+        if let Some((image, k)) = self.image_sun {
+            W::accumulate(
+                acc,
+                phase,
+                image.dot(d),
+                omega,
+                k * (tau / self.sun.z).exp(),
+            );
+        }
+    }
     #[inline]
     fn surface(&self, _: &()) -> SurfaceAt<'_> {
         SurfaceAt::Flat {
@@ -133,5 +196,9 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
     #[inline]
     fn leave(&self, _: &(), _: DVec3) -> f64 {
         self.atmosphere.total_tau()
+    }
+    #[inline]
+    fn solver(&self, _: &Self::Hit) -> crate::integrator::solver::SolverSpec {
+        self.solver
     }
 }

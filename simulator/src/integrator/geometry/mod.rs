@@ -125,6 +125,12 @@ pub trait Geometry<W: Weight> {
     fn sun_at_surface(&self, hit: &Self::Hit) -> f64;
     /// Where a path leaving a hit along `d` starts.
     fn leave(&self, hit: &Self::Hit, d: DVec3) -> Self::Pos;
+
+    /// The radiometry solver of the surface at a hit (`solver.rs`; default: `generic`, one
+    /// direction per bounce).
+    fn solver(&self, _hit: &Self::Hit) -> super::solver::SolverSpec {
+        super::solver::SolverSpec::default()
+    }
 }
 
 /// Collision points per flight of the stratified next-event estimate in spherical shells.

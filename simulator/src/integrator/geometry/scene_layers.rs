@@ -159,6 +159,10 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
     fn leave(&self, h: &SurfaceHit, d: DVec3) -> DVec3 {
         self.scene.offset(h.point, h.normal, d)
     }
+    #[inline]
+    fn solver(&self, h: &Self::Hit) -> crate::integrator::solver::SolverSpec {
+        self.scene.solver(h.material)
+    }
 }
 
 impl SceneInLayers<'_> {
@@ -184,8 +188,10 @@ impl SceneInLayers<'_> {
         let top = self.scene.z_range[1];
         let cos = sun.dot(d);
         // Part above the top: a flight starting above it, or one that climbs out of the scene
-        // without hitting anything first.
-        let exits_up = d.z > 0.0 && p.z <= top && t_hit >= (top - p.z) / d.z;
+        // without hitting anything (all geometry lies at or below the top, so any hit ends the
+        // flight there: a hit on the top plane itself, e.g. a `null` surface that the path then
+        // crosses, must not count the part above twice).
+        let exits_up = d.z > 0.0 && p.z <= top && t_hit == f64::INFINITY;
         if p.z > top || exits_up {
             let tau_p = atm.tau_at_altitude(p.z);
             let tau_top = atm.tau_at_altitude(top);

@@ -139,4 +139,8 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
         let p = self.scene.offset(h.point, h.normal, d) + self.lift();
         (p, self.shell_of(p))
     }
+    #[inline]
+    fn solver(&self, h: &Self::Hit) -> crate::integrator::solver::SolverSpec {
+        self.scene.solver(h.material)
+    }
 }

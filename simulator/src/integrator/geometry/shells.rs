@@ -24,6 +24,8 @@ pub struct Shells<'a> {
     pub sun: DVec3,
     /// cos SZA at the target (1 when the Sun is down): normalises samples to BRF.
     pub mu_norm: f64,
+    /// The ground's radiometry solver.
+    pub solver: crate::integrator::solver::SolverSpec,
 }
 
 impl<W: Weight> Geometry<W> for Shells<'_> {
@@ -84,5 +86,9 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
     #[inline]
     fn leave(&self, q: &DVec3, _: DVec3) -> (DVec3, usize) {
         (*q, 0)
+    }
+    #[inline]
+    fn solver(&self, _: &Self::Hit) -> crate::integrator::solver::SolverSpec {
+        self.solver
     }
 }
