@@ -286,6 +286,63 @@ fn hostile_inputs_fail_cleanly() {
         ),
         &e(2, &["single_scattering_albedo"]),
     );
+    // Issue 17 keys: fluxes, HDRF, the Moon, solvers.
+    let flux = |extra: &str| {
+        format!(
+            "{}[[measures]]\nid = \"f\"\ntype = \"distant_flux\"\n{extra}\nspp = 100\n",
+            EXPERIMENT
+        )
+    };
+    s.experiment(
+        "flux-direction-misspelt",
+        &flux("direction = \"dwon\""),
+        &e(2, &["direction", "dwon", "up", "down"]),
+    );
+    s.experiment(
+        "flux-altitude-above-toa",
+        &flux("direction = \"down\"\naltitude = 250.0"),
+        &e(2, &["measures[1].altitude", "250"]),
+    );
+    s.experiment(
+        "hdrf-forward",
+        &format!(
+            "{}[integrator]\ntype = \"forward\"\n[[measures]]\nid = \"h\"\ntype = \"hdrf\"\nzeniths = [0.0]\nazimuth = 0.0\nspp = 100\n",
+            EXPERIMENT
+        ),
+        &e(2, &["measures[1]", "backward"]),
+    );
+    s.experiment(
+        "moon-bad-time",
+        &x(
+            "type = \"directional\"\nzenith = 30.0\nazimuth = 0.0",
+            "type = \"moon\"\ntime = \"yesterday\"\nlatitude = 45.0\nlongitude = 5.0",
+        ),
+        &e(2, &["illumination.time", "yesterday"]),
+    );
+    s.experiment(
+        "moon-latitude-nan",
+        &x(
+            "type = \"directional\"\nzenith = 30.0\nazimuth = 0.0",
+            "type = \"moon\"\ntime = \"2026-03-03T00:00:00Z\"\nlatitude = nan\nlongitude = 5.0",
+        ),
+        &e(2, &["illumination.latitude"]),
+    );
+    s.experiment(
+        "solver-decay-out-of-range",
+        &x(
+            "reflectance = 0.3",
+            "reflectance = 0.3\nsolver = { type = \"generic\", first_bounce_samples = 8, decay = 0.0 }",
+        ),
+        &e(2, &["surface.solver.decay"]),
+    );
+    s.experiment(
+        "solver-unknown-type",
+        &x(
+            "reflectance = 0.3",
+            "reflectance = 0.3\nsolver = { type = \"fancy\" }",
+        ),
+        &e(2, &["solver", "fancy"]),
+    );
     s.experiment(
         "sun-below-horizon",
         &x("zenith = 30.0", "zenith = 95.0"),
