@@ -30,7 +30,24 @@ pub struct Accum {
     pub sum3: Vec<f64>,
     pub sum4: Vec<f64>,
     pub max: Vec<f64>,
+    /// Quasi-random runs (`integrator.sampler = "sobol"`): the samples of each cell form
+    /// [`REPLICATES`] independently scrambled Sobol sequences (sample `s` belongs to replicate
+    /// `s mod R`, `rng.rs`), and these hold each replicate's sample count and component sums,
+    /// `[cell * R + r]` and `[(cell * R + r) * ncomp + component]` (empty otherwise). The
+    /// standard error is then the scatter of the replicate means ([`Accum::mean_stderr`]):
+    /// the points of one scrambled net are not independent, so the i.i.d. formula
+    /// overestimates their error, while independent scramblings give an honest one.
+    #[serde(default)]
+    pub rep_n: Vec<u64>,
+    #[serde(default)]
+    pub rep_sum: Vec<f64>,
+    /// The replicate of the samples being added (set per sample by the walks; not stored).
+    #[serde(skip)]
+    pub rep_now: Option<usize>,
 }
+
+/// Independent scramblings per cell in quasi-random runs (see [`Accum::rep_sum`]).
+pub const REPLICATES: usize = 16;
 
 /// Heavy-tail diagnostic of one cell (see [`Accum::tail`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -65,6 +82,9 @@ impl Accum {
             sum3: vec![0.0; cells],
             sum4: vec![0.0; cells],
             max: vec![0.0; cells],
+            rep_n: Vec::new(),
+            rep_sum: Vec::new(),
+            rep_now: None,
         }
     }
 
@@ -78,11 +98,76 @@ impl Accum {
             sum3: vec![0.0; cells],
             sum4: vec![0.0; cells],
             max: vec![0.0; cells],
+            rep_n: Vec::new(),
+            rep_sum: Vec::new(),
+            rep_now: None,
         }
     }
 
     pub fn is_polarized(&self) -> bool {
         self.ncomp == 6
+    }
+
+    /// Keep per-replicate sums (quasi-random runs); the walks then set [`Accum::rep_now`] to
+    /// each sample's replicate before recording it.
+    pub fn enable_replicates(&mut self) {
+        let cells = self.n.len();
+        if self.rep_n.is_empty() {
+            self.rep_n = vec![0; cells * REPLICATES];
+            self.rep_sum = vec![0.0; cells * REPLICATES * self.ncomp];
+        }
+    }
+
+    #[inline]
+    fn add_replicate(&mut self, cell: usize, x: &[f64]) {
+        if let Some(r) = self.rep_now {
+            if !self.rep_n.is_empty() {
+                let i = cell * REPLICATES + r;
+                self.rep_n[i] += 1;
+                for (k, v) in x.iter().enumerate() {
+                    self.rep_sum[i * self.ncomp + k] += v;
+                }
+            }
+        }
+    }
+
+    /// Means of component `k` (and `k2`) per replicate of `cell`, with their sample counts, when
+    /// every replicate has samples (None otherwise: too few samples to judge by replicates).
+    fn replicate_means(&self, cell: usize, k: usize, k2: usize) -> Option<Vec<(f64, f64, f64)>> {
+        if self.rep_n.is_empty() {
+            return None;
+        }
+        let total: u64 = self.rep_n[cell * REPLICATES..(cell + 1) * REPLICATES]
+            .iter()
+            .sum();
+        if total != self.n[cell] {
+            // Samples recorded without replicates (e.g. a checkpoint of an older build).
+            return None;
+        }
+        let mut out = Vec::with_capacity(REPLICATES);
+        for r in 0..REPLICATES {
+            let i = cell * REPLICATES + r;
+            let n = self.rep_n[i];
+            if n == 0 {
+                return None;
+            }
+            let nf = n as f64;
+            let o = i * self.ncomp;
+            out.push((nf, self.rep_sum[o + k] / nf, self.rep_sum[o + k2] / nf));
+        }
+        Some(out)
+    }
+
+    /// Covariance of the means of components `a` and `b` of `cell` from the replicates:
+    /// `Σ_r n_r (a_r − ā)(b_r − b̄) / ((R − 1)·N)` (for equal `n_r`, the sample covariance of
+    /// the replicate means over R), or None without full replicates.
+    fn replicate_cov(&self, cell: usize, a: usize, b: usize) -> Option<f64> {
+        let reps = self.replicate_means(cell, a, b)?;
+        let n: f64 = reps.iter().map(|r| r.0).sum();
+        let ma = reps.iter().map(|r| r.0 * r.1).sum::<f64>() / n;
+        let mb = reps.iter().map(|r| r.0 * r.2).sum::<f64>() / n;
+        let c: f64 = reps.iter().map(|r| r.0 * (r.1 - ma) * (r.2 - mb)).sum();
+        Some(c / ((REPLICATES as f64 - 1.0) * n))
     }
 
     /// Add one sample (single part, multiple part) to `cell`.
@@ -96,6 +181,7 @@ impl Accum {
             self.sum[o + k] += x;
             self.sum2[o + k] += x * x;
         }
+        self.add_replicate(cell, &[t, single, multiple]);
     }
 
     /// Add one polarized sample: I split into single/multiple parts, and Q, U, V.
@@ -113,6 +199,7 @@ impl Accum {
         self.cross[c] += i * q;
         self.cross[c + 1] += i * u;
         self.cross[c + 2] += q * u;
+        self.add_replicate(cell, &[i, single, multiple, q, u, v]);
     }
 
     #[inline]
@@ -131,6 +218,7 @@ impl Accum {
         self.sum3.iter_mut().for_each(|x| *x *= f * f * f);
         self.sum4.iter_mut().for_each(|x| *x *= (f * f) * (f * f));
         self.max.iter_mut().for_each(|x| *x *= f.abs());
+        self.rep_sum.iter_mut().for_each(|x| *x *= f);
     }
 
     /// The heavy-tail diagnostic of the total in `cell`; `None` with fewer than
@@ -192,6 +280,15 @@ impl Accum {
         for (a, b) in self.max.iter_mut().zip(&other.max) {
             *a = a.max(*b);
         }
+        if !other.rep_n.is_empty() {
+            self.enable_replicates();
+            for (a, b) in self.rep_n.iter_mut().zip(&other.rep_n) {
+                *a += b;
+            }
+            for (a, b) in self.rep_sum.iter_mut().zip(&other.rep_sum) {
+                *a += b;
+            }
+        }
     }
 
     /// Add cell `from` of `other` into cell `to` of self.
@@ -210,9 +307,21 @@ impl Accum {
         self.sum3[to] += other.sum3[from];
         self.sum4[to] += other.sum4[from];
         self.max[to] = self.max[to].max(other.max[from]);
+        if !other.rep_n.is_empty() {
+            self.enable_replicates();
+            for r in 0..REPLICATES {
+                let (i, j) = (to * REPLICATES + r, from * REPLICATES + r);
+                self.rep_n[i] += other.rep_n[j];
+                for c in 0..k {
+                    self.rep_sum[i * k + c] += other.rep_sum[j * k + c];
+                }
+            }
+        }
     }
 
-    /// Mean and standard error of the mean of component `k` in `cell`.
+    /// Mean and standard error of the mean of component `k` in `cell`: from the scatter of the
+    /// replicate means in quasi-random runs once every replicate has samples, else from the
+    /// samples' variance (independent samples).
     pub fn mean_stderr(&self, cell: usize, k: usize) -> (f64, f64) {
         let n = self.n[cell] as f64;
         if n < 1.0 {
@@ -220,6 +329,9 @@ impl Accum {
         }
         let o = cell * self.ncomp + k;
         let m = self.sum[o] / n;
+        if let Some(v) = self.replicate_cov(cell, k, k) {
+            return (m, v.max(0.0).sqrt());
+        }
         if n < 2.0 {
             return (m, f64::NAN);
         }
@@ -234,6 +346,9 @@ impl Accum {
             return f64::NAN;
         }
         let (a, b) = [(TOTAL, Q), (TOTAL, U), (Q, U)][pair];
+        if let Some(c) = self.replicate_cov(cell, a, b) {
+            return c;
+        }
         let o = cell * self.ncomp;
         let (ma, mb) = (self.sum[o + a] / n, self.sum[o + b] / n);
         (self.cross[cell * 3 + pair] / n - ma * mb) / (n - 1.0)
@@ -355,5 +470,52 @@ mod tail_tests {
             few.add(0, k as f64, 0.0);
         }
         assert!(few.tail(0).is_none());
+    }
+
+    /// Replicate errors (quasi-random runs): with every replicate filled, the standard error
+    /// is the sample standard deviation of the replicate means over √R (equal counts), merged
+    /// halves give the same sums, and without full replicates the i.i.d. formula applies.
+    #[test]
+    fn replicate_errors() {
+        let mut rng = crate::rng::Stream::new(1, [2, 3, 4, 5]);
+        let xs: Vec<f64> = (0..(REPLICATES * 10)).map(|_| rng.next_f64()).collect();
+        let mut a = Accum::new(1);
+        a.enable_replicates();
+        let (mut h1, mut h2) = (Accum::new(1), Accum::new(1));
+        h1.enable_replicates();
+        h2.enable_replicates();
+        for (s, &x) in xs.iter().enumerate() {
+            let r = crate::rng::Stream::replicate_of(s as u64);
+            for acc in [&mut a, if s < xs.len() / 2 { &mut h1 } else { &mut h2 }] {
+                acc.rep_now = Some(r);
+                acc.add(0, x, 0.0);
+            }
+        }
+        let means: Vec<f64> = (0..REPLICATES)
+            .map(|r| xs.iter().skip(r).step_by(REPLICATES).sum::<f64>() / 10.0)
+            .collect();
+        let m = means.iter().sum::<f64>() / REPLICATES as f64;
+        let sd =
+            (means.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (REPLICATES as f64 - 1.0)).sqrt();
+        let (mean, se) = a.mean_stderr(0, TOTAL);
+        assert!((mean - m).abs() < 1e-12);
+        assert!((se - sd / (REPLICATES as f64).sqrt()).abs() < 1e-12, "{se}");
+        let mut merged = Accum::new(1);
+        merged.merge(&h1);
+        merged.merge(&h2);
+        assert_eq!(merged.rep_n, a.rep_n);
+        assert!((merged.mean_stderr(0, TOTAL).1 - se).abs() < 1e-12);
+        // One replicate empty: the i.i.d. formula.
+        let mut part = Accum::new(1);
+        part.enable_replicates();
+        for (s, &x) in xs.iter().enumerate().take(REPLICATES - 1) {
+            part.rep_now = Some(crate::rng::Stream::replicate_of(s as u64));
+            part.add(0, x, 0.0);
+        }
+        let mut plain = Accum::new(1);
+        for &x in xs.iter().take(REPLICATES - 1) {
+            plain.add(0, x, 0.0);
+        }
+        assert_eq!(part.mean_stderr(0, TOTAL), plain.mean_stderr(0, TOTAL));
     }
 }

@@ -46,9 +46,11 @@ fn mix64(mut z: u64) -> u64 {
 /// Draws of a sample taken from the Sobol sequence with `integrator.sampler = "sobol"` (the
 /// pixel or area position, the first flight and scattering); later draws come from Philox.
 pub const QMC_DIMS: u32 = 8;
-/// Points per Owen-scrambled Sobol sequence (sobol_burley's limit); sample `s` of a cell is point
-/// `s mod 2¹⁶` of sequence `s / 2¹⁶`, each sequence independently scrambled.
+/// Points per Owen-scrambled Sobol sequence (sobol_burley's limit); point `j` of a replicate is
+/// point `j mod 2¹⁶` of its sequence `j / 2¹⁶`, each sequence independently scrambled.
 const QMC_POINTS: u64 = 1 << 16;
+/// Independently scrambled sequences per cell ([`crate::accum::REPLICATES`]).
+const REPLICATES: u64 = crate::accum::REPLICATES as u64;
 
 /// A random stream identified by a seed and four ids.
 #[derive(Clone, Debug)]
@@ -83,19 +85,32 @@ impl Stream {
 
     /// The stream of sample `ids[3]` of the cell `ids[0..3]`: with `sobol`, its first
     /// [`QMC_DIMS`] draws are dimensions of an Owen-scrambled Sobol point (Burley 2020,
-    /// "Practical hash-based Owen scrambling", JCGT 9(4)), the cell's samples forming a
-    /// (0, m, s)-net per 2¹⁶ of them; every scrambling is keyed by the seed and the cell, so
-    /// results stay independent of the thread count. Without `sobol`, [`Stream::new`].
+    /// "Practical hash-based Owen scrambling", JCGT 9(4)). The cell's samples form
+    /// [`REPLICATES`] independently scrambled sequences (sample s: point s div R of replicate
+    /// s mod R), each a (0, m, s)-net per 2¹⁶ of its points; every scrambling is keyed by the
+    /// seed, the cell and the replicate, so results stay independent of the thread count.
+    /// Without `sobol`, [`Stream::new`].
     pub fn for_sample(seed: u64, ids: [u64; 4], sobol: bool) -> Self {
         let mut s = Self::new(seed, ids);
         if sobol {
-            let seq = ids[3] / QMC_POINTS;
-            let h = mix64(seed ^ mix64(ids[0] ^ mix64(ids[1] ^ mix64(ids[2] ^ mix64(seq)))));
+            // Replicate r = s mod R is its own scrambled sequence of the points j = s div R,
+            // so the replicates' means are independent (`accum.rs`).
+            let (r, j) = (ids[3] % REPLICATES, ids[3] / REPLICATES);
+            let seq = j / QMC_POINTS;
+            let h = mix64(
+                seed ^ mix64(ids[0] ^ mix64(ids[1] ^ mix64(ids[2] ^ mix64(seq ^ (r << 48))))),
+            );
             s.qmc_left = QMC_DIMS;
-            s.qmc_index = (ids[3] % QMC_POINTS) as u32;
+            s.qmc_index = (j % QMC_POINTS) as u32;
             s.qmc_seed = h as u32;
         }
         s
+    }
+
+    /// The replicate of sample `s` of a cell in quasi-random runs.
+    #[inline]
+    pub fn replicate_of(s: u64) -> usize {
+        (s % REPLICATES) as usize
     }
 
     /// A quasi-random draw: the Sobol coordinate (24 bits) plus Philox bits below them, so the
@@ -158,9 +173,9 @@ mod tests {
     use super::*;
 
     /// Without Sobol a sample's stream is `Stream::new` (bit-identical default runs); with it
-    /// the first draws of a cell's 1024 samples are stratified (each of 1024 equal bins of
-    /// every quasi-random dimension holds exactly one), later draws are Philox, and a smooth
-    /// integral converges much faster than with independent samples.
+    /// the first draws of each replicate's 64 samples among a cell's 1024 are stratified (each
+    /// of 64 equal bins of every quasi-random dimension holds exactly one), later draws are
+    /// Philox, and a smooth integral converges much faster than with independent samples.
     #[test]
     fn sobol_samples_are_stratified_and_default_is_unchanged() {
         let mut a = Stream::new(9, [1, 2, 3, 4]);
@@ -169,18 +184,21 @@ mod tests {
             assert_eq!(a.next_f64().to_bits(), b.next_f64().to_bits());
         }
         let n = 1024u64;
-        let mut bins = vec![vec![0u32; n as usize]; QMC_DIMS as usize];
+        let per = n / REPLICATES;
+        // Each replicate's points (samples r, r + R, r + 2R, …) stratify every dimension.
+        let mut bins = vec![vec![vec![0u32; per as usize]; QMC_DIMS as usize]; REPLICATES as usize];
         let (mut q_err, mut r_err) = (0.0f64, 0.0f64);
         for cell in 0..8u64 {
             let (mut q, mut r) = (0.0, 0.0);
             for s in 0..n {
                 let mut st = Stream::for_sample(9, [0, 0, cell, s], true);
                 let mut ps = Stream::for_sample(9, [0, 0, cell, s], false);
-                for (d, bin) in bins.iter_mut().enumerate() {
+                let rep = Stream::replicate_of(s);
+                for (d, bin) in bins[rep].iter_mut().enumerate() {
                     let u = st.next_f64();
                     assert!((0.0..1.0).contains(&u));
                     if cell == 0 {
-                        bin[(u * n as f64) as usize] += 1;
+                        bin[(u * per as f64) as usize] += 1;
                     }
                     if d == 0 {
                         q += u * u;
@@ -192,8 +210,10 @@ mod tests {
             q_err += (q / n as f64 - 1.0 / 3.0).powi(2);
             r_err += (r / n as f64 - 1.0 / 3.0).powi(2);
         }
-        for bin in &bins {
-            assert!(bin.iter().all(|&c| c == 1), "a dimension is not stratified");
+        for rep in &bins {
+            for bin in rep {
+                assert!(bin.iter().all(|&c| c == 1), "a dimension is not stratified");
+            }
         }
         assert!(
             q_err * 100.0 < r_err,

@@ -131,12 +131,15 @@ fn channel_walks(
     let geometry = ReferenceLayers::new(g, exp.sun_dir);
     let k = Geometry::<ChannelPath>::light(&geometry).normalization;
     let mut acc = Accum::new(g.outputs());
+    let sobol = exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol;
+    if sobol {
+        acc.enable_replicates();
+    }
     for s in range {
-        let mut rng = Stream::for_sample(
-            exp.seed,
-            [key, im as u64, cell as u64, s],
-            exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol,
-        );
+        let mut rng = Stream::for_sample(exp.seed, [key, im as u64, cell as u64, s], sobol);
+        if sobol {
+            acc.rep_now = Some(Stream::replicate_of(s));
+        }
         let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
         let t = backward::walk(
             &geometry,
@@ -356,9 +359,16 @@ fn backward_block<G: Geometry<W>, W: Adjoint + AtSensor>(
     frame_azimuth: impl Fn() -> f64,
 ) -> Accum {
     let mut acc = W::accum(1);
+    let sobol = settings.sampler == crate::integrator::settings::Sampler::Sobol;
+    if sobol {
+        acc.enable_replicates();
+    }
     let k = g.light().normalization;
     for s in range {
         let mut rng = stream(s);
+        if sobol {
+            acc.rep_now = Some(Stream::replicate_of(s));
+        }
         let t = match start(&mut rng) {
             Some((p0, d0)) => {
                 let w = W::at_sensor(d0, &frame_azimuth);

@@ -14,8 +14,13 @@ use crate::error::ConfigError;
 use crate::measure::MeasureKind;
 
 /// Bytes per result cell and wavelength: accumulators plus half again for the products.
-fn cell_bytes(polarized: bool) -> u64 {
-    let acc: u64 = if polarized { 152 } else { 80 };
+fn cell_bytes(polarized: bool, replicates: bool) -> u64 {
+    let mut acc: u64 = if polarized { 152 } else { 80 };
+    if replicates {
+        // Quasi-random runs: per replicate a count and the component sums (`accum.rs`).
+        let ncomp: u64 = if polarized { 6 } else { 3 };
+        acc += crate::accum::REPLICATES as u64 * 8 * (1 + ncomp);
+    }
     acc + acc / 2
 }
 
@@ -47,7 +52,10 @@ fn size_key(k: usize, kind: &MeasureKind) -> String {
 
 pub fn estimate(exp: &Experiment) -> MemoryEstimate {
     let nw = exp.wavelengths.len() as u64;
-    let per = cell_bytes(exp.polarized);
+    let per = cell_bytes(
+        exp.polarized,
+        exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol,
+    );
     let mut results: u64 = 0;
     let mut heaviest: Option<(String, u64)> = None;
     for (k, m) in exp.measures.iter().enumerate() {
@@ -131,7 +139,7 @@ mod tests {
     #[test]
     fn estimate_scales_and_refuses_above_the_limit() {
         let e = estimate(&experiment(3, 11));
-        assert_eq!(e.results_bytes, 11 * 3 * cell_bytes(false));
+        assert_eq!(e.results_bytes, 11 * 3 * cell_bytes(false, false));
         assert_eq!(e.heaviest.as_ref().unwrap().0, "measures[0].directions");
         let big = experiment(20, 101);
         assert!(check(&big, Some(u64::MAX)).is_ok());

@@ -234,12 +234,15 @@ pub fn run_block<W: Photon>(
     let mut emitted = thermal
         .filter(|t| t.emits())
         .map(|_| Scratch::<W>::new(atmosphere, targets));
+    let sobol = settings.sampler == super::settings::Sampler::Sobol;
+    if sobol {
+        acc.enable_replicates();
+    }
     for s in samples {
-        let mut rng = Stream::for_sample(
-            seed,
-            [ids[0], ids[1], ids[2], s],
-            settings.sampler == super::settings::Sampler::Sobol,
-        );
+        let mut rng = Stream::for_sample(seed, [ids[0], ids[1], ids[2], s], sobol);
+        if sobol {
+            acc.rep_now = Some(Stream::replicate_of(s));
+        }
         if sun_shines {
             walk::<W>(
                 atmosphere,
