@@ -365,7 +365,7 @@ impl MaterialMap {
                 brdf: def.brdf.clone(),
                 class_codes: code.map(|c| vec![c as u32]).unwrap_or_default(),
                 source: def.source.clone(),
-                solver: def.solver.clone(),
+                solver: def.solver,
             });
             Ok(index)
         };
@@ -416,7 +416,7 @@ impl MaterialMap {
             brdf: def.brdf.clone(),
             class_codes: vec![],
             source: def.source.clone(),
-            solver: def.solver.clone(),
+            solver: def.solver,
         });
         Ok(index)
     }

@@ -5,7 +5,7 @@
 //! * plane-parallel layers: `T = exp(−τ(z)/μ0)`, `τ(z)` the extinction optical depth above `z`
 //!   (Beer–Lambert; e.g. Liou (2002), *An Introduction to Atmospheric Radiation*, eq. 1.4.8);
 //! * spherical shells: `T = exp(−∫σ ds)` along the straight ray from the point above the target
-//!   towards the Sun, crossing the shells exactly ([`SphericalShell::transmittance_to_space`]),
+//!   towards the Sun, crossing the shells exactly ([`crate::atmosphere::spherical::SphericalShell::transmittance_to_space`]),
 //!   0 when the planet hides the Sun;
 //! * correlated-k bins: the g-point quadrature `Σ_g w_g·T_g` (the bin-mean transmittance).
 //!

@@ -86,7 +86,7 @@ impl Stream {
     /// The stream of sample `ids[3]` of the cell `ids[0..3]`: with `sobol`, its first
     /// [`QMC_DIMS`] draws are dimensions of an Owen-scrambled Sobol point (Burley 2020,
     /// "Practical hash-based Owen scrambling", JCGT 9(4)). The cell's samples form
-    /// [`REPLICATES`] independently scrambled sequences (sample s: point s div R of replicate
+    /// [`crate::accum::REPLICATES`] independently scrambled sequences (sample s: point s div R of replicate
     /// s mod R), each a (0, m, s)-net per 2¹⁶ of its points; every scrambling is keyed by the
     /// seed, the cell and the replicate, so results stay independent of the thread count.
     /// Without `sobol`, [`Stream::new`].
