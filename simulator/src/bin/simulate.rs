@@ -760,12 +760,20 @@ fn print_summary(rows: &[products::Row]) {
         "measure", "wl [nm]", "vza", "vaa", "value", "rel.err"
     );
     for r in rows {
-        let (name, (v, e)) = match (r.brf, r.albedo, r.radiance, r.flux) {
-            (Some(b), _, _, _) => ("brf", b),
-            (None, Some(a), _, _) => ("albedo", a),
-            (None, None, Some(l), _) => ("radiance", l),
-            (None, None, None, Some(f)) => ("flux", f),
+        let (name, (v, e)) = match (r.hdrf, r.brf, r.albedo, r.radiance, r.flux) {
+            (Some(h), _, _, _, _) => ("hdrf", h),
+            (None, Some(b), _, _, _) => ("brf", b),
+            (None, None, Some(a), _, _) => ("albedo", a),
+            (None, None, None, Some(l), _) => ("radiance", l),
+            (None, None, None, None, Some(f)) => ("flux", f),
             _ => continue,
+        };
+        // Downwelling fluxes: the direct share.
+        let direct = match (r.flux, r.flux_direct) {
+            (Some((f, _)), Some((d, _))) if d > 0.0 && f > 0.0 => {
+                format!("  direct {:.1} %", 100.0 * d / f)
+            }
+            _ => String::new(),
         };
         let ang = |x: Option<f64>| {
             x.map(|a| format!("{a:8.2}"))
@@ -778,7 +786,7 @@ fn print_summary(rows: &[products::Row]) {
             .map(|(t, se)| format!("  BT={t:.3} K ± {se:.3}"))
             .unwrap_or_default();
         println!(
-            "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%{bt}",
+            "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%{bt}{direct}",
             r.measure,
             r.wavelength_nm,
             ang(r.vza),
