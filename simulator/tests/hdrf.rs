@@ -37,13 +37,7 @@ azimuth = 0.0
 }
 
 fn hdrf_toml(vza: &[f64], vaa: &[f64], spp: u64) -> String {
-    let z: Vec<String> = vza.iter().map(|v| format!("{v:?}")).collect();
-    let a: Vec<String> = vaa.iter().map(|v| format!("{v:?}")).collect();
-    format!(
-        "[[measures]]\nid = \"boa\"\ntype = \"hdrf\"\nconstruct = \"directions\"\nzeniths = [{}]\nazimuths = [{}]\nspp = {spp}\n",
-        z.join(", "),
-        a.join(", ")
-    )
+    directions_toml("hdrf", "boa", vza, vaa, spp)
 }
 
 /// RPV BRF (Rahman, Pinty & Verstraete 1993, ρ_c = ρ_0), raa = 0 on the Sun's side.

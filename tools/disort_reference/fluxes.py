@@ -50,6 +50,8 @@ import numpy as np
 import disortpp as dpp
 import nanodisort as nd
 
+from generate import rpv_brf  # the RPV formula of the case E tables (same folder)
+
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 OUT = REPO / "simulator" / "tests" / "data" / "disort" / "fluxes.csv"
@@ -134,19 +136,6 @@ def main():
     print(f"wrote {OUT} ({len(out)} rows)")
 
 
-def rpv_brf(rho0, k, g, sza, vza, raa):
-    """RPV BRF (Rahman et al. 1993, rho_c = rho_0), raa = 0 on the Sun's side; the formula of
-    generate.py."""
-    ti, to, dphi = np.radians(sza), np.radians(vza), np.radians(raa)
-    ci, co = np.cos(ti), np.cos(to)
-    m = (ci * co * (ci + co)) ** (k - 1)
-    cos_g = ci * co + np.sin(ti) * np.sin(to) * np.cos(dphi)
-    f = (1 - g * g) / (1 + 2 * g * cos_g + g * g) ** 1.5
-    big_g = np.sqrt(np.maximum(0.0, np.tan(ti) ** 2 + np.tan(to) ** 2
-                               - 2 * np.tan(ti) * np.tan(to) * np.cos(dphi)))
-    return rho0 * m * f * (1 + (1 - rho0) / (1 + big_g))
-
-
 def disortpp_rpv(tau, sza, rpv, umu, phis, nstr):
     """Rayleigh layer over an RPV surface; returns (uu[level][mu][phi] at TOA and BOA,
     diffuse downwelling flux at BOA)."""
@@ -196,7 +185,7 @@ def hdrf_case(tau, sza, rpv, nstr):
         # DisORT++'s Fourier reconstruction of the directly reflected beam (a bare surface),
         # replaced by the exact BRDF; in pi L / mu0 units, attenuated once at the surface.
         s_v = np.pi * surf[0][:, j] / mu0
-        exact = rpv_brf(rpv[0], rpv[1], rpv[2], sza, vza_sorted, raa)
+        exact = rpv_brf(rpv[0], rpv[1], rpv[2], rpv[0], sza, vza_sorted, raa)
         boa = np.pi * uu[1][:, j] / mu0 + (exact - s_v) * math.exp(-tau / mu0)
         for z, v in zip(vza_sorted, boa * mu0 / e_down):
             out[(raa, round(float(z), 6))] = float(v)

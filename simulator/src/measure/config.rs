@@ -271,23 +271,8 @@ impl MeasureConfig {
                 target_height_m,
                 ..
             } => {
-                let construct = construct.unwrap_or(if azimuths.is_some() {
-                    Construct::Directions
-                } else {
-                    Construct::Hplane
-                });
-                if zeniths.is_empty() {
-                    return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
-                }
-                let (vza, vaa) =
-                    distant_directions(ctx, &key, construct, *azimuth, zeniths, azimuths)?;
-                let directions = vza
-                    .iter()
-                    .zip(&vaa)
-                    .map(|(z, a): (&f64, &f64)| {
-                        direction_from_angles(z.to_radians(), a.to_radians())
-                    })
-                    .collect();
+                let (directions, vza, vaa) =
+                    view_directions(ctx, &key, *construct, *azimuth, zeniths, azimuths)?;
                 let area = match (scene, target_m, target_height_m) {
                     (Some(sc), r, h) => Some(
                         masked_area(sc, *r, *h).map_err(|m| ctx.err(format!("{key}.target_m"), m))?,
@@ -357,32 +342,9 @@ impl MeasureConfig {
                 ..
             } => {
                 let a = altitude.map(|a| a * 1e3).unwrap_or(at.ground);
-                if !a.is_finite() || a < at.ground || a > at.toa {
-                    return Err(ctx.err(
-                        format!("{key}.altitude"),
-                        format!(
-                            "{} km must lie between the ground and the top of the atmosphere",
-                            a / 1e3
-                        ),
-                    ));
-                }
-                let construct = construct.unwrap_or(if azimuths.is_some() {
-                    Construct::Directions
-                } else {
-                    Construct::Hplane
-                });
-                if zeniths.is_empty() {
-                    return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
-                }
-                let (vza, vaa) =
-                    distant_directions(ctx, &key, construct, *azimuth, zeniths, azimuths)?;
-                let directions = vza
-                    .iter()
-                    .zip(&vaa)
-                    .map(|(z, a): (&f64, &f64)| {
-                        direction_from_angles(z.to_radians(), a.to_radians())
-                    })
-                    .collect();
+                check_level(ctx, &key, a, at)?;
+                let (directions, vza, vaa) =
+                    view_directions(ctx, &key, *construct, *azimuth, zeniths, azimuths)?;
                 MeasureKind::Hdrf {
                     directions,
                     vza,
@@ -433,15 +395,7 @@ impl MeasureConfig {
                 ..
             } => {
                 let a = altitude.map(|a| a * 1e3).unwrap_or(at.toa);
-                if !a.is_finite() || a < at.ground || a > at.toa {
-                    return Err(ctx.err(
-                        format!("{key}.altitude"),
-                        format!(
-                            "{} km must lie between the ground and the top of the atmosphere",
-                            a / 1e3
-                        ),
-                    ));
-                }
+                check_level(ctx, &key, a, at)?;
                 MeasureKind::DistantFlux {
                     altitude: a,
                     direction: direction.unwrap_or(FluxDirection::Up),
@@ -455,6 +409,51 @@ impl MeasureConfig {
             kind,
         })
     }
+}
+
+/// A level's altitude `a` (m) lies between the ground and the top of the atmosphere.
+fn check_level(ctx: &ConfigCtx, key: &str, a: f64, at: &MeasureContext) -> Result<(), ConfigError> {
+    if !a.is_finite() || a < at.ground || a > at.toa {
+        return Err(ctx.err(
+            format!("{key}.altitude"),
+            format!(
+                "{} km must lie between the ground and the top of the atmosphere",
+                a / 1e3
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Unit vectors towards the sensor, their zeniths and azimuths (degrees).
+type ViewDirections = (Vec<DVec3>, Vec<f64>, Vec<f64>);
+
+/// The view directions of an `mdistant` or `hdrf` measure: unit vectors towards the sensor
+/// with their zeniths and azimuths (degrees); `construct` defaults to `"directions"` when
+/// `azimuths` is given, else `"hplane"`.
+fn view_directions(
+    ctx: &ConfigCtx,
+    key: &str,
+    construct: Option<Construct>,
+    azimuth: Option<f64>,
+    zeniths: &[f64],
+    azimuths: &Option<Vec<f64>>,
+) -> Result<ViewDirections, ConfigError> {
+    let construct = construct.unwrap_or(if azimuths.is_some() {
+        Construct::Directions
+    } else {
+        Construct::Hplane
+    });
+    if zeniths.is_empty() {
+        return Err(ctx.err(format!("{key}.zeniths"), "must list at least one zenith"));
+    }
+    let (vza, vaa) = distant_directions(ctx, key, construct, azimuth, zeniths, azimuths)?;
+    let directions = vza
+        .iter()
+        .zip(&vaa)
+        .map(|(z, a)| direction_from_angles(z.to_radians(), a.to_radians()))
+        .collect();
+    Ok((directions, vza, vaa))
 }
 
 /// View zeniths and azimuths (degrees, azimuths in [0, 360)) of an `mdistant` measure.

@@ -160,10 +160,15 @@ pub fn compare_brf_rows(case: &str, a: &[Row], b: &[Row]) -> Result<(), String> 
 
 /// An `mdistant` measure TOML listing explicit directions.
 pub fn mdistant_toml(id: &str, vza: &[f64], vaa: &[f64], spp: u64) -> String {
+    directions_toml("mdistant", id, vza, vaa, spp)
+}
+
+/// A `[[measures]]` table of type `kind` (`mdistant`, `hdrf`) over explicit directions.
+pub fn directions_toml(kind: &str, id: &str, vza: &[f64], vaa: &[f64], spp: u64) -> String {
     let z: Vec<String> = vza.iter().map(|v| format!("{v:?}")).collect();
     let a: Vec<String> = vaa.iter().map(|v| format!("{v:?}")).collect();
     format!(
-        "[[measures]]\nid = \"{id}\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [{}]\nazimuths = [{}]\nspp = {spp}\n",
+        "[[measures]]\nid = \"{id}\"\ntype = \"{kind}\"\nconstruct = \"directions\"\nzeniths = [{}]\nazimuths = [{}]\nspp = {spp}\n",
         z.join(", "),
         a.join(", ")
     )
