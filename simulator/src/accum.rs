@@ -118,6 +118,16 @@ impl Accum {
         }
     }
 
+    /// The samples recorded next are sample `s` of their cell: with replicates enabled, they go
+    /// to replicate `s mod R` as well (`rng.rs` scrambles that replicate's points); without,
+    /// nothing.
+    #[inline]
+    pub fn begin_sample(&mut self, s: u64) {
+        if !self.rep_n.is_empty() {
+            self.rep_now = Some(crate::rng::Stream::replicate_of(s));
+        }
+    }
+
     #[inline]
     fn add_replicate(&mut self, cell: usize, x: &[f64]) {
         if let Some(r) = self.rep_now {
@@ -485,9 +495,8 @@ mod tail_tests {
         h1.enable_replicates();
         h2.enable_replicates();
         for (s, &x) in xs.iter().enumerate() {
-            let r = crate::rng::Stream::replicate_of(s as u64);
             for acc in [&mut a, if s < xs.len() / 2 { &mut h1 } else { &mut h2 }] {
-                acc.rep_now = Some(r);
+                acc.begin_sample(s as u64);
                 acc.add(0, x, 0.0);
             }
         }
@@ -509,7 +518,7 @@ mod tail_tests {
         let mut part = Accum::new(1);
         part.enable_replicates();
         for (s, &x) in xs.iter().enumerate().take(REPLICATES - 1) {
-            part.rep_now = Some(crate::rng::Stream::replicate_of(s as u64));
+            part.begin_sample(s as u64);
             part.add(0, x, 0.0);
         }
         let mut plain = Accum::new(1);

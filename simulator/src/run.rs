@@ -137,9 +137,7 @@ fn channel_walks(
     }
     for s in range {
         let mut rng = Stream::for_sample(exp.seed, [key, im as u64, cell as u64, s], sobol);
-        if sobol {
-            acc.rep_now = Some(Stream::replicate_of(s));
-        }
+        acc.begin_sample(s);
         let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
         let t = backward::walk(
             &geometry,
@@ -366,9 +364,7 @@ fn backward_block<G: Geometry<W>, W: Adjoint + AtSensor>(
     let k = g.light().normalization;
     for s in range {
         let mut rng = stream(s);
-        if sobol {
-            acc.rep_now = Some(Stream::replicate_of(s));
-        }
+        acc.begin_sample(s);
         let t = match start(&mut rng) {
             Some((p0, d0)) => {
                 let w = W::at_sensor(d0, &frame_azimuth);

@@ -47,10 +47,9 @@ from pathlib import Path
 
 import numpy as np
 
-import disortpp as dpp
 import nanodisort as nd
 
-from generate import rpv_brf  # the RPV formula of the case E tables (same folder)
+from generate import rpv_brf, run_disortpp  # the case E tables' RPV formula and solver
 
 HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
@@ -136,57 +135,23 @@ def main():
     print(f"wrote {OUT} ({len(out)} rows)")
 
 
-def disortpp_rpv(tau, sza, rpv, umu, phis, nstr):
-    """Rayleigh layer over an RPV surface; returns (uu[level][mu][phi] at TOA and BOA,
-    diffuse downwelling flux at BOA)."""
-    cfg = dpp.DisortConfig(1, nstr, nstr)
-    cfg.flags.use_lambertian_surface = False
-    cfg.flags.use_user_tau = cfg.flags.use_user_mu = True
-    cfg.flags.comp_only_fluxes = False
-    cfg.flags.intensity_corr_buras = False
-    cfg.flags.intensity_corr_nakajima = False
-    cfg.flags.use_delta_m_plus = False
-    cfg.num_user_tau, cfg.num_user_mu, cfg.num_phi = 2, len(umu), len(phis)
-    cfg.flags.brdf_type = dpp.BrdfType.RPV
-    spec = dpp.RpvBrdfSpec()
-    spec.rho0, spec.k, spec.theta = rpv
-    spec.sigma = spec.t1 = spec.t2 = 0.0
-    spec.scale = 1.0
-    cfg.brdf.set_rpv(spec)
-    cfg.allocate()
-    cfg.delta_tau = [float(tau)]
-    cfg.single_scat_albedo = [1.0]
-    pm = np.zeros((1, nstr + 1))
-    pm[0, :nstr] = chi(None, nstr)
-    cfg.phase_function_moments = pm.tolist()
-    cfg.tau_user = [0.0, float(tau)]
-    cfg.mu_user = [float(u) for u in umu]
-    cfg.phi_user = [float(p) for p in phis]
-    cfg.bc.direct_beam_flux = 1.0
-    cfg.bc.direct_beam_mu = math.cos(math.radians(sza))
-    cfg.bc.direct_beam_phi = 0.0
-    cfg.bc.surface_albedo = 0.0
-    cfg.accuracy_fourier_series = 0.0
-    r = dpp.DisortSolver().solve(cfg)
-    return np.array(r.intensity), float(np.array(r.flux_down)[1])
-
-
 def hdrf_case(tau, sza, rpv, nstr):
     """{(raa, vza): HDRF} at the surface."""
     mu0 = math.cos(math.radians(sza))
     umu = np.sort(np.cos(np.radians(HDRF_VZA)))
     vza_sorted = np.degrees(np.arccos(umu))
     phis = [180.0 - r for r in HDRF_RAA]
-    uu, fdn = disortpp_rpv(tau, sza, rpv, umu, phis, nstr)
-    surf, _ = disortpp_rpv(1e-12, sza, rpv, umu, phis, nstr)
+    r = run_disortpp([(tau, 1.0, chi(None, nstr))], sza, umu, phis, nstr, rpv=rpv)
+    s = run_disortpp([(1e-12, 1.0, chi(None, nstr))], sza, umu, phis, nstr, rpv=rpv)
+    fdn = r["rfldn_boa"]
     e_down = mu0 * math.exp(-tau / mu0) + fdn
     out = {}
     for j, raa in enumerate(HDRF_RAA):
         # DisORT++'s Fourier reconstruction of the directly reflected beam (a bare surface),
         # replaced by the exact BRDF; in pi L / mu0 units, attenuated once at the surface.
-        s_v = np.pi * surf[0][:, j] / mu0
+        s_v = np.pi * s["uu_toa"][:, j] / mu0
         exact = rpv_brf(rpv[0], rpv[1], rpv[2], rpv[0], sza, vza_sorted, raa)
-        boa = np.pi * uu[1][:, j] / mu0 + (exact - s_v) * math.exp(-tau / mu0)
+        boa = np.pi * r["uu_boa"][:, j] / mu0 + (exact - s_v) * math.exp(-tau / mu0)
         for z, v in zip(vza_sorted, boa * mu0 / e_down):
             out[(raa, round(float(z), 6))] = float(v)
     return out

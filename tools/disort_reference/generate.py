@@ -216,7 +216,8 @@ def run_disortpp(layers, sza, umu, phis, nstr, albedo=0.0, rpv=None):
     cfg.bc.surface_albedo = albedo if rpv is None else 0.0
     cfg.accuracy_fourier_series = 0.0
     r = dpp.DisortSolver().solve(cfg)
-    return dict(uu_toa=np.array(r.intensity)[0], flup_toa=float(np.array(r.flux_up)[0]),
+    return dict(uu_toa=np.array(r.intensity)[0], uu_boa=np.array(r.intensity)[1],
+                flup_toa=float(np.array(r.flux_up)[0]),
                 rfldn_boa=float(np.array(r.flux_down)[1]))
 
 

@@ -298,27 +298,10 @@ pub fn build_scene(
                     };
                     (key.into(), m)
                 })?;
-            if !solvers.is_empty() {
-                let mut table = scene.solvers.clone();
-                table.resize(scene.materials.len(), bundle::SolverSpec::default());
-                for (name, spec) in solvers {
-                    let Some(id) = scene.materials.iter().position(|(n, _)| n == name) else {
-                        return Err((
-                            format!("scene.solvers.{name}"),
-                            format!(
-                                "material `{name}` is not in the bundle (its materials: {})",
-                                scene
-                                    .materials
-                                    .iter()
-                                    .map(|(n, _)| n.as_str())
-                                    .collect::<Vec<_>>()
-                                    .join(", ")
-                            ),
-                        ));
-                    };
-                    table[id] = *spec;
-                }
-                scene.set_solvers(table);
+            for (name, spec) in solvers {
+                scene
+                    .set_solver(name, *spec)
+                    .map_err(|m| (format!("scene.solvers.{name}"), m))?;
             }
             Ok(scene)
         }

@@ -240,9 +240,7 @@ pub fn run_block<W: Photon>(
     }
     for s in samples {
         let mut rng = Stream::for_sample(seed, [ids[0], ids[1], ids[2], s], sobol);
-        if sobol {
-            acc.rep_now = Some(Stream::replicate_of(s));
-        }
+        acc.begin_sample(s);
         if sun_shines {
             walk::<W>(
                 atmosphere,

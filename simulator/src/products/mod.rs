@@ -106,8 +106,16 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
         }
         let e0 = exp.optics[r.wavelength].irradiance;
         let to_rad = e0 * mu_s / std::f64::consts::PI;
-        // An HDRF's downwelling flux at its level (normalised by E0·cos SZA), from its last cell
-        // and the exact direct beam.
+        // The direct beam's downwelling flux at an altitude, exact, in the tally's units
+        // (E0·cos SZA); none without a Sun.
+        let direct_at = |z: f64| {
+            if sun_up {
+                crate::direct_flux::direct_transmittance(&exp.optics[r.wavelength], exp.sun_dir, z)
+            } else {
+                0.0
+            }
+        };
+        // An HDRF's downwelling flux at its level, from its last cell and the direct beam.
         let hdrf_flux = match &m.kind {
             MeasureKind::Hdrf {
                 directions,
@@ -115,16 +123,7 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 ..
             } => {
                 let (d, de) = r.acc.mean_stderr(directions.len(), 0);
-                let direct = if sun_up {
-                    crate::direct_flux::direct_transmittance(
-                        &exp.optics[r.wavelength],
-                        exp.sun_dir,
-                        *altitude,
-                    )
-                } else {
-                    0.0
-                };
-                Some((d + direct, de))
+                Some((d + direct_at(*altitude), de))
             }
             _ => None,
         };
@@ -171,15 +170,10 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 direction,
             } = m.kind
             {
-                // The walks estimate the scattered light; a downwelling flux adds the direct
-                // beam, exact (in the tally's units, E0·cos SZA).
+                // The walks estimate the scattered light; a downwelling flux adds the direct beam.
                 let direct = match direction {
-                    FluxDirection::Down if sun_up => crate::direct_flux::direct_transmittance(
-                        &exp.optics[r.wavelength],
-                        exp.sun_dir,
-                        altitude,
-                    ),
-                    _ => 0.0,
+                    FluxDirection::Down => direct_at(altitude),
+                    FluxDirection::Up => 0.0,
                 };
                 if sun_up {
                     row.albedo = Some((t + direct, te));

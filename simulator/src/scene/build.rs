@@ -88,19 +88,8 @@ pub fn from_bundle(
     for (name, spec) in overrides {
         spec.validate()
             .map_err(|e| format!("material `{name}` (override): {e}"))?;
-        match materials.iter_mut().find(|(n, _)| n == name) {
-            Some(slot) => slot.1 = spec.clone(),
-            None => {
-                return Err(format!(
-                    "material `{name}` is not in the bundle (its materials: {})",
-                    materials
-                        .iter()
-                        .map(|(n, _)| n.as_str())
-                        .collect::<Vec<_>>()
-                        .join(", ")
-                ))
-            }
-        }
+        let id = super::world::material_id(&materials, name)?;
+        materials[id].1 = spec.clone();
     }
     let mut tex = Vec::new();
     let mut texture_of: Vec<Option<usize>> = vec![None; materials.len()];

@@ -132,6 +132,23 @@ pub struct SurfaceHit {
     pub terrain: bool,
 }
 
+/// The id of the material named `name` in a scene's table, or an error listing the table.
+pub fn material_id(materials: &[(String, BrdfSpec)], name: &str) -> Result<usize, String> {
+    materials
+        .iter()
+        .position(|(n, _)| n == name)
+        .ok_or_else(|| {
+            format!(
+                "material `{name}` is not in the bundle (its materials: {})",
+                materials
+                    .iter()
+                    .map(|(n, _)| n.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )
+        })
+}
+
 /// Georeferencing of a scene built from a bundle.
 #[derive(Clone, Debug)]
 pub struct Georef {
@@ -149,11 +166,12 @@ pub struct Scene {
     pub ground: Option<GroundPlane>,
     /// (name, model) per material id.
     pub materials: Vec<(String, BrdfSpec)>,
-    /// The radiometry solver per material id (`integrator/solver.rs`); set with
-    /// [`Scene::set_solvers`], which keeps [`Scene::has_null`] in step.
-    pub solvers: Vec<bundle::SolverSpec>,
+    /// The radiometry solver per material id (`integrator/solver.rs`; missing ids: the
+    /// default); set only through [`Scene::set_solvers`] and [`Scene::set_solver`], which keep
+    /// `has_null` in step.
+    pub(super) solvers: Vec<bundle::SolverSpec>,
     /// Whether a material is `null` (pass-through): shadow rays then skip such surfaces.
-    pub has_null: bool,
+    pub(super) has_null: bool,
     pub georef: Option<Georef>,
     /// Horizontal extent of the scene's content [xmin, ymin, xmax, ymax] (local frame), m.
     pub extent: [f64; 4],
@@ -421,6 +439,17 @@ impl Scene {
             .iter()
             .any(|s| matches!(s, bundle::SolverSpec::Null {}));
         self.solvers = solvers;
+    }
+
+    /// Give the material named `name` the solver `spec` (an error names the scene's materials
+    /// when there is no such material).
+    pub fn set_solver(&mut self, name: &str, spec: bundle::SolverSpec) -> Result<(), String> {
+        let id = material_id(&self.materials, name)?;
+        let mut table = std::mem::take(&mut self.solvers);
+        table.resize(self.materials.len(), bundle::SolverSpec::default());
+        table[id] = spec;
+        self.set_solvers(table);
+        Ok(())
     }
 
     /// Occlusion that looks through `null` materials: closest hits, stepping past each null
