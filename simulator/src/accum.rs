@@ -49,6 +49,13 @@ pub struct Accum {
 /// Independent scramblings per cell in quasi-random runs (see [`Accum::rep_sum`]).
 pub const REPLICATES: usize = 16;
 
+/// The replicate of sample `s` of a cell in quasi-random runs (`rng.rs` scrambles each
+/// replicate's points on their own).
+#[inline]
+pub fn replicate_of(s: u64) -> usize {
+    (s % REPLICATES as u64) as usize
+}
+
 /// Heavy-tail diagnostic of one cell (see [`Accum::tail`]).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Tail {
@@ -124,7 +131,7 @@ impl Accum {
     #[inline]
     pub fn begin_sample(&mut self, s: u64) {
         if !self.rep_n.is_empty() {
-            self.rep_now = Some(crate::rng::Stream::replicate_of(s));
+            self.rep_now = Some(replicate_of(s));
         }
     }
 

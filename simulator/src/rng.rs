@@ -95,7 +95,10 @@ impl Stream {
         if sobol {
             // Replicate r = s mod R is its own scrambled sequence of the points j = s div R,
             // so the replicates' means are independent (`accum.rs`).
-            let (r, j) = (ids[3] % REPLICATES, ids[3] / REPLICATES);
+            let (r, j) = (
+                crate::accum::replicate_of(ids[3]) as u64,
+                ids[3] / REPLICATES,
+            );
             let seq = j / QMC_POINTS;
             let h = mix64(
                 seed ^ mix64(ids[0] ^ mix64(ids[1] ^ mix64(ids[2] ^ mix64(seq ^ (r << 48))))),
@@ -105,12 +108,6 @@ impl Stream {
             s.qmc_seed = h as u32;
         }
         s
-    }
-
-    /// The replicate of sample `s` of a cell in quasi-random runs.
-    #[inline]
-    pub fn replicate_of(s: u64) -> usize {
-        (s % REPLICATES) as usize
     }
 
     /// A quasi-random draw: the Sobol coordinate (24 bits) plus Philox bits below them, so the
@@ -193,7 +190,7 @@ mod tests {
             for s in 0..n {
                 let mut st = Stream::for_sample(9, [0, 0, cell, s], true);
                 let mut ps = Stream::for_sample(9, [0, 0, cell, s], false);
-                let rep = Stream::replicate_of(s);
+                let rep = crate::accum::replicate_of(s);
                 for (d, bin) in bins[rep].iter_mut().enumerate() {
                     let u = st.next_f64();
                     assert!((0.0..1.0).contains(&u));
