@@ -260,7 +260,22 @@ impl Accum {
         if m2 <= 1e-12 * s2 {
             return None;
         }
-        let m4 = s4 - 4.0 * m * s3 + 6.0 * m * m * s2 - 3.0 * nf * m.powi(4);
+        let terms = [s4, -4.0 * m * s3, 6.0 * m * m * s2, -3.0 * nf * m.powi(4)];
+        let m4: f64 = terms.iter().sum();
+        // The raw-moment form cancels: its rounding error (~ε·Σ|terms|) must stay well below
+        // the m2² it is compared with, or the ratio is noise (near-deterministic estimators,
+        // e.g. thermal emission where a few walks reach a thin scattering layer, relative
+        // sample spread 1e-6: a vov of 1 from rounding alone).
+        let rounding = 16.0 * f64::EPSILON * terms.iter().map(|t| t.abs()).sum::<f64>();
+        if rounding > 1e-3 * m2 * m2 {
+            return None;
+        }
+        // A standard error below 1e-5 of the mean: even if a rare walk carried it all (a vov
+        // of 1: one walk of n differs, e.g. the few that reach a thin scattering layer under
+        // an opaque band), the estimate is settled far below any digit reported.
+        if m2 / (nf * nf) < 1e-10 * m * m {
+            return None;
+        }
         let vov = (m4.max(0.0) / (m2 * m2) - 1.0 / nf).max(0.0);
         let max_share = if s1.abs() > 0.0 {
             self.max[cell] / s1.abs()

@@ -104,6 +104,15 @@ fn run_block_alis(
     let weights: Vec<f64> = base.g_states.iter().map(|(w, _)| *w).collect();
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         base.g_states.iter().map(|(_, o)| &o.atmosphere).collect();
+    let surface_emission: Vec<&crate::bsdf::SurfaceEmission> = base
+        .g_states
+        .iter()
+        .filter_map(|(_, o)| o.surface_emission.as_ref())
+        .collect();
+    assert!(
+        surface_emission.is_empty() || surface_emission.len() == atms.len(),
+        "every g-point's surface emits, or none"
+    );
     let g = Channels {
         atms: &atms,
         reference: &base.atmosphere,
@@ -111,6 +120,7 @@ fn run_block_alis(
         kind: Kind::GPoints {
             weights: &weights,
             surface: &base.surface,
+            surface_emission: &surface_emission,
         },
     };
     channel_walks(exp, &g, iw as u64, im, cell, range)
@@ -128,7 +138,7 @@ fn channel_walks(
 ) -> Accum {
     let m = &exp.measures[im];
     let toa = g.reference.toa();
-    let geometry = ReferenceLayers::new(g, exp.sun_dir);
+    let geometry = ReferenceLayers::new(g, exp.sun_dir).with_sun_shining(exp.sun_shines);
     let k = Geometry::<ChannelPath>::light(&geometry).normalization;
     let mut acc = Accum::new(g.outputs());
     let sobol = exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol;

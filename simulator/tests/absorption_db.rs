@@ -403,7 +403,7 @@ fn bad_absorption_input_is_named() {
 /// RRTMGP's shortwave k-distribution in runs (`absorption_data` = the RRTMGP gas-optics file):
 /// each wavelength takes the g-points of the RRTMGP band holding it, weighted by the band's
 /// solar source; over a white surface under an absorbing-only US standard atmosphere the run
-/// equals Σ_g w_g exp(−τ_g(1/μ0 + 1/μv)) with the column τ_g from `RrtmgpSw` (whose kernels are
+/// equals Σ_g w_g exp(−τ_g(1/μ0 + 1/μv)) with the column τ_g from `Rrtmgp` (whose kernels are
 /// tested in `absorption::rrtmgp` against the v0 file and published columns). A sensor band is
 /// sampled every `wavelength_step` nm (RRTMGP bands are wider than sensor bands).
 #[test]
@@ -411,7 +411,7 @@ fn rrtmgp_run_equals_the_closed_form() {
     let Some(file) = shared("ckd/rrtmgp/rrtmgp-gas-sw-g224.nc") else {
         return;
     };
-    let rr = simulator::absorption::RrtmgpSw::open(&file).unwrap();
+    let rr = simulator::absorption::Rrtmgp::open(&file).unwrap();
     let thermo =
         simulator::atmosphere::thermo::load("afgl_1986-us_standard", Path::new(".")).unwrap();
     let grid: Vec<(f64, f64)> = (0..100)
@@ -426,7 +426,7 @@ fn rrtmgp_run_equals_the_closed_form() {
             .position(|&(lo, hi)| lo <= w && w < hi)
             .unwrap();
         let taus = rr.layer_optical_thickness(&thermo.gas, &grid, b).unwrap();
-        let weights = rr.solar_weights(b);
+        let weights = rr.solar_weights(b).unwrap();
         let mut out = [0.0; 2];
         for (t, wg) in taus.iter().zip(&weights) {
             let tau: f64 = t.iter().sum();

@@ -118,8 +118,27 @@ pub struct GasLayers<'a> {
     pub wavelengths: &'a [f64],
 }
 
-/// A g-point: its quadrature weight and the gas absorption optical thickness of each layer.
-pub type GPoint = (f64, Vec<f64>);
+/// A g-point: its quadrature weight, the gas absorption optical thickness of each layer and,
+/// from a longwave k-distribution, the factor on each layer's Planck source for this g-point,
+/// `pfrac_g(layer)/w_g` (pfrac: the g-point's share of the band's thermal emission,
+/// `absorption::rrtmgp`; w_g the band quadrature weight, even when `spectral.g_point` runs one
+/// g-point with weight 1). The surface takes the lowest layer's factor.
+#[derive(Clone, Debug)]
+pub struct GPoint {
+    pub weight: f64,
+    pub tau: Vec<f64>,
+    pub planck_scale: Option<Vec<f64>>,
+}
+
+impl GPoint {
+    fn new(weight: f64, tau: Vec<f64>) -> Self {
+        GPoint {
+            weight,
+            tau,
+            planck_scale: None,
+        }
+    }
+}
 
 const KEY: &str = "atmosphere.absorption_data";
 
@@ -194,7 +213,7 @@ pub fn resolve_ckd(
                 let taus = cols
                     .layer_tau(&db, SpectralPoint::Ckd { bin, g: gv }, bounds)
                     .map_err(|m| ctx.err(KEY, format!("{} nm bin, g = {gv:.4}: {m}", wl)))?;
-                per_g.push((if g_point.is_some() { 1.0 } else { w }, taus));
+                per_g.push(GPoint::new(if g_point.is_some() { 1.0 } else { w }, taus));
             }
             out.push(per_g);
         }
@@ -207,9 +226,12 @@ pub fn resolve_ckd(
         ));
     }
     if is_rrtmgp(file) {
-        let rr = super::RrtmgpSw::open(file).map_err(|e| ctx.err(KEY, e.to_string()))?;
+        let rr = crate::file_cache::cached(file, "", || super::Rrtmgp::open(file))
+            .map_err(|e| ctx.err(KEY, e.to_string()))?;
+        let longwave = rr.has_planck_fractions();
         let bands = rr.bands_nm();
-        let mut cache: Vec<Option<Vec<Vec<f64>>>> = vec![None; bands.len()];
+        type BandOptics = (Vec<Vec<f64>>, Option<Vec<Vec<f64>>>);
+        let mut cache: Vec<Option<BandOptics>> = vec![None; bands.len()];
         let mut out = Vec::with_capacity(wavelengths.len());
         for (iw, &wl) in wavelengths.iter().enumerate() {
             let band = bands
@@ -218,18 +240,45 @@ pub fn resolve_ckd(
                 .ok_or_else(|| no_bin(iw, wl, bands[0].0, bands[bands.len() - 1].1))?;
             if cache[band].is_none() {
                 cache[band] = Some(
-                    rr.layer_optical_thickness(at.gas, grid, band)
+                    rr.layer_optics(at.gas, grid, band, longwave)
                         .map_err(|e| ctx.err(KEY, e.to_string()))?,
                 );
             }
-            let taus = cache[band].as_ref().expect("filled above");
-            let weights = rr.solar_weights(band);
+            let (taus, pfrac) = cache[band].as_ref().expect("filled above");
+            // Shortwave: the band's solar source per g-point. Longwave: the Planck fractions
+            // of the lowest layer (RRTMGP's surface source), normalised over the band, so
+            // that each g-point's thermal source B·pfrac_g/w_g is B at the surface.
+            let weights = match pfrac {
+                Some(pf) => {
+                    let bottom: Vec<f64> = pf
+                        .iter()
+                        .map(|p| p.first().copied().unwrap_or(0.0))
+                        .collect();
+                    let sum: f64 = bottom.iter().sum();
+                    if !(sum > 0.0) {
+                        return Err(ctx.err(
+                            KEY,
+                            format!("{}: the Planck fractions of the band holding {wl} nm sum to {sum} in the lowest layer", file.display()),
+                        ));
+                    }
+                    bottom.iter().map(|p| p / sum).collect()
+                }
+                None => rr
+                    .solar_weights(band)
+                    .expect("a shortwave file has a solar source"),
+            };
             out.push(
                 pick(taus.len())?
                     .into_iter()
-                    .map(|g| {
-                        let w = if g_point.is_some() { 1.0 } else { weights[g] };
-                        (w, taus[g].iter().map(|t| t.max(0.0)).collect())
+                    .map(|g| GPoint {
+                        weight: if g_point.is_some() { 1.0 } else { weights[g] },
+                        tau: taus[g].iter().map(|t| t.max(0.0)).collect(),
+                        planck_scale: pfrac.as_ref().map(|pf| {
+                            pf[g]
+                                .iter()
+                                .map(|p| p / weights[g].max(f64::MIN_POSITIVE))
+                                .collect()
+                        }),
                     })
                     .collect(),
             );
@@ -275,7 +324,7 @@ pub fn resolve_ckd(
                         .map_err(|e| ctx.err(KEY, e.to_string()))
                 })
                 .collect::<Result<Vec<f64>, _>>()?;
-            per_g.push((w, taus));
+            per_g.push(GPoint::new(w, taus));
         }
         out.push(per_g);
     }

@@ -34,7 +34,7 @@ pub use axsdb::{
 };
 pub use eradiate_v0::{EradiateV0Ckd, V0Bin, V0Interpolation};
 pub use profile::{integrate_piecewise_linear, AtmosphereProfile, ProfileLevel};
-pub use rrtmgp::RrtmgpSw;
+pub use rrtmgp::Rrtmgp;
 
 /// Every failure of the absorption readers. Each variant names the file and the variable,
 /// coordinate or value at fault.

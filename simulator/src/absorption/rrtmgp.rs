@@ -110,9 +110,9 @@
 //!
 //! ## Band order
 //! The file lists bands in ascending wavenumber; this API numbers them in **ascending
-//! wavelength** (band 0 = 200–263 nm … band 13 = 3.73–12.2 µm). [`RrtmgpSw::gpoints_of_band`]
+//! wavelength** (band 0 = 200–263 nm … band 13 = 3.73–12.2 µm). [`Rrtmgp::gpoints_of_band`]
 //! gives the file's (0-based) g-point indices of a band; per-g-point results of a band
-//! ([`RrtmgpSw::solar_weights`], [`RrtmgpSw::layer_optical_thickness`]) are in the file's
+//! ([`Rrtmgp::solar_weights`], [`Rrtmgp::layer_optical_thickness`]) are in the file's
 //! g-point order within the band (roughly increasing absorption).
 
 use std::ops::Range;
@@ -161,7 +161,7 @@ struct MinorSet {
 
 /// RRTMGP shortwave k-distribution (see the module header).
 #[derive(Clone, Debug)]
-pub struct RrtmgpSw {
+pub struct Rrtmgp {
     path: String,
     /// Band limits [cm⁻¹], file order (ascending wavenumber).
     band_wavenumber: Vec<(f64, f64)>,
@@ -190,7 +190,27 @@ pub struct RrtmgpSw {
     /// kmajor[t][p (npres + 1)][eta][gpt].
     kmajor: Vec<f64>,
     minor: [MinorSet; 2],
-    solar_quiet: Vec<f64>,
+    /// Shortwave files: `solar_source_quiet` per g-point.
+    solar_quiet: Option<Vec<f64>>,
+    /// Longwave files: `plank_fraction`[t][p (npres + 1)][eta][gpt].
+    planck_fraction: Option<Vec<f64>>,
+}
+
+/// Where a sub-layer falls in the tables of one band (RRTMGP's `interpolation` outputs).
+#[derive(Clone, Copy, Debug)]
+struct Interp {
+    /// 0 lower, 1 upper atmosphere.
+    part: usize,
+    /// Temperature index and the weights of nodes jt, jt + 1.
+    jt: usize,
+    wt: [f64; 2],
+    /// First `pressure_interp` index and the weight of the second.
+    pbase: usize,
+    fp: f64,
+    /// Per temperature node: the key gases' combined column, η index and η weight.
+    col_mix: [f64; 2],
+    je: [usize; 2],
+    fe: [f64; 2],
 }
 
 /// The state of one sub-layer.
@@ -204,9 +224,9 @@ struct SubLayer {
     col: Vec<f64>,
 }
 
-impl RrtmgpSw {
+impl Rrtmgp {
     /// Read the k-distribution file (errors name the file and the variable).
-    pub fn open(path: &Path) -> Result<RrtmgpSw> {
+    pub fn open(path: &Path) -> Result<Rrtmgp> {
         let _session = crate::netcdf_session();
         let ps = path.display().to_string();
         let file = open_nc(path)?;
@@ -314,7 +334,10 @@ impl RrtmgpSw {
         }
         dims_of("bnd_limits_gpt", &["bnd", "pair"])?;
         let bg = ints("bnd_limits_gpt")?;
-        let ngpt = dims_of("solar_source_quiet", &["gpt"])?[0];
+        let ngpt = file
+            .dimension("gpt")
+            .map(|d| d.len())
+            .ok_or_else(|| fmt("gpt", "the file has no `gpt` dimension".into()))?;
         let mut band_gpts = Vec::with_capacity(nbnd);
         let mut next = 0;
         for c in bg.chunks(2) {
@@ -552,17 +575,52 @@ impl RrtmgpSw {
         let upper = minor.pop().expect("two parts");
         let lower = minor.pop().expect("two parts");
 
-        let solar_quiet = values("solar_source_quiet", true)?;
-        for (b, r) in band_gpts.iter().enumerate() {
-            if solar_quiet[r.clone()].iter().sum::<f64>() <= 0.0 {
-                return Err(fmt(
-                    "solar_source_quiet",
-                    format!("band {} (file order) has no solar irradiance", b + 1),
-                ));
+        // The shortwave file has the solar source, the longwave file the Planck fractions.
+        let solar_quiet = match file.variable("solar_source_quiet") {
+            None => None,
+            Some(_) => {
+                if dims_of("solar_source_quiet", &["gpt"])?[0] != ngpt {
+                    return Err(fmt("solar_source_quiet", format!("expected {ngpt} values")));
+                }
+                let s = values("solar_source_quiet", true)?;
+                for (b, r) in band_gpts.iter().enumerate() {
+                    if s[r.clone()].iter().sum::<f64>() <= 0.0 {
+                        return Err(fmt(
+                            "solar_source_quiet",
+                            format!("band {} (file order) has no solar irradiance", b + 1),
+                        ));
+                    }
+                }
+                Some(s)
             }
+        };
+        let planck_fraction = match file.variable("plank_fraction") {
+            None => None,
+            Some(_) => {
+                let d = dims_of(
+                    "plank_fraction",
+                    &["temperature", "pressure_interp", "mixing_fraction", "gpt"],
+                )?;
+                if d != [ntemp, npres + 1, neta, ngpt] {
+                    return Err(fmt(
+                        "plank_fraction",
+                        format!(
+                            "shape {d:?}, expected [{ntemp}, {}, {neta}, {ngpt}] (as `kmajor`)",
+                            npres + 1
+                        ),
+                    ));
+                }
+                Some(values("plank_fraction", true)?)
+            }
+        };
+        if solar_quiet.is_none() && planck_fraction.is_none() {
+            return Err(fmt(
+                "solar_source_quiet",
+                "the file has neither a solar source (`solar_source_quiet`, shortwave) nor Planck fractions (`plank_fraction`, longwave)".into(),
+            ));
         }
 
-        Ok(RrtmgpSw {
+        Ok(Rrtmgp {
             path: ps,
             band_wavenumber,
             band_gpts,
@@ -584,6 +642,7 @@ impl RrtmgpSw {
             kmajor,
             minor: [lower, upper],
             solar_quiet,
+            planck_fraction,
         })
     }
 
@@ -634,11 +693,17 @@ impl RrtmgpSw {
 
     /// Per g-point of `band`: the file's quiet-sun irradiance (`solar_source_quiet`, NRLSSI2)
     /// normalised to sum 1 over the band — the quadrature weights of a solar-weighted band
-    /// mean, e.g. the band transmittance Σ_g w_g exp(−τ_g). Panics if `band` is out of range.
-    pub fn solar_weights(&self, band: usize) -> Vec<f64> {
-        let s = &self.solar_quiet[self.gpoints_of_band(band)];
+    /// mean, e.g. the band transmittance Σ_g w_g exp(−τ_g). None for a longwave file (it has
+    /// no solar source). Panics if `band` is out of range.
+    pub fn solar_weights(&self, band: usize) -> Option<Vec<f64>> {
+        let s = &self.solar_quiet.as_ref()?[self.gpoints_of_band(band)];
         let sum: f64 = s.iter().sum();
-        s.iter().map(|v| v / sum).collect()
+        Some(s.iter().map(|v| v / sum).collect())
+    }
+
+    /// Whether the file carries Planck fractions (a longwave file).
+    pub fn has_planck_fractions(&self) -> bool {
+        self.planck_fraction.is_some()
     }
 
     /// Gas absorption optical thickness of each layer for every g-point of `band` (ascending
@@ -652,27 +717,82 @@ impl RrtmgpSw {
         layers: &[(f64, f64)],
         band: usize,
     ) -> Result<Vec<Vec<f64>>> {
+        Ok(self.layer_optics(prof, layers, band, false)?.0)
+    }
+
+    /// [`Self::layer_optical_thickness`] and, for a longwave file, the **Planck fraction** of
+    /// every g-point of `band` in each layer, `pfrac[g][layer]`: the share of the band's Planck
+    /// emission that g-point carries (RRTMGP's `compute_Planck_source`: `plank_fraction`
+    /// interpolated with the major-gas weights in T, p and η, without the column scaling).
+    /// A layer made of several sub-layers takes their mean weighted by each sub-layer's τ_g
+    /// (their plain mean where τ_g is 0 in all of them), so the layer's optically thin emission
+    /// Σ τ_g·pfrac_g is that of its sub-layers. None for a shortwave file.
+    #[allow(clippy::type_complexity)]
+    pub fn layer_optics(
+        &self,
+        prof: &AtmosphereProfile,
+        layers: &[(f64, f64)],
+        band: usize,
+        planck: bool,
+    ) -> Result<(Vec<Vec<f64>>, Option<Vec<Vec<f64>>>)> {
         let fb = self.file_band(band)?;
         let subs = self.sublayers(prof, layers)?;
         let gpts = self.band_gpts[fb].clone();
-        let mut out = vec![vec![0.0; layers.len()]; gpts.len()];
-        let mut tau = vec![0.0; gpts.len()];
+        let ng = gpts.len();
+        let mut out = vec![vec![0.0; layers.len()]; ng];
+        let mut tau = vec![0.0; ng];
+        let pf_table = if planck {
+            self.planck_fraction.as_ref()
+        } else {
+            None
+        };
+        // Per g-point and layer: Σ τ·pfrac, Σ pfrac, sub-layer count.
+        let mut pf_tau = vec![vec![0.0; layers.len()]; ng];
+        let mut pf_sum = vec![vec![0.0; layers.len()]; ng];
+        let mut pf_n = vec![0usize; layers.len()];
+        let mut pf = vec![0.0; ng];
         for s in &subs {
             tau.iter_mut().for_each(|t| *t = 0.0);
-            self.add_tau(fb, s, &mut tau);
+            let at = self.interpolation(fb, s);
+            self.add_tau(fb, s, &at, &mut tau);
             for (o, t) in out.iter_mut().zip(&tau) {
                 o[s.layer] += t;
             }
+            if let Some(table) = pf_table {
+                pf.iter_mut().for_each(|x| *x = 0.0);
+                self.add_major(fb, &at, table, false, &mut pf);
+                pf_n[s.layer] += 1;
+                for g in 0..ng {
+                    pf_tau[g][s.layer] += tau[g].max(0.0) * pf[g];
+                    pf_sum[g][s.layer] += pf[g];
+                }
+            }
         }
-        Ok(out)
+        let pfrac = pf_table.map(|_| {
+            (0..ng)
+                .map(|g| {
+                    (0..layers.len())
+                        .map(|l| {
+                            if out[g][l] > 0.0 {
+                                pf_tau[g][l] / out[g][l]
+                            } else if pf_n[l] > 0 {
+                                pf_sum[g][l] / pf_n[l] as f64
+                            } else {
+                                0.0
+                            }
+                        })
+                        .collect()
+                })
+                .collect()
+        });
+        Ok((out, pfrac))
     }
 
-    /// Add the absorption optical thickness of sub-layer `s` for the g-points of file band `fb`
-    /// to `tau` (indexed from the band's first g-point).
-    fn add_tau(&self, fb: usize, s: &SubLayer, tau: &mut [f64]) {
+    /// The interpolation state of sub-layer `s` in file band `fb` (RRTMGP's `interpolation`).
+    fn interpolation(&self, fb: usize, s: &SubLayer) -> Interp {
         let ntemp = self.temp_ref.len();
         let ngas1 = self.gas_names.len() + 1;
-        let (neta, ngpt, np1) = (self.neta, self.ngpt, self.npres + 1);
+        let neta = self.neta;
         let part = if s.p > self.press_ref_trop { 0 } else { 1 };
         // Temperature: clamped, index jt ∈ [0, ntemp − 2], weight ft ∈ [0, 1].
         let tc = s.t.clamp(self.temp_ref[0], self.temp_ref[ntemp - 1]);
@@ -697,7 +817,6 @@ impl RrtmgpSw {
         } else if part == 1 && jp < self.itrop {
             (jp, fp) = (self.itrop, 0.0);
         }
-        let pbase = jp + part;
         let [g1, g2] = self.flavor[fb][part];
         let vref = |t: usize, g: usize| self.vmr_ref[(t * ngas1 + g) * 2 + part];
         // Per temperature node: col_mix, eta index and weight.
@@ -717,34 +836,71 @@ impl RrtmgpSw {
             je[it] = (loc.floor() as usize).min(neta - 2);
             fe[it] = (loc - je[it] as f64).clamp(0.0, 1.0);
         }
-        let wt = [1.0 - ft, ft];
-        let gpts = self.band_gpts[fb].clone();
-        let g0 = gpts.start;
+        Interp {
+            part,
+            jt,
+            wt: [1.0 - ft, ft],
+            pbase: jp + part,
+            fp,
+            col_mix,
+            je,
+            fe,
+        }
+    }
 
-        // Major absorbers.
+    /// Add the trilinear interpolation (T, p, η at each T node) of a major table
+    /// (`kmajor` or `plank_fraction`, both [t][p][η][gpt]) for the g-points of file band `fb`
+    /// to `out`; with `scaled`, each temperature node's term times its `col_mix` (absorption),
+    /// without it plain weights (Planck fractions).
+    fn add_major(&self, fb: usize, at: &Interp, table: &[f64], scaled: bool, out: &mut [f64]) {
+        let (neta, ngpt, np1) = (self.neta, self.ngpt, self.npres + 1);
+        let gpts = self.band_gpts[fb].clone();
         for it in 0..2 {
-            if col_mix[it] <= 0.0 || wt[it] == 0.0 {
+            let scale = if scaled {
+                at.col_mix[it] * at.wt[it]
+            } else {
+                at.wt[it]
+            };
+            if (scaled && at.col_mix[it] <= 0.0) || at.wt[it] == 0.0 {
                 continue;
             }
-            let t = jt + it;
-            let scale = col_mix[it] * wt[it];
-            for (ip, wp) in [(0, 1.0 - fp), (1, fp)] {
+            let t = at.jt + it;
+            for (ip, wp) in [(0, 1.0 - at.fp), (1, at.fp)] {
                 if wp == 0.0 {
                     continue;
                 }
-                for (ie, we) in [(0, 1.0 - fe[it]), (1, fe[it])] {
+                for (ie, we) in [(0, 1.0 - at.fe[it]), (1, at.fe[it])] {
                     let w = scale * wp * we;
                     if w == 0.0 {
                         continue;
                     }
-                    let base = ((t * np1 + pbase + ip) * neta + je[it] + ie) * ngpt;
-                    let k = &self.kmajor[base + gpts.start..base + gpts.end];
-                    for (tg, kg) in tau.iter_mut().zip(k) {
+                    let base = ((t * np1 + at.pbase + ip) * neta + at.je[it] + ie) * ngpt;
+                    let k = &table[base + gpts.start..base + gpts.end];
+                    for (tg, kg) in out.iter_mut().zip(k) {
                         *tg += w * kg;
                     }
                 }
             }
         }
+    }
+
+    /// Add the absorption optical thickness of sub-layer `s` (interpolation state `at`) for the
+    /// g-points of file band `fb` to `tau` (indexed from the band's first g-point).
+    fn add_tau(&self, fb: usize, s: &SubLayer, at: &Interp, tau: &mut [f64]) {
+        let neta = self.neta;
+        let Interp {
+            part,
+            jt,
+            wt,
+            je,
+            fe,
+            ..
+        } = *at;
+        let gpts = self.band_gpts[fb].clone();
+        let g0 = gpts.start;
+
+        // Major absorbers.
+        self.add_major(fb, at, &self.kmajor, true, tau);
 
         // Minor absorbers of this part that act in this band.
         let set = &self.minor[part];
@@ -993,9 +1149,9 @@ mod tests {
     /// Molecules m⁻² per Dobson unit.
     const DU: f64 = 2.6867e20;
 
-    fn open() -> Option<RrtmgpSw> {
+    fn open() -> Option<Rrtmgp> {
         let p = shared("ckd/rrtmgp/rrtmgp-gas-sw-g224.nc")?;
-        Some(RrtmgpSw::open(&p).unwrap())
+        Some(Rrtmgp::open(&p).unwrap())
     }
 
     /// The embedded AFGL-1986 US-standard profile (50 levels 0–120 km; H2O, O3, N2O, CO, CH4,
@@ -1023,7 +1179,7 @@ mod tests {
     }
 
     /// Vertical column optical thickness per g-point of `band`.
-    fn column_tau(rr: &RrtmgpSw, prof: &AtmosphereProfile, band: usize) -> Vec<f64> {
+    fn column_tau(rr: &Rrtmgp, prof: &AtmosphereProfile, band: usize) -> Vec<f64> {
         rr.layer_optical_thickness(prof, &level_layers(prof), band)
             .unwrap()
             .iter()
@@ -1032,8 +1188,9 @@ mod tests {
     }
 
     /// Solar-weighted band transmittance Σ_g w_g exp(−τ_g) of the vertical column.
-    fn band_transmittance(rr: &RrtmgpSw, prof: &AtmosphereProfile, band: usize) -> f64 {
+    fn band_transmittance(rr: &Rrtmgp, prof: &AtmosphereProfile, band: usize) -> f64 {
         rr.solar_weights(band)
+            .unwrap()
             .iter()
             .zip(column_tau(rr, prof, band))
             .map(|(w, t)| w * (-t).exp())
@@ -1071,7 +1228,7 @@ mod tests {
             let r = rr.gpoints_of_band(b);
             assert_eq!(r.len(), 16);
             r.for_each(|g| covered[g] += 1);
-            let w = rr.solar_weights(b);
+            let w = rr.solar_weights(b).unwrap();
             assert_eq!(w.len(), 16);
             assert!(w.iter().all(|&w| w >= 0.0));
             let s: f64 = w.iter().sum();

@@ -321,9 +321,9 @@ fn layer_temperature(
 
 impl AtmosphereConfig {
     /// The layers' temperatures for thermal emission (`emission = true`): one entry per layer
-    /// of a homogeneous or layered atmosphere, none without an atmosphere. Errors name the
-    /// missing or bad key; a molecular atmosphere's temperatures (from its profile) are not
-    /// built yet and are refused at `atmosphere.type`.
+    /// of a homogeneous or layered atmosphere, one per computational layer of a molecular one
+    /// (its profile's temperatures at the layer boundaries), none without an atmosphere.
+    /// Errors name the missing or bad key.
     pub fn temperatures(
         &self,
         ctx: &ConfigCtx,
@@ -370,12 +370,53 @@ impl AtmosphereConfig {
                     })
                 })
                 .collect(),
-            AtmosphereConfig::Molecular { .. } => Err(ctx.err(
-                "atmosphere.type",
-                "thermal emission (`emission = true`) with a molecular atmosphere is not built yet: use a homogeneous or layered atmosphere with temperatures",
-            )),
+            AtmosphereConfig::Molecular {
+                profile,
+                layer_thickness,
+                ..
+            } => {
+                // The profile's temperatures (linear in altitude between its levels) at the
+                // boundaries of every computational layer: the source is linear in optical
+                // depth inside each (the DISORT convention at computational levels).
+                let thermo = super::thermo::load(profile, ctx.base)
+                    .map_err(|m| ctx.err("atmosphere.profile", m))?;
+                let gas = &thermo.gas;
+                let t_at = |z: f64| -> f64 {
+                    let zs = &gas.altitude_m;
+                    let n = zs.len();
+                    let i = zs.partition_point(|&x| x <= z).clamp(1, n - 1) - 1;
+                    let f = ((z - zs[i]) / (zs[i + 1] - zs[i])).clamp(0.0, 1.0);
+                    gas.temperature_k[i] + f * (gas.temperature_k[i + 1] - gas.temperature_k[i])
+                };
+                if gas.altitude_m.len() < 2 {
+                    return Err(ctx.err("atmosphere.profile", "needs at least 2 levels"));
+                }
+                let dz = ctx.finite("atmosphere.layer_thickness", *layer_thickness)? * 1e3;
+                Ok(layer_grid(geometry.ground, geometry.toa, dz)
+                    .into_iter()
+                    .map(|(bottom, top)| LayerTemperature {
+                        bottom,
+                        top,
+                        t_bottom: t_at(bottom),
+                        t_top: t_at(top),
+                    })
+                    .collect())
+            }
         }
     }
+}
+
+/// The computational layers (bottom, top) \[m\] of a `molecular` atmosphere: `dz` thick from
+/// `ground` up, the last one ending at `toa`.
+fn layer_grid(ground: f64, toa: f64, dz: f64) -> Vec<(f64, f64)> {
+    let mut grid = Vec::new();
+    let mut z = ground;
+    while z < toa - 1e-6 && dz > 0.0 {
+        let top = (z + dz).min(toa);
+        grid.push((z, top));
+        z = top;
+    }
+    grid
 }
 
 /// The resolved atmosphere: per run wavelength, its layers (bottom and top in m), and in CKD
@@ -503,13 +544,7 @@ impl AtmosphereConfig {
                         ),
                     ));
                 }
-                let mut grid = Vec::new();
-                let mut z = ground;
-                while z < toa - 1e-6 {
-                    let top = (z + dz).min(toa);
-                    grid.push((z, top));
-                    z = top;
-                }
+                let grid = layer_grid(ground, toa, dz);
                 let particles = resolve_particle_layers(ctx, particle_layers, &grid, wavelengths)?;
                 let gas = GasLayers {
                     gas: &thermo.gas,

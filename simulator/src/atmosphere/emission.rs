@@ -47,6 +47,16 @@ impl PlaneParallel {
             .collect();
     }
 
+    /// Multiply the layers' sources by `scale`, one factor per layer **from the ground up**
+    /// (the order of the resolver's layer grid; the layers are stored top down).
+    pub fn scale_sources(&mut self, scale: &[f64]) {
+        debug_assert_eq!(scale.len(), self.source.len());
+        for (src, k) in self.source.iter_mut().rev().zip(scale) {
+            src[0] *= k;
+            src[1] *= k;
+        }
+    }
+
     /// Whether any layer emits.
     pub fn emits(&self) -> bool {
         self.source.iter().any(|s| s[0] > 0.0 || s[1] > 0.0)

@@ -447,33 +447,47 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 None => Vec::new(),
                 Some(gs) => gs
                     .iter()
-                    .map(|(w, taus)| {
+                    .map(|gp| {
                         let mut l = layers.clone();
-                        for (layer, t) in l.iter_mut().zip(taus) {
+                        for (layer, t) in l.iter_mut().zip(&gp.tau) {
                             layer.tau_abs += t;
                         }
-                        let atmosphere = PlaneParallel::new(l, ground, toa);
+                        let mut atmosphere = PlaneParallel::new(l, ground, toa);
+                        let surface_emission = match &thermal {
+                            None => None,
+                            Some(t) => {
+                                let Some(scale) = gp.planck_scale.as_deref() else {
+                                    return Err(ctx.err(
+                                        "atmosphere.absorption_data",
+                                        "thermal emission (`emission = true`) in mode = \"ckd\" needs a longwave k-distribution with Planck fractions per g-point (RRTMGP's `rrtmgp-gas-lw-g256.nc`)",
+                                    ));
+                                };
+                                t.apply(iw, &mut atmosphere, &surface, Some(scale))
+                            }
+                        };
                         let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
-                        (
-                            *w,
+                        Ok((
+                            gp.weight,
                             OpticalState {
                                 wavelength: wavelengths[iw],
                                 atmosphere,
                                 shell,
                                 surface: surface.clone(),
-                                surface_emission: None,
+                                surface_emission,
                                 scene_models: Vec::new(),
                                 irradiance: sun.irradiance[iw],
                                 g_states: Vec::new(),
                             },
-                        )
+                        ))
                     })
-                    .collect(),
+                    .collect::<Result<Vec<_>, ConfigError>>()?,
             };
             let mut atmosphere = PlaneParallel::new(layers, ground, toa);
+            // In CKD mode the g-points carry the sources (above); the bin's own atmosphere
+            // (no gas absorption: the ALIS reference) gets none.
             let surface_emission = match &thermal {
-                Some(t) => t.apply(iw, &mut atmosphere, &surface),
-                None => None,
+                Some(t) if g_states.is_empty() => t.apply(iw, &mut atmosphere, &surface, None),
+                _ => None,
             };
             let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
             let scene_models = match &scene {

@@ -8,9 +8,14 @@
 //! by the irradiance that normalises the tallies (E0 with a Sun, 1 without), so that products
 //! turn them into radiance as they turn reflected sunlight (`docs/transport.md`).
 //!
-//! Built for plane-parallel, monochromatic runs with the backward estimator (scalar or
-//! polarized; the default) or, on request, the forward one (directional measures); other
-//! shapes of run are refused with the key that selects them.
+//! In `mode = "ckd"` every g-point's sources are the wavelength's Planck radiance times its
+//! Planck fraction over its quadrature weight (`GPoint::planck_scale`, from a longwave
+//! k-distribution: RRTMGP's `rrtmgp-gas-lw-g256.nc`), layer by layer; the surface takes the
+//! lowest layer's factor (RRTMGP's surface source).
+//!
+//! Built for plane-parallel runs with the backward estimator (scalar or polarized; the
+//! default; the CKD ALIS walk too) or, on request, the forward one (directional measures);
+//! other shapes of run are refused with the key that selects them.
 
 use super::ExperimentConfig;
 use crate::atmosphere::config::{Geometry, LayerTemperature};
@@ -20,7 +25,6 @@ use crate::error::{ConfigCtx, ConfigError};
 use crate::illumination::Sun;
 use crate::integrator::settings::{IntegratorKind, IntegratorSettings};
 use crate::measure::Measure;
-use crate::spectral::Mode;
 
 /// The thermal sources of a run.
 pub struct Thermal {
@@ -48,12 +52,6 @@ pub fn resolve(
             ));
         }
         return Ok(None);
-    }
-    if cfg.mode == Mode::Ckd {
-        return Err(ctx.err(
-            "mode",
-            "thermal emission (`emission = true`) is built for mode = \"mono\" only (CKD longwave is not built yet)",
-        ));
     }
     if geometry.planet_radius.is_some() {
         return Err(ctx.err(
@@ -137,12 +135,15 @@ impl Thermal {
         Ok(())
     }
 
-    /// Set the sources of wavelength `iw` on `atm` and return the surface's emission.
+    /// Set the sources of wavelength `iw` on `atm` and return the surface's emission. A CKD
+    /// g-point passes `scale`, the factor on each layer's source (`GPoint::planck_scale`:
+    /// its Planck fraction over its quadrature weight); the surface takes the lowest layer's.
     pub fn apply(
         &self,
         iw: usize,
         atm: &mut PlaneParallel,
         surface: &Bsdf,
+        scale: Option<&[f64]>,
     ) -> Option<SurfaceEmission> {
         let wl = self.wavelengths[iw];
         let k = 1.0 / self.norm[iw];
@@ -164,6 +165,11 @@ impl Thermal {
             let mid = 0.5 * (top + bottom);
             [at(top, mid), at(bottom, mid)]
         });
-        Some(SurfaceEmission::new(surface, b(self.surface)))
+        let mut surface_source = b(self.surface);
+        if let Some(s) = scale {
+            atm.scale_sources(s);
+            surface_source *= s.first().copied().unwrap_or(1.0);
+        }
+        Some(SurfaceEmission::new(surface, surface_source))
     }
 }

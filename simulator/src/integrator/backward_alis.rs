@@ -85,7 +85,7 @@ use super::surface::SurfaceAt;
 use super::weight::{OrderSplit, Weight};
 use crate::accum::Accum;
 use crate::atmosphere::PlaneParallel;
-use crate::bsdf::Bsdf;
+use crate::bsdf::{Bsdf, SurfaceEmission};
 use crate::phase::PhaseFunction;
 use crate::rng::Stream;
 
@@ -94,10 +94,13 @@ pub const MAX_CHANNELS: usize = 64;
 
 /// What the channels of a walk are.
 pub enum Kind<'a> {
-    /// CKD g-points: shared scattering and surface, one score (the weighted bin mean).
+    /// CKD g-points: shared scattering and surface, one score (the weighted bin mean). With
+    /// thermal emission each g-point's atmosphere carries its layers' sources and
+    /// `surface_emission` its surface's (one per g-point; empty without emission).
     GPoints {
         weights: &'a [f64],
         surface: &'a Bsdf,
+        surface_emission: &'a [&'a SurfaceEmission],
     },
     /// Monochromatic wavelengths: own scattering, phase functions and surfaces, one score each.
     Wavelengths {
@@ -626,6 +629,10 @@ pub struct ReferenceLayers<'a> {
     channels: &'a Channels<'a>,
     /// Unit vector towards the Sun (`z > 0`).
     sun: DVec3,
+    /// Whether the Sun shines (false: thermal emission only, no next-event estimates).
+    shines: bool,
+    /// Whether the g-points emit (their atmospheres' sources and surfaces).
+    emits: bool,
     /// Per channel, the Sun's transmittance to the ground `exp(−τ*_c/μ_s)`.
     t_ground: Vec<f64>,
 }
@@ -637,11 +644,25 @@ impl<'a> ReferenceLayers<'a> {
             .iter()
             .map(|a| (-a.total_tau() / sun.z).exp())
             .collect();
+        let emits = match channels.kind {
+            Kind::GPoints {
+                surface_emission, ..
+            } => !surface_emission.is_empty() || channels.atms.iter().any(|a| a.emits()),
+            Kind::Wavelengths { .. } => false,
+        };
         ReferenceLayers {
             channels,
             sun,
+            shines: true,
+            emits,
             t_ground,
         }
+    }
+
+    /// Whether the Sun shines (false: `illumination.type = "none"`, thermal emission only).
+    pub fn with_sun_shining(mut self, shines: bool) -> Self {
+        self.shines = shines;
+        self
     }
 }
 
@@ -785,10 +806,14 @@ impl Weight for ChannelPath<'_> {
 }
 
 impl Adjoint for ChannelPath<'_> {
-    /// Spectral channels carry no thermal emission (the resolver refuses `emission = true`
-    /// with ALIS walks, `config/thermal.rs`), and their geometry gathers none.
+    /// `r` is the g-points' emission already weighted by `w_g·e_g`
+    /// ([`ReferenceLayers`]' `flight_emission`): the common weight scores it into the bin mean.
+    /// (Wavelength channels carry no emission: the resolver refuses `emission = true` with
+    /// `spectral_walk = "alis"`, and their geometry gathers none.)
     #[inline]
-    fn see_emission(&self, _: &mut ChannelTally, _: u32, _: f64) {}
+    fn see_emission(&self, t: &mut ChannelTally, order: u32, r: f64) {
+        t[0].add(order, self.w * r);
+    }
     #[inline]
     fn see_sun_volume(
         &self,
@@ -818,7 +843,9 @@ impl Adjoint for ChannelPath<'_> {
         let mu_s = sun.z;
         let g = self.g;
         match g.kind {
-            Kind::GPoints { weights, surface } => {
+            Kind::GPoints {
+                weights, surface, ..
+            } => {
                 let f = surface.eval(sun, wo) * mu_s;
                 let acc: f64 = weights
                     .iter()
@@ -843,6 +870,48 @@ impl<'a> Geometry<ChannelPath<'a>> for ReferenceLayers<'a> {
 
     fn light(&self) -> Light {
         Light::new(self.sun, self.sun.z)
+    }
+
+    #[inline]
+    fn sun_shines(&self) -> bool {
+        self.shines
+    }
+
+    /// `Σ_g w_g·e_g·E_g`: each g-point's expected emission over the flight in its own
+    /// atmosphere (`PlaneParallel::expected_emission` from its optical depth at `z`, plus its
+    /// surface's `ε·B` times its transmittance to the ground), weighted by its quadrature
+    /// weight and path factor. Unbiased per g-point: given the vertex and direction, `E_g` is
+    /// the expectation of g's collision estimator of emission over the flight, and `w·e_g` is
+    /// g's importance weight of the vertex (module header).
+    fn flight_emission(&self, z: f64, d: DVec3, w: &ChannelPath<'a>) -> f64 {
+        if !self.emits {
+            return 0.0;
+        }
+        let g = self.channels;
+        let Kind::GPoints {
+            weights,
+            surface_emission,
+            ..
+        } = g.kind
+        else {
+            return 0.0;
+        };
+        let mut sum = 0.0;
+        for (c, a) in g.atms.iter().enumerate() {
+            let k = weights[c] * w.e[c];
+            if k == 0.0 {
+                continue;
+            }
+            let tau = a.tau_at_altitude(z);
+            let mut e = a.expected_emission(tau, d.z);
+            if let Some(s) = surface_emission.get(c) {
+                if d.z < -1e-12 {
+                    e += ((a.total_tau() - tau) / d.z).exp() * s.radiance(-d.z);
+                }
+            }
+            sum += k * e;
+        }
+        sum
     }
 
     fn flight(

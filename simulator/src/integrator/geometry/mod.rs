@@ -112,8 +112,10 @@ pub trait Geometry<W: Weight> {
     /// Thermal emission a flight from `pos` along `d` gathers in expectation, in tally units:
     /// the volume sources' `(1 − ω)·B` at its next collision, and the surface's `ε·B(T_s)` when
     /// it reaches the ground, each times the probability of that end (0 for geometries without
-    /// emission).
-    fn flight_emission(&self, _pos: Self::Pos, _d: DVec3) -> f64 {
+    /// emission). `w` is the path's weight (a geometry whose weights carry per-channel factors
+    /// weighs the channels' emissions by them; the estimator then scores `w`'s common part
+    /// times the result).
+    fn flight_emission(&self, _pos: Self::Pos, _d: DVec3, _w: &W) -> f64 {
         0.0
     }
 
