@@ -57,6 +57,11 @@ impl PlaneParallel {
         }
     }
 
+    /// Layer `l`'s source `[at its top, at its bottom]` (tally units; zeros without emission).
+    pub fn source(&self, l: usize) -> [f64; 2] {
+        self.source.get(l).copied().unwrap_or([0.0, 0.0])
+    }
+
     /// Whether any layer emits.
     pub fn emits(&self) -> bool {
         self.source.iter().any(|s| s[0] > 0.0 || s[1] > 0.0)
