@@ -1207,6 +1207,57 @@ mod tests {
             .sum()
     }
 
+    /// The longwave file: 16 bands 3.08 µm–1 mm, 256 g-points, Planck fractions and no solar
+    /// source. Rationale: the file's Planck-fraction tables sum to 1 over each band's g-points
+    /// at every table node, and the interpolation weights sum to 1, so the interpolated
+    /// fractions must too in every layer (a wrong weight or a col_mix scaling would break it;
+    /// the node lookup itself is the one the absorption uses). (The band 2680–3250 cm⁻¹ is in
+    /// both files, but not comparable: its US-standard column transmittance is 0.726 weighted
+    /// by the longwave Planck fractions and 0.540 by the shortwave solar source, the Planck
+    /// weight at 288 K sitting in the 3.7 µm window, the solar one in the 3.1–3.3 µm
+    /// absorption.)
+    #[test]
+    fn longwave_file() {
+        let Some(p) = shared("ckd/rrtmgp/rrtmgp-gas-lw-g256.nc") else {
+            return;
+        };
+        let lw = Rrtmgp::open(&p).unwrap();
+        assert_eq!(lw.band_count(), 16);
+        assert_eq!(lw.gpoint_count(), 256);
+        assert!(lw.solar_weights(0).is_none() && lw.has_planck_fractions());
+        let bands = lw.bands_nm();
+        assert!(
+            (bands[0].0 - 1e7 / 3250.0).abs() < 1e-6 && (bands[15].1 - 1e7 / 10.0).abs() < 1e-6
+        );
+        let prof = us_standard();
+        let layers = level_layers(&prof);
+        let mut worst: f64 = 0.0;
+        for b in 0..16 {
+            let (tau, pf) = lw.layer_optics(&prof, &layers, b, true).unwrap();
+            let pf = pf.unwrap();
+            assert_eq!(tau.len(), 16);
+            for l in 0..layers.len() {
+                let s: f64 = pf.iter().map(|g| g[l]).sum();
+                worst = worst.max((s - 1.0).abs());
+            }
+        }
+        // The tables' own deviation from 1 over all nodes (they are stored rounded).
+        let table = lw.planck_fraction.as_ref().unwrap();
+        let mut worst_node: f64 = 0.0;
+        for node in table.chunks(lw.ngpt) {
+            for r in &lw.band_gpts {
+                let s: f64 = node[r.clone()].iter().sum();
+                if s > 0.0 {
+                    worst_node = worst_node.max((s - 1.0).abs());
+                }
+            }
+        }
+        println!(
+            "Planck fractions: max |Σ_g pfrac − 1| = {worst:.2e} in the layers, {worst_node:.2e} at the table nodes"
+        );
+        assert!(worst <= worst_node + 1e-12, "{worst} {worst_node}");
+    }
+
     #[test]
     fn structure() {
         let Some(rr) = open() else { return };
@@ -1468,7 +1519,7 @@ mod tests {
             }
             let t_full = band_transmittance(&rr, &prof, band);
             let t_no = band_transmittance(&rr, &no_o3, band);
-            let w = rr.solar_weights(band);
+            let w = rr.solar_weights(band).unwrap();
             let tau_low = rr.layer_optical_thickness(&no_o3, &low, band).unwrap();
             let mean_rr: f64 = w
                 .iter()
