@@ -330,6 +330,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     sun: exp.sun_dir,
                     mu_norm: exp.mu_norm(),
                     solver: settings.surface_solver,
+                    surface_emission: opt.surface_emission.as_ref(),
+                    shines: exp.sun_shines,
                 };
                 backward_block::<_, B>(
                     &g,

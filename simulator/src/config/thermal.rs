@@ -53,12 +53,6 @@ pub fn resolve(
         }
         return Ok(None);
     }
-    if geometry.planet_radius.is_some() {
-        return Err(ctx.err(
-            "geometry.type",
-            "thermal emission (`emission = true`) is built for plane-parallel geometry only (spherical shells are not built yet)",
-        ));
-    }
     if cfg.scene.is_some() {
         return Err(ctx.err(
             "scene",

@@ -240,7 +240,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
     let mut pass_through = 0u32;
     while order <= settings.max_depth {
         let mut acc = W::zero_phase();
-        let emitted = g.flight_emission(pos, d, &w);
+        let emitted = g.flight_emission(pos, d, &w, rng);
         if emitted > 0.0 {
             w.see_emission(tally, order, emitted);
         }

@@ -1062,7 +1062,7 @@ impl<'a> Geometry<ChannelPath<'a>> for ReferenceLayers<'a> {
     /// weight and path factor. Unbiased per g-point: given the vertex and direction, `E_g` is
     /// the expectation of g's collision estimator of emission over the flight, and `w·e_g` is
     /// g's importance weight of the vertex (module header).
-    fn flight_emission(&self, z: f64, d: DVec3, w: &ChannelPath<'a>) -> f64 {
+    fn flight_emission(&self, z: f64, d: DVec3, w: &ChannelPath<'a>, _: &mut Stream) -> f64 {
         if !self.emits {
             return 0.0;
         }

@@ -134,7 +134,7 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
     }
 
     #[inline]
-    fn flight_emission(&self, tau: f64, d: DVec3, _: &W) -> f64 {
+    fn flight_emission(&self, tau: f64, d: DVec3, _: &W, _: &mut Stream) -> f64 {
         let atm = self.atmosphere;
         let mut e = atm.expected_emission(tau, d.z);
         if let Some(s) = self.surface_emission {

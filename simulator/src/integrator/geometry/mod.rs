@@ -114,8 +114,9 @@ pub trait Geometry<W: Weight> {
     /// it reaches the ground, each times the probability of that end (0 for geometries without
     /// emission). `w` is the path's weight (a geometry whose weights carry per-channel factors
     /// weighs the channels' emissions by them; the estimator then scores `w`'s common part
-    /// times the result).
-    fn flight_emission(&self, _pos: Self::Pos, _d: DVec3, _w: &W) -> f64 {
+    /// times the result). A geometry without a closed form may estimate it without bias from
+    /// random numbers of `rng` (drawn only when it emits).
+    fn flight_emission(&self, _pos: Self::Pos, _d: DVec3, _w: &W, _rng: &mut Stream) -> f64 {
         0.0
     }
 

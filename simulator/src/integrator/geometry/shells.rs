@@ -26,6 +26,10 @@ pub struct Shells<'a> {
     pub mu_norm: f64,
     /// The ground's radiometry solver.
     pub solver: crate::integrator::solver::SolverSpec,
+    /// The ground's thermal emission, if any.
+    pub surface_emission: Option<&'a crate::bsdf::SurfaceEmission>,
+    /// Whether the Sun shines (false: thermal emission only).
+    pub shines: bool,
 }
 
 impl<W: Weight> Geometry<W> for Shells<'_> {
@@ -35,6 +39,36 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
 
     fn light(&self) -> Light {
         Light::new(self.sun, self.mu_norm)
+    }
+
+    #[inline]
+    fn sun_shines(&self) -> bool {
+        self.shines
+    }
+
+    /// The shells' emission over the flight ([`SphericalShell::emission_along`], one random
+    /// number) plus, where the flight reaches the ground, its `ε(μ)·B(T_s)` times the
+    /// transmittance (μ against the local vertical).
+    fn flight_emission(&self, (p, l): (DVec3, usize), d: DVec3, _: &W, rng: &mut Stream) -> f64 {
+        let shell = self.shell;
+        if !shell.emits() && self.surface_emission.is_none() {
+            return 0.0;
+        }
+        let (mut e, t_ground) = shell.emission_along(p, l, d, rng.next_f64());
+        if let (Some(s), Some(t)) = (self.surface_emission, t_ground) {
+            // The ground point: where the ray meets the ground sphere.
+            let r0 = shell.ground_radius();
+            let b = p.dot(d);
+            let disc = b * b - (p.length_squared() - r0 * r0);
+            if disc > 0.0 {
+                let q = p + d * (-b - disc.sqrt()).max(0.0);
+                let mu = -d.dot(q / q.length());
+                if mu > 0.0 {
+                    e += t * s.radiance(mu);
+                }
+            }
+        }
+        e
     }
 
     #[inline]
