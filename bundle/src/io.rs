@@ -910,6 +910,17 @@ pub(crate) fn check_material_table(materials: &[Material], path: &Path) -> Resul
                 message: format!("materials[{k}] (`{}`): solver.{key}: {message}", m.name),
             });
         }
+        if let Some(t) = m.temperature {
+            if !(t > 0.0 && t <= 10_000.0) {
+                return Err(BundleError::Manifest {
+                    path: path.into(),
+                    message: format!(
+                        "materials[{k}] (`{}`): temperature {t} K must lie in (0, 10000] K",
+                        m.name
+                    ),
+                });
+            }
+        }
     }
     Ok(())
 }
@@ -1044,6 +1055,7 @@ mod tests {
                     class_codes: vec![30],
                     source: "test".into(),
                     solver: None,
+                    temperature: None,
                 },
                 Material {
                     index: 1,
@@ -1058,6 +1070,7 @@ mod tests {
                     class_codes: vec![],
                     source: "test".into(),
                     solver: None,
+                    temperature: None,
                 },
             ],
             templates: vec![],

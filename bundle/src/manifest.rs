@@ -259,6 +259,10 @@ pub struct Material {
     /// The radiometry solver of the material (absent: the default `generic` solver).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub solver: Option<crate::SolverSpec>,
+    /// Kinetic temperature of the material, K, for thermal emission (`emission = true`;
+    /// absent: give it in the experiment's `[scene.temperatures]`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub temperature: Option<f64>,
 }
 
 /// A template mesh stored once in `templates.bin`.

@@ -90,6 +90,9 @@ pub struct MaterialDef {
     /// The material's radiometry solver (absent: the default `generic` solver).
     #[serde(default)]
     pub solver: Option<bundle::SolverSpec>,
+    /// The material's temperature, K, for thermal emission (absent: none in the bundle).
+    #[serde(default)]
+    pub temperature: Option<f64>,
 }
 
 /// One land-cover class.
@@ -366,6 +369,7 @@ impl MaterialMap {
                 class_codes: code.map(|c| vec![c as u32]).unwrap_or_default(),
                 source: def.source.clone(),
                 solver: def.solver,
+                temperature: def.temperature,
             });
             Ok(index)
         };
@@ -417,6 +421,7 @@ impl MaterialMap {
             class_codes: vec![],
             source: def.source.clone(),
             solver: def.solver,
+            temperature: def.temperature,
         });
         Ok(index)
     }

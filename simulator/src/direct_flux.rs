@@ -64,6 +64,7 @@ mod tests {
             surface: Bsdf::Lambertian(Lambertian::new(0.0).unwrap()),
             surface_emission: None,
             scene_models: Vec::new(),
+            scene_emission: None,
             irradiance: 1.0,
             g_states: Vec::new(),
         }

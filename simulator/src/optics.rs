@@ -17,6 +17,8 @@ pub struct OpticalState {
     pub surface_emission: Option<crate::bsdf::SurfaceEmission>,
     /// The 3D scene's material models at this wavelength (empty without a scene).
     pub scene_models: Vec<crate::scene::material::SurfaceModel>,
+    /// The 3D scene's thermal emission at this wavelength (`emission = true` with a scene).
+    pub scene_emission: Option<crate::scene::emission::SceneEmission>,
     /// Solar irradiance normal to the beam, W m⁻² nm⁻¹.
     pub irradiance: f64,
     /// `mode = "ckd"`: the bin's g-points, each (quadrature weight, optical state with that

@@ -295,6 +295,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     sun: exp.sun_dir,
                     mu_norm: exp.mu_norm(),
                     wavelength: opt.wavelength,
+                    emission: opt.scene_emission.as_ref(),
+                    shines: exp.sun_shines,
                 };
                 backward_block::<_, B>(
                     &g,
@@ -311,6 +313,8 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     models: &opt.scene_models,
                     sun: exp.sun_dir,
                     wavelength: opt.wavelength,
+                    emission: opt.scene_emission.as_ref(),
+                    shines: exp.sun_shines,
                 };
                 backward_block::<_, B>(
                     &g,

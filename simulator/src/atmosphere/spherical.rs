@@ -35,6 +35,14 @@ pub struct SphericalShell {
     pub planet_radius: f64,
 }
 
+/// The transmittance of a flight from its start to its end ([`SphericalShell::emission_within`]),
+/// and to the ground when it ends there.
+#[derive(Clone, Copy, Debug)]
+pub struct FlightTransmittance {
+    pub total: f64,
+    pub ground: Option<f64>,
+}
+
 /// Where a flight in a spherical shell ends.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub enum ShellEnd {
@@ -100,17 +108,28 @@ impl SphericalShell {
     /// (`s = −ln(1 − u·P)/k`); the same `u` serves every segment (each term stays unbiased).
     /// Along a slant chord r(s) is not linear in s, which is why there is no closed form here;
     /// the estimate's variance is that of S across one segment, small for thin shells.
-    pub fn emission_along(
+    pub fn emission_along(&self, p: DVec3, l: usize, d: DVec3, u: f64) -> (f64, Option<f64>) {
+        let (e, end) = self.emission_within(p, l, d, u, f64::INFINITY);
+        (e, end.ground)
+    }
+
+    /// [`Self::emission_along`] over at most the distance `tmax` (a 3D scene's surface hit):
+    /// the emission, and the transmittance to wherever the flight ends.
+    pub fn emission_within(
         &self,
         mut p: DVec3,
         mut l: usize,
         d: DVec3,
         u: f64,
-    ) -> (f64, Option<f64>) {
+        tmax: f64,
+    ) -> (f64, FlightTransmittance) {
         let n = self.sigma.len() as isize;
         let (mut tau, mut e) = (0.0_f64, 0.0_f64);
+        let mut left = tmax;
         loop {
-            let (t, next) = self.exit(p, d, l);
+            let (t_exit, next) = self.exit(p, d, l);
+            let stop = t_exit >= left;
+            let t = if stop { left } else { t_exit };
             let k = self.sigma[l];
             let dd = k * t;
             if dd > 0.0 && !self.source.is_empty() {
@@ -124,11 +143,19 @@ impl SphericalShell {
             }
             tau += dd;
             p += d * t;
+            let end = |ground: bool| FlightTransmittance {
+                total: (-tau).exp(),
+                ground: ground.then(|| (-tau).exp()),
+            };
+            if stop {
+                return (e, end(false));
+            }
+            left -= t;
             if next < 0 {
-                return (e, Some((-tau).exp()));
+                return (e, end(true));
             }
             if next >= n {
-                return (e, None);
+                return (e, end(false));
             }
             l = next as usize;
         }

@@ -360,6 +360,25 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         }
     };
 
+    if let (Some(_), Some(sc)) = (&thermal, &scene) {
+        let missing: Vec<&str> = sc
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(id, _)| sc.temperature(*id as u16).is_none())
+            .map(|(_, (name, _))| name.as_str())
+            .collect();
+        if !missing.is_empty() {
+            return Err(ctx.err(
+                "scene.temperatures",
+                format!(
+                    "thermal emission (`emission = true`) needs a temperature (K) for every material of the scene (the bundle's `temperature`, or `[scene.temperatures]`); missing: {}",
+                    missing.join(", ")
+                ),
+            ));
+        }
+    }
+
     // Measures.
     if cfg.measures.is_empty() {
         return Err(ctx.err("measures", "at least one measure is required"));
@@ -443,6 +462,22 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         .zip(surfaces)
         .enumerate()
         .map(|(iw, (layers, surface))| {
+            let scene_models = match &scene {
+                Some(sc) => sc
+                    .models_at(wavelengths[iw])
+                    .map_err(|m| ctx.err("scene", m))?,
+                None => Vec::new(),
+            };
+            // A scene's emission at this wavelength, its Planck radiances times `scale`.
+            let scene_emission = |scale: f64| match (&thermal, &scene) {
+                (Some(t), Some(sc)) => Some(crate::scene::emission::SceneEmission::new(
+                    sc,
+                    &scene_models,
+                    wavelengths[iw],
+                    t.k(iw) * scale,
+                )),
+                _ => None,
+            };
             let g_states: Vec<(f64, OpticalState)> = match ckd_tau.get(iw) {
                 None => Vec::new(),
                 Some(gs) => gs
@@ -453,6 +488,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                             layer.tau_abs += t;
                         }
                         let mut atmosphere = PlaneParallel::new(l, ground, toa);
+                        let scale0 = gp
+                            .planck_scale
+                            .as_ref()
+                            .and_then(|s| s.first().copied())
+                            .unwrap_or(1.0);
                         let surface_emission = match &thermal {
                             None => None,
                             Some(t) => {
@@ -475,6 +515,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                                 surface: surface.clone(),
                                 surface_emission,
                                 scene_models: Vec::new(),
+                                scene_emission: scene_emission(scale0),
                                 irradiance: sun.irradiance[iw],
                                 g_states: Vec::new(),
                             },
@@ -490,11 +531,10 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 _ => None,
             };
             let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
-            let scene_models = match &scene {
-                Some(sc) => sc
-                    .models_at(wavelengths[iw])
-                    .map_err(|m| ctx.err("scene", m))?,
-                None => Vec::new(),
+            let scene_emission = if g_states.is_empty() {
+                scene_emission(1.0)
+            } else {
+                None
             };
             let mut g_states = g_states;
             for (_, g) in &mut g_states {
@@ -507,6 +547,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 surface,
                 surface_emission,
                 scene_models,
+                scene_emission,
                 irradiance: sun.irradiance[iw],
                 g_states,
             })

@@ -36,6 +36,13 @@ pub enum SceneConfig {
         /// replacing the bundle's (`integrator/solver.rs`).
         #[serde(default)]
         solvers: BTreeMap<String, bundle::SolverSpec>,
+        /// Kinetic temperatures of materials by name, K (`[scene.temperatures] grass = 295.0`),
+        /// replacing the bundle's (thermal emission).
+        #[serde(default)]
+        temperatures: BTreeMap<String, f64>,
+        /// A land-surface-temperature raster (K, one band, the bundle's CRS) for terrain hits.
+        #[serde(default)]
+        land_surface_temperature: Option<String>,
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
@@ -241,6 +248,8 @@ pub fn build_scene(
             materials,
             textures,
             solvers,
+            temperatures,
+            land_surface_temperature,
         } => {
             for (name, spec) in solvers {
                 spec.validate()
@@ -302,6 +311,25 @@ pub fn build_scene(
                 scene
                     .set_solver(name, *spec)
                     .map_err(|m| (format!("scene.solvers.{name}"), m))?;
+            }
+            for (name, &t) in temperatures {
+                let key = format!("scene.temperatures.{name}");
+                if !(t > 0.0 && t <= 10_000.0) {
+                    return Err((key, format!("{t} K must lie in (0, 10000] K")));
+                }
+                scene.set_temperature(name, t).map_err(|m| (key, m))?;
+            }
+            if let Some(file) = land_surface_temperature {
+                let key = "scene.land_surface_temperature".to_string();
+                let (wkt, origin) = match &scene.georef {
+                    Some(g) => (g.wkt.clone(), [g.origin.x, g.origin.y]),
+                    None => (String::new(), [0.0, 0.0]),
+                };
+                let map =
+                    crate::scene::emission::TemperatureMap::read(&base.join(file), &wkt, origin)
+                        .map_err(|m| (key, m))?;
+                scene.memory_bytes += map.memory_bytes();
+                scene.lst = Some(map);
             }
             Ok(scene)
         }

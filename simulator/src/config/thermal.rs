@@ -53,17 +53,13 @@ pub fn resolve(
         }
         return Ok(None);
     }
-    if cfg.scene.is_some() {
-        return Err(ctx.err(
-            "scene",
-            "thermal emission (`emission = true`) is built for 1D surfaces only (3D scenes are not built yet)",
-        ));
-    }
     let layers = match &cfg.atmosphere {
         None => Vec::new(),
         Some(a) => a.temperatures(ctx, geometry)?,
     };
     let surface = match cfg.surface.as_ref().and_then(|s| s.temperature()) {
+        // A 3D scene's materials carry their own temperatures (`scene::emission`).
+        None if cfg.scene.is_some() => 0.0,
         None => {
             return Err(ctx.err(
                 "surface.temperature",
@@ -127,6 +123,12 @@ impl Thermal {
             ));
         }
         Ok(())
+    }
+
+    /// The factor on Planck radiances at wavelength `iw`: 1 over the irradiance that normalises
+    /// the tallies.
+    pub fn k(&self, iw: usize) -> f64 {
+        1.0 / self.norm[iw]
     }
 
     /// Set the sources of wavelength `iw` on `atm` and return the surface's emission. A CKD

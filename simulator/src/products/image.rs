@@ -428,6 +428,54 @@ pub fn write_quicklook_png(
     Ok(description)
 }
 
+/// A grey quicklook of a quantity with an offset (brightness temperature): linear from its
+/// 1st to its 99th percentile over the finite pixels (black to white), NaN black; returns the
+/// description (the stretch, in `unit`).
+pub fn write_stretched_png(
+    path: &Path,
+    width: usize,
+    height: usize,
+    values: &[f64],
+    what: &str,
+    unit: &str,
+) -> Result<String, OutputError> {
+    let (w32, h32) = match (u32::try_from(width), u32::try_from(height)) {
+        (Ok(w), Ok(h)) if w > 0 && h > 0 && values.len() == width * height => (w, h),
+        _ => {
+            return Err(invalid(
+                path,
+                format!("{} values for a {width}×{height} image", values.len()),
+            ))
+        }
+    };
+    let mut finite: Vec<f64> = values.iter().copied().filter(|v| v.is_finite()).collect();
+    finite.sort_by(|a, b| a.total_cmp(b));
+    let pick = |q: f64| {
+        finite
+            .get(((finite.len() as f64 - 1.0) * q).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let (lo, hi) = (pick(0.01), pick(0.99));
+    let span = if hi > lo { hi - lo } else { 1.0 };
+    let px: Vec<u8> = values
+        .iter()
+        .map(|&v| {
+            if v.is_finite() {
+                (((v - lo) / span).clamp(0.0, 1.0) * 255.0).round() as u8
+            } else {
+                0
+            }
+        })
+        .collect();
+    write_png(path, w32, h32, ::image::ExtendedColorType::L8, &px)?;
+    Ok(format!(
+        "{what}, grey {} .. {} {unit}",
+        fmt_sig(lo),
+        fmt_sig(hi)
+    ))
+}
+
 /// Encode `bytes` (`width × height` pixels of `color`) as a PNG in memory and write it to
 /// `path` atomically.
 pub fn write_png(

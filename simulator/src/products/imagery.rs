@@ -11,8 +11,12 @@
 //! * polarized runs, ortho measures also: `ID_q.tif`, `ID_u.tif` (BRF-normalised Stokes Q and U,
 //!   `π·Q/(E0 cos SZA)`, in the meridian frame of the view direction, `stokes.rs`), `ID_dolp.tif`
 //!   and `ID_dolp_stderr.tif` (degree of linear polarization √(Q²+U²)/I and its standard error);
+//! * thermal runs (`emission = true`), ortho measures also: `ID_brightness_temperature.tif` and
+//!   `ID_brightness_temperature_stderr.tif` (K, inverse Planck of each pixel's radiance at the
+//!   band's wavelength, delta-method error);
 //! * both: `ID.png`, a quicklook of the BRF (true colour when wavelengths near 660/550/440 nm
-//!   were simulated, grey otherwise; see `products::image`).
+//!   were simulated, grey otherwise; see `products::image`), or in thermal runs of the first
+//!   wavelength's brightness temperature (grey from its 1st to its 99th percentile).
 //!
 //! Units: radiance W m⁻² sr⁻¹ nm⁻¹ (the irradiance's unit per sr), BRF dimensionless.
 
@@ -49,6 +53,9 @@ pub struct ImageProduct {
     /// Polarized runs: per wavelength and pixel, BRF-normalised Q and U, the degree of linear
     /// polarization and its standard error.
     pub stokes: Option<ImageStokes>,
+    /// Thermal runs (`emission = true`): per wavelength and pixel, the brightness temperature
+    /// (K, inverse Planck of the radiance) and its delta-method standard error.
+    pub brightness_temperature: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
 }
 
 /// The polarization images of a polarized run, `[wavelength][pixel]`.
@@ -114,6 +121,7 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                         dolp: blank.clone(),
                         dolp_stderr: blank.clone(),
                     }),
+                    brightness_temperature: exp.emission.then(|| (blank.clone(), blank.clone())),
                 });
                 out.len() - 1
             }
@@ -135,6 +143,15 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                 let (d, de) = super::dolp(&r.acc, c);
                 st.dolp[iw][c] = d;
                 st.dolp_stderr[iw][c] = de;
+            }
+        }
+        if let Some((bt, bt_se)) = p.brightness_temperature.as_mut() {
+            let wl = exp.wavelengths[iw];
+            for c in 0..width * height {
+                let (l, se) = (p.radiance[iw][c], p.radiance_stderr[iw][c]);
+                let (t, st) = crate::planck::brightness_temperature_stderr(wl, l, se);
+                bt[iw][c] = t;
+                bt_se[iw][c] = st;
             }
         }
         p.n_samples[iw] = r.acc.n.iter().copied().min().unwrap_or(0);
@@ -170,6 +187,9 @@ fn mask_to_area(exp: &Experiment, images: &mut [ImageProduct]) {
         ];
         if let Some(st) = p.stokes.as_mut() {
             images.extend([&mut st.q, &mut st.u, &mut st.dolp, &mut st.dolp_stderr]);
+        }
+        if let Some((bt, bt_se)) = p.brightness_temperature.as_mut() {
+            images.extend([bt, bt_se]);
         }
         for img in images {
             for band in img.iter_mut() {
@@ -228,6 +248,17 @@ pub fn write_files(
                 "standard error of the radiance",
             ),
         ];
+        if let Some((bt, bt_se)) = &p.brightness_temperature {
+            sets.extend([
+                ("brightness_temperature", bt, "K", "brightness temperature"),
+                (
+                    "brightness_temperature_stderr",
+                    bt_se,
+                    "K",
+                    "standard error of the brightness temperature",
+                ),
+            ]);
+        }
         if let Some(st) = &p.stokes {
             sets.extend([
                 (
@@ -283,6 +314,13 @@ pub fn write_files(
         }
     }
     let path = dir.join(format!("{}.png", p.id));
+    if let Some((bt, _)) = &p.brightness_temperature {
+        // Thermal runs: the brightness temperature of the first wavelength.
+        let what = format!("brightness temperature at {} nm", exp.wavelengths[0]);
+        let d = super::image::write_stretched_png(&path, p.width, p.height, &bt[0], &what, "K")?;
+        written.push(path);
+        return Ok((written, d));
+    }
     let channels: Vec<&[f64]> = p.brf.iter().map(|v| v.as_slice()).collect();
     let what = write_quicklook_png(&path, p.width, p.height, &exp.wavelengths, &channels)?;
     written.push(path);

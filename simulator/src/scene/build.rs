@@ -235,6 +235,8 @@ pub fn from_bundle(
         ))),
         None => None,
     };
+    let mut temperatures: Vec<Option<f64>> = m.materials.iter().map(|x| x.temperature).collect();
+    temperatures.resize(materials.len(), None);
     let mut solvers: Vec<bundle::SolverSpec> = m
         .materials
         .iter()
@@ -257,16 +259,14 @@ pub fn from_bundle(
         z_range,
         reference_height,
         render_origin,
-        memory_bytes: memory_bytes
-            + tex
-                .iter()
-                .map(|t| t.bands.len() * t.width * t.height * 4)
-                .sum::<usize>(),
+        memory_bytes: memory_bytes + tex.iter().map(|t| t.memory_bytes()).sum::<usize>(),
         periodic: None,
         area_mask,
         curvature: bend,
         textures: tex,
         texture_of,
+        temperatures,
+        lst: None,
         load_seconds: t_load,
         build_seconds: t_bvh,
     };
@@ -612,6 +612,8 @@ pub fn canopy(
         curvature: None,
         textures: Vec::new(),
         texture_of: Vec::new(),
+        temperatures: Vec::new(),
+        lst: None,
         load_seconds: 0.0,
         build_seconds: t0.elapsed().as_secs_f64(),
     };

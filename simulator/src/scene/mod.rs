@@ -6,6 +6,7 @@
 pub mod area_mask;
 pub mod build;
 pub mod curvature;
+pub mod emission;
 pub mod instances;
 pub mod material;
 pub mod terrain;

@@ -195,6 +195,10 @@ pub struct Scene {
     /// Reflectance textures of terrain materials, and the texture of each material id.
     pub textures: Vec<super::texture::Texture>,
     pub texture_of: Vec<Option<usize>>,
+    /// Kinetic temperature per material id, K (thermal emission; `None`: not given).
+    pub temperatures: Vec<Option<f64>>,
+    /// Land-surface temperature of terrain hits (`scene.land_surface_temperature`).
+    pub lst: Option<super::emission::TemperatureMap>,
     /// Time to read the inputs and to build the BVHs, s.
     pub load_seconds: f64,
     pub build_seconds: f64,
@@ -508,6 +512,30 @@ impl Scene {
             .as_ref()
             .and_then(|g| g.intersect(o, -DVec3::Z, f64::INFINITY))
             .map(|(t, _)| top - t)
+    }
+
+    /// The temperature (K) of material id `material`, if it has one.
+    #[inline]
+    pub fn temperature(&self, material: u16) -> Option<f64> {
+        self.temperatures.get(material as usize).copied().flatten()
+    }
+
+    /// Give the material named `name` the temperature `t` (K; an error names the scene's
+    /// materials when there is no such material).
+    pub fn set_temperature(&mut self, name: &str, t: f64) -> Result<(), String> {
+        let id = material_id(&self.materials, name)?;
+        self.temperatures.resize(self.materials.len(), None);
+        self.temperatures[id] = Some(t);
+        Ok(())
+    }
+
+    /// The land-surface temperature (K) under a terrain hit, where the map has a pixel.
+    #[inline]
+    pub fn land_surface_temperature(&self, h: &SurfaceHit) -> Option<f64> {
+        if !h.terrain {
+            return None;
+        }
+        self.lst.as_ref()?.at(h.point.x, h.point.y)
     }
 
     /// The textured Lambertian reflectance at a terrain hit, if its material has a texture that

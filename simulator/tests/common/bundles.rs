@@ -171,6 +171,7 @@ pub fn write_plane_with_indices(dir: &Path, p: &PlaneSpec, indices: &[u8]) -> Pa
                 class_codes: vec![i as u32],
                 source: "test".into(),
                 solver: None,
+                temperature: None,
             })
             .collect(),
         templates: vec![],
@@ -240,6 +241,7 @@ pub fn with_plate(
         class_codes: vec![],
         source: "test".into(),
         solver,
+        temperature: None,
     });
     b.templates.push(TemplateMesh {
         name: "plate".into(),

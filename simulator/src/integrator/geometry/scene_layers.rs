@@ -40,6 +40,11 @@ pub struct SceneInLayers<'a> {
     pub sun: DVec3,
     /// nm (for reflectance textures).
     pub wavelength: f64,
+    /// The surfaces' thermal emission (`emission = true`; the layers' sources are in
+    /// `atmosphere`).
+    pub emission: Option<&'a crate::scene::emission::SceneEmission>,
+    /// Whether the Sun shines (false: thermal emission only).
+    pub shines: bool,
 }
 
 impl SceneInLayers<'_> {
@@ -83,6 +88,46 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 
     fn light(&self) -> Light {
         Light::new(self.sun, self.sun.z)
+    }
+
+    #[inline]
+    fn sun_shines(&self) -> bool {
+        self.shines
+    }
+
+    /// The layers' expected emission up to the flight's first hit, exactly: the plane-parallel
+    /// expectation from the start (`PlaneParallel::expected_emission`) minus the transmittance
+    /// to the hit times the same expectation from the hit on (the emission along a line is
+    /// additive); plus the hit surface's emission towards the path (`SceneEmission`) times
+    /// that transmittance. (One more closest-hit query per flight, as `flight` makes.)
+    fn flight_emission(&self, p: DVec3, d: DVec3, _: &W, _: &mut Stream) -> f64 {
+        let Some(em) = self.emission else {
+            return 0.0;
+        };
+        let atm = self.atmosphere;
+        let top = self.scene.z_range[1];
+        let can_reach = p.z <= top || d.z < 0.0;
+        let hit = if can_reach {
+            self.scene.intersect(p, d, f64::INFINITY)
+        } else {
+            None
+        };
+        let emits = atm.emits();
+        let from_p = if emits {
+            atm.expected_emission(atm.tau_at_altitude(p.z), d.z)
+        } else {
+            0.0
+        };
+        let Some(h) = hit else {
+            return from_p;
+        };
+        let t = (-atm.optical_path(p.z, d.z, h.t)).exp();
+        let from_hit = if emits {
+            atm.expected_emission(atm.tau_at_altitude(h.point.z), d.z)
+        } else {
+            0.0
+        };
+        (from_p - t * from_hit).max(0.0) + t * em.radiance(self.scene, &h, -d)
     }
 
     fn flight(

@@ -45,6 +45,10 @@ pub struct SceneInShells<'a> {
     pub mu_norm: f64,
     /// nm (for reflectance textures).
     pub wavelength: f64,
+    /// The surfaces' thermal emission (`emission = true`; the shells' sources are in `shell`).
+    pub emission: Option<&'a crate::scene::emission::SceneEmission>,
+    /// Whether the Sun shines (false: thermal emission only).
+    pub shines: bool,
 }
 
 impl SceneInShells<'_> {
@@ -85,6 +89,26 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
 
     fn light(&self) -> Light {
         Light::new(self.sun, self.mu_norm)
+    }
+
+    #[inline]
+    fn sun_shines(&self) -> bool {
+        self.shines
+    }
+
+    /// The shells' emission up to the first hit ([`SphericalShell::emission_within`], one
+    /// random number) plus the hit surface's emission times the transmittance to it.
+    fn flight_emission(&self, (p, l): (DVec3, usize), d: DVec3, _: &W, rng: &mut Stream) -> f64 {
+        let Some(em) = self.emission else {
+            return 0.0;
+        };
+        let hit = self.scene.intersect(p - self.lift(), d, f64::INFINITY);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        let (e, t) = self.shell.emission_within(p, l, d, rng.next_f64(), t_hit);
+        match hit {
+            Some(h) => e + t.total * em.radiance(self.scene, &h, -d),
+            None => e,
+        }
     }
 
     fn flight(
