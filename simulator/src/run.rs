@@ -373,8 +373,7 @@ fn backward_block<G: Geometry<W>, W: Adjoint + AtSensor>(
     frame_azimuth: impl Fn() -> f64,
 ) -> Accum {
     let mut acc = W::accum(1);
-    let sobol = settings.sampler == crate::integrator::settings::Sampler::Sobol;
-    if sobol {
+    if settings.replicates {
         acc.enable_replicates();
     }
     let k = g.light().normalization;

@@ -42,14 +42,18 @@ impl Spectrum {
         )
     }
 
-    /// Parse a two-column CSV (header line, then `wavelength_nm,value`).
+    /// Parse a two-column CSV (`#` comment lines, a header line, then `wavelength_nm,value`).
     pub fn from_csv(name: &str, text: &str) -> Result<Spectrum, String> {
         let (mut w, mut v) = (Vec::new(), Vec::new());
+        let mut header_allowed = true;
         for (i, line) in text.lines().enumerate() {
             let line = line.trim();
-            if line.is_empty()
-                || line.starts_with('#')
-                || (i == 0 && line.chars().next().is_some_and(|c| c.is_alphabetic()))
+            if line.is_empty() || line.starts_with('#') {
+                continue;
+            }
+            // The first line that is not a comment may be a header.
+            if std::mem::take(&mut header_allowed)
+                && line.chars().next().is_some_and(|c| c.is_alphabetic())
             {
                 continue;
             }
@@ -61,12 +65,10 @@ impl Spectrum {
                     w.push(x);
                     v.push(y);
                 }
-                _ => {
-                    return Err(format!(
-                        "line {}: expected `wavelength_nm,irradiance` (non-negative numbers)",
-                        i + 1
-                    ))
-                }
+                _ => return Err(format!(
+                    "line {}: expected `wavelength_nm,value` (two numbers, the value non-negative)",
+                    i + 1
+                )),
             }
         }
         if w.len() < 2 || w.windows(2).any(|p| p[1] <= p[0]) {

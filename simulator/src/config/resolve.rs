@@ -565,6 +565,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         integrator.check_g_points(&ctx, ng)?;
         if ng > 1 && !integrator.alis {
             round_to_g_point_cycles(&mut measures, ng);
+            // Each replicate then holds whole g-point cycles (`IntegratorSettings::replicates`).
+            integrator.replicates = true;
         }
     }
     let exp = Experiment {

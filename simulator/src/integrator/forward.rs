@@ -235,7 +235,7 @@ pub fn run_block<W: Photon>(
         .filter(|t| t.emits())
         .map(|_| Scratch::<W>::new(atmosphere, targets));
     let sobol = settings.sampler == super::settings::Sampler::Sobol;
-    if sobol {
+    if settings.replicates {
         acc.enable_replicates();
     }
     for s in samples {

@@ -43,6 +43,12 @@ pub struct IntegratorSettings {
     /// The 1D surface's radiometry solver (`[surface] solver`, `solver.rs`); scene materials
     /// carry theirs in the scene.
     pub surface_solver: super::solver::SolverSpec,
+    /// Keep replicate sums (sample s in replicate s mod 16) and take the standard error from
+    /// their scatter: with the Sobol sampler, and in CKD runs that cycle through g-points in
+    /// blocks (a replicate then holds whole cycles, so its mean is a stratified estimate of the
+    /// bin and the scatter excludes the spread between g-points, which the i.i.d. formula
+    /// would count).
+    pub replicates: bool,
 }
 
 /// `integrator.sampler`: where each sample's random numbers come from.
@@ -258,6 +264,7 @@ impl IntegratorSettings {
             }
         };
         Ok(IntegratorSettings {
+            replicates: cfg.sampler == Sampler::Sobol,
             surface_solver: Default::default(),
             sampler: cfg.sampler,
             detector_sampling,

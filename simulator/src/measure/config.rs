@@ -407,6 +407,7 @@ impl MeasureConfig {
             spp,
             target_rel_stderr: target,
             kind,
+            block_override: None,
         })
     }
 }
@@ -749,6 +750,13 @@ pub fn relax_targets_for_band(measures: &mut [Measure], weights: &[f64], irradia
 /// becomes a whole number of cycles (rounded up, logged).
 pub fn round_to_g_point_cycles(measures: &mut [Measure], ng: usize) {
     for m in measures {
+        // Images: blocks of IMAGE_BLOCK/ng samples (but at least one sample of each of the
+        // 16 replicates, `accum::REPLICATES`), so that one cycle through the g-points is
+        // IMAGE_BLOCK samples per pixel rather than IMAGE_BLOCK per g-point.
+        if m.is_image() {
+            m.block_override =
+                Some((super::IMAGE_BLOCK / ng as u64).max(crate::accum::REPLICATES as u64));
+        }
         let unit = m.block_size() * ng as u64;
         let spp = m.spp.div_ceil(unit) * unit;
         if spp != m.spp {

@@ -42,6 +42,9 @@ pub struct Measure {
     /// Stop once every direction's relative standard error is at most this (optional).
     pub target_rel_stderr: Option<f64>,
     pub kind: MeasureKind,
+    /// Samples per block when not the default (CKD image measures: [`IMAGE_BLOCK`] over the
+    /// g-point count, so that a cycle of g-points stays 64 samples per pixel).
+    pub block_override: Option<u64>,
 }
 
 #[derive(Clone, Debug)]
@@ -206,7 +209,9 @@ impl Measure {
 
     /// Samples per block of this measure (the unit of parallel work and of merging).
     pub fn block_size(&self) -> u64 {
-        if self.is_image() {
+        if let Some(b) = self.block_override {
+            b
+        } else if self.is_image() {
             IMAGE_BLOCK
         } else {
             BLOCK

@@ -248,6 +248,10 @@ pub fn write_files(
                 "standard error of the radiance",
             ),
         ];
+        if !exp.sun_shines {
+            // No Sun (thermal emission only): there is no BRF.
+            sets.retain(|s| !s.0.starts_with("brf"));
+        }
         if let Some((bt, bt_se)) = &p.brightness_temperature {
             sets.extend([
                 ("brightness_temperature", bt, "K", "brightness temperature"),

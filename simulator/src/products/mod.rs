@@ -287,6 +287,10 @@ pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
                 .skip(c)
                 .step_by(m.row_count())
                 .collect();
+            if cells.is_empty() {
+                // Image measures have no rows (their band images: `imagery.rs`).
+                continue;
+            }
             let combine =
                 |get: &dyn Fn(&Row) -> Option<(f64, f64)>, by_e0: bool| -> Option<(f64, f64)> {
                     let mut num = 0.0;
