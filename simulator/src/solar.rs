@@ -65,10 +65,12 @@ impl Spectrum {
                     w.push(x);
                     v.push(y);
                 }
-                _ => return Err(format!(
+                _ => {
+                    return Err(format!(
                     "line {}: expected `wavelength_nm,value` (two numbers, the value non-negative)",
                     i + 1
-                )),
+                ))
+                }
             }
         }
         if w.len() < 2 || w.windows(2).any(|p| p[1] <= p[0]) {

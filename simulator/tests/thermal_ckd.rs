@@ -186,6 +186,7 @@ fn ckd_run_is_the_g_point_quadrature() {
     let sum: f64 = pf.iter().map(|p| p[0]).sum();
     let mut total = [0.0f64; 2];
     let mut var = [0.0f64; 2];
+    #[allow(clippy::needless_range_loop)]
     for g in 0..ng {
         let t = text(&file, &[10_900.0], SOOT, &rest(8_000))
             .replace("seed = 11", &format!("seed = {}", 100 + g))
@@ -337,8 +338,7 @@ fn emission_needs_planck_fractions() {
     );
     let t = text(&sw, &[10_900.0], "", &rest);
     let e = simulator::config::Experiment::from_str(&t, &data_dir().join("test.toml"))
-        .err()
-        .expect("a shortwave file cannot serve thermal emission")
+        .expect_err("a shortwave file cannot serve thermal emission")
         .to_string();
     assert!(
         e.contains("atmosphere.absorption_data") && e.contains("Planck fractions"),

@@ -255,7 +255,7 @@ pub fn resolve_ckd(
                         .map(|p| p.first().copied().unwrap_or(0.0))
                         .collect();
                     let sum: f64 = bottom.iter().sum();
-                    if !(sum > 0.0) {
+                    if sum.is_nan() || sum <= 0.0 {
                         return Err(ctx.err(
                             KEY,
                             format!("{}: the Planck fractions of the band holding {wl} nm sum to {sum} in the lowest layer", file.display()),

@@ -28,6 +28,9 @@ use crate::config::resolve::Experiment;
 use crate::error::OutputError;
 use crate::measure::MeasureKind;
 
+/// Per-wavelength pixel values, `[wavelength][pixel]`.
+pub type Image = Vec<Vec<f64>>;
+
 /// One image measure's results, per wavelength.
 #[derive(Clone, Debug)]
 pub struct ImageProduct {
@@ -55,7 +58,7 @@ pub struct ImageProduct {
     pub stokes: Option<ImageStokes>,
     /// Thermal runs (`emission = true`): per wavelength and pixel, the brightness temperature
     /// (K, inverse Planck of the radiance) and its delta-method standard error.
-    pub brightness_temperature: Option<(Vec<Vec<f64>>, Vec<Vec<f64>>)>,
+    pub brightness_temperature: Option<(Image, Image)>,
 }
 
 /// The polarization images of a polarized run, `[wavelength][pixel]`.

@@ -146,7 +146,7 @@ impl TemperatureMap {
             ));
         }
         for (k, &v) in raster.bands[0].iter().enumerate() {
-            if !v.is_nan() && !(v > 0.0 && v <= 10_000.0) {
+            if !(v.is_nan() || (v > 0.0 && v <= 10_000.0)) {
                 return Err(format!(
                     "land-surface temperature {name}: pixel (row {}, column {}) is {v}, not a temperature in (0, 10000] K",
                     k / raster.width,
