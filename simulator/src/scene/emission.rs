@@ -85,8 +85,16 @@ impl SceneEmission {
     }
 
     /// Radiance (tally units) emitted by the surface at `h` towards `wo` (unit, on the side of
-    /// `h.normal`).
-    pub fn radiance(&self, scene: &Scene, h: &SurfaceHit, wo: DVec3) -> f64 {
+    /// `h.normal`). `fresnel(n, k, μ)` is the Fresnel reflectance of `mirror` solvers (the
+    /// integrator's `solver::fresnel_reflectance`, passed in so that scenes do not depend on
+    /// the integrator).
+    pub fn radiance(
+        &self,
+        scene: &Scene,
+        h: &SurfaceHit,
+        wo: DVec3,
+        fresnel: impl Fn(f64, f64, f64) -> f64,
+    ) -> f64 {
         if h.material == BLACK {
             return 0.0;
         }
@@ -97,13 +105,7 @@ impl SceneEmission {
             SolverSpec::Mirror {
                 refractive_index,
                 absorption_index,
-            } => {
-                1.0 - crate::integrator::solver::fresnel_reflectance(
-                    refractive_index,
-                    absorption_index,
-                    mu.max(1e-6),
-                )
-            }
+            } => 1.0 - fresnel(refractive_index, absorption_index, mu.max(1e-6)),
             _ => match scene.texture_reflectance(h, self.wavelength) {
                 Some(r) => 1.0 - r,
                 None => match self.emitters.get(id) {

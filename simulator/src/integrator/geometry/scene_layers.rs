@@ -127,7 +127,13 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         } else {
             0.0
         };
-        (from_p - t * from_hit).max(0.0) + t * em.radiance(self.scene, &h, -d)
+        (from_p - t * from_hit).max(0.0)
+            + t * em.radiance(
+                self.scene,
+                &h,
+                -d,
+                crate::integrator::solver::fresnel_reflectance,
+            )
     }
 
     fn flight(

@@ -106,7 +106,15 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
         let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
         let (e, t) = self.shell.emission_within(p, l, d, rng.next_f64(), t_hit);
         match hit {
-            Some(h) => e + t.total * em.radiance(self.scene, &h, -d),
+            Some(h) => {
+                e + t.total
+                    * em.radiance(
+                        self.scene,
+                        &h,
+                        -d,
+                        crate::integrator::solver::fresnel_reflectance,
+                    )
+            }
             None => e,
         }
     }
