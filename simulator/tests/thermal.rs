@@ -345,10 +345,11 @@ fn unsupported_shapes_name_their_key() {
     assert!(e.contains("atmosphere.layers[0].temperature_top"), "{e}");
     let e = err(head(ok_atm, ok_surf, "type = \"none\"").replace("emission = true\n", "") + &m);
     assert!(e.contains("illumination.type"), "{e}");
+    // Spherical shells carry emission now (`thermal_spherical.rs`); spectral ALIS does not.
     let e = err(head(ok_atm, ok_surf, "type = \"none\"")
-        + "[geometry]\ntype = \"spherical_shell\"\n"
+        + "[integrator]\nspectral_walk = \"alis\"\n"
         + &m);
-    assert!(e.contains("geometry.type"), "{e}");
+    assert!(e.contains("integrator.spectral_walk"), "{e}");
 }
 
 /// A thermal run's CSV has the brightness-temperature columns, and the netCDF their variables
