@@ -331,13 +331,28 @@ impl Layers {
     fn locate(&self, z: f64) -> (usize, f64) {
         let n = self.sigma_s.len();
         let i = self.z.partition_point(|&b| b > z).clamp(1, n) - 1;
+        (i, self.fraction(i, z))
+    }
+
+    /// Fraction (0 at the top, 1 at the bottom) of altitude `z` in layer `i`.
+    fn fraction(&self, i: usize, z: f64) -> f64 {
         let (zt, zb) = (self.z[i], self.z[i + 1]);
-        let f = if zt > zb {
+        if zt > zb {
             ((zt - z) / (zt - zb)).clamp(0.0, 1.0)
         } else {
             0.0
-        };
-        (i, f)
+        }
+    }
+
+    /// The layer a flight from altitude `z` with vertical component `dz` starts in (on a
+    /// boundary: the one it moves into).
+    fn start_layer(&self, z: f64, dz: f64) -> usize {
+        let n = self.sigma_s.len();
+        if dz < 0.0 {
+            self.z.partition_point(|&b| b > z).clamp(1, n) - 1
+        } else {
+            self.z.partition_point(|&b| b >= z).clamp(1, n) - 1
+        }
     }
 
     /// Multiply each channel's path factor by `exp(−(τ_c − τ_ref))` over the flight of length
@@ -607,11 +622,7 @@ fn emission_along(l: &Layers, amp: &mut [f64], z: f64, d: DVec3) -> f64 {
         amp.fill(0.0);
         return 0.0;
     }
-    let mut i = if dz < 0.0 {
-        l.z.partition_point(|&b| b > z).clamp(1, n) - 1
-    } else {
-        l.z.partition_point(|&b| b >= z).clamp(1, n) - 1
-    };
+    let mut i = l.start_layer(z, dz);
     // The source of channel c at fraction f (0 at the top) of layer i.
     let at = |i: usize, c: usize, f: f64| -> f64 {
         let o = (i * nc + c) * 2;
@@ -620,14 +631,7 @@ fn emission_along(l: &Layers, amp: &mut [f64], z: f64, d: DVec3) -> f64 {
             None => 0.0,
         }
     };
-    let frac = |i: usize, z: f64| -> f64 {
-        let (zt, zb) = (l.z[i], l.z[i + 1]);
-        if zt > zb {
-            ((zt - z) / (zt - zb)).clamp(0.0, 1.0)
-        } else {
-            0.0
-        }
-    };
+    let frac = |i: usize, z: f64| l.fraction(i, z);
     let mut sum = 0.0;
     let mut out = [0.0_f64; MAX_CHANNELS];
     let (mut s_in, mut s_out) = ([0.0_f64; MAX_CHANNELS], [0.0_f64; MAX_CHANNELS]);
@@ -700,11 +704,7 @@ fn expected(
     if z < ground || (z >= toa && dz >= 0.0) {
         return;
     }
-    let mut i = if dz < 0.0 {
-        l.z.partition_point(|&b| b > z).clamp(1, n) - 1
-    } else {
-        l.z.partition_point(|&b| b >= z).clamp(1, n) - 1
-    };
+    let mut i = l.start_layer(z, dz);
     let nc = g.atms.len();
     let weights = match g.kind {
         Kind::GPoints { weights, .. } => Some(weights),
