@@ -48,6 +48,41 @@ pub struct PlaneParallel {
     /// Thermal source per layer, top to bottom: the Planck radiance at the layer's top and
     /// bottom boundary, in the units of the path tally (`emission.rs`); empty without emission.
     source: Vec<[f64; 2]>,
+    /// Runs of consecutive layers with the same albedo and phase function
+    /// ([`PlaneParallel::flight_integrals_within`] integrates over a run at once).
+    runs: Vec<Run>,
+}
+
+/// Layers `lo..hi` (top down) with one albedo and phase function; `rep` is the first of them
+/// with a non-zero thickness (or `lo`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+struct Run {
+    rep: usize,
+    lo: usize,
+    hi: usize,
+}
+
+/// The runs of layers with equal optics (zero-thickness layers join the run they are in).
+fn runs_of(tau: &[f64], albedo: &[f64], phase: &[PhaseFunction]) -> Vec<Run> {
+    let mut runs: Vec<Run> = Vec::new();
+    for l in 0..albedo.len() {
+        let thick = tau[l + 1] > tau[l];
+        match runs.last_mut() {
+            Some(r) if !thick => r.hi = l + 1,
+            Some(r) if tau[r.rep + 1] <= tau[r.rep] => {
+                // The run so far has no thickness: this layer gives it its optics.
+                r.rep = l;
+                r.hi = l + 1;
+            }
+            Some(r) if albedo[r.rep] == albedo[l] && phase[r.rep] == phase[l] => r.hi = l + 1,
+            _ => runs.push(Run {
+                rep: l,
+                lo: l,
+                hi: l + 1,
+            }),
+        }
+    }
+    runs
 }
 
 impl PlaneParallel {
@@ -75,6 +110,7 @@ impl PlaneParallel {
         }
         let total_tau = *tau.last().unwrap();
         Self {
+            runs: runs_of(&tau, &albedo, &phase),
             z,
             tau,
             albedo,
@@ -99,6 +135,7 @@ impl PlaneParallel {
         }
         let total_tau = *tau.last().unwrap();
         PlaneParallel {
+            runs: runs_of(&tau, &albedo, &self.phase),
             z: self.z.clone(),
             tau,
             albedo,
@@ -356,6 +393,12 @@ impl PlaneParallel {
     /// `Σ_L g_L·I_L` is the expectation of `g_{L(τ_c)}·e^{−bτ_c}·1{collision}`. With `b = 1/μ_v`
     /// this turns the local estimate at the next collision into its expected value (exact
     /// integration along the flight: no variance from the collision position).
+    ///
+    /// Consecutive layers with the same albedo and phase function are one *run* (a molecular
+    /// atmosphere without absorption is a single run): `f` is called once per run crossed,
+    /// with the run's first layer of non-zero thickness and the integral over the whole run, so
+    /// `g_L` must depend on the layer only through its albedo and phase function (as every
+    /// next-event estimate does). That is one exponential per run instead of two per layer.
     #[inline]
     pub fn flight_integrals(&self, tau_a: f64, dz: f64, b: f64, f: impl FnMut(usize, f64)) {
         self.flight_integrals_within(tau_a, dz, b, 0.0, self.total_tau, f)
@@ -373,7 +416,6 @@ impl PlaneParallel {
         tau_hi: f64,
         mut f: impl FnMut(usize, f64),
     ) {
-        let n = self.albedo.len();
         if self.total_tau <= 0.0 {
             return;
         }
@@ -385,27 +427,24 @@ impl PlaneParallel {
             return;
         }
         let a = 1.0 / dz.abs();
+        // Runs of layers with equal optics: in optical depth the integrand does not see the
+        // boundaries between them, so one integral serves the run.
+        let tau = &self.tau;
         if dz < 0.0 {
-            // Downwards: layers from the one holding tau_a to the bottom.
-            for l in 0..n {
-                let (t1, t2) = (
-                    self.tau[l].max(tau_a).max(tau_lo),
-                    self.tau[l + 1].min(tau_hi),
-                );
+            // Downwards: runs from the one holding tau_a to the bottom.
+            for r in &self.runs {
+                let (t1, t2) = (tau[r.lo].max(tau_a).max(tau_lo), tau[r.hi].min(tau_hi));
                 if t2 <= t1 {
                     continue;
                 }
                 let d = t2 - t1;
                 let i = a * (-a * (t1 - tau_a) - b * t1).exp() * d * exprel(-(a + b) * d);
-                f(l, i);
+                f(r.rep, i);
             }
         } else {
-            // Upwards: layers from the one holding tau_a to the top.
-            for l in 0..n {
-                let (t1, t2) = (
-                    self.tau[l].max(tau_lo),
-                    self.tau[l + 1].min(tau_a).min(tau_hi),
-                );
+            // Upwards: runs from the one holding tau_a to the top.
+            for r in &self.runs {
+                let (t1, t2) = (tau[r.lo].max(tau_lo), tau[r.hi].min(tau_a).min(tau_hi));
                 if t2 <= t1 {
                     continue;
                 }
@@ -417,7 +456,7 @@ impl PlaneParallel {
                 } else {
                     a * (-a * (tau_a - t1) - b * t1).exp() * d * exprel((a - b) * d)
                 };
-                f(l, i);
+                f(r.rep, i);
             }
         }
     }
@@ -463,6 +502,34 @@ mod tests {
         assert_eq!(a.fly(0.1, -0.5, 1.0), FlightEnd::Surface);
         assert_eq!(a.fly(0.1, 0.5, 1.0), FlightEnd::Escape);
         assert_eq!(a.fly(0.1, -0.5, 0.2), FlightEnd::Collision(0.2));
+    }
+
+    /// Runs merge equal neighbours only; zero-thickness layers join a run.
+    #[test]
+    fn runs_merge_equal_layers() {
+        let atm = three_layers();
+        // Top down: 10–100 km (albedo 1), 2–10 km empty (joins it), 0–2 km (albedo 0.75).
+        assert_eq!(
+            atm.runs,
+            vec![Run { rep: 0, lo: 0, hi: 2 }, Run { rep: 2, lo: 2, hi: 3 }]
+        );
+        // Two equal layers merge; a different phase function does not.
+        let rayleigh = |bottom: f64, top: f64| LayerOptics {
+            bottom,
+            top,
+            tau_sca: 0.1,
+            tau_abs: 0.0,
+            phase: ray(),
+        };
+        let hg = LayerOptics {
+            phase: PhaseFunction::Hg(crate::phase::HenyeyGreenstein { g: 0.7 }),
+            ..rayleigh(0.0, 1000.0)
+        };
+        let atm = PlaneParallel::new(vec![hg, rayleigh(1000.0, 2000.0), rayleigh(2000.0, 3000.0)], 0.0, 3000.0);
+        assert_eq!(
+            atm.runs,
+            vec![Run { rep: 0, lo: 0, hi: 2 }, Run { rep: 2, lo: 2, hi: 3 }]
+        );
     }
 
     /// `flight_integrals` against direct quadrature of its defining integral, both directions,

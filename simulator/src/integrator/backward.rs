@@ -27,7 +27,7 @@
 
 use glam::DVec3;
 
-use super::geometry::{Event, Geometry};
+use super::geometry::{Event, Geometry, Split};
 use super::peak_sampling::PeakSampling;
 use super::settings::IntegratorSettings;
 use super::solver::{self, SolverSpec};
@@ -201,6 +201,7 @@ pub fn walk<G: Geometry<W>, W: Adjoint>(
         w,
         order: 1,
         generation: 0,
+        forced: 0,
     };
     walk_from(g, state, settings, &peak, rng, &mut tally, &mut budget);
     tally
@@ -215,6 +216,8 @@ struct State<P, W> {
     order: u32,
     /// Surface interactions so far (the solvers' generations, `solver.rs`).
     generation: u32,
+    /// Flights split so far on this path's line ([`IntegratorSettings::forced_flights`]).
+    forced: u32,
 }
 
 fn walk_from<G: Geometry<W>, W: Adjoint>(
@@ -235,6 +238,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
         mut w,
         mut order,
         mut generation,
+        mut forced,
     } = state;
     // A path crossing `null` surfaces: at most this many in a row before it is dropped.
     let mut pass_through = 0u32;
@@ -244,15 +248,50 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
         if emitted > 0.0 {
             w.see_emission(tally, order, emitted);
         }
-        let event = g.flight(
-            pos,
-            d,
-            &mut w,
-            (expected && shines).then_some(&mut acc),
-            rng,
-        );
+        let want = (expected && shines).then_some(&mut acc);
+        let split = if forced < settings.forced_flights && w.splittable().is_some() {
+            g.flight_split(pos, d, &mut w, want, rng)
+        } else {
+            None
+        };
+        let (event, split) = match split {
+            Some(Split {
+                p_collision,
+                collision,
+                end,
+            }) => (end, Some((p_collision, collision))),
+            None => {
+                let want = (expected && shines).then_some(&mut acc);
+                (g.flight(pos, d, &mut w, want, rng), None)
+            }
+        };
         if expected && shines && W::phase_intensity(&acc) > 0.0 {
             w.see_sun_volume(tally, order, &acc, d, sun, INV_4PI);
+        }
+        if let Some((p, collision)) = split {
+            // Forced collision with splitting: the collided branch (weight × p) is walked to
+            // its end first, then this path goes on uncollided (weight × (1 − p)).
+            forced += 1;
+            let i = w.intensity();
+            if let (Event::Collision { pos: q, omega, phase }, Some(mut c)) =
+                (collision, w.splittable())
+            {
+                c.rescale_to(i * p, i);
+                let d2 = collide(g, q, omega, phase, d, &mut c, order, settings, peak, rng, tally);
+                let next_order = order + 1;
+                if survives(&mut c, next_order, settings.rr_depth, rng) {
+                    let next = State {
+                        pos: q,
+                        d: d2,
+                        w: c,
+                        order: next_order,
+                        generation,
+                        forced,
+                    };
+                    walk_from(g, next, settings, peak, rng, tally, budget);
+                }
+            }
+            w.rescale_to(i * (1.0 - p), i);
         }
         match event {
             Event::Escape => break,
@@ -263,14 +302,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
             } => {
                 pos = p;
                 pass_through = 0;
-                if !expected && shines && omega > 0.0 {
-                    let mut a = W::zero_phase();
-                    g.collision_estimate(p, omega, phase, d, &mut w, &mut a);
-                    if W::phase_intensity(&a) > 0.0 {
-                        w.see_sun_volume(tally, order, &a, d, sun, INV_4PI);
-                    }
-                }
-                d = w.scatter(phase, omega, d, peak, rng);
+                d = collide(g, p, omega, phase, d, &mut w, order, settings, peak, rng, tally);
             }
             Event::Surface(h) => {
                 let solver = g.solver(&h);
@@ -325,7 +357,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 if fan.is_fan() && w.splittable().is_some() {
                     // Fan out: each copy continues on the same stream, one after another.
                     fan_out(
-                        g, &h, surface, &w, d, order, generation, fan, settings, peak, rng, tally,
+                        g, &h, surface, &w, d, order, generation, forced, fan, settings, peak, rng, tally,
                         budget,
                     );
                     return;
@@ -351,12 +383,40 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                     w: copy.splittable().expect("a split weight copies"),
                     order,
                     generation,
+                    forced,
                 };
                 walk_from(g, next, settings, peak, rng, tally, budget);
             }
             return;
         }
     }
+}
+
+/// A collision at `p` of a path arriving along `d`: the classic next-event estimate there
+/// (with `local_estimate = "collision"`), then the scattering; returns the new direction.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn collide<G: Geometry<W>, W: Adjoint>(
+    g: &G,
+    p: G::Pos,
+    omega: f64,
+    phase: &crate::phase::PhaseFunction,
+    d: DVec3,
+    w: &mut W,
+    order: u32,
+    settings: &IntegratorSettings,
+    peak: &PeakSampling,
+    rng: &mut Stream,
+    tally: &mut W::Tally,
+) -> DVec3 {
+    if !settings.expected_local_estimate && g.sun_shines() && omega > 0.0 {
+        let mut a = W::zero_phase();
+        g.collision_estimate(p, omega, phase, d, w, &mut a);
+        if W::phase_intensity(&a) > 0.0 {
+            w.see_sun_volume(tally, order, &a, d, g.light().sun, INV_4PI);
+        }
+    }
+    w.scatter(phase, omega, d, peak, rng)
 }
 
 /// Most `null` surfaces a path crosses in a row before it is dropped (a guard against a ray
@@ -389,6 +449,7 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
     d: DVec3,
     order: u32,
     generation: u32,
+    forced: u32,
     fan: Fan,
     settings: &IntegratorSettings,
     peak: &PeakSampling,
@@ -408,6 +469,7 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
                 w: c,
                 order: next_order,
                 generation,
+                forced,
             };
             walk_from(g, next, settings, peak, rng, tally, budget);
         };

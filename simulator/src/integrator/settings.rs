@@ -49,6 +49,9 @@ pub struct IntegratorSettings {
     /// bin and the scatter excludes the spread between g-points, which the i.i.d. formula
     /// would count).
     pub replicates: bool,
+    /// `integrator.forced_flights`: the first this many flights of a backward path are split
+    /// into a forced collision and the uncollided branch (`backward.rs`); 0: off.
+    pub forced_flights: u32,
 }
 
 /// `integrator.sampler`: where each sample's random numbers come from.
@@ -64,6 +67,9 @@ pub enum Sampler {
 
 /// Default `integrator.detector_sampling`.
 pub const DETECTOR_SAMPLING: f64 = 0.1;
+
+/// Default `integrator.forced_flights`.
+pub const FORCED_FLIGHTS: u32 = 1;
 
 /// `integrator.local_estimate`.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
@@ -131,6 +137,10 @@ pub struct IntegratorConfig {
     /// "random" (default) or "sobol" (quasi-random first dimensions, `rng.rs`).
     #[serde(default)]
     pub sampler: Sampler,
+    /// Backward walks: split the first N flights of each path into a forced collision and the
+    /// uncollided branch (0–4, default [`FORCED_FLIGHTS`]).
+    #[serde(default)]
+    pub forced_flights: Option<u32>,
 }
 
 /// What of the rest of the run the integrator settings are checked against.
@@ -263,7 +273,18 @@ impl IntegratorSettings {
                 ))
             }
         };
+        let forced_flights = match cfg.forced_flights {
+            None => FORCED_FLIGHTS,
+            Some(n) if n <= 4 => n,
+            Some(n) => {
+                return Err(ctx.err(
+                    "integrator.forced_flights",
+                    format!("{n} must lie in 0 … 4 (a path splits into up to 2^N branches)"),
+                ))
+            }
+        };
         Ok(IntegratorSettings {
+            forced_flights,
             replicates: cfg.sampler == Sampler::Sobol,
             surface_solver: Default::default(),
             sampler: cfg.sampler,

@@ -8,7 +8,7 @@
 
 use glam::DVec3;
 
-use super::{Event, Geometry, Light};
+use super::{Event, Geometry, Light, Split};
 use crate::atmosphere::{FlightEnd, PlaneParallel};
 use crate::bsdf::{Bsdf, SurfaceEmission};
 use crate::integrator::surface::SurfaceAt;
@@ -82,6 +82,39 @@ impl<'a> Layers<'a> {
     }
 }
 
+impl Layers<'_> {
+    /// Add the flight's expected next-event estimate to `acc` (exact, layer by layer; the
+    /// mirror image of the Sun too).
+    #[inline]
+    fn expected<W: Weight>(&self, tau: f64, d: DVec3, acc: Option<&mut W::Phase>) {
+        let atm = self.atmosphere;
+        if let Some(acc) = acc {
+            let cos = self.sun.dot(d);
+            atm.flight_integrals(tau, d.z, 1.0 / self.sun.z, |l, i| {
+                W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), i);
+            });
+            if let Some((image, k)) = self.image_sun {
+                // Transmittance k·e^{+τ/μ_s}: b = −1/μ_s.
+                let cos = image.dot(d);
+                atm.flight_integrals(tau, d.z, -1.0 / self.sun.z, |l, i| {
+                    W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), k * i);
+                });
+            }
+        }
+    }
+
+    /// A collision at optical depth `t`.
+    #[inline]
+    fn collision(&self, t: f64) -> Event<'_, f64, ()> {
+        let layer = self.atmosphere.layer_at_tau(t);
+        Event::Collision {
+            pos: t,
+            omega: self.atmosphere.albedo(layer),
+            phase: self.atmosphere.phase(layer),
+        }
+    }
+}
+
 impl<W: Weight> Geometry<W> for Layers<'_> {
     type Pos = f64;
     type Hit = ();
@@ -99,32 +132,58 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, f64, ()> {
-        let atm = self.atmosphere;
-        if let Some(acc) = acc {
-            let cos = self.sun.dot(d);
-            atm.flight_integrals(tau, d.z, 1.0 / self.sun.z, |l, i| {
-                W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), i);
-            });
-            if let Some((image, k)) = self.image_sun {
-                // Transmittance k·e^{+τ/μ_s}: b = −1/μ_s.
-                let cos = image.dot(d);
-                atm.flight_integrals(tau, d.z, -1.0 / self.sun.z, |l, i| {
-                    W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), k * i);
-                });
-            }
-        }
+        self.expected::<W>(tau, d, acc);
         let s = -rng.next_f64_open0().ln();
-        match atm.fly(tau, d.z, s) {
+        match self.atmosphere.fly(tau, d.z, s) {
             FlightEnd::Escape => Event::Escape,
             FlightEnd::Surface => Event::Surface(()),
-            FlightEnd::Collision(t) => {
-                let layer = atm.layer_at_tau(t);
-                Event::Collision {
-                    pos: t,
-                    omega: atm.albedo(layer),
-                    phase: atm.phase(layer),
-                }
-            }
+            FlightEnd::Collision(t) => self.collision(t),
+        }
+    }
+
+    /// The collision probability is `1 − e^{−Δτ/|μ|}` to the boundary the flight heads for; the
+    /// forced collision's optical path is drawn from the truncated exponential.
+    #[inline]
+    fn flight_split(
+        &self,
+        tau: f64,
+        d: DVec3,
+        _: &mut W,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Option<Split<'_, f64, ()>> {
+        let atm = self.atmosphere;
+        if d.z.abs() < 1e-6 {
+            return None;
+        }
+        let (dtau, end) = if d.z < 0.0 {
+            (atm.total_tau() - tau, Event::Surface(()))
+        } else {
+            (tau, Event::Escape)
+        };
+        // P(collision) = 1 − e^{−s_end}, s_end the optical path to the boundary.
+        let p = -(-dtau / d.z.abs()).exp_m1();
+        if !(p > 0.0) {
+            return None;
+        }
+        self.expected::<W>(tau, d, acc);
+        let s = -(-rng.next_f64() * p).ln_1p();
+        match atm.fly(tau, d.z, s) {
+            FlightEnd::Collision(t) => Some(Split {
+                p_collision: p,
+                collision: self.collision(t),
+                end,
+            }),
+            // Rounding at the boundary: the forced collision sits on it.
+            _ => Some(Split {
+                p_collision: p,
+                collision: self.collision(if d.z < 0.0 {
+                    atm.total_tau() * (1.0 - 1e-15)
+                } else {
+                    atm.total_tau() * 1e-15
+                }),
+                end,
+            }),
         }
     }
 
@@ -132,6 +191,7 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
     fn sun_shines(&self) -> bool {
         self.shines
     }
+
 
     #[inline]
     fn flight_emission(&self, tau: f64, d: DVec3, _: &W, _: &mut Stream) -> f64 {

@@ -41,6 +41,20 @@ pub enum Event<'a, P, H> {
     Surface(H),
 }
 
+/// A flight split in two (forced collision with splitting, [`Geometry::flight_split`]): the
+/// branch that collides before the flight's end, drawn from the collision density conditioned
+/// on colliding, carries `p_collision`; the uncollided branch (`end`: the surface hit, or the
+/// escape) carries `1 − p_collision`. Both are followed, so the path's choice between them is
+/// no longer a source of variance.
+pub struct Split<'a, P, H> {
+    /// Probability that the flight collides before its end, in (0, 1).
+    pub p_collision: f64,
+    /// The forced collision (always [`Event::Collision`]).
+    pub collision: Event<'a, P, H>,
+    /// Where the uncollided flight ends ([`Event::Surface`] or [`Event::Escape`]).
+    pub end: Event<'a, P, H>,
+}
+
 /// The Sun of a geometry: its direction and the normalization of scores.
 #[derive(Clone, Copy, Debug)]
 pub struct Light {
@@ -85,6 +99,21 @@ pub trait Geometry<W: Weight> {
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, Self::Pos, Self::Hit>;
+
+    /// [`Self::flight`] split in two ([`Split`]): the same expected estimate into `acc`, then one
+    /// random number for the forced collision's optical path. `None` (touching neither `acc`
+    /// nor `rng`) where the geometry cannot split this flight (the default; flights that cannot
+    /// collide, horizontal ones); the caller then calls [`Self::flight`].
+    fn flight_split(
+        &self,
+        _pos: Self::Pos,
+        _d: DVec3,
+        _w: &mut W,
+        _acc: Option<&mut W::Phase>,
+        _rng: &mut Stream,
+    ) -> Option<Split<'_, Self::Pos, Self::Hit>> {
+        None
+    }
 
     /// Add to `acc` the next-event estimate (`ω·P(s·d)·T_sun·V`, without 1/4π) of a sampled
     /// collision at `pos` (used with `local_estimate = "collision"`).

@@ -21,7 +21,7 @@ use std::borrow::Cow;
 
 use glam::DVec3;
 
-use super::{Event, Geometry, Light};
+use super::{Event, Geometry, Light, Split};
 use crate::atmosphere::PlaneParallel;
 use crate::bsdf::{Bsdf, Lambertian};
 use crate::integrator::surface::SurfaceAt;
@@ -145,21 +145,8 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         rng: &mut Stream,
     ) -> Event<'_, DVec3, SurfaceHit> {
         let atm = self.atmosphere;
-        let top = self.scene.z_range[1];
         let has_atm = atm.total_tau() > 0.0;
-        // Distance at which the ray comes down to the scene's top (0 if already below).
-        let reach = if p.z <= top {
-            0.0
-        } else if d.z < 0.0 {
-            (p.z - top) / -d.z
-        } else {
-            f64::INFINITY
-        };
-        let hit = if reach.is_finite() {
-            self.scene.intersect(p, d, f64::INFINITY)
-        } else {
-            None
-        };
+        let (reach, hit) = self.first_hit(p, d);
         let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
         if let (Some(acc), true) = (acc, has_atm) {
             self.expected_atmospheric::<W>(p, d, reach, t_hit, acc, rng);
@@ -183,6 +170,54 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         } else {
             Event::Escape
         }
+    }
+
+    /// The flight's end is its first hit, or the top or bottom of the atmosphere; the forced
+    /// collision's optical path is drawn from the exponential truncated there and marched to.
+    fn flight_split(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        _: &mut W,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Option<Split<'_, DVec3, SurfaceHit>> {
+        let atm = self.atmosphere;
+        if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
+            return None;
+        }
+        let (reach, hit) = self.first_hit(p, d);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        // Optical path to the flight's end (tau_at_altitude clamps beyond the atmosphere).
+        let s_end = atm.optical_path(p.z, d.z, t_hit);
+        let p_coll = -(-s_end).exp_m1();
+        if !(p_coll > 0.0) {
+            return None;
+        }
+        if let Some(acc) = acc {
+            self.expected_atmospheric::<W>(p, d, reach, t_hit, acc, rng);
+        }
+        let s = -(-rng.next_f64() * p_coll).ln_1p();
+        // Rounding may carry the optical path just past the end: the collision then sits there
+        // (`None` is no longer allowed once `acc` and `rng` have been used).
+        let t = atm.march(p.z, d.z, s, t_hit).unwrap_or_else(|| {
+            let boundary = if d.z > 0.0 { atm.toa() } else { atm.ground() };
+            t_hit.min((boundary - p.z) / d.z) * (1.0 - 1e-12)
+        });
+        let q = self.scene.wrap_point(p + d * t);
+        let layer = atm.layer_at_altitude(q.z);
+        Some(Split {
+            p_collision: p_coll,
+            collision: Event::Collision {
+                pos: q,
+                omega: atm.albedo(layer),
+                phase: atm.phase(layer),
+            },
+            end: match hit {
+                Some(h) => Event::Surface(h),
+                None => Event::Escape,
+            },
+        })
     }
 
     #[inline]
@@ -217,6 +252,27 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 }
 
 impl SceneInLayers<'_> {
+    /// The distance at which the flight from `p` along `d` comes down to the scene's top (0 if
+    /// it starts below, ∞ if it never does) and its first hit (queried only when it can reach
+    /// the scene).
+    #[inline]
+    fn first_hit(&self, p: DVec3, d: DVec3) -> (f64, Option<SurfaceHit>) {
+        let top = self.scene.z_range[1];
+        let reach = if p.z <= top {
+            0.0
+        } else if d.z < 0.0 {
+            (p.z - top) / -d.z
+        } else {
+            f64::INFINITY
+        };
+        let hit = if reach.is_finite() {
+            self.scene.intersect(p, d, f64::INFINITY)
+        } else {
+            None
+        };
+        (reach, hit)
+    }
+
     /// Expected value, over the next collision of the flight from `p` along `d`, of the
     /// atmospheric next-event estimate `ω P(s·d) T_sun V` (without the 1/4π), for a flight whose
     /// first geometry hit is at `t_hit` and which comes below the scene's top at `reach`:
