@@ -51,6 +51,41 @@ pub struct PlaneParallel {
     /// Runs of consecutive layers with the same albedo and phase function
     /// ([`PlaneParallel::flight_integrals_within`] integrates over a run at once).
     runs: Vec<Run>,
+    /// Altitude index for [`PlaneParallel::bottoms_above`]: equal altitude bins from the
+    /// ground up, each with the count for its top.
+    zgrid: ZGrid,
+}
+
+/// Equal altitude bins over the atmosphere, each holding the number of layer bottoms above its
+/// top, so that a lookup scans a layer or two instead of a binary search.
+#[derive(Clone, Debug, Default)]
+struct ZGrid {
+    ground: f64,
+    inv_h: f64,
+    start: Vec<u32>,
+}
+
+impl ZGrid {
+    fn new(z: &[f64]) -> Self {
+        let n = z.len() - 1;
+        let (toa, ground) = (z[0], z[n]);
+        if !(toa > ground) {
+            return ZGrid::default();
+        }
+        let bins = (8 * n).clamp(16, 4096);
+        let h = (toa - ground) / bins as f64;
+        let start = (0..bins)
+            .map(|k| {
+                let top = ground + (k + 1) as f64 * h;
+                z[1..].partition_point(|&b| b > top) as u32
+            })
+            .collect();
+        ZGrid {
+            ground,
+            inv_h: 1.0 / h,
+            start,
+        }
+    }
 }
 
 /// Layers `lo..hi` (top down) with one albedo and phase function; `rep` is the first of them
@@ -111,6 +146,7 @@ impl PlaneParallel {
         let total_tau = *tau.last().unwrap();
         Self {
             runs: runs_of(&tau, &albedo, &phase),
+            zgrid: ZGrid::new(&z),
             z,
             tau,
             albedo,
@@ -136,6 +172,7 @@ impl PlaneParallel {
         let total_tau = *tau.last().unwrap();
         PlaneParallel {
             runs: runs_of(&tau, &albedo, &self.phase),
+            zgrid: self.zgrid.clone(),
             z: self.z.clone(),
             tau,
             albedo,
@@ -195,8 +232,8 @@ impl PlaneParallel {
         if z >= self.z[0] {
             return 0.0;
         }
-        // The first layer i with z ≥ its bottom z[i+1] (boundaries descend): binary search.
-        let i = self.z[1..].partition_point(|&b| b > z);
+        // The first layer i with z ≥ its bottom z[i+1] (boundaries descend).
+        let i = self.bottoms_above(z);
         if i >= self.albedo.len() {
             return self.total_tau;
         }
@@ -261,7 +298,7 @@ impl PlaneParallel {
         // Layer i spans [z[i+1], z[i]]; pick the one holding z (the lower one on a boundary
         // when going down, the upper one when going up).
         let mut i = if dz < 0.0 {
-            self.z.partition_point(|&b| b > z).clamp(1, n) - 1
+            self.boundaries_above(z).clamp(1, n) - 1
         } else {
             self.z.partition_point(|&b| b >= z).clamp(1, n) - 1
         };
@@ -326,7 +363,39 @@ impl PlaneParallel {
     /// Index of the layer holding altitude `z` (clamped to the atmosphere).
     pub fn layer_at_altitude(&self, z: f64) -> usize {
         let n = self.albedo.len();
-        self.z.partition_point(|&b| b > z).clamp(1, n) - 1
+        self.boundaries_above(z).clamp(1, n) - 1
+    }
+
+    /// The number of layer bottoms above `z` (`z[1..].partition_point(|&b| b > z)`), found from
+    /// the altitude grid and a short scan.
+    #[inline]
+    pub(crate) fn bottoms_above(&self, z: f64) -> usize {
+        let n = self.z.len() - 1;
+        let g = &self.zgrid;
+        let mut i = if g.start.is_empty() || !z.is_finite() {
+            return self.z[1..].partition_point(|&b| b > z);
+        } else {
+            let k = ((z - g.ground) * g.inv_h).max(0.0) as usize;
+            g.start[k.min(g.start.len() - 1)] as usize
+        };
+        // Bottoms z[1..][j] = z[j + 1] descend: move to the first one not above z.
+        while i > 0 && self.z[i] <= z {
+            i -= 1;
+        }
+        while i < n && self.z[i + 1] > z {
+            i += 1;
+        }
+        i
+    }
+
+    /// `self.z.partition_point(|&b| b > z)`: boundaries (top included) above `z`.
+    #[inline]
+    fn boundaries_above(&self, z: f64) -> usize {
+        if self.z[0] > z {
+            1 + self.bottoms_above(z)
+        } else {
+            0
+        }
     }
 
     /// Layer count (including an empty placeholder when there is no atmosphere).
@@ -502,6 +571,33 @@ mod tests {
         assert_eq!(a.fly(0.1, -0.5, 1.0), FlightEnd::Surface);
         assert_eq!(a.fly(0.1, 0.5, 1.0), FlightEnd::Escape);
         assert_eq!(a.fly(0.1, -0.5, 0.2), FlightEnd::Collision(0.2));
+    }
+
+    /// The altitude grid gives the binary search's answers, on and between boundaries, outside
+    /// the atmosphere and with zero-thickness layers.
+    #[test]
+    fn altitude_grid_matches_binary_search() {
+        let layer = |bottom: f64, top: f64| LayerOptics {
+            bottom,
+            top,
+            tau_sca: 0.01,
+            tau_abs: 0.0,
+            phase: ray(),
+        };
+        let mut edges = vec![0.0, 7.0, 1000.0, 1000.5, 2000.0, 2500.0, 30_000.0, 100_000.0];
+        edges.sort_by(f64::total_cmp);
+        let layers: Vec<LayerOptics> = edges.windows(2).map(|w| layer(w[0], w[1])).collect();
+        let atm = PlaneParallel::new(layers, 0.0, 100_000.0);
+        let mut rng = crate::rng::Stream::new(5, [0, 0, 0, 0]);
+        let mut zs: Vec<f64> = edges.clone();
+        zs.extend(edges.iter().flat_map(|&e| [e * (1.0 + 1e-15), e * (1.0 - 1e-15), e + 1e-9]));
+        zs.extend((0..20_000).map(|_| 110_000.0 * rng.next_f64() - 5_000.0));
+        zs.extend([f64::INFINITY, f64::NEG_INFINITY, -1e300, 1e300]);
+        for z in zs {
+            let want = atm.z[1..].partition_point(|&b| b > z);
+            assert_eq!(atm.bottoms_above(z), want, "z = {z}");
+            assert_eq!(atm.boundaries_above(z), atm.z.partition_point(|&b| b > z), "z = {z}");
+        }
     }
 
     /// Runs merge equal neighbours only; zero-thickness layers join a run.
