@@ -686,9 +686,13 @@ fn run_task(
             break;
         }
         // At least 8 blocks more (at most 4× what is done, after an early first check), or one
-        // more g-point cycle (cycles are already 16 blocks).
+        // more g-point cycle (cycles are already 16 blocks). An image's block is already a
+        // round over every pixel (64 samples each), so images grow by at least one block: the
+        // projection to the target then decides, instead of a jump from 256 to 768 samples.
         let min_grow = if unit > bs {
             unit
+        } else if m.is_image() {
+            bs
         } else {
             (8 * bs).min(4 * done).max(bs)
         };

@@ -69,7 +69,7 @@ impl ZGrid {
     fn new(z: &[f64]) -> Self {
         let n = z.len() - 1;
         let (toa, ground) = (z[0], z[n]);
-        if !(toa > ground) {
+        if toa.partial_cmp(&ground) != Some(std::cmp::Ordering::Greater) {
             return ZGrid::default();
         }
         let bins = (8 * n).clamp(16, 4096);
@@ -584,19 +584,29 @@ mod tests {
             tau_abs: 0.0,
             phase: ray(),
         };
-        let mut edges = vec![0.0, 7.0, 1000.0, 1000.5, 2000.0, 2500.0, 30_000.0, 100_000.0];
+        let mut edges = vec![
+            0.0, 7.0, 1000.0, 1000.5, 2000.0, 2500.0, 30_000.0, 100_000.0,
+        ];
         edges.sort_by(f64::total_cmp);
         let layers: Vec<LayerOptics> = edges.windows(2).map(|w| layer(w[0], w[1])).collect();
         let atm = PlaneParallel::new(layers, 0.0, 100_000.0);
         let mut rng = crate::rng::Stream::new(5, [0, 0, 0, 0]);
         let mut zs: Vec<f64> = edges.clone();
-        zs.extend(edges.iter().flat_map(|&e| [e * (1.0 + 1e-15), e * (1.0 - 1e-15), e + 1e-9]));
+        zs.extend(
+            edges
+                .iter()
+                .flat_map(|&e| [e * (1.0 + 1e-15), e * (1.0 - 1e-15), e + 1e-9]),
+        );
         zs.extend((0..20_000).map(|_| 110_000.0 * rng.next_f64() - 5_000.0));
         zs.extend([f64::INFINITY, f64::NEG_INFINITY, -1e300, 1e300]);
         for z in zs {
             let want = atm.z[1..].partition_point(|&b| b > z);
             assert_eq!(atm.bottoms_above(z), want, "z = {z}");
-            assert_eq!(atm.boundaries_above(z), atm.z.partition_point(|&b| b > z), "z = {z}");
+            assert_eq!(
+                atm.boundaries_above(z),
+                atm.z.partition_point(|&b| b > z),
+                "z = {z}"
+            );
         }
     }
 
@@ -607,7 +617,18 @@ mod tests {
         // Top down: 10–100 km (albedo 1), 2–10 km empty (joins it), 0–2 km (albedo 0.75).
         assert_eq!(
             atm.runs,
-            vec![Run { rep: 0, lo: 0, hi: 2 }, Run { rep: 2, lo: 2, hi: 3 }]
+            vec![
+                Run {
+                    rep: 0,
+                    lo: 0,
+                    hi: 2
+                },
+                Run {
+                    rep: 2,
+                    lo: 2,
+                    hi: 3
+                }
+            ]
         );
         // Two equal layers merge; a different phase function does not.
         let rayleigh = |bottom: f64, top: f64| LayerOptics {
@@ -621,10 +642,25 @@ mod tests {
             phase: PhaseFunction::Hg(crate::phase::HenyeyGreenstein { g: 0.7 }),
             ..rayleigh(0.0, 1000.0)
         };
-        let atm = PlaneParallel::new(vec![hg, rayleigh(1000.0, 2000.0), rayleigh(2000.0, 3000.0)], 0.0, 3000.0);
+        let atm = PlaneParallel::new(
+            vec![hg, rayleigh(1000.0, 2000.0), rayleigh(2000.0, 3000.0)],
+            0.0,
+            3000.0,
+        );
         assert_eq!(
             atm.runs,
-            vec![Run { rep: 0, lo: 0, hi: 2 }, Run { rep: 2, lo: 2, hi: 3 }]
+            vec![
+                Run {
+                    rep: 0,
+                    lo: 0,
+                    hi: 2
+                },
+                Run {
+                    rep: 2,
+                    lo: 2,
+                    hi: 3
+                }
+            ]
         );
     }
 

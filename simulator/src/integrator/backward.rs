@@ -273,11 +273,19 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
             // its end first, then this path goes on uncollided (weight × (1 − p)).
             forced += 1;
             let i = w.intensity();
-            if let (Event::Collision { pos: q, omega, phase }, Some(mut c)) =
-                (collision, w.splittable())
+            if let (
+                Event::Collision {
+                    pos: q,
+                    omega,
+                    phase,
+                },
+                Some(mut c),
+            ) = (collision, w.splittable())
             {
                 c.rescale_to(i * p, i);
-                let d2 = collide(g, q, omega, phase, d, &mut c, order, settings, peak, rng, tally);
+                let d2 = collide(
+                    g, q, omega, phase, d, &mut c, order, settings, peak, rng, tally,
+                );
                 let next_order = order + 1;
                 if survives(&mut c, next_order, settings.rr_depth, rng) {
                     let next = State {
@@ -302,7 +310,9 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
             } => {
                 pos = p;
                 pass_through = 0;
-                d = collide(g, p, omega, phase, d, &mut w, order, settings, peak, rng, tally);
+                d = collide(
+                    g, p, omega, phase, d, &mut w, order, settings, peak, rng, tally,
+                );
             }
             Event::Surface(h) => {
                 let solver = g.solver(&h);
@@ -357,8 +367,8 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 if fan.is_fan() && w.splittable().is_some() {
                     // Fan out: each copy continues on the same stream, one after another.
                     fan_out(
-                        g, &h, surface, &w, d, order, generation, forced, fan, settings, peak, rng, tally,
-                        budget,
+                        g, &h, surface, &w, d, order, generation, forced, fan, settings, peak, rng,
+                        tally, budget,
                     );
                     return;
                 }

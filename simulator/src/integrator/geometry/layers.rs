@@ -163,7 +163,7 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
         };
         // P(collision) = 1 − e^{−s_end}, s_end the optical path to the boundary.
         let p = -(-dtau / d.z.abs()).exp_m1();
-        if !(p > 0.0) {
+        if p.is_nan() || p <= 0.0 {
             return None;
         }
         self.expected::<W>(tau, d, acc);
@@ -191,7 +191,6 @@ impl<W: Weight> Geometry<W> for Layers<'_> {
     fn sun_shines(&self) -> bool {
         self.shines
     }
-
 
     #[inline]
     fn flight_emission(&self, tau: f64, d: DVec3, _: &W, _: &mut Stream) -> f64 {

@@ -191,7 +191,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         // Optical path to the flight's end (tau_at_altitude clamps beyond the atmosphere).
         let s_end = atm.optical_path(p.z, d.z, t_hit);
         let p_coll = -(-s_end).exp_m1();
-        if !(p_coll > 0.0) {
+        if p_coll.is_nan() || p_coll <= 0.0 {
             return None;
         }
         if let Some(acc) = acc {
