@@ -613,23 +613,10 @@ mod tests {
     /// Runs merge equal neighbours only; zero-thickness layers join a run.
     #[test]
     fn runs_merge_equal_layers() {
+        let run = |rep, lo, hi| Run { rep, lo, hi };
         let atm = three_layers();
         // Top down: 10–100 km (albedo 1), 2–10 km empty (joins it), 0–2 km (albedo 0.75).
-        assert_eq!(
-            atm.runs,
-            vec![
-                Run {
-                    rep: 0,
-                    lo: 0,
-                    hi: 2
-                },
-                Run {
-                    rep: 2,
-                    lo: 2,
-                    hi: 3
-                }
-            ]
-        );
+        assert_eq!(atm.runs, vec![run(0, 0, 2), run(2, 2, 3)]);
         // Two equal layers merge; a different phase function does not.
         let rayleigh = |bottom: f64, top: f64| LayerOptics {
             bottom,
@@ -647,21 +634,7 @@ mod tests {
             0.0,
             3000.0,
         );
-        assert_eq!(
-            atm.runs,
-            vec![
-                Run {
-                    rep: 0,
-                    lo: 0,
-                    hi: 2
-                },
-                Run {
-                    rep: 2,
-                    lo: 2,
-                    hi: 3
-                }
-            ]
-        );
+        assert_eq!(atm.runs, vec![run(0, 0, 2), run(2, 2, 3)]);
     }
 
     /// `flight_integrals` against direct quadrature of its defining integral, both directions,

@@ -286,18 +286,15 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 let d2 = collide(
                     g, q, omega, phase, d, &mut c, order, settings, peak, rng, tally,
                 );
-                let next_order = order + 1;
-                if survives(&mut c, next_order, settings.rr_depth, rng) {
-                    let next = State {
-                        pos: q,
-                        d: d2,
-                        w: c,
-                        order: next_order,
-                        generation,
-                        forced,
-                    };
-                    walk_from(g, next, settings, peak, rng, tally, budget);
-                }
+                let next = State {
+                    pos: q,
+                    d: d2,
+                    w: c,
+                    order: order + 1,
+                    generation,
+                    forced,
+                };
+                walk_on(g, next, settings, peak, rng, tally, budget);
             }
             w.rescale_to(i * (1.0 - p), i);
         }
@@ -402,6 +399,22 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
     }
 }
 
+/// Continue a branch (a forced collision's, or a surface fan's copy) from `state`, whose `order`
+/// is its next interaction's, once it survives Russian roulette at that order.
+fn walk_on<G: Geometry<W>, W: Adjoint>(
+    g: &G,
+    mut state: State<G::Pos, W>,
+    settings: &IntegratorSettings,
+    peak: &PeakSampling,
+    rng: &mut Stream,
+    tally: &mut W::Tally,
+    budget: &mut u32,
+) {
+    if survives(&mut state.w, state.order, settings.rr_depth, rng) {
+        walk_from(g, state, settings, peak, rng, tally, budget);
+    }
+}
+
 /// A collision at `p` of a path arriving along `d`: the classic next-event estimate there
 /// (with `local_estimate = "collision"`), then the scattering; returns the new direction.
 #[allow(clippy::too_many_arguments)]
@@ -468,20 +481,16 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
     budget: &mut u32,
 ) {
     let continue_from =
-        |mut c: W, d2: DVec3, rng: &mut Stream, tally: &mut W::Tally, budget: &mut u32| {
-            let next_order = order + 1;
-            if !survives(&mut c, next_order, settings.rr_depth, rng) {
-                return;
-            }
+        |c: W, d2: DVec3, rng: &mut Stream, tally: &mut W::Tally, budget: &mut u32| {
             let next = State {
                 pos: g.leave(h, d2),
                 d: d2,
                 w: c,
-                order: next_order,
+                order: order + 1,
                 generation,
                 forced,
             };
-            walk_from(g, next, settings, peak, rng, tally, budget);
+            walk_on(g, next, settings, peak, rng, tally, budget);
         };
     match fan {
         Fan::Sampled(n) => {

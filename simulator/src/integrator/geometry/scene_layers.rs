@@ -158,13 +158,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
             None
         };
         if let Some(t) = t_coll {
-            let q = self.scene.wrap_point(p + d * t);
-            let layer = atm.layer_at_altitude(q.z);
-            Event::Collision {
-                pos: q,
-                omega: atm.albedo(layer),
-                phase: atm.phase(layer),
-            }
+            self.collision_at(p + d * t)
         } else if let Some(h) = hit {
             Event::Surface(h)
         } else {
@@ -204,15 +198,9 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
             let boundary = if d.z > 0.0 { atm.toa() } else { atm.ground() };
             t_hit.min((boundary - p.z) / d.z) * (1.0 - 1e-12)
         });
-        let q = self.scene.wrap_point(p + d * t);
-        let layer = atm.layer_at_altitude(q.z);
         Some(Split {
             p_collision: p_coll,
-            collision: Event::Collision {
-                pos: q,
-                omega: atm.albedo(layer),
-                phase: atm.phase(layer),
-            },
+            collision: self.collision_at(p + d * t),
             end: match hit {
                 Some(h) => Event::Surface(h),
                 None => Event::Escape,
@@ -271,6 +259,18 @@ impl SceneInLayers<'_> {
             None
         };
         (reach, hit)
+    }
+
+    /// A collision at point `q` (wrapped into a periodic scene's cell), with its layer's optics.
+    #[inline]
+    fn collision_at(&self, q: DVec3) -> Event<'_, DVec3, SurfaceHit> {
+        let q = self.scene.wrap_point(q);
+        let layer = self.atmosphere.layer_at_altitude(q.z);
+        Event::Collision {
+            pos: q,
+            omega: self.atmosphere.albedo(layer),
+            phase: self.atmosphere.phase(layer),
+        }
     }
 
     /// Expected value, over the next collision of the flight from `p` along `d`, of the
