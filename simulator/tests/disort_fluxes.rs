@@ -10,9 +10,9 @@
 //! upwelling and diffuse downwelling fluxes are Monte Carlo estimates and must agree within
 //! `common::check_all` (|diff| ≤ 4.5σ + max(1e-5, 2e-4·ref)). Both estimators are tested: the
 //! forward one (expected level crossings) and the backward one (cosine-distributed paths
-//! from the level); the spherical-shell backward walk with an overhead Sun, whose fluxes equal
-//! the plane-parallel ones up to the curvature of a 100 km layer over 6371 km, is checked on the
-//! downwelling flux at the surface. Values compared are fluxes / (E0 cos SZA), E0 = 1.
+//! from the level); the spherical-shell backward walk with an overhead Sun is checked against
+//! the plane-parallel one at the surface of a 1 km layer, where curvature does not matter (see
+//! that test). Values compared are fluxes / (E0 cos SZA), E0 = 1.
 
 mod common;
 use common::*;
@@ -185,8 +185,19 @@ fn backward_fluxes_match_disort() {
 /// Spherical shells, overhead Sun: the direct beam is exactly the plane-parallel one, and the
 /// diffuse downwelling flux at the surface agrees with DISORT within its standard error plus
 /// 0.5 % (the sphericity of a 100 km thick layer: diffuse light arrives along slant paths).
+/// The spherical-shell backward walk against the plane-parallel one, with an overhead Sun, in a
+/// layer thin enough (1 km) that the planet's curvature does not matter: the slant path to the
+/// top of the layer at 5° elevation is 1.2 % shorter over the sphere, and the flux-weighted
+/// effect is below 0.1 %. (In the 100 km layer of the DISORT cases it does matter: there the
+/// sphere's diffuse flux at the ground is 1.7 % lower, 0.2642 against 0.2687 with 400 000
+/// samples each, as the line of sight at 10–30° elevation is 3–18 % shorter.)
+///
+/// Also the exact identity of a Lambertian ground: the upwelling flux leaving it is `ρ` times
+/// the downwelling flux reaching it (direct + diffuse). Paths that start on the ground and look
+/// down once flew through the planet (an upwelling flux 3× too high); `SphericalShell::exit` now
+/// crosses the ground at once.
 #[test]
-fn spherical_downwelling_flux_is_close_to_plane_parallel() {
+fn spherical_fluxes_match_plane_parallel_in_a_thin_layer() {
     let text = experiment_text(
         &RefRow {
             case: String::new(),
@@ -200,11 +211,27 @@ fn spherical_downwelling_flux_is_close_to_plane_parallel() {
             value: 0.0,
         },
         "backward",
-        40_000,
+        100_000,
         true,
     );
-    let plane = text.replace("[geometry]\ntype = \"spherical_shell\"\n", "");
-    let sph = run_rows(&experiment(&text));
+    // Only the measures at the ground, in a 1 km layer.
+    let cut = text.find("[[measures]]").unwrap();
+    let mut text = text[..cut].to_string();
+    for dir in ["up", "down"] {
+        text += &format!(
+            "[[measures]]\ntype = \"distant_flux\"\nid = \"{dir}0\"\naltitude = 0.0\ndirection = \"{dir}\"\nspp = 100000\n"
+        );
+    }
+    let sph = text.replace(
+        "[geometry]\ntype = \"spherical_shell\"\n",
+        "[geometry]\ntype = \"spherical_shell\"\ntoa_altitude = 1.0\n",
+    );
+    let plane = text.replace(
+        "[geometry]\ntype = \"spherical_shell\"\n",
+        "[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 1.0\n",
+    );
+    assert_ne!(sph, plane);
+    let sph = run_rows(&experiment(&sph));
     let pp = run_rows(&experiment(&plane));
     let at = |rows: &[simulator::products::Row], id: &str| {
         rows.iter().find(|r| r.measure == id).unwrap().clone()
@@ -214,9 +241,16 @@ fn spherical_downwelling_flux_is_close_to_plane_parallel() {
     assert!((sd - (-0.5f64).exp()).abs() < 1e-9, "direct {sd}");
     assert!((pd - (-0.5f64).exp()).abs() < 1e-12, "direct {pd}");
     let ((sv, se), (pv, pe)) = (s.flux_diffuse.unwrap(), p.flux_diffuse.unwrap());
-    let tol = 4.5 * (se * se + pe * pe).sqrt() + 0.005 * pv;
+    let tol = 4.5 * (se * se + pe * pe).sqrt() + 0.002 * pv;
     println!(
         "spherical vs plane-parallel diffuse down at BOA: {sv:.5} ± {se:.1e} vs {pv:.5} ± {pe:.1e}"
     );
     assert!((sv - pv).abs() < tol, "{sv} vs {pv} (tol {tol})");
+    for (name, rows) in [("spherical", &sph), ("plane-parallel", &pp)] {
+        let (up, ue) = at(rows, "up0").flux.unwrap();
+        let (down, de) = at(rows, "down0").flux.unwrap();
+        let tol = 4.5 * (ue * ue + 0.09 * de * de).sqrt() + 1e-4;
+        println!("{name}: up at the ground {up:.5} ± {ue:.1e}, 0.3 × down {:.5}", 0.3 * down);
+        assert!((up - 0.3 * down).abs() < tol, "{name}: up {up} vs 0.3 × {down} (tol {tol})");
+    }
 }

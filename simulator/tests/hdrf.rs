@@ -6,7 +6,8 @@
 //!   (both halves) and cross planes, 96 streams (converged to 3e-6 against 80), the directly
 //!   reflected beam made exact as for the TOA case E tables;
 //! * **closed form, Lambertian**: `L↑ = ρ·E↓/π` at the surface whatever the sky, so HDRF = ρ in
-//!   every direction (a Rayleigh layer and an absorbing HG layer, SZA 30° and 60°);
+//!   every direction (a Rayleigh layer and an absorbing HG layer, SZA 30° and 60°, and the
+//!   Rayleigh layer in spherical shells);
 //! * **closed form, no atmosphere**: with τ = 0 all light is the direct beam, so the HDRF is the
 //!   BRF `π·f(s, v)` of the surface; the RPV formula is written out here from Rahman et al.
 //!   (1993), independently of `bsdf/rpv.rs`.
@@ -117,6 +118,12 @@ fn hdrf_of_a_lambertian_surface_is_its_reflectance() {
         (
             "type = \"homogeneous\"\noptical_thickness = 1.0\nsingle_scattering_albedo = 0.9\nphase = { type = \"hg\", g = 0.7 }",
             60.0,
+        ),
+        // Spherical shells: the paths start on the ground looking down (they once flew
+        // through the planet instead of meeting the ground at once).
+        (
+            "type = \"homogeneous\"\noptical_thickness = 0.5\nphase = { type = \"rayleigh\" }\n[geometry]\ntype = \"spherical_shell\"",
+            30.0,
         ),
     ] {
         let exp = experiment(&experiment_text(

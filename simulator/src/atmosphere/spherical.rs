@@ -195,14 +195,14 @@ impl SphericalShell {
     fn exit(&self, p: DVec3, d: DVec3, l: usize) -> (f64, isize) {
         let b = p.dot(d);
         let pp = p.length_squared();
-        // Inner sphere, only when moving inwards and the ray reaches it.
+        // Inner sphere, only when moving inwards and the ray reaches it. A point on the inner
+        // sphere (or inside it by rounding) moving inwards crosses it at once: `t` is then 0,
+        // never the far root of the outer sphere through the planet (a path starting on the
+        // ground and looking down, e.g. an upwelling flux at altitude 0).
         let r_in = self.radius[l];
         let disc_in = b * b - (pp - r_in * r_in);
         if b < 0.0 && disc_in > 0.0 {
-            let t = -b - disc_in.sqrt();
-            if t > 0.0 {
-                return (t, l as isize - 1);
-            }
+            return ((-b - disc_in.sqrt()).max(0.0), l as isize - 1);
         }
         let r_out = self.radius[l + 1];
         let disc_out = (b * b - (pp - r_out * r_out)).max(0.0);
