@@ -47,7 +47,8 @@ pub enum Event<'a, P, H> {
 /// escape) carries `1 − p_collision`. Both are followed, so the path's choice between them is
 /// no longer a source of variance.
 pub struct Split<'a, P, H> {
-    /// Probability that the flight collides before its end, in (0, 1).
+    /// Probability that the flight collides before its end, in (0, 1) (0 only where a
+    /// geometry could not place the collision: that branch then carries nothing).
     pub p_collision: f64,
     /// The forced collision (always [`Event::Collision`]).
     pub collision: Event<'a, P, H>,

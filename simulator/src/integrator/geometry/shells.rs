@@ -10,7 +10,7 @@
 
 use glam::DVec3;
 
-use super::{stratified_estimate, Event, Geometry, Light};
+use super::{stratified_estimate, Event, Geometry, Light, Split};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::bsdf::Bsdf;
 use crate::integrator::surface::{Frame, SurfaceAt};
@@ -96,6 +96,58 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
                 phase: shell.phase(lq),
             },
         }
+    }
+
+    /// The collision probability is `1 − e^{−τ}` over the whole flight (to the ground or to
+    /// space); the forced collision's optical path is drawn from the truncated exponential and
+    /// flown; the uncollided end is the same flight with an infinite optical path.
+    fn flight_split(
+        &self,
+        (p, l): (DVec3, usize),
+        d: DVec3,
+        _: &mut W,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Option<Split<'_, (DVec3, usize), DVec3>> {
+        let shell = self.shell;
+        let tau_exit = shell.optical_depth_within(p, l, d, f64::INFINITY);
+        let p_coll = -(-tau_exit).exp_m1();
+        if p_coll.is_nan() || p_coll <= 0.0 {
+            return None;
+        }
+        if let Some(acc) = acc {
+            let seen = |q: DVec3, lq: usize| shell.transmittance_to_space(q, lq, self.sun);
+            stratified_estimate::<W>(shell, p, l, d, tau_exit, self.sun, acc, rng, seen);
+        }
+        let mut s = -(-rng.next_f64() * p_coll).ln_1p();
+        // Rounding may carry `s` just past the flight's optical depth: pull it back inside.
+        let mut collision = None;
+        for _ in 0..8 {
+            if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s) {
+                collision = Some((q, lq));
+                break;
+            }
+            s = s.min(tau_exit) * (1.0 - 1e-9);
+        }
+        // A collision that cannot be placed (a vanishing optical depth; `None` is no longer
+        // allowed once `acc` and `rng` are used): the collided branch gets weight 0.
+        let (p_coll, (q, lq)) = match collision {
+            Some(c) => (p_coll, c),
+            None => (0.0, (p, l)),
+        };
+        let end = match shell.fly(p, l, d, f64::INFINITY) {
+            ShellEnd::Surface(g) => Event::Surface(g),
+            _ => Event::Escape,
+        };
+        Some(Split {
+            p_collision: p_coll,
+            collision: Event::Collision {
+                pos: (q, lq),
+                omega: shell.albedo(lq),
+                phase: shell.phase(lq),
+            },
+            end,
+        })
     }
 
     #[inline]
