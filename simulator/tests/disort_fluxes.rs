@@ -250,7 +250,13 @@ fn spherical_fluxes_match_plane_parallel_in_a_thin_layer() {
         let (up, ue) = at(rows, "up0").flux.unwrap();
         let (down, de) = at(rows, "down0").flux.unwrap();
         let tol = 4.5 * (ue * ue + 0.09 * de * de).sqrt() + 1e-4;
-        println!("{name}: up at the ground {up:.5} ± {ue:.1e}, 0.3 × down {:.5}", 0.3 * down);
-        assert!((up - 0.3 * down).abs() < tol, "{name}: up {up} vs 0.3 × {down} (tol {tol})");
+        println!(
+            "{name}: up at the ground {up:.5} ± {ue:.1e}, 0.3 × down {:.5}",
+            0.3 * down
+        );
+        assert!(
+            (up - 0.3 * down).abs() < tol,
+            "{name}: up {up} vs 0.3 × {down} (tol {tol})"
+        );
     }
 }

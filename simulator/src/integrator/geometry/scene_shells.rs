@@ -25,7 +25,8 @@
 use glam::DVec3;
 
 use super::scene_layers::scene_surface;
-use super::{stratified_estimate, Event, Geometry, Light};
+use super::shells::forced_collision;
+use super::{stratified_estimate, Event, Geometry, Light, Split};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::integrator::surface::SurfaceAt;
 use crate::integrator::weight::Weight;
@@ -151,6 +152,40 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
             // Leaves through the top, or into the ground sphere outside all geometry (lost).
             None => Event::Escape,
         }
+    }
+
+    /// As [`flight`](Self::flight), split: the collision probability `1 − e^{−τ_e}` up to the
+    /// scene hit (or the flight's end), the forced collision drawn as in shells
+    /// ([`forced_collision`]), the uncollided end the hit or an escape.
+    fn flight_split(
+        &self,
+        (p, l): (DVec3, usize),
+        d: DVec3,
+        _: &mut W,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Option<Split<'_, (DVec3, usize), SurfaceHit>> {
+        let shell = self.shell;
+        let hit = self.scene.intersect(p - self.lift(), d, f64::INFINITY);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        let tau_end = shell.optical_depth_within(p, l, d, t_hit);
+        let p_coll = -(-tau_end).exp_m1();
+        if p_coll.is_nan() || p_coll <= 0.0 {
+            return None;
+        }
+        if let Some(acc) = acc {
+            let seen = |q: DVec3, lq: usize| self.sun_seen(q, lq);
+            stratified_estimate::<W>(shell, p, l, d, tau_end, self.sun, acc, rng, seen);
+        }
+        let (p_collision, collision) = forced_collision(shell, (p, l), d, tau_end, p_coll, rng);
+        Some(Split {
+            p_collision,
+            collision,
+            end: match hit {
+                Some(h) => Event::Surface(h),
+                None => Event::Escape,
+            },
+        })
     }
 
     #[inline]

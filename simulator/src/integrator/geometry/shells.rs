@@ -119,33 +119,14 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
             let seen = |q: DVec3, lq: usize| shell.transmittance_to_space(q, lq, self.sun);
             stratified_estimate::<W>(shell, p, l, d, tau_exit, self.sun, acc, rng, seen);
         }
-        let mut s = -(-rng.next_f64() * p_coll).ln_1p();
-        // Rounding may carry `s` just past the flight's optical depth: pull it back inside.
-        let mut collision = None;
-        for _ in 0..8 {
-            if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s) {
-                collision = Some((q, lq));
-                break;
-            }
-            s = s.min(tau_exit) * (1.0 - 1e-9);
-        }
-        // A collision that cannot be placed (a vanishing optical depth; `None` is no longer
-        // allowed once `acc` and `rng` are used): the collided branch gets weight 0.
-        let (p_coll, (q, lq)) = match collision {
-            Some(c) => (p_coll, c),
-            None => (0.0, (p, l)),
-        };
+        let (p_coll, collision) = forced_collision(shell, (p, l), d, tau_exit, p_coll, rng);
         let end = match shell.fly(p, l, d, f64::INFINITY) {
             ShellEnd::Surface(g) => Event::Surface(g),
             _ => Event::Escape,
         };
         Some(Split {
             p_collision: p_coll,
-            collision: Event::Collision {
-                pos: (q, lq),
-                omega: shell.albedo(lq),
-                phase: shell.phase(lq),
-            },
+            collision,
             end,
         })
     }
@@ -177,4 +158,43 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
     fn solver(&self, _: &Self::Hit) -> crate::integrator::solver::SolverSpec {
         self.solver
     }
+}
+
+/// The forced collision of a split flight in shells (the flight from `p` in shell `l` along
+/// `d`, optical depth `tau_end` to its end, collision probability `p_coll = 1 − e^{−tau_end}`):
+/// its optical path is drawn from the truncated exponential and flown. Returns the collided
+/// branch's probability and event: `p_coll`, or 0 where no collision can be placed (a vanishing
+/// optical depth; the split cannot be undone once `acc` and `rng` are used).
+pub(super) fn forced_collision<'a, H>(
+    shell: &'a SphericalShell,
+    (p, l): (DVec3, usize),
+    d: DVec3,
+    tau_end: f64,
+    p_coll: f64,
+    rng: &mut Stream,
+) -> (f64, Event<'a, (DVec3, usize), H>) {
+    let mut s = -(-rng.next_f64() * p_coll).ln_1p();
+    // Rounding may carry `s` just past the flight's optical depth: pull it back inside.
+    let mut collision = None;
+    for _ in 0..8 {
+        if s < tau_end {
+            if let ShellEnd::Collision(q, lq) = shell.fly(p, l, d, s) {
+                collision = Some((q, lq));
+                break;
+            }
+        }
+        s = s.min(tau_end) * (1.0 - 1e-9);
+    }
+    let (p_coll, (q, lq)) = match collision {
+        Some(c) => (p_coll, c),
+        None => (0.0, (p, l)),
+    };
+    (
+        p_coll,
+        Event::Collision {
+            pos: (q, lq),
+            omega: shell.albedo(lq),
+            phase: shell.phase(lq),
+        },
+    )
 }
