@@ -705,6 +705,11 @@ fn run_task(
             min_grow,
         )
         .min(done + round_cap);
+        tracing::debug!(
+            "measure `{}`: {done} samples, relative standard error {rel:.4} (trusted: {}), next round to {next}",
+            m.id,
+            trusted()
+        );
     }
     group
         .iter()
