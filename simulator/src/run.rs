@@ -312,6 +312,11 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     scene,
                     models: &opt.scene_models,
                     sun: exp.sun_dir,
+                    clearance: if exp.sun_shines {
+                        scene.sun_clearance(exp.sun_dir)
+                    } else {
+                        None
+                    },
                     wavelength: opt.wavelength,
                     emission: opt.scene_emission.as_ref(),
                     shines: exp.sun_shines,

@@ -1147,6 +1147,21 @@ impl InstanceBvh {
             + std::mem::size_of::<Self>()
     }
 
+    /// The boxes of the TLAS leaves (world frame, padded): together they cover every
+    /// instance.
+    pub fn leaf_boxes(&self) -> impl Iterator<Item = (DVec3, DVec3)> + '_ {
+        let o = self.render_origin;
+        self.tlas.pairs.iter().enumerate().flat_map(move |(k, p)| {
+            // Pair 0's second lane is the far-away placeholder (see [`to_pairs`]).
+            let lanes = if k == 0 { 1 } else { 2 };
+            (0..lanes).filter(move |&l| p.count[l] > 0).map(move |l| {
+                let lo = DVec3::new(p.x[l] as f64, p.y[l] as f64, p.z[l] as f64);
+                let hi = DVec3::new(p.x[l + 2] as f64, p.y[l + 2] as f64, p.z[l + 2] as f64);
+                (o + lo, o + hi)
+            })
+        })
+    }
+
     /// Number of instances given to [`InstanceBvh::new`] (including those of empty templates).
     pub fn instance_count(&self) -> usize {
         self.n_instances

@@ -9,6 +9,7 @@ pub mod curvature;
 pub mod emission;
 pub mod instances;
 pub mod material;
+pub mod sun_clearance;
 pub mod terrain;
 pub mod texture;
 pub mod world;

@@ -215,6 +215,13 @@ impl TerrainBvh {
         }
     }
 
+    /// The f64 box of each triangle (local frame).
+    pub fn triangle_boxes(&self) -> impl Iterator<Item = (DVec3, DVec3)> + '_ {
+        self.verts
+            .iter()
+            .map(|[a, b, c]| (a.min(*b).min(*c), a.max(*b).max(*c)))
+    }
+
     pub fn triangle_count(&self) -> usize {
         self.verts.len()
     }

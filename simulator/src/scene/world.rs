@@ -25,6 +25,7 @@ use glam::DVec3;
 use super::curvature::Curvature;
 use super::instances::{InstanceBvh, InstanceHit};
 use super::material::SurfaceModel;
+use super::sun_clearance::SunClearance;
 use super::TerrainBvh;
 use bundle::BrdfSpec;
 
@@ -164,6 +165,8 @@ pub struct Scene {
     pub terrain: Option<(TerrainBvh, MaterialRaster)>,
     pub objects: Option<InstanceBvh>,
     pub ground: Option<GroundPlane>,
+    /// Sun clearance maps built so far, one per Sun direction ([`Scene::sun_clearance`]).
+    pub(super) sun_maps: std::sync::Mutex<Vec<std::sync::Arc<SunClearance>>>,
     /// (name, model) per material id.
     pub materials: Vec<(String, BrdfSpec)>,
     /// The radiometry solver per material id (`integrator/solver.rs`; missing ids: the
@@ -225,6 +228,39 @@ impl std::fmt::Debug for Scene {
 }
 
 impl Scene {
+    /// The [`SunClearance`] map of the unit direction `sun` (built on the first call for that
+    /// direction, then shared); `None` for periodic scenes (their rays wrap around), a Sun not
+    /// above the horizontal, or a scene without terrain and objects.
+    pub fn sun_clearance(&self, sun: DVec3) -> Option<std::sync::Arc<SunClearance>> {
+        if self.periodic.is_some() {
+            return None;
+        }
+        let mut maps = self.sun_maps.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(m) = maps.iter().find(|m| m.dir == sun) {
+            return Some(m.clone());
+        }
+        let terrain = self.terrain.as_ref().map(|(t, _)| t);
+        let boxes = || {
+            terrain
+                .into_iter()
+                .flat_map(|t| t.triangle_boxes())
+                .chain(self.objects.iter().flat_map(|o| o.leaf_boxes()))
+        };
+        let t0 = std::time::Instant::now();
+        let map = std::sync::Arc::new(SunClearance::new(sun, boxes)?);
+        tracing::debug!(
+            "Sun clearance map for {sun}: {} KiB in {:.3} s",
+            map.memory_bytes() / 1024,
+            t0.elapsed().as_secs_f64()
+        );
+        // A few directions at most per run (PICS acquisitions): keep the last 8.
+        if maps.len() >= 8 {
+            maps.remove(0);
+        }
+        maps.push(map.clone());
+        Some(map)
+    }
+
     /// Offset that moves a new ray off the surface it starts on (see the module header).
     #[inline]
     pub fn offset_distance(&self, p: DVec3) -> f64 {

@@ -38,6 +38,9 @@ pub struct SceneInLayers<'a> {
     pub models: &'a [SurfaceModel],
     /// Unit vector towards the Sun (`z > 0`).
     pub sun: DVec3,
+    /// The scene's [`SunClearance`] map for `sun` (`Scene::sun_clearance`): shadow rays from
+    /// points above it are not cast.
+    pub clearance: Option<std::sync::Arc<crate::scene::sun_clearance::SunClearance>>,
     /// nm (for reflectance textures).
     pub wavelength: f64,
     /// The surfaces' thermal emission (`emission = true`; the layers' sources are in
@@ -210,7 +213,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 
     #[inline]
     fn sun_at(&self, p: DVec3) -> f64 {
-        if p.z > self.scene.z_range[1] || !self.scene.occluded(p, self.sun, f64::INFINITY) {
+        if p.z > self.scene.z_range[1] || self.sees_sun(p) {
             self.t_sun(p.z)
         } else {
             0.0
@@ -223,10 +226,10 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
     #[inline]
     fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {
         let start = self.scene.offset(h.point, h.normal, self.sun);
-        if self.scene.occluded(start, self.sun, f64::INFINITY) {
-            0.0
-        } else {
+        if self.sees_sun(start) {
             self.t_sun(h.point.z)
+        } else {
+            0.0
         }
     }
     #[inline]
@@ -240,6 +243,14 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 }
 
 impl SceneInLayers<'_> {
+    /// Whether nothing in the scene blocks the Sun from `p`: the clearance map first, then a
+    /// shadow ray.
+    #[inline]
+    fn sees_sun(&self, p: DVec3) -> bool {
+        self.clearance.as_ref().is_some_and(|c| c.clear(p))
+            || !self.scene.occluded(p, self.sun, f64::INFINITY)
+    }
+
     /// The distance at which the flight from `p` along `d` comes down to the scene's top (0 if
     /// it starts below, ∞ if it never does) and its first hit (queried only when it can reach
     /// the scene).
@@ -333,7 +344,7 @@ impl SceneInLayers<'_> {
                         let q = p + d * t.min(t_b);
                         let l = atm.layer_at_altitude(q.z);
                         let omega = atm.albedo(l);
-                        if omega > 0.0 && !self.scene.occluded(q, sun, f64::INFINITY) {
+                        if omega > 0.0 && self.sees_sun(q) {
                             W::accumulate(acc, atm.phase(l), cos, omega, p_seg * self.t_sun(q.z));
                         }
                     }
