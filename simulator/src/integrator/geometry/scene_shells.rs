@@ -156,7 +156,7 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
 
     /// As [`flight`](Self::flight), split: the collision probability `1 − e^{−τ_e}` up to the
     /// scene hit (or the flight's end), the forced collision drawn as in shells
-    /// ([`forced_collision`]), the uncollided end the hit or an escape.
+    /// (`shells::forced_collision`), the uncollided end the hit or an escape.
     fn flight_split(
         &self,
         (p, l): (DVec3, usize),
