@@ -38,8 +38,8 @@ pub struct SceneInLayers<'a> {
     pub models: &'a [SurfaceModel],
     /// Unit vector towards the Sun (`z > 0`).
     pub sun: DVec3,
-    /// The scene's [`SunClearance`](crate::scene::sun_clearance::SunClearance) map for `sun` (`Scene::sun_clearance`): shadow rays from
-    /// points above it are not cast.
+    /// The scene's [`SunClearance`](crate::scene::sun_clearance::SunClearance) map for `sun`
+    /// (`Scene::sun_clearance`): shadow rays from points above it are not cast.
     pub clearance: Option<std::sync::Arc<crate::scene::sun_clearance::SunClearance>>,
     /// nm (for reflectance textures).
     pub wavelength: f64,
