@@ -4,8 +4,9 @@
 //!
 //! Rays: primary rays start 100 m above the scene's top at uniformly random horizontal positions
 //! over the extent and go down at zenith angles up to 30° (uniform azimuth); shadow rays start
-//! at their hits (offset) towards a Sun at 35° zenith. Render: US-standard molecular atmosphere
-//! at 550 nm, SZA 35°, nadir ortho over the whole extent at `pixel_m`.
+//! at their hits (offset) towards a Sun at 35° zenith. The primary rays are timed in random
+//! order, then sorted into 200 m rows (coherent, as an image's rays come). Render: US-standard
+//! molecular atmosphere at 550 nm, SZA 35°, nadir ortho over the whole extent at `pixel_m`.
 
 use std::path::Path;
 use std::time::Instant;
@@ -97,6 +98,13 @@ pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Res
         "shadow rays: {n_hit} = {shadow_rate:.3e} rays/s/core ({:.1} % in shadow)",
         100.0 * shadowed as f64 / n_hit.max(1) as f64
     );
+    // The same rays in a coherent order (sorted into 200 m rows, as an image's rays come): the
+    // random order above is bound by memory latency (BENCHMARKS.md, 2026-11-27).
+    let mut sorted = origins.clone();
+    let row = |v: f64, lo: f64| ((v - lo) / 200.0).floor() as i64;
+    sorted.sort_by_key(|(o, _)| (row(o.y, e[1]), row(o.x, e[0])));
+    let (r, _) = rate(&sorted, |o, d| scene.intersect(o, d, f64::INFINITY).is_some());
+    println!("  the same primary rays sorted into 200 m rows: {r:.3e} rays/s/core");
     // The same rays against each part alone (where the time goes).
     if let Some((terrain, _)) = &scene.terrain {
         let (r, n) = rate(&origins, |o, d| terrain.intersect(o, d).is_some());
