@@ -103,7 +103,9 @@ pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Res
     let mut sorted = origins.clone();
     let row = |v: f64, lo: f64| ((v - lo) / 200.0).floor() as i64;
     sorted.sort_by_key(|(o, _)| (row(o.y, e[1]), row(o.x, e[0])));
-    let (r, _) = rate(&sorted, |o, d| scene.intersect(o, d, f64::INFINITY).is_some());
+    let (r, _) = rate(&sorted, |o, d| {
+        scene.intersect(o, d, f64::INFINITY).is_some()
+    });
     println!("  the same primary rays sorted into 200 m rows: {r:.3e} rays/s/core");
     // The same rays against each part alone (where the time goes).
     if let Some((terrain, _)) = &scene.terrain {
