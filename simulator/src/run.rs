@@ -293,6 +293,11 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     scene,
                     models: &opt.scene_models,
                     sun: exp.sun_dir,
+                    clearance: if exp.sun_shines {
+                        scene.sun_clearance(exp.sun_dir)
+                    } else {
+                        None
+                    },
                     mu_norm: exp.mu_norm(),
                     wavelength: opt.wavelength,
                     emission: opt.scene_emission.as_ref(),

@@ -42,6 +42,10 @@ pub struct SceneInShells<'a> {
     pub models: &'a [SurfaceModel],
     /// Unit vector towards the Sun, planet frame.
     pub sun: DVec3,
+    /// The scene's [`SunClearance`](crate::scene::sun_clearance::SunClearance) map for `sun`
+    /// (`Scene::sun_clearance`, in the bent scene's frame): shadow rays from points above it
+    /// are not cast.
+    pub clearance: Option<std::sync::Arc<crate::scene::sun_clearance::SunClearance>>,
     /// cos SZA at the scene's origin (normalises samples to BRF).
     pub mu_norm: f64,
     /// nm (for reflectance textures).
@@ -64,10 +68,10 @@ impl SceneInShells<'_> {
     #[inline]
     fn sun_seen(&self, p: DVec3, l: usize) -> f64 {
         let t = self.shell.transmittance_to_space(p, l, self.sun);
+        let q = p - self.lift();
         if t > 0.0
-            && self
-                .scene
-                .occluded(p - self.lift(), self.sun, f64::INFINITY)
+            && !self.clearance.as_ref().is_some_and(|c| c.clear(q))
+            && self.scene.occluded(q, self.sun, f64::INFINITY)
         {
             0.0
         } else {
