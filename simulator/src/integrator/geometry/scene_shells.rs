@@ -25,7 +25,7 @@
 use glam::DVec3;
 
 use super::scene_layers::scene_surface;
-use super::shells::forced_collision;
+use super::shells::split_flight;
 use super::{stratified_estimate, Event, Geometry, Light, Split};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
 use crate::integrator::surface::SurfaceAt;
@@ -77,6 +77,15 @@ impl SceneInShells<'_> {
         } else {
             t
         }
+    }
+
+    /// The flight's first scene hit and its optical depth up to it (or to where it leaves the
+    /// atmosphere).
+    #[inline]
+    fn to_hit(&self, p: DVec3, l: usize, d: DVec3) -> (Option<SurfaceHit>, f64) {
+        let hit = self.scene.intersect(p - self.lift(), d, f64::INFINITY);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        (hit, self.shell.optical_depth_within(p, l, d, t_hit))
     }
 
     /// Shell of a planet point reached through the scene (clamped to the atmosphere).
@@ -133,9 +142,7 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
         rng: &mut Stream,
     ) -> Event<'_, (DVec3, usize), SurfaceHit> {
         let shell = self.shell;
-        let hit = self.scene.intersect(p - self.lift(), d, f64::INFINITY);
-        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
-        let tau_end = shell.optical_depth_within(p, l, d, t_hit);
+        let (hit, tau_end) = self.to_hit(p, l, d);
         if let Some(acc) = acc {
             let seen = |q: DVec3, lq: usize| self.sun_seen(q, lq);
             stratified_estimate::<W>(shell, p, l, d, tau_end, self.sun, acc, rng, seen);
@@ -160,7 +167,7 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
 
     /// As [`flight`](Self::flight), split: the collision probability `1 − e^{−τ_e}` up to the
     /// scene hit (or the flight's end), the forced collision drawn as in shells
-    /// (`shells::forced_collision`), the uncollided end the hit or an escape.
+    /// (`shells::split_flight`), the uncollided end the hit or an escape.
     fn flight_split(
         &self,
         (p, l): (DVec3, usize),
@@ -169,27 +176,23 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Option<Split<'_, (DVec3, usize), SurfaceHit>> {
-        let shell = self.shell;
-        let hit = self.scene.intersect(p - self.lift(), d, f64::INFINITY);
-        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
-        let tau_end = shell.optical_depth_within(p, l, d, t_hit);
-        let p_coll = -(-tau_end).exp_m1();
-        if p_coll.is_nan() || p_coll <= 0.0 {
-            return None;
-        }
-        if let Some(acc) = acc {
-            let seen = |q: DVec3, lq: usize| self.sun_seen(q, lq);
-            stratified_estimate::<W>(shell, p, l, d, tau_end, self.sun, acc, rng, seen);
-        }
-        let (p_collision, collision) = forced_collision(shell, (p, l), d, tau_end, p_coll, rng);
-        Some(Split {
-            p_collision,
-            collision,
-            end: match hit {
-                Some(h) => Event::Surface(h),
-                None => Event::Escape,
-            },
-        })
+        let (hit, tau_end) = self.to_hit(p, l, d);
+        let seen = |q: DVec3, lq: usize| self.sun_seen(q, lq);
+        let end = || match hit {
+            Some(h) => Event::Surface(h),
+            None => Event::Escape,
+        };
+        split_flight::<W, _>(
+            self.shell,
+            (p, l),
+            d,
+            tau_end,
+            self.sun,
+            seen,
+            end,
+            acc,
+            rng,
+        )
     }
 
     #[inline]

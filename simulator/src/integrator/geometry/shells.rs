@@ -111,24 +111,12 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
     ) -> Option<Split<'_, (DVec3, usize), DVec3>> {
         let shell = self.shell;
         let tau_exit = shell.optical_depth_within(p, l, d, f64::INFINITY);
-        let p_coll = -(-tau_exit).exp_m1();
-        if p_coll.is_nan() || p_coll <= 0.0 {
-            return None;
-        }
-        if let Some(acc) = acc {
-            let seen = |q: DVec3, lq: usize| shell.transmittance_to_space(q, lq, self.sun);
-            stratified_estimate::<W>(shell, p, l, d, tau_exit, self.sun, acc, rng, seen);
-        }
-        let (p_coll, collision) = forced_collision(shell, (p, l), d, tau_exit, p_coll, rng);
-        let end = match shell.fly(p, l, d, f64::INFINITY) {
+        let seen = |q: DVec3, lq: usize| shell.transmittance_to_space(q, lq, self.sun);
+        let end = || match shell.fly(p, l, d, f64::INFINITY) {
             ShellEnd::Surface(g) => Event::Surface(g),
             _ => Event::Escape,
         };
-        Some(Split {
-            p_collision: p_coll,
-            collision,
-            end,
-        })
+        split_flight::<W, _>(shell, (p, l), d, tau_exit, self.sun, seen, end, acc, rng)
     }
 
     #[inline]
@@ -160,19 +148,32 @@ impl<W: Weight> Geometry<W> for Shells<'_> {
     }
 }
 
-/// The forced collision of a split flight in shells (the flight from `p` in shell `l` along
-/// `d`, optical depth `tau_end` to its end, collision probability `p_coll = 1 − e^{−tau_end}`):
-/// its optical path is drawn from the truncated exponential and flown. Returns the collided
-/// branch's probability and event: `p_coll`, or 0 where no collision can be placed (a vanishing
-/// optical depth; the split cannot be undone once `acc` and `rng` are used).
-pub(super) fn forced_collision<'a, H>(
+/// The split of a flight in shells (from `p` in shell `l` along `d`, optical depth `tau_end` to
+/// its end): `None` where it cannot collide; else the flight's expected next-event estimate
+/// (`stratified_estimate`, with `seen` the Sun's transmittance and visibility at a point), then
+/// the forced collision, its optical path drawn from the truncated exponential and flown, and the
+/// uncollided branch's event `end()`. The collided branch's probability is `1 − e^{−tau_end}`, or
+/// 0 where no collision can be placed (a vanishing optical depth; the split cannot be undone once
+/// `acc` and `rng` are used). Serves [`Shells`] and `SceneInShells` (truncated at the scene hit).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn split_flight<'a, W: Weight, H>(
     shell: &'a SphericalShell,
     (p, l): (DVec3, usize),
     d: DVec3,
     tau_end: f64,
-    p_coll: f64,
+    sun: DVec3,
+    seen: impl Fn(DVec3, usize) -> f64,
+    end: impl FnOnce() -> Event<'a, (DVec3, usize), H>,
+    acc: Option<&mut W::Phase>,
     rng: &mut Stream,
-) -> (f64, Event<'a, (DVec3, usize), H>) {
+) -> Option<Split<'a, (DVec3, usize), H>> {
+    let p_coll = -(-tau_end).exp_m1();
+    if p_coll.is_nan() || p_coll <= 0.0 {
+        return None;
+    }
+    if let Some(acc) = acc {
+        stratified_estimate::<W>(shell, p, l, d, tau_end, sun, acc, rng, seen);
+    }
     let mut s = -(-rng.next_f64() * p_coll).ln_1p();
     // Rounding may carry `s` just past the flight's optical depth: pull it back inside.
     let mut collision = None;
@@ -185,16 +186,17 @@ pub(super) fn forced_collision<'a, H>(
         }
         s = s.min(tau_end) * (1.0 - 1e-9);
     }
-    let (p_coll, (q, lq)) = match collision {
+    let (p_collision, (q, lq)) = match collision {
         Some(c) => (p_coll, c),
         None => (0.0, (p, l)),
     };
-    (
-        p_coll,
-        Event::Collision {
+    Some(Split {
+        p_collision,
+        collision: Event::Collision {
             pos: (q, lq),
             omega: shell.albedo(lq),
             phase: shell.phase(lq),
         },
-    )
+        end: end(),
+    })
 }
