@@ -172,17 +172,27 @@ const GROUP_STREAM: u64 = 1 << 62;
 struct SpectralGroup {
     reference: crate::atmosphere::PlaneParallel,
     layers: crate::integrator::backward_alis::Layers,
+    /// The member of the group whose scattering the reference has
+    /// ([`IntegratorSettings::reference_member`](crate::integrator::settings::IntegratorSettings::reference_member)).
+    reference_member: usize,
 }
 
 impl SpectralGroup {
     fn new(exp: &Experiment, group: &[usize]) -> Self {
-        let central = &exp.optics[group[group.len() / 2]];
         let atms: Vec<&crate::atmosphere::PlaneParallel> =
             group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
+        let reference_member = crate::integrator::settings::IntegratorSettings::reference_member(
+            &atms,
+            exp.scene.is_some(),
+        );
         let reference =
-            crate::integrator::backward_alis::group_reference(&central.atmosphere, &atms);
+            crate::integrator::backward_alis::group_reference(atms[reference_member], &atms);
         let layers = crate::integrator::backward_alis::Layers::spectral(&reference, &atms);
-        SpectralGroup { reference, layers }
+        SpectralGroup {
+            reference,
+            layers,
+            reference_member,
+        }
     }
 }
 
@@ -207,11 +217,15 @@ fn run_block_spectral(
         layers: &sg.layers,
         kind: Kind::Wavelengths {
             surfaces: &surfaces,
-            reference_surface: &exp.optics[group[group.len() / 2]].surface,
+            reference_surface: &exp.optics[group[sg.reference_member]].surface,
         },
     };
+    let key = GROUP_STREAM | group[0] as u64;
     // One cell per wavelength of the group, split into one accumulator each.
-    let all = channel_walks(exp, &g, GROUP_STREAM | group[0] as u64, im, cell, range);
+    let all = match &exp.scene {
+        Some(_) => scene_channel_walks(exp, &g, sg.reference_member, group, key, im, cell, range),
+        None => channel_walks(exp, &g, key, im, cell, range),
+    };
     (0..group.len())
         .map(|c| {
             let mut a = Accum::new(1);
@@ -219,6 +233,67 @@ fn run_block_spectral(
             a
         })
         .collect()
+}
+
+/// Backward walks of a 3D scene in plane-parallel layers over the wavelengths `group`
+/// (channels `g`, whose reference is member `reference` of the group; `scene_alis.rs`): one
+/// accumulator cell per wavelength.
+#[allow(clippy::too_many_arguments)]
+fn scene_channel_walks(
+    exp: &Experiment,
+    g: &crate::integrator::backward_alis::Channels,
+    reference: usize,
+    group: &[usize],
+    key: u64,
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+) -> Accum {
+    use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
+    let m = &exp.measures[im];
+    let scene = exp.scene.as_ref().expect("scene walks without a scene");
+    let opt = &exp.optics[group[reference]];
+    let base = SceneInLayers {
+        atmosphere: g.reference,
+        scene,
+        models: &opt.scene_models,
+        sun: exp.sun_dir,
+        clearance: if exp.sun_shines {
+            scene.sun_clearance(exp.sun_dir)
+        } else {
+            None
+        },
+        wavelength: opt.wavelength,
+        emission: None,
+        shines: exp.sun_shines,
+    };
+    let models: Vec<&[crate::scene::material::SurfaceModel]> = group
+        .iter()
+        .map(|&iw| exp.optics[iw].scene_models.as_slice())
+        .collect();
+    let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
+    let geometry = SceneChannels::new(base, g, &models, &wavelengths, reference);
+    let k = Geometry::<SceneChannelPath>::light(&geometry).normalization;
+    let mut acc = Accum::new(group.len());
+    if exp.integrator.replicates {
+        acc.enable_replicates();
+    }
+    let sobol = exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol;
+    for s in range {
+        let mut rng = Stream::for_sample(exp.seed, [key, im as u64, cell as u64, s], sobol);
+        acc.begin_sample(s);
+        let (p0, d0) = sensor::scene_start(&geometry.base, m, cell, &mut rng);
+        let t = backward::walk(
+            &geometry,
+            p0,
+            d0,
+            SceneChannelPath::new(&geometry),
+            &exp.integrator,
+            &mut rng,
+        );
+        SceneChannelPath::record(&mut acc, 0, &t, k);
+    }
+    acc
 }
 
 fn run_block_at(

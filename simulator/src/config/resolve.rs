@@ -415,6 +415,21 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if let Some(t) = &thermal {
         t.check_integrator(&ctx, &mut integrator, &measures)?;
     }
+    // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
+    if let (Some(sc), Some(_)) = (&scene, integrator.spectral_alis) {
+        if let Some((name, solver)) = sc
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, (name, _))| (name, sc.solver(i as u16)))
+            .find(|(_, s)| *s != bundle::SolverSpec::default())
+        {
+            return Err(ctx.err(
+                format!("scene.solvers.{name}"),
+                format!("the `{}` solver is not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): drop one or the other", solver.type_name()),
+            ));
+        }
+    }
     if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver()) {
         solver
             .validate()
@@ -555,7 +570,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         .collect::<Result<Vec<_>, ConfigError>>()?;
 
     let atmospheres: Vec<&PlaneParallel> = optics.iter().map(|o| &o.atmosphere).collect();
-    integrator.check_spectral_groups(&ctx, &wavelengths, &atmospheres)?;
+    integrator.check_spectral_groups(&ctx, &wavelengths, &atmospheres, scene.is_some())?;
     if let Some(b) = &band {
         relax_targets_for_band(&mut measures, &b.weights, &sun.irradiance);
     }

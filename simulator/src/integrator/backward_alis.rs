@@ -173,7 +173,7 @@ pub(crate) struct PhaseCache {
 }
 
 impl PhaseCache {
-    fn new(ids: usize) -> Self {
+    pub(crate) fn new(ids: usize) -> Self {
         PhaseCache {
             val: vec![0.0; ids],
             stamp: vec![0; ids],
@@ -327,6 +327,38 @@ impl Layers {
         (0..r.len()).find(|&i| r[i] <= 0.0 && channels.iter().any(|c| c[i] > 0.0))
     }
 
+    /// Channel `c`'s optical depth from TOA at altitude `z` (clamped to the atmosphere).
+    pub(crate) fn tau_at(&self, c: usize, z: f64) -> f64 {
+        let (i, f) = self.locate(z);
+        let tau = &self.tau[c];
+        tau[i] + f * (tau[i + 1] - tau[i])
+    }
+
+    /// Per channel `(σ_c,i/σ_ref,i)·P_c,i(cos)` in layer `i` into `out` (wavelength tables,
+    /// [`Layers::spectral`], only; each distinct phase function evaluated once: `cache.next()`
+    /// is called here).
+    pub(crate) fn ratio_phase(
+        &self,
+        atms: &[&PlaneParallel],
+        i: usize,
+        cos: f64,
+        cache: &mut PhaseCache,
+        out: &mut [f64],
+    ) {
+        let sp = self
+            .spectral
+            .as_ref()
+            .expect("wavelength channels need Layers::spectral");
+        cache.next();
+        sp.times_phase(&sp.ratio, atms, i, cos, cache, out);
+    }
+
+    /// The number of distinct phase functions of wavelength tables (the size of their
+    /// [`PhaseCache`]), 0 for g-point tables.
+    pub(crate) fn phase_ids(&self) -> usize {
+        self.spectral.as_ref().map_or(0, |s| s.reps.len())
+    }
+
     /// Layer index and fraction `f` (0 at the layer's top) of altitude `z`.
     fn locate(&self, z: f64) -> (usize, f64) {
         let n = self.sigma_s.len();
@@ -358,7 +390,7 @@ impl Layers {
     /// Multiply each channel's path factor by `exp(−(τ_c − τ_ref))` over the flight of length
     /// `t` from altitude `z` along a direction of vertical component `dz` (optical paths from
     /// the optical depths at both ends: `|Δτ|/|dz|`; a horizontal flight stays in its layer).
-    fn carry(&self, e: &mut [f64], z: f64, dz: f64, t: f64) {
+    pub(crate) fn carry(&self, e: &mut [f64], z: f64, dz: f64, t: f64) {
         let (i0, f0) = self.locate(z);
         if dz.abs() < 1e-12 {
             for (k, ek) in e.iter_mut().enumerate() {

@@ -11,7 +11,7 @@
 //!   vector); plane-parallel layers. Used for `mdistant` and `distant_flux` in 1D.
 //! * [`backward_alis`]: the backward estimator for many spectral channels at once (CKD g-points,
 //!   or neighbouring wavelengths): one path sampled in a reference atmosphere, one weight per
-//!   channel (Emde et al. 2011).
+//!   channel (Emde et al. 2011); [`scene_alis`] carries its wavelength walk into 3D scenes.
 //!
 //! Per-material radiometry solvers ([`solver`]: generic with per-generation sample counts,
 //! classic quadrature, simple, mirror, null) act in the backward estimator's one loop.
@@ -32,6 +32,7 @@ pub mod forward;
 pub mod forward_emission;
 pub mod geometry;
 pub mod peak_sampling;
+pub mod scene_alis;
 pub mod settings;
 pub mod solver;
 pub mod stokes_sampling;

@@ -78,6 +78,13 @@ pub trait Weight: Sized {
         None
     }
 
+    /// Turn this copy of a split flight's weight into the forced collision's branch
+    /// ([`Geometry::flight_split`](super::geometry::Geometry::flight_split) leaves the weight
+    /// as the uncollided branch's). Weights whose geometry multiplies them along the flight
+    /// (the spectral channels of 3D scenes, `scene_alis.rs`) hold both branches' factors and
+    /// switch here; the default has nothing to switch.
+    fn into_collision_branch(&mut self) {}
+
     /// Add the tally of one path, each score times `k`, to `cell` of `acc`.
     fn record(acc: &mut Accum, cell: usize, t: &Self::Tally, k: f64);
     /// A fresh accumulator of `cells` cells for this weight.

@@ -263,3 +263,33 @@ pub fn with_plate(
     b.write(out, true).unwrap();
     out.to_path_buf()
 }
+
+/// A leaf file (`x y z nx ny nz r`) of `n` discs of radius `r`, centres uniform in
+/// [−h, h]² × [z0, z1], normals isotropic, from a seeded stream.
+pub fn write_random_leaves(
+    path: &std::path::Path,
+    seed: u64,
+    n: usize,
+    h: f64,
+    z: [f64; 2],
+    r: f64,
+) {
+    let mut rng = simulator::rng::Stream::new(seed, [0, 0, 0, 0]);
+    let mut leaves = String::from("# x y z nx ny nz r\n");
+    for _ in 0..n {
+        let nv = simulator::frame::direction_from_angles(
+            (rng.next_f64() * 2.0 - 1.0).acos(),
+            std::f64::consts::TAU * rng.next_f64(),
+        );
+        leaves.push_str(&format!(
+            "{} {} {} {} {} {} {r}\n",
+            2.0 * h * rng.next_f64() - h,
+            2.0 * h * rng.next_f64() - h,
+            z[0] + (z[1] - z[0]) * rng.next_f64(),
+            nv.x,
+            nv.y,
+            nv.z
+        ));
+    }
+    std::fs::write(path, leaves).unwrap();
+}

@@ -53,7 +53,7 @@ pub struct SceneInLayers<'a> {
 impl SceneInLayers<'_> {
     /// Direct solar transmittance from altitude `z` to TOA.
     #[inline]
-    fn t_sun(&self, z: f64) -> f64 {
+    pub(crate) fn t_sun(&self, z: f64) -> f64 {
         (-self.atmosphere.tau_at_altitude(z) / self.sun.z).exp()
     }
 
@@ -246,7 +246,7 @@ impl SceneInLayers<'_> {
     /// Whether nothing in the scene blocks the Sun from `p`: the clearance map first, then a
     /// shadow ray.
     #[inline]
-    fn sees_sun(&self, p: DVec3) -> bool {
+    pub(crate) fn sees_sun(&self, p: DVec3) -> bool {
         self.clearance.as_ref().is_some_and(|c| c.clear(p))
             || !self.scene.occluded(p, self.sun, f64::INFINITY)
     }
@@ -255,7 +255,7 @@ impl SceneInLayers<'_> {
     /// it starts below, ∞ if it never does) and its first hit (queried only when it can reach
     /// the scene).
     #[inline]
-    fn first_hit(&self, p: DVec3, d: DVec3) -> (f64, Option<SurfaceHit>) {
+    pub(crate) fn first_hit(&self, p: DVec3, d: DVec3) -> (f64, Option<SurfaceHit>) {
         let top = self.scene.z_range[1];
         let reach = if p.z <= top {
             0.0
@@ -274,7 +274,7 @@ impl SceneInLayers<'_> {
 
     /// A collision at point `q` (wrapped into a periodic scene's cell), with its layer's optics.
     #[inline]
-    fn collision_at(&self, q: DVec3) -> Event<'_, DVec3, SurfaceHit> {
+    pub(crate) fn collision_at(&self, q: DVec3) -> Event<'_, DVec3, SurfaceHit> {
         let q = self.scene.wrap_point(q);
         let layer = self.atmosphere.layer_at_altitude(q.z);
         Event::Collision {

@@ -1,0 +1,211 @@
+//! Spectral walks through 3D scenes (`integrator.spectral_walk = "alis"` with a scene,
+//! `simulator/src/integrator/scene_alis.rs`): one backward walk per sample carries the
+//! wavelengths of a group through the scene, each with its own Rayleigh scattering, materials and
+//! solar transmittance. Every statistical test compares the grouped walk with independent
+//! per-wavelength scene walks (other seeds) at every wavelength, view direction and part
+//! (total and single scattering), with `common::check_all` (|diff| ≤ 4.5σ + max(1e-5,
+//! 2e-4·ref), σ the combined standard error). The random sampler is used (honest
+//! per-direction standard errors); fixed seeds.
+//!
+//! * `canopy_group_equals_independent_walks`: random leaves over a ground under the molecular
+//!   atmosphere at 440/550/660 nm (Rayleigh σ_s varying 5×). The reference wavelength (440 nm,
+//!   the most scattering) has leaves that transmit nothing and a black ground, the other
+//!   wavelengths leaves that transmit up to 40 % and a ground up to 0.3: the walk must draw
+//!   transmission and ground bounces from the group's mean leaf and fall back to the largest
+//!   reflectance where the reference's is 0 (module header), or those paths go missing.
+//! * `bundle_group_equals_independent_walks`: a bundle terrain with a spectral RPV and a
+//!   spectral Lambertian (opaque sampler of the reference's RPV; per-wavelength evaluation),
+//!   an area `mdistant` and an ortho image's mean.
+//! * `group_results_do_not_depend_on_threads`: an ortho image with a target precision (rounds)
+//!   and the Sobol sampler, bit-identical sums with 1 and 2 threads.
+//! * `config_errors`: what the walk does not do is refused, naming the key.
+
+mod common;
+
+use bundle::{BrdfSpec, Spectrum};
+use common::bundles::{tmp, write_plane, write_random_leaves, PlaneSpec};
+use common::{compare_brf_rows, experiment, run_on_1_and_2_threads, run_rows};
+
+/// The experiment text with the spectral walk turned on and another seed.
+fn grouped(text: &str, seed: u64) -> String {
+    text.replace("[integrator]\n", "[integrator]\nspectral_walk = \"alis\"\n")
+        .replace("seed = 1\n", &format!("seed = {seed}\n"))
+}
+
+fn table(values: [f64; 3]) -> String {
+    format!(
+        "{{ wavelengths_nm = [440.0, 550.0, 660.0], values = [{:?}, {:?}, {:?}] }}",
+        values[0], values[1], values[2]
+    )
+}
+
+const HEAD: &str = "seed = 1\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
+     [atmosphere]\ntype = \"molecular\"\n\
+     [illumination]\ntype = \"directional\"\nzenith = 40.0\nazimuth = 30.0\n\
+     [integrator]\n";
+
+fn mdistant(spp: u64, extra: &str) -> String {
+    format!(
+        "[[measures]]\nid = \"area\"\ntype = \"mdistant\"\nconstruct = \"directions\"\n\
+         zeniths = [0.0, 35.0, 60.0]\nazimuths = [0.0, 30.0, 210.0]\nspp = {spp}\n{extra}\n"
+    )
+}
+
+#[test]
+fn canopy_group_equals_independent_walks() {
+    let dir = tmp("alis-canopy");
+    write_random_leaves(&dir.join("leaves.txt"), 9, 2500, 10.0, [0.5, 6.0], 0.25);
+    let text = format!(
+        "{HEAD}[scene]\ntype = \"canopy\"\n[[scene.objects]]\nleaves = \"{}\"\n\
+         reflectance = {}\ntransmittance = {}\n\
+         [scene.ground]\nbrdf = {{ type = \"lambertian\", reflectance = {} }}\n{}",
+        dir.join("leaves.txt").display(),
+        table([0.06, 0.12, 0.45]),
+        table([0.0, 0.1, 0.4]),
+        table([0.0, 0.15, 0.3]),
+        mdistant(
+            60_000,
+            "target_m = [-8.0, -8.0, 8.0, 8.0]\ntarget_height_m = 6.5"
+        )
+    );
+    let exp = experiment(&grouped(&text, 2));
+    // The reference is the most scattering wavelength, 440 nm.
+    assert_eq!(exp.wavelengths[0], 440.0);
+    let t = std::time::Instant::now();
+    let alis = run_rows(&exp);
+    let t_alis = t.elapsed().as_secs_f64();
+    let t = std::time::Instant::now();
+    let independent = run_rows(&experiment(&text));
+    println!(
+        "canopy: grouped {t_alis:.1} s, independent {:.1} s",
+        t.elapsed().as_secs_f64()
+    );
+    compare_brf_rows("canopy, grouped vs independent", &alis, &independent).unwrap();
+    // Single scattering too (the first interaction's estimate, per wavelength).
+    let single = |r: &[simulator::products::Row]| -> Vec<simulator::products::Row> {
+        r.iter()
+            .map(|x| simulator::products::Row {
+                brf: x.brf_single,
+                ..x.clone()
+            })
+            .collect()
+    };
+    compare_brf_rows(
+        "canopy single scattering, grouped vs independent",
+        &single(&alis),
+        &single(&independent),
+    )
+    .unwrap();
+    // The test sees transmission at 660 nm: the leaves' reflectance alone would leave less.
+    let brf = |r: &[simulator::products::Row], wl: f64| -> f64 {
+        r.iter()
+            .filter(|x| x.wavelength_nm == wl)
+            .map(|x| x.brf.unwrap().0)
+            .sum()
+    };
+    assert!(brf(&alis, 660.0) > 2.0 * brf(&alis, 440.0));
+}
+
+fn bundle_text(dir: &std::path::Path, spp_area: u64, spp_image: u64) -> String {
+    let rpv = BrdfSpec::Rpv {
+        rho_0: Spectrum::Table {
+            wavelengths_nm: vec![440.0, 660.0],
+            values: vec![0.04, 0.25],
+        },
+        k: Spectrum::Constant(0.75),
+        g: Spectrum::Table {
+            wavelengths_nm: vec![440.0, 660.0],
+            values: vec![-0.3, 0.1],
+        },
+        rho_c: None,
+    };
+    let soil = BrdfSpec::Lambertian {
+        reflectance: Spectrum::Table {
+            wavelengths_nm: vec![440.0, 660.0],
+            values: vec![0.12, 0.35],
+        },
+    };
+    let b = write_plane(
+        dir,
+        &PlaneSpec {
+            x0: -1000.0,
+            y0: -1000.0,
+            size: 2000.0,
+            h0: 150.0,
+            sx: 0.05,
+            sy: -0.03,
+            tiles: 2,
+            n: 4,
+            raster_width: 4,
+            raster: vec![0, 1, 0, 1, 1, 0, 1, 0, 0, 0, 1, 1, 1, 1, 0, 0],
+            materials: vec![("grass".into(), rpv), ("soil".into(), soil)],
+            frame_origin: [500_000.0, 4_000_000.0, 0.0],
+            wkt: String::new(),
+        },
+    );
+    format!(
+        "{HEAD}[scene]\ntype = \"bundle\"\npath = \"{}\"\n{}\
+         [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 1000.0\nzenith = 10.0\nazimuth = 60.0\nspp = {spp_image}\n",
+        b.display(),
+        mdistant(
+            spp_area,
+            "target_m = [499200.0, 3999200.0, 500800.0, 4000800.0]"
+        )
+    )
+}
+
+#[test]
+fn bundle_group_equals_independent_walks() {
+    let dir = tmp("alis-bundle");
+    let text = bundle_text(&dir, 40_000, 20_000);
+    let alis = run_rows(&experiment(&grouped(&text, 2)));
+    let independent = run_rows(&experiment(&text));
+    compare_brf_rows("bundle, grouped vs independent", &alis, &independent).unwrap();
+}
+
+#[test]
+fn group_results_do_not_depend_on_threads() {
+    let dir = tmp("alis-threads");
+    let text = bundle_text(&dir, 2000, 100_000)
+        .replace("[integrator]\n", "[integrator]\nsampler = \"sobol\"\n")
+        .replace("spp = 100000\n", "spp = 100000\ntarget_rel_stderr = 0.03\n");
+    let exp = experiment(&grouped(&text, 5));
+    let (a, b) = run_on_1_and_2_threads(&exp);
+    assert_eq!(a.len(), 6);
+    for (x, y) in a.iter().zip(&b) {
+        assert_eq!(x.acc, y.acc, "results differ between 1 and 2 threads");
+    }
+}
+
+#[test]
+fn config_errors() {
+    let dir = tmp("alis-errors");
+    let text = grouped(&bundle_text(&dir, 100, 100), 2);
+    let err = |t: &str| {
+        simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+            .err()
+            .unwrap_or_else(|| panic!("accepted:\n{t}"))
+            .to_string()
+    };
+    // More than 8 wavelengths per group in a scene.
+    let e = err(&text.replace(
+        "spectral_walk = \"alis\"\n",
+        "spectral_walk = \"alis\"\nalis_group = 9\n",
+    ));
+    assert!(
+        e.contains("integrator.alis_group") && e.contains("at most 8"),
+        "{e}"
+    );
+    // Polarized runs.
+    let e = err(&format!("polarized = true\n{text}"));
+    assert!(e.contains("integrator.spectral_walk"), "{e}");
+    // Spherical shells.
+    let e = err(&text.replace(
+        "[integrator]\n",
+        "[geometry]\ntype = \"spherical_shell\"\n[integrator]\n",
+    ));
+    assert!(e.contains("integrator.spectral_walk"), "{e}");
+    // Per-material solvers other than the default.
+    let e = err(&format!("{text}[scene.solvers.soil]\ntype = \"simple\"\n"));
+    assert!(e.contains("scene.solvers.soil"), "{e}");
+}
