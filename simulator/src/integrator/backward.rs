@@ -282,7 +282,7 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 Some(mut c),
             ) = (collision, w.splittable())
             {
-                c.into_collision_branch();
+                c.take_collision_branch();
                 c.rescale_to(i * p, i);
                 let d2 = collide(
                     g, q, omega, phase, d, &mut c, order, settings, peak, rng, tally,

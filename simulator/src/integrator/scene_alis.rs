@@ -32,7 +32,7 @@
 //! * **Forced first collisions** ([`Geometry::flight_split`]): the reference's split (collided
 //!   branch with probability `p`, uncollided `1 − p`), with each branch's own path factors: the
 //!   uncollided branch's `e_c` carried to the flight's end, the collided copy's to its collision
-//!   point ([`Weight::into_collision_branch`]).
+//!   point ([`Weight::take_collision_branch`]).
 //!
 //! Unbiased per channel for the reasons given in `backward_alis.rs` (the same importance
 //! weights, the reference's densities positive wherever a channel's integrand is: checked for
@@ -231,7 +231,7 @@ impl<'a> SceneChannels<'a> {
 pub struct SceneChannelPath<'a> {
     w: f64,
     e: [f64; SCENE_CHANNELS],
-    /// After a split flight: the collided branch's factors (`into_collision_branch`).
+    /// After a split flight: the collided branch's factors (`take_collision_branch`).
     e_coll: [f64; SCENE_CHANNELS],
     /// Reference layer of the last collision (set by the flight, used by the scattering).
     layer: usize,
@@ -417,7 +417,7 @@ impl Weight for SceneChannelPath<'_> {
         Some(self.clone())
     }
     #[inline]
-    fn into_collision_branch(&mut self) {
+    fn take_collision_branch(&mut self) {
         self.e = self.e_coll;
     }
     /// One accumulator cell per channel (`cell` must be 0).

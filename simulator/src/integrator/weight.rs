@@ -83,7 +83,7 @@ pub trait Weight: Sized {
     /// as the uncollided branch's). Weights whose geometry multiplies them along the flight
     /// (the spectral channels of 3D scenes, `scene_alis.rs`) hold both branches' factors and
     /// switch here; the default has nothing to switch.
-    fn into_collision_branch(&mut self) {}
+    fn take_collision_branch(&mut self) {}
 
     /// Add the tally of one path, each score times `k`, to `cell` of `acc`.
     fn record(acc: &mut Accum, cell: usize, t: &Self::Tally, k: f64);
