@@ -625,8 +625,10 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
 /// the samples done (or `min_grow` more, if that is larger), rounded up to whole units
 /// (`block`: a block, or a whole cycle of g-point blocks in CKD runs). Depends only on
 /// results, so it is thread-count independent.
-/// The most blocks one round of a task runs (and holds) at once.
+/// The most blocks one round of a task lists at once.
 const MAX_ROUND_BLOCKS: u64 = 1 << 18;
+/// Blocks run in parallel before their sums are merged (and their accumulators freed).
+const MERGE_CHUNK: usize = 4096;
 
 fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_grow: u64) -> u64 {
     let grow = if rel.is_finite() && target > 0.0 {
@@ -716,28 +718,33 @@ fn run_task(
                 (first..last).map(move |b| (c, b))
             })
             .collect();
-        let parts: Vec<(usize, Vec<Accum>)> = blocks
-            .par_iter()
-            .map(|&(c, b)| {
-                if cancel.load(Ordering::Relaxed) {
-                    return (c, Vec::new());
-                }
-                let range = (b * bs).max(done)..((b + 1) * bs).min(next);
-                let n = range.end - range.start;
-                let a = match &spectral {
-                    Some(sg) => run_block_spectral(exp, sg, group, im, c, range),
-                    None => vec![run_block(exp, iw0, im, c, range, ckd_alis.as_ref())],
-                };
-                bar.inc(n * per_walk);
-                (c, a)
-            })
-            .collect();
-        for (c, part) in &parts {
-            for (acc, p) in accs.iter_mut().zip(part) {
-                if method == Method::Forward {
-                    acc.merge(p);
-                } else {
-                    acc.merge_cell(*c - first_cell, p, 0);
+        // Merged chunk by chunk, in block order (the same sums as merging the whole round at
+        // once): a round of an image holds every pixel's blocks, and per-block accumulators
+        // would otherwise all be alive together (tens of MB on the README render).
+        for chunk in blocks.chunks(MERGE_CHUNK) {
+            let parts: Vec<(usize, Vec<Accum>)> = chunk
+                .par_iter()
+                .map(|&(c, b)| {
+                    if cancel.load(Ordering::Relaxed) {
+                        return (c, Vec::new());
+                    }
+                    let range = (b * bs).max(done)..((b + 1) * bs).min(next);
+                    let n = range.end - range.start;
+                    let a = match &spectral {
+                        Some(sg) => run_block_spectral(exp, sg, group, im, c, range),
+                        None => vec![run_block(exp, iw0, im, c, range, ckd_alis.as_ref())],
+                    };
+                    bar.inc(n * per_walk);
+                    (c, a)
+                })
+                .collect();
+            for (c, part) in &parts {
+                for (acc, p) in accs.iter_mut().zip(part) {
+                    if method == Method::Forward {
+                        acc.merge(p);
+                    } else {
+                        acc.merge_cell(*c - first_cell, p, 0);
+                    }
                 }
             }
         }
@@ -772,7 +779,7 @@ fn run_task(
         }
         // At least 8 blocks more (at most 4× what is done, after an early first check), or one
         // more g-point cycle (cycles are already 16 blocks). An image's block is already a
-        // round over every pixel (64 samples each), so images grow by at least one block: the
+        // round over every pixel (32 samples each), so images grow by at least one block: the
         // projection to the target then decides, instead of a jump from 256 to 768 samples.
         let min_grow = if unit > bs {
             unit

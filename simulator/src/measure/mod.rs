@@ -31,8 +31,11 @@ use glam::DVec3;
 /// Samples per block (the unit of parallel work and of deterministic merging).
 pub const BLOCK: u64 = 2048;
 /// Samples per block of image measures (ortho, perspective): their cells are pixels, each
-/// needing far fewer samples than a direction of a distant measure.
-pub const IMAGE_BLOCK: u64 = 64;
+/// needing far fewer samples than a direction of a distant measure. A block is also the
+/// smallest step of a target-precision round (`run.rs`): 32 rather than 64 lets the README
+/// render stop at 288 samples per pixel instead of 320 (BENCHMARKS.md, 2026-11-27); it stays a
+/// multiple of the Sobol replicates ([`REPLICATES`](crate::accum::REPLICATES)).
+pub const IMAGE_BLOCK: u64 = 32;
 
 #[derive(Clone, Debug)]
 pub struct Measure {
@@ -43,7 +46,7 @@ pub struct Measure {
     pub target_rel_stderr: Option<f64>,
     pub kind: MeasureKind,
     /// Samples per block when not the default (CKD image measures: [`IMAGE_BLOCK`] over the
-    /// g-point count, so that a cycle of g-points stays 64 samples per pixel).
+    /// g-point count, so that a cycle of g-points stays IMAGE_BLOCK samples per pixel).
     pub block_override: Option<u64>,
 }
 
