@@ -402,15 +402,30 @@ impl Accum {
     /// Median over cells of the relative standard error of the total (cells without an
     /// estimate count as infinite).
     pub fn median_rel_stderr(&self) -> f64 {
-        let mut r: Vec<f64> = (0..self.n.len())
-            .map(|c| self.rel_stderr(c))
-            .map(|x| if x.is_nan() { f64::INFINITY } else { x })
-            .collect();
+        self.quantile_rel_stderr(0.5)
+    }
+
+    /// The `q`-quantile (0 < q ≤ 1) over cells of the relative standard error of the total:
+    /// the value at index ⌊q·N⌋ (the last for q = 1) of the sorted errors, so that a fraction q
+    /// of the cells is at most it (cells without an estimate count as infinite).
+    pub fn quantile_rel_stderr(&self, q: f64) -> f64 {
+        let mut r: Vec<f64> = (0..self.n.len()).map(|c| self.cell_rel_stderr(c)).collect();
         if r.is_empty() {
             return 0.0;
         }
         r.sort_by(|a, b| a.total_cmp(b));
-        r[r.len() / 2]
+        let i = ((q * r.len() as f64) as usize).min(r.len() - 1);
+        r[i]
+    }
+
+    /// The relative standard error of the total of `cell` (infinite without an estimate).
+    pub fn cell_rel_stderr(&self, cell: usize) -> f64 {
+        let x = self.rel_stderr(cell);
+        if x.is_nan() {
+            f64::INFINITY
+        } else {
+            x
+        }
     }
 
     /// Largest relative standard error of the total over all cells.

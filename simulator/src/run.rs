@@ -709,12 +709,20 @@ fn run_task(
     let round_cap = (MAX_ROUND_BLOCKS / (walk_cells.len() as u64 * cycle as u64)).max(1) * unit;
     next = next.min(done + round_cap);
     let per_walk = group.len() as u64;
+    // Adaptive images (a target set): after the first round, only the pixels above the target
+    // are sampled, each up to its own projection (at most the uniform schedule's `next`).
+    // `have[i]`: samples of walk_cells[i] so far; `want[i]`: the end of its current round.
+    let adaptive =
+        m.adaptive && m.is_image() && m.target_rel_stderr.is_some() && method != Method::Forward;
+    let mut have = vec![0u64; walk_cells.len()];
+    let mut want = vec![next; walk_cells.len()];
     loop {
         let blocks: Vec<(usize, u64)> = walk_cells
             .iter()
-            .flat_map(|&c| {
-                let first = done.div_ceil(bs);
-                let last = next.div_ceil(bs);
+            .enumerate()
+            .flat_map(|(i, &c)| {
+                let first = have[i].div_ceil(bs);
+                let last = want[i].div_ceil(bs);
                 (first..last).map(move |b| (c, b))
             })
             .collect();
@@ -728,7 +736,8 @@ fn run_task(
                     if cancel.load(Ordering::Relaxed) {
                         return (c, Vec::new());
                     }
-                    let range = (b * bs).max(done)..((b + 1) * bs).min(next);
+                    let i = c - first_cell;
+                    let range = (b * bs).max(have[i])..((b + 1) * bs).min(want[i]);
                     let n = range.end - range.start;
                     let a = match &spectral {
                         Some(sg) => run_block_spectral(exp, sg, group, im, c, range),
@@ -749,16 +758,17 @@ fn run_task(
             }
         }
         done = next;
+        have.copy_from_slice(&want);
         if cancel.load(Ordering::Relaxed) {
             break;
         }
-        // Images stop on the median pixel error, other measures on the worst cell (the worst
-        // wavelength of a group).
+        // Images stop on the pixel error of quantile `target_fraction` (the median by default),
+        // other measures on the worst cell (the worst wavelength of a group).
         let rel = accs
             .iter()
             .map(|acc| {
                 if m.is_image() {
-                    acc.median_rel_stderr()
+                    acc.quantile_rel_stderr(m.target_fraction)
                 } else {
                     acc.max_rel_stderr()
                 }
@@ -772,9 +782,8 @@ fn run_task(
         };
         let reached = m.target_rel_stderr.is_some_and(|t| rel <= t) && trusted();
         if done >= m.spp || reached {
-            if reached && done < m.spp {
-                bar.inc((m.spp - done) * walk_cells.len() as u64 * per_walk);
-            }
+            let left: u64 = have.iter().map(|&h| m.spp.saturating_sub(h)).sum();
+            bar.inc(left * per_walk);
             break;
         }
         // At least 8 blocks more (at most 4× what is done, after an early first check), or one
@@ -797,10 +806,34 @@ fn run_task(
             min_grow,
         )
         .min(done + round_cap);
+        let target = m.target_rel_stderr.unwrap_or(0.0);
+        for (i, w) in want.iter_mut().enumerate() {
+            *w = next;
+            if adaptive {
+                let c = walk_cells[i] - first_cell;
+                let rel_c = accs
+                    .iter()
+                    .map(|acc| acc.cell_rel_stderr(c))
+                    .fold(0.0, f64::max);
+                *w = if rel_c <= target {
+                    have[i]
+                } else {
+                    next_round_end(have[i], rel_c, target, m.spp, unit, min_grow)
+                        .min(next)
+                        .max(have[i])
+                };
+            }
+        }
+        // Every pixel meets the target but the errors are not trusted yet: all go on.
+        if want.iter().zip(&have).all(|(w, h)| w <= h) {
+            want.fill(next);
+        }
         tracing::debug!(
-            "measure `{}`: {done} samples, relative standard error {rel:.4} (trusted: {}), next round to {next}",
+            "measure `{}`: {done} samples, relative standard error {rel:.4} (trusted: {}), next round to {next} ({} of {} cells sampled)",
             m.id,
-            trusted()
+            trusted(),
+            want.iter().zip(&have).filter(|(w, h)| w > h).count(),
+            want.len()
         );
     }
     group

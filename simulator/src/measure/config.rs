@@ -57,6 +57,12 @@ pub enum MeasureConfig {
         /// Stop when the **median** relative standard error of the pixels' BRF is at most this.
         #[serde(default)]
         target_rel_stderr: Option<f64>,
+        /// The fraction of pixels that must meet `target_rel_stderr` (default 0.5: the median).
+        #[serde(default)]
+        target_fraction: Option<f64>,
+        /// With a target: sample only the pixels above it after the first round (default true).
+        #[serde(default)]
+        adaptive: Option<bool>,
     },
     /// A pinhole camera.
     Perspective {
@@ -76,6 +82,11 @@ pub enum MeasureConfig {
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
+        /// As for `ortho`.
+        #[serde(default)]
+        target_fraction: Option<f64>,
+        #[serde(default)]
+        adaptive: Option<bool>,
     },
     Radiancemeter {
         id: String,
@@ -260,6 +271,37 @@ impl MeasureConfig {
                 ));
             }
         }
+        let (fraction, adaptive) = match self {
+            MeasureConfig::Ortho {
+                target_fraction,
+                adaptive,
+                ..
+            }
+            | MeasureConfig::Perspective {
+                target_fraction,
+                adaptive,
+                ..
+            } => (*target_fraction, *adaptive),
+            _ => (None, None),
+        };
+        if adaptive.is_some() && target.is_none() {
+            return Err(ctx.err(
+                format!("{key}.adaptive"),
+                "is used only with target_rel_stderr",
+            ));
+        }
+        if let Some(f) = fraction {
+            let fkey = format!("{key}.target_fraction");
+            if !(f > 0.0 && f <= 1.0) {
+                return Err(ctx.err(
+                    fkey,
+                    format!("{f} must lie in (0, 1] (the fraction of pixels that must meet the target; 1: every pixel)"),
+                ));
+            }
+            if target.is_none() {
+                return Err(ctx.err(fkey, "is used only with target_rel_stderr"));
+            }
+        }
         let scene = at.scene;
         let kind = match self {
             MeasureConfig::Mdistant {
@@ -406,6 +448,8 @@ impl MeasureConfig {
             id: id.clone(),
             spp,
             target_rel_stderr: target,
+            target_fraction: fraction.unwrap_or(0.5),
+            adaptive: adaptive.unwrap_or(true),
             kind,
             block_override: None,
         })

@@ -44,6 +44,12 @@ pub struct Measure {
     pub spp: u64,
     /// Stop once every direction's relative standard error is at most this (optional).
     pub target_rel_stderr: Option<f64>,
+    /// Images: the fraction of pixels that must meet `target_rel_stderr` (0.5: the median
+    /// pixel; 1: every pixel); other measures: every cell must (the value is not used).
+    pub target_fraction: f64,
+    /// Images with a target: after the first round only the pixels above the target are
+    /// sampled (`run.rs`); false: every pixel gets every round's samples.
+    pub adaptive: bool,
     pub kind: MeasureKind,
     /// Samples per block when not the default (CKD image measures: [`IMAGE_BLOCK`] over the
     /// g-point count, so that a cycle of g-points stays IMAGE_BLOCK samples per pixel).

@@ -49,8 +49,11 @@ pub struct ImageProduct {
     pub brf_multiple: Vec<Vec<f64>>,
     pub radiance: Vec<Vec<f64>>,
     pub radiance_stderr: Vec<Vec<f64>>,
-    /// Samples per pixel, per wavelength.
+    /// The fewest samples of any pixel, per wavelength.
     pub n_samples: Vec<u64>,
+    /// `[wavelength][pixel]`: samples of each pixel (they differ where adaptive rounds stopped
+    /// pixels that met the target, `run.rs`).
+    pub pixel_samples: Vec<Vec<u64>>,
     /// View angles of an ortho image, degrees.
     pub view: Option<(f64, f64)>,
     /// Polarized runs: per wavelength and pixel, BRF-normalised Q and U, the degree of linear
@@ -117,6 +120,7 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                     radiance: blank.clone(),
                     radiance_stderr: blank.clone(),
                     n_samples: vec![0; nw],
+                    pixel_samples: vec![vec![0; width * height]; nw],
                     view,
                     stokes: exp.polarized.then(|| ImageStokes {
                         q: blank.clone(),
@@ -158,6 +162,7 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
             }
         }
         p.n_samples[iw] = r.acc.n.iter().copied().min().unwrap_or(0);
+        p.pixel_samples[iw].copy_from_slice(&r.acc.n[..width * height]);
     }
     mask_to_area(exp, &mut out);
     out

@@ -9,7 +9,9 @@
 //! * data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`, `ID_brf_multiple`, `ID_radiance`,
 //!   `ID_radiance_stderr` on `(wavelength, ID_y, ID_x)`; polarized runs add `ID_q`, `ID_u`,
 //!   `ID_dolp`, `ID_dolp_stderr`; ortho images carry the view angles as attributes `vza`, `vaa`;
-//! * `ID_n_samples(wavelength)`: samples per pixel.
+//! * `ID_n_samples(wavelength)`: the fewest samples of any pixel;
+//! * `ID_pixel_samples(wavelength, y, x)`: the samples of each pixel (adaptive rounds stop
+//!   pixels that meet the target early).
 
 use crate::products::imagery::ImageProduct;
 
@@ -122,7 +124,19 @@ pub(super) fn write(f: &mut netcdf::FileMut, p: &ImageProduct) -> Result<(), net
     }
     let n: Vec<i64> = p.n_samples.iter().map(|&x| x as i64).collect();
     let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength"])?;
-    v.put_attribute("long_name", "Monte Carlo samples per pixel")?;
+    v.put_attribute("long_name", "fewest Monte Carlo samples of any pixel")?;
+    v.put_values(&n, ..)?;
+    let n: Vec<i64> = p
+        .pixel_samples
+        .iter()
+        .flatten()
+        .map(|&x| x as i64)
+        .collect();
+    let mut v = f.add_variable::<i64>(&format!("{id}_pixel_samples"), &["wavelength", &dy, &dx])?;
+    v.put_attribute("long_name", "Monte Carlo samples of each pixel")?;
+    if georeferenced {
+        v.put_attribute("grid_mapping", mapping.as_str())?;
+    }
     v.put_values(&n, ..)?;
     Ok(())
 }
