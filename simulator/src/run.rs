@@ -815,8 +815,17 @@ fn run_task(
                     .iter()
                     .map(|acc| acc.cell_rel_stderr(c))
                     .fold(0.0, f64::max);
-                *w = if rel_c <= target {
+                // A pixel stops only once its error is both small and trusted (its heavy-tail
+                // check, which the run's stop also needs); in the last round (the schedule at
+                // `spp`) every pixel still going gets all of `spp`.
+                let settled = rel_c <= target
+                    && accs
+                        .iter()
+                        .all(|acc| acc.tail(c).is_none_or(|t| t.trusted()));
+                *w = if settled {
                     have[i]
+                } else if next >= m.spp {
+                    next
                 } else {
                     next_round_end(have[i], rel_c, target, m.spp, unit, min_grow)
                         .min(next)

@@ -11,7 +11,8 @@
 //!   image mean's z-score must stay within 4.5, and the bias per pixel within 0.2 of a pixel's
 //!   standard error.
 //! * `fraction_and_uniform_rounds`: `target_fraction = 0.9` stops once 90 % of the pixels meet
-//!   the target, not all; `adaptive = false` gives every pixel the same count.
+//!   the target, not all; `adaptive = false` gives every pixel the same count; a target out of
+//!   reach gives every pixel all of `spp`.
 //! * `config_errors`: out-of-range `target_fraction`, and either key without a target.
 
 mod common;
@@ -101,6 +102,17 @@ fn fraction_and_uniform_rounds() {
     assert!(p.pixel_samples[0]
         .iter()
         .any(|&c| c != p.pixel_samples[0][0]));
+    // A target no pixel can reach within `spp`: every pixel goes on to all of it.
+    let capped = image(&experiment(
+        &text
+            .replace("spp = 100000\n", "spp = 2048\n")
+            .replace("target_rel_stderr = 0.01\n", "target_rel_stderr = 0.0005\n"),
+    ));
+    assert!(
+        capped.pixel_samples[0].iter().all(|&c| c == 2048),
+        "{:?}",
+        capped.pixel_samples[0]
+    );
 }
 
 #[test]

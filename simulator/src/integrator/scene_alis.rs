@@ -15,9 +15,11 @@
 //! * **Surfaces.** A hit's material has its own model per wavelength (and a texture its own
 //!   reflectance). The direction is drawn from a density `p` positive wherever any channel's
 //!   BRDF is, and channel c's weight is `q_c = f_c·|cos θ_i|/p`: all-Lambertian hits draw the
-//!   cosine density (`q_c = ρ_c`, exact: a pure reflectance ratio); all-leaf hits draw the leaf
-//!   sampler of the channels' *mean* reflectance and transmittance (so a side any channel
-//!   scatters into is drawn); other opaque models draw the reference channel's BRDF sampler,
+//!   cosine density (`q_c = ρ_c`, exact: a pure reflectance ratio); hits with leaves draw the
+//!   side in proportion to the channels' summed reflectance and transmittance (so a side any
+//!   channel scatters into is drawn; an opaque channel there, possible only where a texture
+//!   covers some wavelengths of a leaf material, counts as a reflectance of 1), then the cosine
+//!   density; other opaque models draw the reference channel's BRDF sampler,
 //!   whose density is positive over the upper hemisphere (`bsdf/mod.rs`; as the 1D walk).
 //!   The common weight takes `r` (the reference channel's `q`, or the largest where that is 0)
 //!   and `e_c` takes `q_c/r`.
@@ -351,13 +353,20 @@ impl Weight for SceneChannelPath<'_> {
                 *qc = lambertian(model(c)).unwrap_or(0.0);
             }
             t * l.x + b * l.y + n * l.z
-        } else if (0..nc).all(|c| leaf(model(c)).is_some()) {
-            // The leaf sampler of the mean reflectance and transmittance.
+        } else if (0..nc).any(|c| matches!(model(c), SurfaceModel::Leaf { .. })) {
+            // Leaves: a side drawn in proportion to the channels' summed reflectance and
+            // transmittance (an opaque channel, possible only where a texture covers some
+            // wavelengths of a leaf material, counts as a reflectance of 1), then the cosine
+            // density on that side; q_c = f_c·|cos|/pdf for every channel.
             let (mut rm, mut tm) = (0.0, 0.0);
             for c in 0..nc {
-                let (r, t) = leaf(model(c)).unwrap_or((0.0, 0.0));
-                rm += r;
-                tm += t;
+                match leaf(model(c)) {
+                    Some((r, t)) => {
+                        rm += r;
+                        tm += t;
+                    }
+                    None => rm += 1.0,
+                }
             }
             let total = rm + tm;
             if total <= 0.0 {
@@ -366,15 +375,20 @@ impl Weight for SceneChannelPath<'_> {
             let reflect = u[2] * total < rm;
             let side = if reflect { n } else { -n };
             let share = if reflect { rm } else { tm };
-            for (c, qc) in q[..nc].iter_mut().enumerate() {
-                let (r, t) = leaf(model(c)).unwrap_or((0.0, 0.0));
-                *qc = if reflect { r } else { t } * total / share;
-            }
             let (t, b) = basis_around(side);
             let l = sample_cosine_hemisphere(u[0], u[1]);
-            t * l.x + b * l.y + side * l.z
+            if l.z <= 0.0 {
+                return None;
+            }
+            let pdf = share / total * l.z * std::f64::consts::FRAC_1_PI;
+            let wi = t * l.x + b * l.y + side * l.z;
+            for (c, qc) in q[..nc].iter_mut().enumerate() {
+                *qc = model(c).eval_cos(n, wi, wo) / pdf;
+            }
+            wi
         } else {
-            // Opaque models: the reference channel's sampler (or the first opaque one).
+            // Opaque models: the reference channel's sampler (or the first opaque one), whose
+            // density is positive over the upper hemisphere.
             let sampler = std::iter::once(g.reference_channel)
                 .chain(0..nc)
                 .find_map(|c| match model(c) {
@@ -389,10 +403,6 @@ impl Weight for SceneChannelPath<'_> {
             }
             let wi = t * s.wi.x + b * s.wi.y + n * s.wi.z;
             for (c, qc) in q[..nc].iter_mut().enumerate() {
-                debug_assert!(
-                    !matches!(model(c), SurfaceModel::Leaf { .. }),
-                    "leaf and opaque models at one hit"
-                );
                 *qc = model(c).eval_cos(n, wi, wo) / s.pdf;
             }
             wi
