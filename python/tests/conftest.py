@@ -2,6 +2,7 @@
 line), the public data folder ``../shared/data`` (tests that need it skip without it)."""
 
 import os
+import signal
 import subprocess
 from pathlib import Path
 
@@ -76,3 +77,17 @@ def ortho_experiment(bundle_path):
         "scene": {"type": "bundle", "path": str(bundle_path)},
         "measures": [{"id": "toa", "type": "ortho", "pixel_size_m": 250.0, "spp": 4}],
     }
+
+
+@pytest.fixture
+def sigint():
+    """Python's own SIGINT handler (KeyboardInterrupt) for the duration of a test.
+
+    A process started with SIGINT ignored (a background job of a non-interactive shell, some CI
+    runners) keeps it ignored, and `_thread.interrupt_main()` then does nothing: the Ctrl-C
+    tests would wait for their whole (deliberately endless) run. They install the handler
+    themselves, and the previous one is restored afterwards.
+    """
+    previous = signal.signal(signal.SIGINT, signal.default_int_handler)
+    yield
+    signal.signal(signal.SIGINT, previous)

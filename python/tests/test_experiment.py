@@ -138,7 +138,7 @@ def _long():
     return d
 
 
-def test_ctrl_c_interrupts_a_run():
+def test_ctrl_c_interrupts_a_run(sigint):
     exp = eosim.load(_long())
     timer = threading.Timer(0.5, _thread.interrupt_main)
     timer.start()
@@ -151,7 +151,7 @@ def test_ctrl_c_interrupts_a_run():
     assert time.perf_counter() - t0 < 600  # it returned (no time limit on speed)
 
 
-def test_the_gil_is_released_during_runs():
+def test_the_gil_is_released_during_runs(sigint):
     exp = eosim.load(_long())
     ticks = []
     stop = threading.Event()

@@ -138,7 +138,7 @@ def test_several_sites_add_a_site_dimension():
                             eosim.pics(SITE, ACQS[:2], progress=False))
 
 
-def test_ctrl_c_interrupts_a_sweep():
+def test_ctrl_c_interrupts_a_sweep(sigint):
     import _thread
     import threading
 
