@@ -179,39 +179,11 @@ impl<'a> SceneChannels<'a> {
                 acc[c] += e[c] * sum;
             }
         }
-        // Below the top: one point of the reference's collision density on [t_a, t_b].
-        if !reach.is_finite() {
-            return;
-        }
-        let t_a = reach;
-        let t_leave = if d.z > 0.0 && p.z <= top {
-            (top - p.z) / d.z
-        } else if d.z < 0.0 {
-            (p.z - atm.ground()) / -d.z
-        } else {
-            f64::INFINITY
-        };
-        let t_b = t_hit.min(t_leave);
-        if t_b <= t_a {
-            return;
-        }
-        let s_a = atm.optical_path(p.z, d.z, t_a);
-        let s_ab = if t_b.is_finite() {
-            atm.optical_path(p.z + t_a * d.z, d.z, t_b - t_a)
-        } else {
-            f64::INFINITY
-        };
-        let p_seg = (-s_a).exp() * -(-s_ab).exp_m1();
-        if p_seg <= 0.0 {
-            return;
-        }
-        let u = rng.next_f64();
-        let s_star = s_a - (-u * -(-s_ab).exp_m1()).ln_1p();
-        let Some(t) = atm.march(p.z, d.z, s_star, f64::INFINITY) else {
+        // Below the top: one point of the reference's collision density (as the scalar
+        // geometry draws it).
+        let Some((q, t, p_seg)) = self.base.forced_point_below_top(p, d, reach, t_hit, rng) else {
             return;
         };
-        let t = t.min(t_b);
-        let q = p + d * t;
         let l = atm.layer_at_altitude(q.z);
         let omega = atm.albedo(l);
         if omega <= 0.0 || !self.base.sees_sun(q) {

@@ -317,39 +317,61 @@ impl SceneInLayers<'_> {
                 W::accumulate(acc, atm.phase(l), cos, atm.albedo(l), i);
             });
         }
-        // Part below the top: [t_a, t_b].
-        if reach.is_finite() {
-            let t_a = reach;
-            let t_leave = if d.z > 0.0 && p.z <= top {
-                (top - p.z) / d.z
-            } else if d.z < 0.0 {
-                (p.z - atm.ground()) / -d.z
-            } else {
-                f64::INFINITY
-            };
-            let t_b = t_hit.min(t_leave);
-            if t_b > t_a {
-                let s_a = atm.optical_path(p.z, d.z, t_a);
-                let s_ab = if t_b.is_finite() {
-                    atm.optical_path(p.z + t_a * d.z, d.z, t_b - t_a)
-                } else {
-                    f64::INFINITY
-                };
-                // Probability of a collision inside the segment.
-                let p_seg = (-s_a).exp() * -(-s_ab).exp_m1();
-                if p_seg > 0.0 {
-                    let u = rng.next_f64();
-                    let s_star = s_a - (-u * -(-s_ab).exp_m1()).ln_1p();
-                    if let Some(t) = atm.march(p.z, d.z, s_star, f64::INFINITY) {
-                        let q = p + d * t.min(t_b);
-                        let l = atm.layer_at_altitude(q.z);
-                        let omega = atm.albedo(l);
-                        if omega > 0.0 && self.sees_sun(q) {
-                            W::accumulate(acc, atm.phase(l), cos, omega, p_seg * self.t_sun(q.z));
-                        }
-                    }
-                }
+        // Part below the top.
+        if let Some((q, _, p_seg)) = self.forced_point_below_top(p, d, reach, t_hit, rng) {
+            let l = atm.layer_at_altitude(q.z);
+            let omega = atm.albedo(l);
+            if omega > 0.0 && self.sees_sun(q) {
+                W::accumulate(acc, atm.phase(l), cos, omega, p_seg * self.t_sun(q.z));
             }
         }
+    }
+
+    /// The part of the flight from `p` along `d` below the scene's top (from `reach`, where it
+    /// comes down to the top, to its first hit at `t_hit` or the atmosphere's boundary): one
+    /// point drawn from the collision density restricted to that segment (one random number),
+    /// with its distance `t` along the flight and the probability `p_seg` of a collision in
+    /// the segment; `None` (no random number) when the segment is empty or cannot collide.
+    /// The forced point of the expected estimate below the top, here and in `scene_alis.rs`.
+    pub(crate) fn forced_point_below_top(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        reach: f64,
+        t_hit: f64,
+        rng: &mut Stream,
+    ) -> Option<(DVec3, f64, f64)> {
+        if !reach.is_finite() {
+            return None;
+        }
+        let atm = self.atmosphere;
+        let top = self.scene.z_range[1];
+        let t_a = reach;
+        let t_leave = if d.z > 0.0 && p.z <= top {
+            (top - p.z) / d.z
+        } else if d.z < 0.0 {
+            (p.z - atm.ground()) / -d.z
+        } else {
+            f64::INFINITY
+        };
+        let t_b = t_hit.min(t_leave);
+        if t_b <= t_a {
+            return None;
+        }
+        let s_a = atm.optical_path(p.z, d.z, t_a);
+        let s_ab = if t_b.is_finite() {
+            atm.optical_path(p.z + t_a * d.z, d.z, t_b - t_a)
+        } else {
+            f64::INFINITY
+        };
+        // Probability of a collision inside the segment.
+        let p_seg = (-s_a).exp() * -(-s_ab).exp_m1();
+        if p_seg <= 0.0 {
+            return None;
+        }
+        let u = rng.next_f64();
+        let s_star = s_a - (-u * -(-s_ab).exp_m1()).ln_1p();
+        let t = atm.march(p.z, d.z, s_star, f64::INFINITY)?.min(t_b);
+        Some((p + d * t, t, p_seg))
     }
 }
