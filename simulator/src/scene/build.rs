@@ -164,17 +164,15 @@ pub fn from_bundle(
             }
         })
         .collect();
-    let instances: Vec<(u32, InstanceTransform)> = std::mem::take(&mut bundle.instances)
-        .iter()
-        .map(InstanceTransform::from_bundle)
-        .map(|(k, mut tr)| {
+    let instances: Vec<(u32, InstanceTransform)> =
+        super::map_freeing(std::mem::take(&mut bundle.instances), |inst| {
+            let (k, mut tr) = InstanceTransform::from_bundle(&inst);
             // Bent scenes: each instance stands at its anchor's altitude above the sphere.
             if let Some(c) = bend {
                 tr.translation = c.bend(tr.translation);
             }
             (k, tr)
-        })
-        .collect();
+        });
     let objects = if instances.is_empty() {
         None
     } else {

@@ -14,14 +14,25 @@
 //!   collapse to ≤ 8 primitives) over the primitives' boxes, primitives reordered to leaf order.
 //! * Instance boxes: the exact world box of the transformed template box, intersected with the
 //!   union of the transformed boxes of a 16-node cut of the BLAS (tighter for rotated instances).
-//! * TLAS: our own top-down binned-SAH build (16 bins, leaves ≤ 4 instances). On the 1M-instance
-//!   forest of the tests it is as fast to build as obvhs' `medium_build` (≈ 1 s) but its trees
-//!   need about 3× fewer node visits per ray (≈ 28 vs 91 node pairs; obvhs' reinsertion closes
-//!   the gap only with 10–20 s of build), i.e. 3–4× the ray throughput.
-//! * Nodes of both levels are converted to a 64-byte *pair* layout (the two children of a node,
-//!   boxes as struct-of-arrays, in one cache line; depth-first order) and traversed by our own
-//!   stack traversal: stack in a fixed-size array (heap only for trees deeper than 128 levels),
-//!   near child first, leaves tested as soon as reached, early exit at the first hit for
+//! * TLAS: our own top-down binned-SAH build (16 bins) into *clusters* of at most 3 instances
+//!   (the binary leaves). On the 1M-instance forest of the tests the binned SAH is as fast to
+//!   build as obvhs' `medium_build` (≈ 1 s) but its trees need about 3× fewer node visits per
+//!   ray (≈ 28 vs 91 node pairs; obvhs' reinsertion closes the gap only with 10–20 s of build).
+//!   The binary tree is then converted by obvhs to its 8-wide compressed CWBVH (80-byte nodes,
+//!   boxes quantized to 8 bits, children ordered by ray octant; Ylitie, Karras & Laine 2017),
+//!   one cluster per CWBVH leaf, and traversed by obvhs' SSE traversal. On the Grenoble bundle
+//!   (1.27 M instances) the wide top level has 8 levels where the binary one had 21, 80 k nodes
+//!   (6.4 MB, which stays in cache) where the binary one had 362 k pairs (23 MB), and random
+//!   primary rays run 15 % faster (BENCHMARKS.md). Converting with one instance per leaf would
+//!   make the tree another 15 % faster but triples the conversion's working memory (the binary
+//!   nodes and obvhs' cost table, 7 entries per binary node): the render's set-up peak RSS rose
+//!   from 293 to 454 MiB. obvhs' traversal stack holds 31 levels and silently overwrites its
+//!   top beyond that, so a deeper tree (only pathological inputs) is rebuilt with median splits
+//!   ([`super::cwbvh_depth`]).
+//! * BLAS nodes are converted to a 64-byte *pair* layout (the two children of a node, boxes as
+//!   struct-of-arrays, in one cache line; depth-first order) and traversed by our own stack
+//!   traversal: stack in a fixed-size array (heap only for trees deeper than 128 levels), near
+//!   child first, leaves tested as soon as reached, early exit at the first hit for
 //!   [`InstanceBvh::occluded`]. No allocation per ray and no dynamic dispatch (primitive kinds
 //!   are monomorphised, the template kind is a `match`).
 //!
@@ -30,10 +41,14 @@
 //! size, and every hit is decided in f64:
 //! * TLAS: boxes are in the f32 *render frame* (world − `render_origin`). The ray is first
 //!   clipped in f64 against the (padded) world box and its origin moved to the clip start, so
-//!   f32 coordinates stay within the scene. Instance boxes are padded by
-//!   `4·10⁻⁷ · (max |render coordinate| + world diagonal) + 1 µm` (≈ 8 cm for a ±50 km scene),
-//!   which bounds the f32 rounding of the ray's origin and direction over the scene: the TLAS is
-//!   conservative (it may propose an instance the ray misses, never drops one it hits).
+//!   f32 coordinates stay within the scene. Direction components below 2.4·10⁻⁷ are set to
+//!   zero in the f32 ray (obvhs replaces the inverse of a tiny component by ±1/ε, which would
+//!   shrink the slab; as for the terrain). Instance boxes are padded by
+//!   `10⁻⁶ · (max |render coordinate| + world diagonal) + 1 µm` (≈ 20 cm for a ±50 km scene),
+//!   which bounds the f32 rounding of the ray's origin and direction over the scene, the drift
+//!   of the snapped direction and the rounding of obvhs' (unwidened) slab tests; the CWBVH's
+//!   quantized boxes only grow them. So the TLAS is conservative (it may propose an instance
+//!   the ray misses, never drops one it hits).
 //! * Instance: per candidate instance the ray origin is first moved, in f64, to the ray's point
 //!   of closest approach to the instance's translation (`s = (T − o)·d`), then
 //!   `o_t = L⁻¹ (o + s d − T)` and `d_t = L⁻¹ d` are computed in f64 (and rounded to f32 for the
@@ -52,9 +67,9 @@
 //! **Memory layout per instance** (instances whose template has no primitives cost nothing):
 //! a 64-byte record — translation `[f64; 3]` (24 B), column-major inverse linear part
 //! `[f32; 9]` (36 B), template id `u32` (4 B) — stored in TLAS leaf order, plus a `u32` original
-//! instance id (4 B), plus the TLAS node pairs (64 B each, about one per 3.5 instances with
-//! leaves of ≤ 4): ≈ 86 B per instance in all on the 1M-instance test scene (see
-//! [`InstanceBvh::memory_bytes`]). Per template primitive (in BLAS leaf order): a triangle is
+//! instance id (4 B), plus the TLAS's cluster starts (4 B per cluster, about one per 2.5
+//! instances) and CWBVH nodes (80 B each, about one per 12 instances): ≈ 76 B per instance in
+//! all on the 1M-instance test scene (see [`InstanceBvh::memory_bytes`]). Per template primitive (in BLAS leaf order): a triangle is
 //! its three f32 vertices (36 B) or a disc its centre, unit normal and radius (28 B), plus a
 //! `u32` original primitive id and a `u16` material, plus the BLAS node pairs.
 //!
@@ -66,7 +81,12 @@ use glam::{DMat3, DVec3, Mat3, Vec3, Vec3A, Vec4, Vec4Swizzles};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::builder::build_bvh2;
 use obvhs::bvh2::node::Bvh2Node;
+use obvhs::cwbvh::node::CwBvhNode;
+use obvhs::cwbvh::CwBvh;
+use obvhs::ray::{Ray, RayHit};
 use obvhs::BvhBuildParams;
+
+use super::sah::SahParams;
 
 use super::clip;
 
@@ -160,17 +180,19 @@ struct InstanceRecord {
 
 const _: () = assert!(std::mem::size_of::<InstanceRecord>() == 64);
 
-/// TLAS leaves: at most this many instances, and the cost of an instance test relative to a
-/// node-pair visit used by the SAH (tuned on the 1M-instance benchmark of the tests: leaves of
-/// up to 4 instances cost no measurable speed and save a third of the memory).
-const TLAS_MAX_LEAF: usize = 4;
-const TLAS_INSTANCE_COST: f32 = 0.25;
 /// Stack size kept on the machine stack; deeper trees use a heap stack (allocated per ray).
 const INLINE_STACK: usize = 128;
 /// Barycentric margin of the f32 triangle prefilter.
 const BARY_MARGIN: f32 = 1e-2;
 /// Relative expansion of the f32 slab test (PBRT's robust bound 1 + 2γ₃, rounded up).
 const SLAB_ROBUST: f32 = 4e-7;
+/// TLAS clusters (binary leaves, one per CWBVH leaf): at most this many instances, and the cost
+/// of an instance test relative to a node visit used by the SAH.
+const TLAS_MAX_LEAF: usize = 3;
+const TLAS_INSTANCE_COST: f32 = 0.25;
+/// Deepest binary SAH tree handed to obvhs' (recursive) CWBVH conversion; deeper ones are
+/// rebuilt with median splits.
+const TLAS_BINARY_DEPTH: usize = 256;
 
 /// A ray in f32 for the BVH and prefilter tests.
 #[derive(Clone, Copy)]
@@ -536,124 +558,120 @@ fn to_pairs(nodes: &[Bvh2Node]) -> Tree {
     Tree { pairs, depth }
 }
 
-/// Top-down binned-SAH build (Wald 2007, "On fast construction of SAH-based bounding volume
-/// hierarchies") over boxes: (tree, slot → input index). Costs relative to a node-pair visit:
-/// an instance test costs `isect`; leaves hold at most `max_leaf` primitives.
-fn build_sah(aabbs: &[Aabb], max_leaf: usize, isect: f32) -> (Tree, Vec<u32>) {
-    const BINS: usize = 16;
+/// The TLAS: a binned-SAH binary tree over the instance boxes ([`super::sah`], leaves of
+/// at most [`TLAS_MAX_LEAF`] instances) converted to obvhs' CWBVH with each binary leaf as one
+/// *cluster* (a CWBVH leaf holds one cluster). Converting the leaves as clusters rather than one
+/// instance per leaf keeps the conversion's working memory (the binary nodes and a cost table
+/// of 7 entries per binary node) to about a third; the boxes are freed before it. A tree deeper
+/// than obvhs' traversal stack allows ([`super::CWBVH_MAX_DEPTH`], only pathological inputs)
+/// is rebuilt with median splits.
+fn build_tlas(aabbs: Vec<Aabb>) -> Result<Tlas, String> {
     let n = aabbs.len();
-    if n == 0 {
-        return (
-            Tree {
-                pairs: Vec::new(),
-                depth: 0,
-            },
-            Vec::new(),
-        );
+    let params = |balanced| SahParams {
+        max_leaf: TLAS_MAX_LEAF,
+        isect: TLAS_INSTANCE_COST,
+        balanced,
+    };
+    let (mut nodes, mut idx) = super::sah::build(&aabbs, params(false));
+    // obvhs' conversion recurses over the binary tree: no very deep one.
+    if super::sah::depth(&nodes) > TLAS_BINARY_DEPTH {
+        (nodes, idx) = super::sah::build(&aabbs, params(true));
     }
-    let mut idx: Vec<u32> = (0..n as u32).collect();
-    let cent: Vec<Vec3A> = aabbs.iter().map(|b| b.center()).collect();
-    let mut nodes: Vec<Bvh2Node> = Vec::with_capacity(2 * n);
-    let bound = |ix: &[u32]| {
-        let mut b = Aabb::INVALID;
-        let mut c = Aabb::INVALID;
-        for &i in ix {
-            b = b.union(&aabbs[i as usize]);
-            c.extend(cent[i as usize]);
+    super::release_free_memory();
+    // A wide tree is never deeper than its binary one: keep the boxes only if a rebuild may be
+    // needed.
+    let mut kept = (super::sah::depth(&nodes) > super::CWBVH_MAX_DEPTH).then_some(aabbs);
+    let mut tlas = cluster_cwbvh(nodes, idx);
+    if tlas.depth > super::CWBVH_MAX_DEPTH {
+        if let Some(aabbs) = kept.take() {
+            let (nodes, idx) = super::sah::build(&aabbs, params(true));
+            drop(aabbs);
+            tlas = cluster_cwbvh(nodes, idx);
         }
-        (b, c)
-    };
-    let half_area = |b: &Aabb| {
-        let d = (b.max - b.min).max(Vec3A::ZERO);
-        d.x * d.y + d.y * d.z + d.z * d.x
-    };
-    let (b0, c0) = bound(&idx);
-    nodes.push(Bvh2Node::new(b0, n as u32, 0));
-    // (node, start, end, centroid box)
-    let mut todo = vec![(0usize, 0usize, n, c0)];
-    while let Some((ni, start, end, cb)) = todo.pop() {
-        let count = end - start;
-        let nb = nodes[ni].aabb;
-        if count <= 1 {
-            continue;
-        }
-        let ext = cb.max - cb.min;
-        // Best split over the three axes.
-        let mut best = (f32::INFINITY, 0usize, 0usize); // (cost, axis, bins on the left)
-        for axis in 0..3 {
-            if ext[axis] <= 0.0 {
-                continue;
-            }
-            let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
-            let mut bb = [Aabb::INVALID; BINS];
-            let mut bc = [0u32; BINS];
-            for &i in &idx[start..end] {
-                let k = (((cent[i as usize][axis] - cb.min[axis]) * scale) as usize).min(BINS - 1);
-                bc[k] += 1;
-                bb[k] = bb[k].union(&aabbs[i as usize]);
-            }
-            let mut right_area = [0f32; BINS];
-            let mut acc = Aabb::INVALID;
-            let mut cnt = [0u32; BINS];
-            let mut c = 0;
-            for k in (1..BINS).rev() {
-                acc = acc.union(&bb[k]);
-                c += bc[k];
-                right_area[k] = half_area(&acc);
-                cnt[k] = c;
-            }
-            let mut acc = Aabb::INVALID;
-            let mut c = 0;
-            for k in 0..BINS - 1 {
-                acc = acc.union(&bb[k]);
-                c += bc[k];
-                if c == 0 || cnt[k + 1] == 0 {
-                    continue;
-                }
-                let cost = half_area(&acc) * c as f32 + right_area[k + 1] * cnt[k + 1] as f32;
-                if cost < best.0 {
-                    best = (cost, axis, k + 1);
-                }
-            }
-        }
-        let parent_area = half_area(&nb).max(f32::MIN_POSITIVE);
-        let split_cost = 1.0 + isect * best.0 / parent_area;
-        let leaf_cost = isect * count as f32;
-        if count <= max_leaf && leaf_cost <= split_cost {
-            continue;
-        }
-        let mid = if best.0.is_finite() {
-            let (axis, k) = (best.1, best.2);
-            let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
-            let left = |i: u32| {
-                (((cent[i as usize][axis] - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
-            };
-            // In-place partition.
-            let (mut a, mut b) = (start, end);
-            while a < b {
-                if left(idx[a]) {
-                    a += 1;
-                } else {
-                    b -= 1;
-                    idx.swap(a, b);
-                }
-            }
-            a
-        } else {
-            // All centroids equal: split the range in half.
-            start + count / 2
+    }
+    if tlas.depth > super::CWBVH_MAX_DEPTH {
+        return Err(format!(
+            "the top-level BVH over {n} instances has {} levels, more than the {} that obvhs' traversal handles",
+            tlas.depth,
+            super::CWBVH_MAX_DEPTH
+        ));
+    }
+    Ok(tlas)
+}
+
+/// Convert a binary tree (leaves: ranges of `idx`) to the CWBVH of clusters.
+fn cluster_cwbvh(mut nodes: Vec<Bvh2Node>, idx: Vec<u32>) -> Tlas {
+    if nodes.is_empty() {
+        return Tlas {
+            tree: CwBvh::default(),
+            cluster_start: Vec::new(),
+            order: Vec::new(),
+            depth: 0,
         };
-        let (lb, lc) = bound(&idx[start..mid]);
-        let (rb, rc) = bound(&idx[mid..end]);
-        let l = nodes.len();
-        nodes.push(Bvh2Node::new(lb, (mid - start) as u32, start as u32));
-        nodes.push(Bvh2Node::new(rb, (end - mid) as u32, mid as u32));
-        nodes[ni].prim_count = 0;
-        nodes[ni].first_index = l as u32;
-        todo.push((l + 1, mid, end, rc));
-        todo.push((l, start, mid, lc));
     }
-    (to_pairs(&nodes), idx)
+    let mut clusters = Vec::new();
+    for n in nodes.iter_mut().filter(|n| n.is_leaf()) {
+        clusters.push((n.first_index, n.prim_count));
+        n.first_index = clusters.len() as u32 - 1;
+        n.prim_count = 1;
+    }
+    let bvh2 = obvhs::bvh2::Bvh2 {
+        primitive_indices: (0..clusters.len() as u32).collect(),
+        nodes,
+        ..Default::default()
+    };
+    let mut tree = obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, 1, true, false);
+    drop(bvh2);
+    let depth = super::cwbvh_depth(&tree);
+    // Records in leaf order: cluster slot k holds records cluster_start[k]..[k + 1].
+    let mut order = Vec::with_capacity(idx.len());
+    let mut cluster_start = Vec::with_capacity(clusters.len() + 1);
+    for &c in &tree.primitive_indices {
+        let (first, count) = clusters[c as usize];
+        cluster_start.push(order.len() as u32);
+        order.extend_from_slice(&idx[first as usize..(first + count) as usize]);
+    }
+    cluster_start.push(order.len() as u32);
+    tree.primitive_indices = Vec::new();
+    Tlas {
+        tree,
+        cluster_start,
+        order,
+        depth,
+    }
+}
+
+/// Reorder `v` so that slot k holds the old `v[order[k]]` (`order` a permutation of the
+/// slots), in place: each cycle of the permutation is followed once (`order` marks the slots
+/// done).
+fn permute_in_place<T>(v: &mut [T], mut order: Vec<u32>) {
+    assert_eq!(v.len(), order.len());
+    for start in 0..v.len() {
+        if order[start] == u32::MAX {
+            continue;
+        }
+        // Slot j takes the item of slot order[j]: swap along the cycle.
+        let mut j = start;
+        loop {
+            let k = order[j] as usize;
+            order[j] = u32::MAX;
+            if k == start {
+                break;
+            }
+            v.swap(j, k);
+            j = k;
+        }
+    }
+}
+
+/// A built TLAS ([`build_tlas`]).
+struct Tlas {
+    tree: CwBvh,
+    /// First record of each leaf cluster, and the total at the end.
+    cluster_start: Vec<u32>,
+    /// Input index of each record slot.
+    order: Vec<u32>,
+    depth: usize,
 }
 
 impl<P: Primitive + Copy> Blas<P> {
@@ -850,8 +868,10 @@ struct Best {
 /// Instances of templates under a two-level BVH (see the module header).
 pub struct InstanceBvh {
     templates: Vec<TemplateBlas>,
-    /// TLAS nodes (render frame, f32, padded boxes).
-    tlas: Tree,
+    /// TLAS (render frame, f32, padded boxes); its leaf slot k is the cluster of records
+    /// `cluster_start[k]..cluster_start[k + 1]`.
+    tlas: CwBvh,
+    cluster_start: Vec<u32>,
     /// Instance records in TLAS slot order.
     records: Vec<InstanceRecord>,
     /// Original instance index of each TLAS slot.
@@ -864,7 +884,7 @@ pub struct InstanceBvh {
     hi_pad: DVec3,
     /// TLAS padding, m (also the t margin of the TLAS interval).
     pad: f32,
-    /// Stack needed by the TLAS and by the deepest BLAS.
+    /// Levels of the TLAS, and the stack needed by the deepest BLAS.
     tlas_depth: usize,
     blas_depth: usize,
     n_instances: usize,
@@ -876,7 +896,8 @@ impl std::fmt::Debug for InstanceBvh {
             .field("templates", &self.templates.len())
             .field("instances", &self.n_instances)
             .field("primitives", &self.primitive_count())
-            .field("tlas_pairs", &self.tlas.pairs.len())
+            .field("tlas_nodes", &self.tlas.nodes.len())
+            .field("tlas_depth", &self.tlas_depth)
             .field("bounds", &self.bounds())
             .finish()
     }
@@ -912,10 +933,21 @@ impl InstanceBvh {
         // World boxes of the instances with geometry.
         let mut lo = DVec3::INFINITY;
         let mut hi = DVec3::NEG_INFINITY;
-        let mut boxes: Vec<(DVec3, DVec3)> = Vec::with_capacity(instances.len());
-        let mut recs: Vec<(u32, InstanceRecord)> = Vec::with_capacity(instances.len());
-        for (i, (tid, tr)) in instances.iter().enumerate() {
-            let Some(b) = blas.get(*tid as usize) else {
+        // Unpadded, in f32 in the render frame (rounded outwards); padded below.
+        let mut aabbs: Vec<Aabb> = Vec::with_capacity(instances.len());
+        let mut records: Vec<InstanceRecord> = Vec::with_capacity(instances.len());
+        let mut ids: Vec<u32> = Vec::with_capacity(instances.len());
+        // The instances are consumed from the end and their list shrunk as it goes, so that
+        // they and the records built from them are never both held whole.
+        let n_instances = instances.len();
+        let mut instances = instances;
+        let shrink_every = (n_instances / 16).max(1 << 16);
+        while let Some((tid, tr)) = instances.pop() {
+            let i = instances.len();
+            if i % shrink_every == 0 {
+                instances.shrink_to_fit();
+            }
+            let Some(b) = blas.get(tid as usize) else {
                 return Err(format!(
                     "instance {i}: template {tid} out of range ({} templates)",
                     blas.len()
@@ -963,45 +995,46 @@ impl InstanceBvh {
             }
             lo = lo.min(wlo);
             hi = hi.max(whi);
-            boxes.push((wlo, whi));
-            recs.push((
-                i as u32,
-                InstanceRecord {
-                    translation: tr.translation.to_array(),
-                    linv: linv.to_cols_array(),
-                    template: *tid,
-                },
-            ));
+            aabbs.push(aabb_f32(wlo - render_origin, whi - render_origin, 0.0));
+            ids.push(i as u32);
+            records.push(InstanceRecord {
+                translation: tr.translation.to_array(),
+                linv: linv.to_cols_array(),
+                template: tid,
+            });
         }
-        let n_instances = instances.len();
-        drop(instances);
 
         // TLAS padding: bounds the f32 error of the clipped ray (origin rounding ≤ ~1.04·10⁻⁷·R
-        // per unit, direction rounding ≤ ~1.04·10⁻⁷ per unit length over ≤ the diagonal).
-        let pad = if boxes.is_empty() {
+        // per unit, direction rounding ≤ ~1.04·10⁻⁷ per unit length over ≤ the diagonal, and
+        // direction components below 2.4·10⁻⁷ snapped to zero: ≤ 2.4·10⁻⁷ per unit length) and
+        // of obvhs' unwidened slab tests (a few ulps of the distances).
+        let pad = if aabbs.is_empty() {
             0.0
         } else {
             let r = (lo - render_origin)
                 .abs()
                 .max((hi - render_origin).abs())
                 .max_element();
-            4e-7 * (r + (hi - lo).length()) + 1e-6
+            1e-6 * (r + (hi - lo).length()) + 1e-6
         };
-        let aabbs: Vec<Aabb> = boxes
-            .iter()
-            .map(|&(a, b)| aabb_f32(a - render_origin, b - render_origin, pad))
-            .collect();
-        drop(boxes);
-        let (tlas, order) = build_sah(&aabbs, TLAS_MAX_LEAF, TLAS_INSTANCE_COST);
-        drop(aabbs);
-        let mut records = Vec::with_capacity(order.len());
-        let mut ids = Vec::with_capacity(order.len());
-        for &k in &order {
-            let (id, r) = recs[k as usize];
-            records.push(r);
-            ids.push(id);
+        // The f32 sums are rounded outwards by one more ulp, so each box grows by at least
+        // `pad`.
+        let ulp = |f: Vec3A| f.abs() * f32::EPSILON + Vec3A::splat(f32::MIN_POSITIVE);
+        let pad32 = Vec3A::splat(pad as f32) * (1.0 + f32::EPSILON);
+        for a in &mut aabbs {
+            let (lo, hi) = (a.min - pad32, a.max + pad32);
+            *a = Aabb::new(lo - ulp(lo), hi + ulp(hi));
         }
-        let tlas_depth = tlas.depth;
+        let Tlas {
+            tree: tlas,
+            cluster_start,
+            order,
+            depth: tlas_depth,
+        } = build_tlas(aabbs)?;
+        // Records in TLAS slot order, permuted in place (slot k takes record order[k]) so that
+        // the records are never held twice.
+        permute_in_place(&mut ids, order.clone());
+        permute_in_place(&mut records, order);
         let blas_depth = blas.iter().map(|b| b.depth()).max().unwrap_or(0);
         Ok(InstanceBvh {
             templates: blas,
@@ -1015,6 +1048,7 @@ impl InstanceBvh {
             hi_pad: hi + 2.0 * pad,
             pad: pad as f32,
             tlas_depth,
+            cluster_start,
             blas_depth,
             n_instances,
         })
@@ -1133,7 +1167,7 @@ impl InstanceBvh {
     }
 
     /// Approximate memory, bytes: template primitives (in BLAS order, with ids and materials)
-    /// and BLAS node pairs, TLAS node pairs (64 B each), instance records (64 B) and original
+    /// and BLAS node pairs, TLAS CWBVH nodes (80 B each) and cluster starts (4 B each), instance records (64 B) and original
     /// instance ids (4 B). Vector headers, allocator slack and the transient memory of the
     /// build (≈ 250 B per instance at its peak) are not counted.
     pub fn memory_bytes(&self) -> usize {
@@ -1141,24 +1175,24 @@ impl InstanceBvh {
             .iter()
             .map(TemplateBlas::memory_bytes)
             .sum::<usize>()
-            + self.tlas.pairs.len() * std::mem::size_of::<Pair>()
+            + self.tlas.nodes.len() * std::mem::size_of::<CwBvhNode>()
             + self.records.len() * std::mem::size_of::<InstanceRecord>()
+            + self.cluster_start.len() * 4
             + self.ids.len() * 4
             + std::mem::size_of::<Self>()
     }
 
-    /// The boxes of the TLAS leaves (world frame, padded): together they cover every
-    /// instance.
+    /// The boxes of the TLAS leaves (world frame, padded, as quantized in the CWBVH's nodes):
+    /// together they cover every instance.
     pub fn leaf_boxes(&self) -> impl Iterator<Item = (DVec3, DVec3)> + '_ {
         let o = self.render_origin;
-        self.tlas.pairs.iter().enumerate().flat_map(move |(k, p)| {
-            // Pair 0's second lane is the far-away placeholder (see [`to_pairs`]).
-            let lanes = if k == 0 { 1 } else { 2 };
-            (0..lanes).filter(move |&l| p.count[l] > 0).map(move |l| {
-                let lo = DVec3::new(p.x[l] as f64, p.y[l] as f64, p.z[l] as f64);
-                let hi = DVec3::new(p.x[l + 2] as f64, p.y[l + 2] as f64, p.z[l + 2] as f64);
-                (o + lo, o + hi)
-            })
+        self.tlas.nodes.iter().flat_map(move |n| {
+            (0..8)
+                .filter(move |&c| !n.is_child_empty(c) && n.is_leaf(c))
+                .map(move |c| {
+                    let b = n.child_aabb(c);
+                    (o + b.min.as_dvec3(), o + b.max.as_dvec3())
+                })
         })
     }
 
@@ -1188,7 +1222,7 @@ impl InstanceBvh {
         tmax: f64,
     ) -> Option<Best> {
         // NaN bounds or a degenerate ray: no hit.
-        if self.tlas.pairs.is_empty()
+        if self.tlas.nodes.is_empty()
             || tmin.is_nan()
             || tmax.is_nan()
             || tmin >= tmax
@@ -1199,7 +1233,7 @@ impl InstanceBvh {
             return None;
         }
         let (a, b) = clip(origin, dir, self.lo_pad, self.hi_pad, tmin, tmax)?;
-        let need = self.tlas_depth + self.blas_depth + 2;
+        let need = self.blas_depth + 1;
         if need <= INLINE_STACK {
             let mut buf = [0u32; INLINE_STACK];
             self.trace_in::<ANY>(origin, dir, tmin, a, b, &mut buf)
@@ -1220,40 +1254,45 @@ impl InstanceBvh {
         b: f64,
         buf: &mut [u32],
     ) -> Option<Best> {
-        let (ts, bs) = buf.split_at_mut(self.tlas_depth + 1);
-        // f32 ray in the render frame, starting where it enters the scene's box.
+        // f32 ray in the render frame, starting where it enters the scene's box; direction
+        // components below 2.4·10⁻⁷ are snapped to zero (obvhs would replace their inverse by
+        // ±1/ε, which shrinks the slab; the drift is within the pad, as for the terrain).
         let s0 = a;
         let o32 = (origin + dir * s0 - self.render_origin).as_vec3();
-        let ray = RayF::new(Vec3A::from(o32), Vec3A::from(dir.as_vec3()));
+        let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
+        let d32 = dir.as_vec3();
         let pad = self.pad;
-        let lo = (tmin - s0) as f32 - pad;
-        let mut hi = (b - s0) as f32 + pad;
+        let ray = Ray::new(
+            Vec3A::from(o32),
+            Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z)),
+            (tmin - s0) as f32 - pad,
+            (b - s0) as f32 + pad,
+        );
         let mut best = Best {
             t: b,
             slot: u32::MAX,
             prim: u32::MAX,
         };
-        traverse(
-            &self.tlas.pairs,
-            &ray,
-            lo,
-            &mut hi,
-            ts,
-            |first, count, h| {
-                for k in first..first + count {
-                    if let Some((t, prim)) =
-                        self.hit_instance::<ANY>(k, origin, dir, tmin, best.t, bs)
-                    {
-                        best = Best { t, slot: k, prim };
-                        if ANY {
-                            return true;
-                        }
-                        *h = (t - s0) as f32 + pad;
+        // A leaf's cluster: the new bound if it was hit (−∞ to stop with `ANY`), else +∞.
+        let mut test = |k: usize| -> f32 {
+            let mut bound = f32::INFINITY;
+            for j in self.cluster_start[k]..self.cluster_start[k + 1] {
+                if let Some((t, prim)) = self.hit_instance::<ANY>(j, origin, dir, tmin, best.t, buf)
+                {
+                    best = Best { t, slot: j, prim };
+                    if ANY {
+                        return f32::NEG_INFINITY;
                     }
+                    bound = (t - s0) as f32 + pad;
                 }
-                false
-            },
-        );
+            }
+            bound
+        };
+        if ANY {
+            self.tlas.ray_traverse_miss(ray, |_, k| test(k));
+        } else {
+            self.tlas.ray_traverse(ray, &mut RayHit::none(), |_, k| test(k));
+        }
         (best.slot != u32::MAX).then_some(best)
     }
 
@@ -1853,12 +1892,12 @@ mod tests {
         let (build, build_cpu) = (t0.elapsed().as_secs_f64(), thread_cpu_seconds() - c0);
         let mem = bvh.memory_bytes();
         println!(
-            "build {build:.2} s wall, {build_cpu:.2} s CPU for {} instances; memory {:.1} MiB = {:.1} B/instance; TLAS depth {}, {} node pairs",
+            "build {build:.2} s wall, {build_cpu:.2} s CPU for {} instances; memory {:.1} MiB = {:.1} B/instance; TLAS depth {}, {} nodes",
             bvh.instance_count(),
             mem as f64 / 1048576.0,
             mem as f64 / bvh.instance_count() as f64,
             bvh.tlas_depth,
-            bvh.tlas.pairs.len()
+            bvh.tlas.nodes.len()
         );
         let nr = 1_000_000;
         let mut above = Vec::with_capacity(nr);
