@@ -19,7 +19,7 @@ use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::geometry::Geometry;
 use crate::integrator::settings::IntegratorKind;
-use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton, Weight};
+use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
 use crate::integrator::Accum;
 use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
@@ -139,27 +139,15 @@ fn channel_walks(
     let m = &exp.measures[im];
     let toa = g.reference.toa();
     let geometry = ReferenceLayers::new(g, exp.sun_dir).with_sun_shining(exp.sun_shines);
-    let k = Geometry::<ChannelPath>::light(&geometry).normalization;
-    let mut acc = Accum::new(g.outputs());
-    let sobol = exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol;
-    if sobol {
-        acc.enable_replicates();
-    }
-    for s in range {
-        let mut rng = Stream::for_sample(exp.seed, [key, im as u64, cell as u64, s], sobol);
-        acc.begin_sample(s);
-        let (z0, d0) = sensor::backward_start_altitude(toa, m, cell, &mut rng);
-        let t = backward::walk(
-            &geometry,
-            z0,
-            d0,
-            ChannelPath::new(&geometry),
-            &exp.integrator,
-            &mut rng,
-        );
-        ChannelPath::record(&mut acc, 0, &t, k);
-    }
-    acc
+    backward_block(
+        &geometry,
+        &exp.integrator,
+        g.outputs(),
+        range,
+        sample_stream(exp, [key, im as u64, cell as u64]),
+        |rng| Some(sensor::backward_start_altitude(toa, m, cell, rng)),
+        |_| ChannelPath::new(&geometry),
+    )
 }
 
 /// Tag of the random streams of spectral ALIS groups (keyed by the group's first wavelength
@@ -251,10 +239,35 @@ fn scene_channel_walks(
 ) -> Accum {
     use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
     let m = &exp.measures[im];
+    let base = scene_in_layers(exp, g.reference, &exp.optics[group[reference]], None);
+    let models: Vec<&[crate::scene::material::SurfaceModel]> = group
+        .iter()
+        .map(|&iw| exp.optics[iw].scene_models.as_slice())
+        .collect();
+    let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
+    let geometry = SceneChannels::new(base, g, &models, &wavelengths, reference);
+    backward_block(
+        &geometry,
+        &exp.integrator,
+        group.len(),
+        range,
+        sample_stream(exp, [key, im as u64, cell as u64]),
+        |rng| Some(sensor::scene_start(&geometry.base, m, cell, rng)),
+        |_| SceneChannelPath::new(&geometry),
+    )
+}
+
+/// The 3D scene of `exp` in the plane-parallel layers `atmosphere`, with the material models
+/// and wavelength of `opt` and the surfaces' thermal emission `emission`.
+fn scene_in_layers<'a>(
+    exp: &'a Experiment,
+    atmosphere: &'a crate::atmosphere::PlaneParallel,
+    opt: &'a OpticalState,
+    emission: Option<&'a crate::scene::emission::SceneEmission>,
+) -> SceneInLayers<'a> {
     let scene = exp.scene.as_ref().expect("scene walks without a scene");
-    let opt = &exp.optics[group[reference]];
-    let base = SceneInLayers {
-        atmosphere: g.reference,
+    SceneInLayers {
+        atmosphere,
         scene,
         models: &opt.scene_models,
         sun: exp.sun_dir,
@@ -264,36 +277,16 @@ fn scene_channel_walks(
             None
         },
         wavelength: opt.wavelength,
-        emission: None,
+        emission,
         shines: exp.sun_shines,
-    };
-    let models: Vec<&[crate::scene::material::SurfaceModel]> = group
-        .iter()
-        .map(|&iw| exp.optics[iw].scene_models.as_slice())
-        .collect();
-    let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
-    let geometry = SceneChannels::new(base, g, &models, &wavelengths, reference);
-    let k = Geometry::<SceneChannelPath>::light(&geometry).normalization;
-    let mut acc = Accum::new(group.len());
-    if exp.integrator.replicates {
-        acc.enable_replicates();
     }
+}
+
+/// The random stream of each sample `s` of the walks keyed `ids` (Sobol-scrambled or not, as
+/// `integrator.sampler` says).
+fn sample_stream(exp: &Experiment, ids: [u64; 3]) -> impl Fn(u64) -> Stream + '_ {
     let sobol = exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol;
-    for s in range {
-        let mut rng = Stream::for_sample(exp.seed, [key, im as u64, cell as u64, s], sobol);
-        acc.begin_sample(s);
-        let (p0, d0) = sensor::scene_start(&geometry.base, m, cell, &mut rng);
-        let t = backward::walk(
-            &geometry,
-            p0,
-            d0,
-            SceneChannelPath::new(&geometry),
-            &exp.integrator,
-            &mut rng,
-        );
-        SceneChannelPath::record(&mut acc, 0, &t, k);
-    }
-    acc
+    move |s| Stream::for_sample(exp.seed, [ids[0], ids[1], ids[2], s], sobol)
 }
 
 fn run_block_at(
@@ -325,9 +318,9 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
     let m = &exp.measures[im];
     let ids = [iw as u64, im as u64, cell as u64];
     let settings = &exp.integrator;
-    let sobol = settings.sampler == crate::integrator::settings::Sampler::Sobol;
-    let stream = |s: u64| Stream::for_sample(exp.seed, [ids[0], ids[1], ids[2], s], sobol);
+    let stream = sample_stream(exp, ids);
     let hint = || sensor::frame_azimuth(m, cell);
+    let at_sensor = |d0| B::at_sensor(d0, hint);
     match method_for(exp, m) {
         Method::Forward => {
             let (dirs, flux, hints) = sensor::forward_targets(m, opt);
@@ -381,33 +374,22 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 backward_block::<_, B>(
                     &g,
                     settings,
+                    1,
                     range,
                     stream,
                     |rng| sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
-                    hint,
+                    at_sensor,
                 )
             } else {
-                let g = SceneInLayers {
-                    atmosphere: &opt.atmosphere,
-                    scene,
-                    models: &opt.scene_models,
-                    sun: exp.sun_dir,
-                    clearance: if exp.sun_shines {
-                        scene.sun_clearance(exp.sun_dir)
-                    } else {
-                        None
-                    },
-                    wavelength: opt.wavelength,
-                    emission: opt.scene_emission.as_ref(),
-                    shines: exp.sun_shines,
-                };
+                let g = scene_in_layers(exp, &opt.atmosphere, opt, opt.scene_emission.as_ref());
                 backward_block::<_, B>(
                     &g,
                     settings,
+                    1,
                     range,
                     stream,
                     |rng| Some(sensor::scene_start(&g, m, cell, rng)),
-                    hint,
+                    at_sensor,
                 )
             }
         }
@@ -425,10 +407,11 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 backward_block::<_, B>(
                     &g,
                     settings,
+                    1,
                     range,
                     stream,
                     |rng| sensor::spherical_start(shell, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
-                    hint,
+                    at_sensor,
                 )
             } else {
                 let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir)
@@ -437,39 +420,39 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 backward_block::<_, B>(
                     &g,
                     settings,
+                    1,
                     range,
                     stream,
                     |rng| Some(sensor::backward_start(opt, m, cell, rng)),
-                    hint,
+                    at_sensor,
                 )
             }
         }
     }
 }
 
-/// Backward walks of one cell: each sample's stream, its start (None: the line of sight misses
-/// the medium, a zero sample) and the weight at the sensor.
-fn backward_block<G: Geometry<W>, W: Adjoint + AtSensor>(
+/// Backward walks of one cell into `cells` accumulator cells (one, or one per wavelength of a
+/// spectral walk): each sample's stream, its start (None: the line of sight misses the medium,
+/// a zero sample) and the weight it starts with (given the direction it leaves the sensor).
+fn backward_block<G: Geometry<W>, W: Adjoint>(
     g: &G,
     settings: &crate::integrator::settings::IntegratorSettings,
+    cells: usize,
     range: std::ops::Range<u64>,
     stream: impl Fn(u64) -> Stream,
     start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
-    frame_azimuth: impl Fn() -> f64,
+    weight: impl Fn(DVec3) -> W,
 ) -> Accum {
-    let mut acc = W::accum(1);
+    let mut acc = W::accum(cells);
     if settings.replicates {
         acc.enable_replicates();
     }
-    let k = g.light().normalization;
+    let k = Geometry::<W>::light(g).normalization;
     for s in range {
         let mut rng = stream(s);
         acc.begin_sample(s);
         let t = match start(&mut rng) {
-            Some((p0, d0)) => {
-                let w = W::at_sensor(d0, &frame_azimuth);
-                backward::walk(g, p0, d0, w, settings, &mut rng)
-            }
+            Some((p0, d0)) => backward::walk(g, p0, d0, weight(d0), settings, &mut rng),
             None => W::zero_tally(),
         };
         W::record(&mut acc, 0, &t, k);

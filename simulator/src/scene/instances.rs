@@ -28,7 +28,7 @@
 //!   nodes and obvhs' cost table, 7 entries per binary node): the render's set-up peak RSS rose
 //!   from 293 to 454 MiB. obvhs' traversal stack holds 31 levels and silently overwrites its
 //!   top beyond that, so a deeper tree (only pathological inputs) is rebuilt with median splits
-//!   ([`super::cwbvh_depth`]).
+//!   (`scene::cwbvh_depth`).
 //! * BLAS nodes are converted to a 64-byte *pair* layout (the two children of a node, boxes as
 //!   struct-of-arrays, in one cache line; depth-first order) and traversed by our own stack
 //!   traversal: stack in a fixed-size array (heap only for trees deeper than 128 levels), near
@@ -1291,7 +1291,8 @@ impl InstanceBvh {
         if ANY {
             self.tlas.ray_traverse_miss(ray, |_, k| test(k));
         } else {
-            self.tlas.ray_traverse(ray, &mut RayHit::none(), |_, k| test(k));
+            self.tlas
+                .ray_traverse(ray, &mut RayHit::none(), |_, k| test(k));
         }
         (best.slot != u32::MAX).then_some(best)
     }

@@ -90,17 +90,6 @@ pub(crate) fn map_freeing<T, U>(mut src: Vec<T>, mut f: impl FnMut(T) -> U) -> V
     out
 }
 
-#[cfg(test)]
-mod tests {
-    #[test]
-    fn map_freeing_keeps_the_order() {
-        let v: Vec<u64> = (0..200_000).collect();
-        let w = super::map_freeing(v, |x| 2 * x + 1);
-        assert_eq!(w, (0..200_000).map(|x| 2 * x + 1).collect::<Vec<u64>>());
-        assert!(super::map_freeing(Vec::<u8>::new(), |x| x).is_empty());
-    }
-}
-
 /// Hand the allocator's free memory back to the system (glibc's `malloc_trim`; elsewhere
 /// nothing). glibc keeps memory freed by worker threads in their arenas; between the phases of
 /// a large build this lets the next phase reuse the pages instead of adding to the peak.
@@ -109,5 +98,16 @@ pub(crate) fn release_free_memory() {
     // SAFETY: malloc_trim only returns free pages of the allocator's own heaps to the system.
     unsafe {
         libc::malloc_trim(0);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    #[test]
+    fn map_freeing_keeps_the_order() {
+        let v: Vec<u64> = (0..200_000).collect();
+        let w = super::map_freeing(v, |x| 2 * x + 1);
+        assert_eq!(w, (0..200_000).map(|x| 2 * x + 1).collect::<Vec<u64>>());
+        assert!(super::map_freeing(Vec::<u8>::new(), |x| x).is_empty());
     }
 }

@@ -169,7 +169,11 @@ fn sequential(
         let (lb, lc) = bound(aabbs, &idx[start..mid]);
         let (rb, rc) = bound(aabbs, &idx[mid..end]);
         let l = out.len();
-        out.push(Bvh2Node::new(lb, (mid - start) as u32, (base + start) as u32));
+        out.push(Bvh2Node::new(
+            lb,
+            (mid - start) as u32,
+            (base + start) as u32,
+        ));
         out.push(Bvh2Node::new(rb, (end - mid) as u32, (base + mid) as u32));
         out[ni].prim_count = 0;
         out[ni].first_index = l as u32;
@@ -180,13 +184,7 @@ fn sequential(
 
 /// Where to split the range `idx` (box `nb`, centroid box `cb`): `Some(k)` puts `idx[..k]` on
 /// the left (after partitioning `idx` in place), `None` keeps it as a leaf.
-fn split(
-    aabbs: &[Aabb],
-    idx: &mut [u32],
-    nb: Aabb,
-    cb: Aabb,
-    p: SahParams,
-) -> Option<usize> {
+fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> Option<usize> {
     let count = idx.len();
     if count <= 1 {
         return None;
@@ -237,8 +235,9 @@ fn split(
     if best.0.is_finite() {
         let (axis, k) = (best.1, best.2);
         let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
-        let left =
-            |i: u32| (((centroid(aabbs, i)[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1) < k;
+        let left = |i: u32| {
+            (((centroid(aabbs, i)[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
+        };
         // In-place partition.
         let (mut a, mut b) = (0, count);
         while a < b {
@@ -357,7 +356,11 @@ mod tests {
             },
         );
         let n = a.len() as f64;
-        assert!(depth(&nodes) <= n.log2().ceil() as usize, "{}", depth(&nodes));
+        assert!(
+            depth(&nodes) <= n.log2().ceil() as usize,
+            "{}",
+            depth(&nodes)
+        );
         assert_eq!(build(&[], p).0.len(), 0);
     }
 }
