@@ -21,8 +21,8 @@
 //!   The binary tree is then converted by obvhs to its 8-wide compressed CWBVH (80-byte nodes,
 //!   boxes quantized to 8 bits, children ordered by ray octant; Ylitie, Karras & Laine 2017),
 //!   one cluster per CWBVH leaf, and traversed by obvhs' SSE traversal. On the Grenoble bundle
-//!   (1.27 M instances) the wide top level has 8 levels where the binary one had 21, 80 k nodes
-//!   (6.4 MB, which stays in cache) where the binary one had 362 k pairs (23 MB), and random
+//!   (1.27 M instances in 545 k clusters) the wide top level has 9 levels where the binary one
+//!   had 22, and 136 k nodes (10.9 MB) where the binary one had 422 k pairs (27 MB), and random
 //!   primary rays run 15 % faster (BENCHMARKS.md). Converting with one instance per leaf would
 //!   make the tree another 15 % faster but triples the conversion's working memory (the binary
 //!   nodes and obvhs' cost table, 7 entries per binary node): the render's set-up peak RSS rose
@@ -589,6 +589,12 @@ fn build_tlas(aabbs: Vec<Aabb>) -> Result<Tlas, String> {
             tlas = cluster_cwbvh(nodes, idx);
         }
     }
+    tracing::debug!(
+        "instance TLAS: {n} instances in {} clusters, {} CWBVH nodes, {} levels",
+        tlas.cluster_start.len().saturating_sub(1),
+        tlas.tree.nodes.len(),
+        tlas.depth
+    );
     if tlas.depth > super::CWBVH_MAX_DEPTH {
         return Err(format!(
             "the top-level BVH over {n} instances has {} levels, more than the {} that obvhs' traversal handles",

@@ -177,6 +177,21 @@ impl TerrainBvh {
         let mut params = BvhBuildParams::medium_build();
         params.max_prims_per_leaf = 3;
         let mut bvh = build_cwbvh(&boxes, params, &mut std::time::Duration::default());
+        let depth = super::cwbvh_depth(&bvh);
+        if depth > super::CWBVH_MAX_DEPTH {
+            // obvhs' traversal would silently drop subtrees: rebuild with median splits.
+            tracing::warn!(
+                "terrain BVH of {} triangles has {depth} levels; rebuilt with median splits",
+                boxes.len()
+            );
+            bvh = balanced_cwbvh(&boxes);
+        }
+        tracing::debug!(
+            "terrain CWBVH: {} triangles, {} nodes, {} levels",
+            boxes.len(),
+            bvh.nodes.len(),
+            super::cwbvh_depth(&bvh)
+        );
         drop(boxes);
         // Leaf order: slot k of the BVH is triangle primitive_indices[k].
         let order = std::mem::take(&mut bvh.primitive_indices);
@@ -326,6 +341,24 @@ impl TerrainBvh {
     }
 }
 
+/// A CWBVH over `boxes` from a binary tree split at the centroids' median (depth ⌈log₂ n⌉, so
+/// at most 32 binary levels and fewer wide ones): the fallback for a PLOC tree too deep for
+/// obvhs' traversal stack. The `primitive_indices` map leaf slots to input indices.
+fn balanced_cwbvh(boxes: &[Aabb]) -> CwBvh {
+    let params = super::sah::SahParams {
+        max_leaf: 1,
+        isect: 1.0,
+        balanced: true,
+    };
+    let (nodes, order) = super::sah::build(boxes, params);
+    let bvh2 = obvhs::bvh2::Bvh2 {
+        nodes,
+        primitive_indices: order,
+        ..Default::default()
+    };
+    obvhs::cwbvh::bvh2_to_cwbvh::bvh2_to_cwbvh(&bvh2, 3, true, false)
+}
+
 /// An f64 distance as an f32 bound that is never below it (and never below the smallest
 /// positive f32, so a hit at the clip start still bounds the traversal).
 #[inline(always)]
@@ -408,6 +441,28 @@ mod tests {
             });
         }
         tiles
+    }
+
+    /// The median-split fallback tree is valid for obvhs (every node and triangle reached once,
+    /// quantized boxes containing their contents) and shallow, and the PLOC tree of a terrain
+    /// is within obvhs' traversal stack.
+    #[test]
+    fn balanced_fallback_is_valid_and_shallow() {
+        let terrain = TerrainBvh::from_tiles(&plane_bundle());
+        assert!(super::super::cwbvh_depth(&terrain.bvh) <= super::super::CWBVH_MAX_DEPTH);
+        let boxes: Vec<Aabb> = terrain
+            .triangle_boxes()
+            .map(|(a, b)| Aabb::new(a.as_vec3a(), b.as_vec3a()))
+            .collect();
+        let tree = balanced_cwbvh(&boxes);
+        let v = tree.validate(&boxes, false);
+        let levels = super::super::cwbvh_depth(&tree);
+        assert_eq!(levels, v.max_depth as usize + 1);
+        // 400 triangles: ⌈log₂ 400⌉ = 9 binary levels, at most 9 wide ones.
+        assert!(levels <= 9, "{levels} levels");
+        let mut seen = tree.primitive_indices.clone();
+        seen.sort_unstable();
+        assert_eq!(seen, (0..boxes.len() as u32).collect::<Vec<_>>());
     }
 
     /// The BVH agrees with a brute-force f64 Möller–Trumbore search over every triangle (same
