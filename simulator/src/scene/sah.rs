@@ -114,7 +114,12 @@ fn subtree(
     if n <= PARALLEL_MIN {
         return sequential(out, root, aabbs, idx, base, cb, p);
     }
-    let Some(mid) = split(aabbs, idx, nb, cb, p) else {
+    let Some(Split {
+        mid,
+        left,
+        right: rside,
+    }) = split(aabbs, idx, nb, cb, p)
+    else {
         return;
     };
     let (li, ri) = idx.split_at_mut(mid);
@@ -125,14 +130,8 @@ fn subtree(
     let mut right = Vec::with_capacity(2 * ri.len());
     right.push(Bvh2Node::default());
     rayon::join(
-        || {
-            let (b, c) = bound(aabbs, li);
-            subtree(out, l, aabbs, li, base, b, c, p)
-        },
-        || {
-            let (b, c) = bound(aabbs, ri);
-            subtree(&mut right, 0, aabbs, ri, base + mid, b, c, p)
-        },
+        || subtree(out, l, aabbs, li, base, left.0, left.1, p),
+        || subtree(&mut right, 0, aabbs, ri, base + mid, rside.0, rside.1, p),
     );
     // right[0] goes to slot l + 1, right[i ≥ 1] to the end of `out`.
     let shift = out.len() as u32 - 1;
@@ -162,12 +161,11 @@ fn sequential(
     let mut todo = vec![(root, 0usize, idx.len(), cb)];
     while let Some((ni, start, end, cb)) = todo.pop() {
         let range = &mut idx[start..end];
-        let Some(m) = split(aabbs, range, out[ni].aabb, cb, p) else {
+        let Some(Split { mid, left, right }) = split(aabbs, range, out[ni].aabb, cb, p) else {
             continue;
         };
-        let mid = start + m;
-        let (lb, lc) = bound(aabbs, &idx[start..mid]);
-        let (rb, rc) = bound(aabbs, &idx[mid..end]);
+        let mid = start + mid;
+        let ((lb, lc), (rb, rc)) = (left, right);
         let l = out.len();
         out.push(Bvh2Node::new(
             lb,
@@ -182,28 +180,49 @@ fn sequential(
     }
 }
 
-/// Where to split the range `idx` (box `nb`, centroid box `cb`): `Some(k)` puts `idx[..k]` on
-/// the left (after partitioning `idx` in place), `None` keeps it as a leaf.
-fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> Option<usize> {
+/// A split of a range: `idx[..mid]` on the left; each side's box and centroid box.
+struct Split {
+    mid: usize,
+    left: (Aabb, Aabb),
+    right: (Aabb, Aabb),
+}
+
+/// Where to split the range `idx` (box `nb`, centroid box `cb`): `Some` after partitioning
+/// `idx` in place, `None` to keep it as a leaf. The three axes are binned in one pass over the
+/// primitives, and the bins also give the two sides' boxes (unions of exact boxes, so the same
+/// as a pass over each side would).
+fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> Option<Split> {
     let count = idx.len();
     if count <= 1 {
         return None;
     }
     let ext = cb.max - cb.min;
+    let binned = [0, 1, 2].map(|axis| !(p.balanced && count > p.max_leaf) && ext[axis] > 0.0);
+    let scale = [0, 1, 2].map(|axis| BINS as f32 * (1.0 - 1e-6) / ext[axis]);
+    let bin =
+        |c: Vec3A, axis: usize| (((c[axis] - cb.min[axis]) * scale[axis]) as usize).min(BINS - 1);
+    // Per axis and bin: box, centroid box, count.
+    let mut bb = [[Aabb::INVALID; BINS]; 3];
+    let mut bcb = [[Aabb::INVALID; BINS]; 3];
+    let mut bc = [[0u32; BINS]; 3];
+    if binned.iter().any(|&b| b) {
+        for &i in idx.iter() {
+            let a = &aabbs[i as usize];
+            let c = a.center();
+            for axis in 0..3 {
+                if binned[axis] {
+                    let k = bin(c, axis);
+                    bc[axis][k] += 1;
+                    bb[axis][k] = bb[axis][k].union(a);
+                    bcb[axis][k].extend(c);
+                }
+            }
+        }
+    }
     // Best split over the three axes: (cost, axis, bins on the left).
     let mut best = (f32::INFINITY, 0usize, 0usize);
-    for axis in 0..3 {
-        if (p.balanced && count > p.max_leaf) || ext[axis] <= 0.0 {
-            continue;
-        }
-        let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
-        let mut bb = [Aabb::INVALID; BINS];
-        let mut bc = [0u32; BINS];
-        for &i in idx.iter() {
-            let k = (((centroid(aabbs, i)[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1);
-            bc[k] += 1;
-            bb[k] = bb[k].union(&aabbs[i as usize]);
-        }
+    for axis in (0..3).filter(|&a| binned[a]) {
+        let (bb, bc) = (&bb[axis], &bc[axis]);
         let mut right_area = [0f32; BINS];
         let mut cnt = [0u32; BINS];
         let (mut acc, mut c) = (Aabb::INVALID, 0);
@@ -234,21 +253,26 @@ fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> O
     }
     if best.0.is_finite() {
         let (axis, k) = (best.1, best.2);
-        let scale = BINS as f32 * (1.0 - 1e-6) / ext[axis];
-        let left = |i: u32| {
-            (((centroid(aabbs, i)[axis] - cb.min[axis]) * scale) as usize).min(BINS - 1) < k
-        };
         // In-place partition.
         let (mut a, mut b) = (0, count);
         while a < b {
-            if left(idx[a]) {
+            if bin(centroid(aabbs, idx[a]), axis) < k {
                 a += 1;
             } else {
                 b -= 1;
                 idx.swap(a, b);
             }
         }
-        return Some(a);
+        let side = |bins: std::ops::Range<usize>| {
+            bins.fold((Aabb::INVALID, Aabb::INVALID), |(b, c), j| {
+                (b.union(&bb[axis][j]), c.union(&bcb[axis][j]))
+            })
+        };
+        return Some(Split {
+            mid: a,
+            left: side(0..k),
+            right: side(k..BINS),
+        });
     }
     // All centroids equal, or `balanced`: the median along the widest axis.
     let axis = if ext.x >= ext.y && ext.x >= ext.z {
@@ -258,10 +282,15 @@ fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> O
     } else {
         2
     };
-    idx.select_nth_unstable_by(count / 2, |&a, &b| {
+    let mid = count / 2;
+    idx.select_nth_unstable_by(mid, |&a, &b| {
         centroid(aabbs, a)[axis].total_cmp(&centroid(aabbs, b)[axis])
     });
-    Some(count / 2)
+    Some(Split {
+        mid,
+        left: bound(aabbs, &idx[..mid]),
+        right: bound(aabbs, &idx[mid..]),
+    })
 }
 
 #[cfg(test)]
