@@ -534,24 +534,12 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
     ) -> Option<Split<'_, DVec3, SurfaceHit>> {
         let nc = self.nc();
         let atm = self.base.atmosphere;
-        if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
-            return None;
-        }
-        let (reach, hit) = self.base.first_hit(p, d);
-        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
-        let s_end = atm.optical_path(p.z, d.z, t_hit);
-        let p_coll = -(-s_end).exp_m1();
-        if p_coll.is_nan() || p_coll <= 0.0 {
-            return None;
-        }
+        let f = self.base.flight_to_split(p, d)?;
+        let hit = f.hit;
         if let Some(acc) = acc {
-            self.expected_flight(p, d, reach, t_hit, &w.e, acc, rng);
+            self.expected_flight(p, d, f.reach, f.t_hit, &w.e, acc, rng);
         }
-        let s = -(-rng.next_f64() * p_coll).ln_1p();
-        let t = atm.march(p.z, d.z, s, t_hit).unwrap_or_else(|| {
-            let boundary = if d.z > 0.0 { atm.toa() } else { atm.ground() };
-            t_hit.min((boundary - p.z) / d.z) * (1.0 - 1e-12)
-        });
+        let t = self.base.forced_distance(p, d, &f, rng);
         let q = p + d * t;
         w.e_coll = w.e;
         self.channels.layers.carry(&mut w.e_coll[..nc], p.z, d.z, t);
@@ -565,7 +553,7 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
             None => Event::Escape,
         };
         Some(Split {
-            p_collision: p_coll,
+            p_collision: f.p_collision,
             collision: self.base.collision_at(q),
             end,
         })

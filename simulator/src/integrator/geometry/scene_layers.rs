@@ -31,6 +31,17 @@ use crate::scene::material::SurfaceModel;
 use crate::scene::world::BLACK;
 use crate::scene::{Scene, SurfaceHit};
 
+/// A flight that a forced collision splits ([`SceneInLayers::flight_to_split`]).
+pub(crate) struct FlightToSplit {
+    /// Where the flight comes down to the scene's top (0 if it starts below, ∞ if never).
+    pub reach: f64,
+    /// Its first surface hit, and that hit's distance (∞ without one).
+    pub hit: Option<SurfaceHit>,
+    pub t_hit: f64,
+    /// The probability of a collision before the flight's end.
+    pub p_collision: f64,
+}
+
 pub struct SceneInLayers<'a> {
     pub atmosphere: &'a PlaneParallel,
     pub scene: &'a Scene,
@@ -179,30 +190,14 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Option<Split<'_, DVec3, SurfaceHit>> {
-        let atm = self.atmosphere;
-        if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
-            return None;
-        }
-        let (reach, hit) = self.first_hit(p, d);
-        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
-        // Optical path to the flight's end (tau_at_altitude clamps beyond the atmosphere).
-        let s_end = atm.optical_path(p.z, d.z, t_hit);
-        let p_coll = -(-s_end).exp_m1();
-        if p_coll.is_nan() || p_coll <= 0.0 {
-            return None;
-        }
+        let f = self.flight_to_split(p, d)?;
+        let (hit, t_hit) = (f.hit, f.t_hit);
         if let Some(acc) = acc {
-            self.expected_atmospheric::<W>(p, d, reach, t_hit, acc, rng);
+            self.expected_atmospheric::<W>(p, d, f.reach, t_hit, acc, rng);
         }
-        let s = -(-rng.next_f64() * p_coll).ln_1p();
-        // Rounding may carry the optical path just past the end: the collision then sits there
-        // (`None` is no longer allowed once `acc` and `rng` have been used).
-        let t = atm.march(p.z, d.z, s, t_hit).unwrap_or_else(|| {
-            let boundary = if d.z > 0.0 { atm.toa() } else { atm.ground() };
-            t_hit.min((boundary - p.z) / d.z) * (1.0 - 1e-12)
-        });
+        let t = self.forced_distance(p, d, &f, rng);
         Some(Split {
-            p_collision: p_coll,
+            p_collision: f.p_collision,
             collision: self.collision_at(p + d * t),
             end: match hit {
                 Some(h) => Event::Surface(h),
@@ -249,6 +244,51 @@ impl SceneInLayers<'_> {
     pub(crate) fn sees_sun(&self, p: DVec3) -> bool {
         self.clearance.as_ref().is_some_and(|c| c.clear(p))
             || !self.scene.occluded(p, self.sun, f64::INFINITY)
+    }
+
+    /// The flight from `p` along `d` that a forced collision splits: its first hit and the
+    /// probability of a collision before it ends. `None` (no random number used) when it cannot
+    /// collide: nearly horizontal, a clear sky, or a zero optical path. Shared by the scalar
+    /// walk here and the spectral one (`scene_alis.rs`).
+    #[inline]
+    pub(crate) fn flight_to_split(&self, p: DVec3, d: DVec3) -> Option<FlightToSplit> {
+        let atm = self.atmosphere;
+        if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
+            return None;
+        }
+        let (reach, hit) = self.first_hit(p, d);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        // Optical path to the flight's end (tau_at_altitude clamps beyond the atmosphere).
+        let s_end = atm.optical_path(p.z, d.z, t_hit);
+        let p_collision = -(-s_end).exp_m1();
+        if p_collision.is_nan() || p_collision <= 0.0 {
+            return None;
+        }
+        Some(FlightToSplit {
+            reach,
+            hit,
+            t_hit,
+            p_collision,
+        })
+    }
+
+    /// The distance along the flight `f` (from `p` along `d`) of its forced collision: drawn
+    /// from the collision density restricted to the flight (one random number). Rounding may
+    /// carry the optical path just past the end: the collision then sits there.
+    #[inline]
+    pub(crate) fn forced_distance(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        f: &FlightToSplit,
+        rng: &mut Stream,
+    ) -> f64 {
+        let atm = self.atmosphere;
+        let s = -(-rng.next_f64() * f.p_collision).ln_1p();
+        atm.march(p.z, d.z, s, f.t_hit).unwrap_or_else(|| {
+            let boundary = if d.z > 0.0 { atm.toa() } else { atm.ground() };
+            f.t_hit.min((boundary - p.z) / d.z) * (1.0 - 1e-12)
+        })
     }
 
     /// The distance at which the flight from `p` along `d` comes down to the scene's top (0 if
