@@ -926,16 +926,11 @@ impl Weight for ChannelPath<'_> {
     /// accumulated by [`ReferenceLayers`].
     #[inline]
     fn accumulate(acc: &mut Self::Phase, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
-        let x = omega * phase.eval(cos) * k;
-        acc.iter_mut().for_each(|a| *a += x);
+        channels::accumulate_grey(acc, phase, cos, omega, k);
     }
     #[inline]
     fn phase_intensity(acc: &Self::Phase) -> f64 {
-        if acc.iter().any(|x| *x != 0.0) {
-            1.0
-        } else {
-            0.0
-        }
+        channels::phase_intensity(acc)
     }
     #[inline]
     fn intensity(&self) -> f64 {
@@ -957,22 +952,15 @@ impl Weight for ChannelPath<'_> {
         rng: &mut Stream,
     ) -> DVec3 {
         self.w *= omega;
-        // A new direction from the reference phase function (as `sample_scattered`).
-        let mu = phase.sample_cos(rng.next_f64());
-        let phi = std::f64::consts::TAU * rng.next_f64();
+        let (mu, wi) = channels::reference_direction(phase, d, rng);
         let g = self.g;
         if let Some(sp) = &g.layers.spectral {
-            // e_c × (σ_c/σ_ref)·P_c(μ)/P_ref(μ).
-            let p_ref = phase.eval(mu);
             let mut r = [0.0_f64; MAX_CHANNELS];
             self.cache.next();
             sp.times_phase(&sp.ratio, g.atms, self.layer, mu, &mut self.cache, &mut r);
-            let inv = if p_ref > 0.0 { 1.0 / p_ref } else { 0.0 };
-            for (ek, rk) in self.e[..g.atms.len()].iter_mut().zip(&r) {
-                *ek *= rk * inv;
-            }
+            channels::times_phase_ratio(&mut self.e[..g.atms.len()], &r, phase.eval(mu));
         }
-        crate::frame::rotate_about(d, mu, phi)
+        wi
     }
     #[inline]
     fn reflect(&mut self, surface: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
@@ -1005,11 +993,7 @@ impl Weight for ChannelPath<'_> {
     }
     /// ALIS accumulators have one cell per output (`cell` must be 0).
     fn record(acc: &mut Accum, cell: usize, t: &ChannelTally, k: f64) {
-        debug_assert_eq!(cell, 0);
-        for (c, tc) in t.iter().take(acc.n.len()).enumerate() {
-            let (a, b) = tc.scaled(k);
-            acc.add(c, a, b);
-        }
+        channels::record(acc, cell, t, k);
     }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
@@ -1246,5 +1230,73 @@ mod tests {
         assert!(worst < 3e-10, "max relative error {worst:e}");
         assert!(super::exp_fast(-1e6) >= 0.0 && super::exp_fast(-1e6) < 1e-300);
         assert_eq!(super::exp_fast(0.0), 1.0);
+    }
+}
+
+/// What the weights of walks that carry several channels along one path (this module's
+/// [`ChannelPath`], and `scene_alis.rs`'s `SceneChannelPath`) do alike.
+pub(crate) mod channels {
+    use glam::DVec3;
+
+    use crate::accum::Accum;
+    use crate::integrator::weight::OrderSplit;
+    use crate::phase::PhaseFunction;
+    use crate::rng::Stream;
+
+    /// Grey scattering: the same `ω·P(cos)·k` added to every channel (the channels' own
+    /// scattering is accumulated by their geometries).
+    #[inline]
+    pub(crate) fn accumulate_grey(
+        acc: &mut [f64],
+        phase: &PhaseFunction,
+        cos: f64,
+        omega: f64,
+        k: f64,
+    ) {
+        let x = omega * phase.eval(cos) * k;
+        acc.iter_mut().for_each(|a| *a += x);
+    }
+
+    /// 1 if any channel scores, else 0 (the walk's cut-off only asks whether the estimate is
+    /// zero).
+    #[inline]
+    pub(crate) fn phase_intensity(acc: &[f64]) -> f64 {
+        if acc.iter().any(|x| *x != 0.0) {
+            1.0
+        } else {
+            0.0
+        }
+    }
+
+    /// A new direction from the reference phase function, rotated from `d` (two random
+    /// numbers: μ, then φ): (μ, direction).
+    #[inline]
+    pub(crate) fn reference_direction(
+        phase: &PhaseFunction,
+        d: DVec3,
+        rng: &mut Stream,
+    ) -> (f64, DVec3) {
+        let mu = phase.sample_cos(rng.next_f64());
+        let phi = std::f64::consts::TAU * rng.next_f64();
+        (mu, crate::frame::rotate_about(d, mu, phi))
+    }
+
+    /// The path factors after a scattering drawn from the reference: `e_c × r_c / P_ref(μ)`
+    /// with `r_c = (σ_c/σ_ref)·P_c(μ)` (0 where the reference's phase function is 0).
+    #[inline]
+    pub(crate) fn times_phase_ratio(e: &mut [f64], r: &[f64], p_ref: f64) {
+        let inv = if p_ref > 0.0 { 1.0 / p_ref } else { 0.0 };
+        for (ek, rk) in e.iter_mut().zip(r) {
+            *ek *= rk * inv;
+        }
+    }
+
+    /// One accumulator cell per channel (`cell` must be 0): each channel's scores.
+    pub(crate) fn record(acc: &mut Accum, cell: usize, t: &[OrderSplit], k: f64) {
+        debug_assert_eq!(cell, 0);
+        for (c, tc) in t.iter().take(acc.n.len()).enumerate() {
+            let (a, b) = tc.scaled(k);
+            acc.add(c, a, b);
+        }
     }
 }

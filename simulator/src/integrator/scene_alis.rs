@@ -54,7 +54,7 @@ use std::cell::RefCell;
 use glam::DVec3;
 
 use super::backward::Adjoint;
-use super::backward_alis::{Channels, PhaseCache};
+use super::backward_alis::{channels, Channels, PhaseCache};
 use super::geometry::scene_layers::{scene_surface, SceneInLayers};
 use super::geometry::{Event, Geometry, Light, Split};
 use super::peak_sampling::PeakSampling;
@@ -247,16 +247,11 @@ impl Weight for SceneChannelPath<'_> {
     /// Grey scattering (not used: [`SceneChannels`] accumulates each channel's own).
     #[inline]
     fn accumulate(acc: &mut Self::Phase, phase: &PhaseFunction, cos: f64, omega: f64, k: f64) {
-        let x = omega * phase.eval(cos) * k;
-        acc.iter_mut().for_each(|a| *a += x);
+        channels::accumulate_grey(acc, phase, cos, omega, k);
     }
     #[inline]
     fn phase_intensity(acc: &Self::Phase) -> f64 {
-        if acc.iter().any(|x| *x != 0.0) {
-            1.0
-        } else {
-            0.0
-        }
+        channels::phase_intensity(acc)
     }
     #[inline]
     fn intensity(&self) -> f64 {
@@ -278,17 +273,12 @@ impl Weight for SceneChannelPath<'_> {
         rng: &mut Stream,
     ) -> DVec3 {
         self.w *= omega;
-        let mu = phase.sample_cos(rng.next_f64());
-        let phi = std::f64::consts::TAU * rng.next_f64();
-        let p_ref = phase.eval(mu);
+        let (mu, wi) = channels::reference_direction(phase, d, rng);
         let mut r = [0.0; SCENE_CHANNELS];
         self.g.ratio_phase(self.layer, mu, &mut r);
-        let inv = if p_ref > 0.0 { 1.0 / p_ref } else { 0.0 };
         let nc = self.g.nc();
-        for (ek, rk) in self.e[..nc].iter_mut().zip(&r) {
-            *ek *= rk * inv;
-        }
-        crate::frame::rotate_about(d, mu, phi)
+        channels::times_phase_ratio(&mut self.e[..nc], &r, phase.eval(mu));
+        wi
     }
     /// Three random numbers, whatever the models (module header for the sampler).
     fn reflect(&mut self, _: &SurfaceAt, d: DVec3, rng: &mut Stream) -> Option<DVec3> {
@@ -404,11 +394,7 @@ impl Weight for SceneChannelPath<'_> {
     }
     /// One accumulator cell per channel (`cell` must be 0).
     fn record(acc: &mut Accum, cell: usize, t: &SceneChannelTally, k: f64) {
-        debug_assert_eq!(cell, 0);
-        for (c, tc) in t.iter().take(acc.n.len()).enumerate() {
-            let (a, b) = tc.scaled(k);
-            acc.add(c, a, b);
-        }
+        channels::record(acc, cell, t, k);
     }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
