@@ -115,3 +115,54 @@ fn null_objects_leave_the_image_unchanged() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Canopy scenes take `[scene.solvers]` by material name too (a leaf cloud's `name`, `ground`):
+/// with its leaves `null`, a canopy without atmosphere over a Lambertian soil of 0.3 has the
+/// closed-form BRF 0.3 at every view (each sample scores exactly ρ: nothing shades the soil),
+/// while with the default solver the leaves change it; an unknown name is an error naming the
+/// key and the canopy's materials.
+#[test]
+fn canopy_solvers_by_name() {
+    let dir = tmp("solvers-canopy");
+    common::bundles::write_random_leaves(&dir.join("leaves.txt"), 4, 2500, 10.0, [0.5, 6.0], 0.25);
+    let text = |solvers: &str| {
+        format!(
+            "seed = 3\n[spectral]\nwavelengths = [550.0]\n\
+             [illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 60.0\n\
+             [scene]\ntype = \"canopy\"\n[[scene.objects]]\nname = \"leaves\"\nleaves = \"{}\"\n\
+             reflectance = 0.08\ntransmittance = 0.04\n\
+             [scene.ground]\nbrdf = {{ type = \"lambertian\", reflectance = 0.3 }}\n{solvers}\n\
+             [[measures]]\nid = \"area\"\ntype = \"mdistant\"\nconstruct = \"directions\"\n\
+             zeniths = [0.0, 35.0]\nazimuths = [0.0, 210.0]\nspp = 4000\n\
+             target_m = [-8.0, -8.0, 8.0, 8.0]\ntarget_height_m = 6.5\n",
+            dir.join("leaves.txt").display()
+        )
+    };
+    let null = run_rows(&experiment(&text(
+        "[scene.solvers.leaves]\ntype = \"null\"",
+    )));
+    for r in &null {
+        let (b, s) = r.brf.unwrap();
+        assert!((b - 0.3).abs() < 1e-9 && s < 1e-9, "null leaves: {b} ± {s}");
+    }
+    let leaves = run_rows(&experiment(&text("")));
+    for r in &leaves {
+        let (b, s) = r.brf.unwrap();
+        assert!(
+            (b - 0.3).abs() > 10.0 * s,
+            "the leaves should change the BRF: {b} ± {s}"
+        );
+    }
+    let e = simulator::config::resolve::Experiment::from_str(
+        &text("[scene.solvers.leaf]\ntype = \"null\""),
+        &dir.join("bad.toml"),
+    )
+    .err()
+    .unwrap()
+    .to_string();
+    assert!(
+        e.contains("scene.solvers.leaf") && e.contains("leaves"),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -58,6 +58,10 @@ pub enum SceneConfig {
         /// A periodic unit cell [xmin, ymin, xmax, ymax] (m): the scene repeats it without end.
         #[serde(default)]
         periodic_m: Option<[f64; 4]>,
+        /// Radiometry solvers of materials by name (a leaf cloud's `name`, `trunk`, `crown`,
+        /// `ground`), as for bundles (`integrator/solver.rs`).
+        #[serde(default)]
+        solvers: BTreeMap<String, bundle::SolverSpec>,
     },
 }
 
@@ -339,7 +343,12 @@ pub fn build_scene(
             ground,
             padding,
             periodic_m,
+            solvers,
         } => {
+            for (name, spec) in solvers {
+                spec.validate()
+                    .map_err(|(k, m)| (format!("scene.solvers.{name}.{k}"), m))?;
+            }
             if let Some(c) = periodic_m {
                 if !(c.iter().all(|v| v.is_finite()) && c[0] < c[2] && c[1] < c[3]) {
                     return Err((
@@ -481,8 +490,14 @@ pub fn build_scene(
                     Some((p.cell_m, p.copies))
                 }
             };
-            build::canopy(&clouds, &trees, ground.as_ref(), pad, *periodic_m)
-                .map_err(|m| ("scene.objects".into(), m))
+            let mut scene = build::canopy(&clouds, &trees, ground.as_ref(), pad, *periodic_m)
+                .map_err(|m| ("scene.objects".to_string(), m))?;
+            for (name, spec) in solvers {
+                scene
+                    .set_solver(name, *spec)
+                    .map_err(|m| (format!("scene.solvers.{name}"), m))?;
+            }
+            Ok(scene)
         }
     }
 }
