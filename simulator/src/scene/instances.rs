@@ -1835,6 +1835,28 @@ mod tests {
         crate::cpu_time::thread_seconds().unwrap_or(0.0)
     }
 
+    /// `permute_in_place` puts the old `v[order[k]]` in slot k, for random permutations (long
+    /// cycles) and for fixed points and 2-cycles.
+    #[test]
+    fn permute_in_place_follows_the_order() {
+        let mut rng = Stream::new(5, [1, 0, 0, 0]);
+        for n in [0usize, 1, 2, 7, 1000] {
+            let mut order: Vec<u32> = (0..n as u32).collect();
+            for i in (1..n).rev() {
+                let j = (rng.next_f64() * (i + 1) as f64) as usize;
+                order.swap(i, j.min(i));
+            }
+            let v: Vec<u64> = (0..n as u64).map(|x| 10 * x + 3).collect();
+            let expect: Vec<u64> = order.iter().map(|&k| v[k as usize]).collect();
+            let mut w = v.clone();
+            permute_in_place(&mut w, order);
+            assert_eq!(w, expect, "n = {n}");
+        }
+        let mut w = vec!['a', 'b', 'c', 'd'];
+        permute_in_place(&mut w, vec![1, 0, 2, 3]);
+        assert_eq!(w, vec!['b', 'a', 'c', 'd']);
+    }
+
     /// A slab test of a node pair agrees with obvhs' reference ray–box test, and the empty
     /// stand-in box of the root pair is never hit, whatever the direction's signs (an ∞ − ∞ in
     /// the robust widening once made it a NaN that passed).
