@@ -44,7 +44,10 @@
 //!   f32 coordinates stay within the scene. Direction components below 2.4·10⁻⁷ are set to
 //!   zero in the f32 ray (obvhs replaces the inverse of a tiny component by ±1/ε, which would
 //!   shrink the slab; as for the terrain). Instance boxes are padded by
-//!   `10⁻⁶ · (max |render coordinate| + world diagonal) + 1 µm` (≈ 20 cm for a ±50 km scene),
+//!   `10⁻⁶ · (max |render coordinate| + world diagonal) + 1 mm` (≈ 20 cm for a ±50 km scene;
+//!   at least 1 mm because obvhs' box test ignores the ray's `tmin` and culls every box that the
+//!   ray leaves within 10⁻⁴ m of its f32 origin: geometry lies `pad` inside its box, so a hit at
+//!   `t ≥ 0` always leaves its box later than that),
 //!   which bounds the f32 rounding of the ray's origin and direction over the scene, the drift
 //!   of the snapped direction and the rounding of obvhs' (unwidened) slab tests; the CWBVH's
 //!   quantized boxes only grow them. So the TLAS is conservative (it may propose an instance
@@ -1021,7 +1024,7 @@ impl InstanceBvh {
                 .abs()
                 .max((hi - render_origin).abs())
                 .max_element();
-            1e-6 * (r + (hi - lo).length()) + 1e-6
+            1e-6 * (r + (hi - lo).length()) + 1e-3
         };
         // The f32 sums are rounded outwards by one more ulp, so each box grows by at least
         // `pad`.
@@ -1833,6 +1836,49 @@ mod tests {
     /// CPU time of the calling thread, s ([`crate::cpu_time`]; 0 where it cannot be read).
     fn thread_cpu_seconds() -> f64 {
         crate::cpu_time::thread_seconds().unwrap_or(0.0)
+    }
+
+    /// Rays starting within 10⁻⁴ m of a single small instance still hit it (obvhs' box test
+    /// culls boxes the ray leaves within 10⁻⁴ m of its f32 origin; the TLAS pad keeps every
+    /// instance's box beyond that), from above and from just below, closest and any hit.
+    #[test]
+    fn rays_starting_close_to_a_lone_instance() {
+        let tri = TemplateGeometry::Triangles {
+            positions: vec![[-1.0, -1.0, 0.0], [1.0, -1.0, 0.0], [0.0, 1.0, 0.0]],
+            indices: vec![[0, 1, 2]],
+            materials: vec![0],
+        };
+        let at = |z: f64| InstanceTransform {
+            translation: DVec3::new(0.0, 0.0, z),
+            linear: Mat3::IDENTITY,
+        };
+        let one = InstanceBvh::new(vec![tri.clone()], vec![(0, at(0.0))], DVec3::ZERO).unwrap();
+        for z in [10.0, 1.0, 1e-3, 2e-4, 1e-4, 5e-5, 1e-5] {
+            let o = DVec3::new(0.1, -0.2, z);
+            let h = one.intersect(o, -DVec3::Z, 0.0, 100.0);
+            assert!(
+                h.is_some_and(|h| (h.t - z).abs() < 1e-9),
+                "from z = {z}: {h:?}"
+            );
+            assert!(
+                one.occluded(o, -DVec3::Z, 0.0, 100.0),
+                "occluded from z = {z}"
+            );
+        }
+        let two =
+            InstanceBvh::new(vec![tri], vec![(0, at(0.0)), (0, at(-3.0))], DVec3::ZERO).unwrap();
+        for z in [-5e-5, -1e-5] {
+            let o = DVec3::new(0.1, -0.2, z);
+            let h = two.intersect(o, DVec3::Z, 0.0, 100.0);
+            assert!(
+                h.is_some_and(|h| (h.t + z).abs() < 1e-9),
+                "from z = {z} up: {h:?}"
+            );
+            assert!(
+                two.occluded(o, DVec3::Z, 0.0, 100.0),
+                "occluded from z = {z} up"
+            );
+        }
     }
 
     /// `permute_in_place` puts the old `v[order[k]]` in slot k, for random permutations (long
