@@ -577,13 +577,15 @@ fn build_tlas(aabbs: Vec<Aabb>) -> Result<Tlas, String> {
     };
     let (mut nodes, mut idx) = super::sah::build(&aabbs, params(false));
     // obvhs' conversion recurses over the binary tree: no very deep one.
-    if super::sah::depth(&nodes) > TLAS_BINARY_DEPTH {
+    let mut binary_depth = super::sah::depth(&nodes);
+    if binary_depth > TLAS_BINARY_DEPTH {
         (nodes, idx) = super::sah::build(&aabbs, params(true));
+        binary_depth = super::sah::depth(&nodes);
     }
     super::release_free_memory();
     // A wide tree is never deeper than its binary one: keep the boxes only if a rebuild may be
     // needed.
-    let mut kept = (super::sah::depth(&nodes) > super::CWBVH_MAX_DEPTH).then_some(aabbs);
+    let mut kept = (binary_depth > super::CWBVH_MAX_DEPTH).then_some(aabbs);
     let mut tlas = cluster_cwbvh(nodes, idx);
     if tlas.depth > super::CWBVH_MAX_DEPTH {
         if let Some(aabbs) = kept.take() {
