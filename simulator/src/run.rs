@@ -271,14 +271,22 @@ fn scene_in_layers<'a>(
         scene,
         models: &opt.scene_models,
         sun: exp.sun_dir,
-        clearance: if exp.sun_shines {
-            scene.sun_clearance(exp.sun_dir)
-        } else {
-            None
-        },
+        clearance: sun_clearance(exp, scene),
         wavelength: opt.wavelength,
         emission,
         shines: exp.sun_shines,
+    }
+}
+
+/// The scene's Sun clearance map for the experiment's Sun (none when the Sun does not shine).
+fn sun_clearance(
+    exp: &Experiment,
+    scene: &crate::scene::Scene,
+) -> Option<std::sync::Arc<crate::scene::sun_clearance::SunClearance>> {
+    if exp.sun_shines {
+        scene.sun_clearance(exp.sun_dir)
+    } else {
+        None
     }
 }
 
@@ -361,11 +369,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     scene,
                     models: &opt.scene_models,
                     sun: exp.sun_dir,
-                    clearance: if exp.sun_shines {
-                        scene.sun_clearance(exp.sun_dir)
-                    } else {
-                        None
-                    },
+                    clearance: sun_clearance(exp, scene),
                     mu_norm: exp.mu_norm(),
                     wavelength: opt.wavelength,
                     emission: opt.scene_emission.as_ref(),
