@@ -44,6 +44,14 @@ pub enum IlluminationConfig {
         /// PICS acquisition whose Sun angles are given, its distance from SPA at its time).
         #[serde(default)]
         distance_au: Option<f64>,
+        /// With `time`: the Moon at the same time and place shines as well (twilight), its
+        /// irradiance from the lunar model on this `irradiance` (at 1 AU), or `moon_irradiance`.
+        #[serde(default)]
+        moon: bool,
+        /// W m⁻² nm⁻¹ normal to the Moon's beam, with `moon = true`: a lunar spectrum used as
+        /// given (numbers, built-in name or CSV file).
+        #[serde(default)]
+        moon_irradiance: Option<IrradianceValue>,
     },
     /// The Moon as the source (`moon.rs`): its position for a time and place, its irradiance
     /// from a lunar spectrum or the grey magnitude law with its phase dependence.
@@ -99,6 +107,21 @@ pub struct Sun {
     /// Whether there is a Sun at all (`type = "none"`: false; the direction is then the
     /// zenith, a placeholder).
     pub shines: bool,
+    /// The Moon shining with the Sun (`moon = true`), if it does.
+    pub moon: Option<Moonlight>,
+}
+
+/// The Moon as a second source beside the Sun (`[illumination] moon = true`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Moonlight {
+    /// Lunar zenith (up to 180° in spherical shells) and azimuth (clockwise from North, in
+    /// [0, 360)), degrees.
+    pub zenith_deg: f64,
+    pub azimuth_deg: f64,
+    /// Unit vector from the target towards the Moon.
+    pub dir: DVec3,
+    /// The Moon's irradiance normal to its beam at each run wavelength, W m⁻² nm⁻¹.
+    pub irradiance: Vec<f64>,
 }
 
 impl IlluminationConfig {
@@ -139,6 +162,8 @@ impl IlluminationConfig {
             longitude,
             elevation,
             distance_au: given_distance,
+            moon,
+            moon_irradiance,
         } = self
         else {
             return Ok(Sun {
@@ -148,6 +173,7 @@ impl IlluminationConfig {
                 distance_au: None,
                 irradiance: vec![1.0; wavelengths.len()],
                 shines: false,
+                moon: None,
             });
         };
         let mut sun_distance_factor = None;
@@ -251,8 +277,50 @@ impl IlluminationConfig {
             sun_distance_factor = Some(earth_sun_factor(doy));
             distance_au = Some(1.0 / earth_sun_factor(doy).sqrt());
         }
+        let moonlight = match (moon, time) {
+            (false, _) => {
+                if moon_irradiance.is_some() {
+                    return Err(ctx.err(
+                        "illumination.moon_irradiance",
+                        "is used only with `moon = true`",
+                    ));
+                }
+                None
+            }
+            (true, None) => {
+                return Err(ctx.err(
+                    "illumination.moon",
+                    "needs `time` with `latitude` and `longitude` (the Moon's position is computed for that time and place)",
+                ))
+            }
+            (true, Some(t)) => Some(moon_with_sun(
+                ctx,
+                wavelengths,
+                spherical,
+                t,
+                (
+                    latitude.unwrap_or(0.0),
+                    longitude.unwrap_or(0.0),
+                    elevation.unwrap_or(0.0),
+                ),
+                moon_irradiance.as_ref(),
+                &irradiance,
+            )?),
+        };
         if let Some(k) = sun_distance_factor {
             irradiance.iter_mut().for_each(|e| *e *= k);
+        }
+        if moonlight.is_some() {
+            if let Some((w, e)) = wavelengths
+                .iter()
+                .zip(&irradiance)
+                .find(|(_, e)| **e <= 0.0)
+            {
+                return Err(ctx.err(
+                    "illumination.irradiance",
+                    format!("is {e} at {w} nm: with `moon = true` the Sun's irradiance must be positive at every wavelength (the Moon's light is carried in units of the Sun's)"),
+                ));
+            }
         }
         let azimuth_deg = azimuth.rem_euclid(360.0);
         Ok(Sun {
@@ -262,6 +330,7 @@ impl IlluminationConfig {
             distance_au,
             irradiance,
             shines: true,
+            moon: moonlight,
         })
     }
 }
@@ -304,6 +373,55 @@ fn irradiance_at(
                 })
                 .collect::<Result<Vec<f64>, _>>()?
         }
+    })
+}
+
+/// `moon = true` with a directional Sun at `time`: the Moon at that time and place, its
+/// irradiance `given` (a lunar spectrum) or the lunar model on the Sun's spectrum at 1 AU
+/// `solar_1au`.
+#[allow(clippy::too_many_arguments)]
+fn moon_with_sun(
+    ctx: &ConfigCtx,
+    wavelengths: &[f64],
+    spherical: bool,
+    time: &str,
+    (lat, lon, elevation): (f64, f64, f64),
+    given: Option<&IrradianceValue>,
+    solar_1au: &[f64],
+) -> Result<Moonlight, ConfigError> {
+    let p = crate::moon::moon_position(time, lat, lon, elevation)
+        .map_err(|m| ctx.err("illumination.time", m))?;
+    tracing::info!(
+        "Moon at {time} (with the Sun): zenith {:.4}°, azimuth {:.4}°, phase angle {:.2}°, distance {:.0} km",
+        p.zenith,
+        p.azimuth,
+        p.phase_angle,
+        p.distance_km
+    );
+    if !spherical && p.zenith >= 90.0 {
+        return Err(ctx.err(
+            "illumination.moon",
+            format!("the Moon is below the horizon at {time} (zenith {:.2}°) and a plane-parallel atmosphere has no twilight: drop `moon` or use geometry.type = \"spherical_shell\"", p.zenith),
+        ));
+    }
+    let irradiance = match given {
+        Some(v) => irradiance_at(ctx, "illumination.moon_irradiance", v, wavelengths)?,
+        None => {
+            let ratio = crate::moon::irradiance_ratio(&p).map_err(|m| {
+                ctx.err(
+                    "illumination.moon",
+                    m.replace("give `irradiance`", "give `moon_irradiance`"),
+                )
+            })?;
+            solar_1au.iter().map(|e| e * ratio).collect()
+        }
+    };
+    let azimuth_deg = p.azimuth.rem_euclid(360.0);
+    Ok(Moonlight {
+        zenith_deg: p.zenith,
+        azimuth_deg,
+        dir: direction_from_angles(p.zenith.to_radians(), azimuth_deg.to_radians()),
+        irradiance,
     })
 }
 
@@ -361,6 +479,7 @@ fn resolve_moon(
         distance_au: None,
         irradiance: e0,
         shines: true,
+        moon: None,
     })
 }
 

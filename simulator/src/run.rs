@@ -32,7 +32,7 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
     if exp.scene.is_some() {
         return Method::Scene;
     }
-    if exp.planet_radius.is_some() {
+    if exp.planet_radius.is_some() || exp.moon.is_some() {
         return Method::Backward;
     }
     if exp.integrator.alis || exp.integrator.spectral_alis.is_some() {
@@ -123,31 +123,67 @@ fn run_block_alis(
             surface_emission: &surface_emission,
         },
     };
-    channel_walks(exp, &g, iw as u64, im, cell, range)
+    channel_walks(exp, &g, iw as u64, &[exp.moon_ratio(iw)], im, cell, range)
 }
 
 /// Backward walks over channels `g` (one accumulator cell per output: the bin mean, or one per
-/// wavelength), stream family `key`.
+/// wavelength), stream family `key`; `moon_ratio`: E_moon/E_sun per output (used with the Moon
+/// beside the Sun).
+#[allow(clippy::too_many_arguments)]
 fn channel_walks(
     exp: &Experiment,
     g: &crate::integrator::backward_alis::Channels,
     key: u64,
+    moon_ratio: &[f64],
     im: usize,
     cell: usize,
     range: std::ops::Range<u64>,
 ) -> Accum {
     let m = &exp.measures[im];
     let toa = g.reference.toa();
+    let ids = [key, im as u64, cell as u64];
     let geometry = ReferenceLayers::new(g, exp.sun_dir).with_sun_shining(exp.sun_shines);
+    let moon = moon_walks(exp, ids, moon_ratio, |dir| ReferenceLayers::new(g, dir));
     backward_block(
         &geometry,
+        moon.as_ref(),
         &exp.integrator,
         g.outputs(),
         range,
-        sample_stream(exp, [key, im as u64, cell as u64]),
+        sample_stream(exp, ids),
         |rng| Some(sensor::backward_start_altitude(toa, m, cell, rng)),
         |_| ChannelPath::new(&geometry),
     )
+}
+
+/// Tag of the Moon's random streams when it shines beside the Sun: its walks are independent of
+/// the Sun's.
+const MOON_STREAM: u64 = 1 << 61;
+
+/// The Moon's half of every sample when it shines beside the Sun (`illumination.moon`): the
+/// same medium lit from the Moon's direction, E_moon/E_sun per accumulator cell (the factor that
+/// brings a Moon-lit score into the Sun's units: a score is radiance per unit irradiance) and
+/// the Moon's random streams.
+struct MoonWalks<'a, G> {
+    g: G,
+    ratio: Vec<f64>,
+    stream: Box<dyn Fn(u64) -> Stream + 'a>,
+}
+
+/// [`MoonWalks`] for the walks keyed `ids` when the experiment has a Moon beside the Sun,
+/// with the geometry `lit_from(moon direction)`.
+fn moon_walks<'a, G>(
+    exp: &'a Experiment,
+    ids: [u64; 3],
+    ratio: &[f64],
+    lit_from: impl FnOnce(DVec3) -> G,
+) -> Option<MoonWalks<'a, G>> {
+    let moon = exp.moon.as_ref()?;
+    Some(MoonWalks {
+        g: lit_from(moon.dir),
+        ratio: ratio.to_vec(),
+        stream: Box::new(sample_stream(exp, [ids[0] | MOON_STREAM, ids[1], ids[2]])),
+    })
 }
 
 /// Tag of the random streams of spectral ALIS groups (keyed by the group's first wavelength
@@ -210,9 +246,10 @@ fn run_block_spectral(
     };
     let key = GROUP_STREAM | group[0] as u64;
     // One cell per wavelength of the group, split into one accumulator each.
+    let ratio: Vec<f64> = group.iter().map(|&iw| exp.moon_ratio(iw)).collect();
     let all = match &exp.scene {
         Some(_) => scene_channel_walks(exp, &g, sg.reference_member, group, key, im, cell, range),
-        None => channel_walks(exp, &g, key, im, cell, range),
+        None => channel_walks(exp, &g, key, &ratio, im, cell, range),
     };
     (0..group.len())
         .map(|c| {
@@ -239,28 +276,38 @@ fn scene_channel_walks(
 ) -> Accum {
     use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
     let m = &exp.measures[im];
-    let base = scene_in_layers(exp, g.reference, &exp.optics[group[reference]], None);
+    let opt = &exp.optics[group[reference]];
     let models: Vec<&[crate::scene::material::SurfaceModel]> = group
         .iter()
         .map(|&iw| exp.optics[iw].scene_models.as_slice())
         .collect();
     let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
-    let geometry = SceneChannels::new(base, g, &models, &wavelengths, reference);
+    let lit_from = |sun| {
+        let base = scene_in_layers(exp, sun, g.reference, opt, None);
+        SceneChannels::new(base, g, &models, &wavelengths, reference)
+    };
+    let geometry = lit_from(exp.sun_dir);
+    let ids = [key, im as u64, cell as u64];
+    let ratio: Vec<f64> = group.iter().map(|&iw| exp.moon_ratio(iw)).collect();
+    let moon = moon_walks(exp, ids, &ratio, lit_from);
     backward_block(
         &geometry,
+        moon.as_ref(),
         &exp.integrator,
         group.len(),
         range,
-        sample_stream(exp, [key, im as u64, cell as u64]),
+        sample_stream(exp, ids),
         |rng| Some(sensor::scene_start(&geometry.base, m, cell, rng)),
         |_| SceneChannelPath::new(&geometry),
     )
 }
 
-/// The 3D scene of `exp` in the plane-parallel layers `atmosphere`, with the material models
-/// and wavelength of `opt` and the surfaces' thermal emission `emission`.
+/// The 3D scene of `exp` in the plane-parallel layers `atmosphere`, lit from `sun` (the Sun's
+/// direction, or the Moon's), with the material models and wavelength of `opt` and the
+/// surfaces' thermal emission `emission`.
 fn scene_in_layers<'a>(
     exp: &'a Experiment,
+    sun: DVec3,
     atmosphere: &'a crate::atmosphere::PlaneParallel,
     opt: &'a OpticalState,
     emission: Option<&'a crate::scene::emission::SceneEmission>,
@@ -270,21 +317,22 @@ fn scene_in_layers<'a>(
         atmosphere,
         scene,
         models: &opt.scene_models,
-        sun: exp.sun_dir,
-        clearance: sun_clearance(exp, scene),
+        sun,
+        clearance: sun_clearance(exp, scene, sun),
         wavelength: opt.wavelength,
         emission,
         shines: exp.sun_shines,
     }
 }
 
-/// The scene's Sun clearance map for the experiment's Sun (none when the Sun does not shine).
+/// The scene's clearance map for light from `sun` (none when the Sun does not shine).
 fn sun_clearance(
     exp: &Experiment,
     scene: &crate::scene::Scene,
+    sun: DVec3,
 ) -> Option<std::sync::Arc<crate::scene::sun_clearance::SunClearance>> {
     if exp.sun_shines {
-        scene.sun_clearance(exp.sun_dir)
+        scene.sun_clearance(sun)
     } else {
         None
     }
@@ -329,6 +377,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
     let stream = sample_stream(exp, ids);
     let hint = || sensor::frame_azimuth(m, cell);
     let at_sensor = |d0| B::at_sensor(d0, hint);
+    let ratio = [exp.moon_ratio(iw)];
     match method_for(exp, m) {
         Method::Forward => {
             let (dirs, flux, hints) = sensor::forward_targets(m, opt);
@@ -364,19 +413,21 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
         Method::Scene => {
             let scene = exp.scene.as_ref().expect("scene method without a scene");
             if let Some(shell) = &opt.shell {
-                let g = SceneInShells {
+                let lit_from = |sun| SceneInShells {
                     shell,
                     scene,
                     models: &opt.scene_models,
-                    sun: exp.sun_dir,
-                    clearance: sun_clearance(exp, scene),
+                    sun,
+                    clearance: sun_clearance(exp, scene, sun),
                     mu_norm: exp.mu_norm(),
                     wavelength: opt.wavelength,
                     emission: opt.scene_emission.as_ref(),
                     shines: exp.sun_shines,
                 };
+                let g = lit_from(exp.sun_dir);
                 backward_block::<_, B>(
                     &g,
+                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
                     settings,
                     1,
                     range,
@@ -385,9 +436,13 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     at_sensor,
                 )
             } else {
-                let g = scene_in_layers(exp, &opt.atmosphere, opt, opt.scene_emission.as_ref());
+                let lit_from = |sun| {
+                    scene_in_layers(exp, sun, &opt.atmosphere, opt, opt.scene_emission.as_ref())
+                };
+                let g = lit_from(exp.sun_dir);
                 backward_block::<_, B>(
                     &g,
+                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
                     settings,
                     1,
                     range,
@@ -399,17 +454,19 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
         }
         Method::Backward => {
             if let Some(shell) = &opt.shell {
-                let g = Shells {
+                let lit_from = |sun| Shells {
                     shell,
                     surface: &opt.surface,
-                    sun: exp.sun_dir,
+                    sun,
                     mu_norm: exp.mu_norm(),
                     solver: settings.surface_solver,
                     surface_emission: opt.surface_emission.as_ref(),
                     shines: exp.sun_shines,
                 };
+                let g = lit_from(exp.sun_dir);
                 backward_block::<_, B>(
                     &g,
+                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
                     settings,
                     1,
                     range,
@@ -418,11 +475,15 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     at_sensor,
                 )
             } else {
-                let g = Layers::new(&opt.atmosphere, &opt.surface, exp.sun_dir)
-                    .with_emission(opt.surface_emission.as_ref(), exp.sun_shines)
-                    .with_solver(settings.surface_solver);
+                let lit_from = |sun| {
+                    Layers::new(&opt.atmosphere, &opt.surface, sun)
+                        .with_emission(opt.surface_emission.as_ref(), exp.sun_shines)
+                        .with_solver(settings.surface_solver)
+                };
+                let g = lit_from(exp.sun_dir);
                 backward_block::<_, B>(
                     &g,
+                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
                     settings,
                     1,
                     range,
@@ -438,8 +499,12 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
 /// Backward walks of one cell into `cells` accumulator cells (one, or one per wavelength of a
 /// spectral walk): each sample's stream, its start (None: the line of sight misses the medium,
 /// a zero sample) and the weight it starts with (given the direction it leaves the sensor).
+/// With the Moon beside the Sun (`moon`), every sample is a Sun-lit walk plus an independent
+/// Moon-lit one in the Sun's units, so the samples' scatter holds both sources' noise.
+#[allow(clippy::too_many_arguments)]
 fn backward_block<G: Geometry<W>, W: Adjoint>(
     g: &G,
+    moon: Option<&MoonWalks<'_, G>>,
     settings: &crate::integrator::settings::IntegratorSettings,
     cells: usize,
     range: std::ops::Range<u64>,
@@ -455,10 +520,17 @@ fn backward_block<G: Geometry<W>, W: Adjoint>(
     for s in range {
         let mut rng = stream(s);
         acc.begin_sample(s);
-        let t = match start(&mut rng) {
+        let mut t = match start(&mut rng) {
             Some((p0, d0)) => backward::walk(g, p0, d0, weight(d0), settings, &mut rng),
             None => W::zero_tally(),
         };
+        if let Some(mw) = moon {
+            let mut rng = (mw.stream)(s);
+            if let Some((p0, d0)) = start(&mut rng) {
+                let tm = backward::walk(&mw.g, p0, d0, weight(d0), settings, &mut rng);
+                W::add_tally(&mut t, &tm, &mw.ratio);
+            }
+        }
         W::record(&mut acc, 0, &t, k);
     }
     acc

@@ -751,6 +751,16 @@ fn parse_shard(s: &str) -> Result<(usize, usize), String> {
     Ok((k, n))
 }
 
+/// A value of the summary table: five decimals, or five significant digits in scientific
+/// notation where that would lose them (night and twilight radiances are ~1e-6).
+fn summary_value(v: f64) -> String {
+    if v != 0.0 && (v.abs() < 0.01 || v.abs() >= 1e6) {
+        format!("{v:<.4e}")
+    } else {
+        format!("{v:<.5}")
+    }
+}
+
 fn print_summary(rows: &[products::Row]) {
     if rows.is_empty() {
         return;
@@ -786,13 +796,13 @@ fn print_summary(rows: &[products::Row]) {
             .map(|(t, se)| format!("  BT={t:.3} K ± {se:.3}"))
             .unwrap_or_default();
         println!(
-            "{:<16} {:>9.2} {} {} {:>8}={:<.5} {:>9.3}%{bt}{direct}",
+            "{:<16} {:>9.2} {} {} {:>8}={} {:>9.3}%{bt}{direct}",
             r.measure,
             r.wavelength_nm,
             ang(r.vza),
             ang(r.vaa),
             name,
-            v,
+            summary_value(v),
             100.0 * e / v.abs().max(1e-300)
         );
     }

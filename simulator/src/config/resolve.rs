@@ -59,6 +59,10 @@ pub struct Experiment {
     pub emission: bool,
     /// Whether a Sun shines (`illumination.type = "none"`: false, no BRF).
     pub sun_shines: bool,
+    /// The Moon shining beside the Sun (`illumination.moon = true`): every sample then adds a
+    /// Moon-lit walk to the Sun-lit one (`run.rs`), and the products' radiances and fluxes are
+    /// the sum; BRFs stay in units of the Sun's irradiance.
+    pub moon: Option<crate::illumination::Moonlight>,
     /// The experiment file's text (written into the products for provenance).
     pub source_text: String,
     pub source_path: PathBuf,
@@ -70,6 +74,15 @@ impl Experiment {
     /// Whether the Sun is above the target's horizon (SZA below 90° by more than 0.2″).
     pub fn sun_up(&self) -> bool {
         self.sun_shines && self.sun_dir.z > 1e-6
+    }
+
+    /// With the Moon beside the Sun: E_moon/E_sun at wavelength `iw`, the factor that brings a
+    /// Moon-lit path's score into the units of the Sun's (1 without a Moon, unused).
+    pub fn moon_ratio(&self, iw: usize) -> f64 {
+        match &self.moon {
+            Some(m) => m.irradiance[iw] / self.optics[iw].irradiance,
+            None => 1.0,
+        }
     }
 
     pub fn mu_norm(&self) -> f64 {
@@ -415,6 +428,26 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if let Some(t) = &thermal {
         t.check_integrator(&ctx, &mut integrator, &measures)?;
     }
+    if sun.moon.is_some() && cfg.emission {
+        return Err(ctx.err(
+            "illumination.moon",
+            "the Moon beside the Sun is built for reflected light, not with thermal emission (`emission = true`): drop one or the other",
+        ));
+    }
+    if sun.moon.is_some() {
+        use crate::integrator::settings::IntegratorKind;
+        // The Moon's walk joins each sample of the Sun's in the backward estimator (`run.rs`).
+        match integrator.kind {
+            IntegratorKind::Forward => {
+                return Err(ctx.err(
+                    "illumination.moon",
+                    "the Moon beside the Sun needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")",
+                ))
+            }
+            IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
+            IntegratorKind::Backward => {}
+        }
+    }
     // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
     if let (Some(sc), Some(_)) = (&scene, integrator.spectral_alis) {
         if let Some((name, solver)) = sc
@@ -600,6 +633,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         polarized: cfg.polarized,
         emission: cfg.emission,
         sun_shines: sun.shines,
+        moon: sun.moon.clone(),
         planet_radius,
         scene,
         source_text: text.to_string(),

@@ -995,6 +995,9 @@ impl Weight for ChannelPath<'_> {
     fn record(acc: &mut Accum, cell: usize, t: &ChannelTally, k: f64) {
         channels::record(acc, cell, t, k);
     }
+    fn add_tally(t: &mut ChannelTally, other: &ChannelTally, ratio: &[f64]) {
+        channels::add_scaled(t, other, ratio);
+    }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
     }
@@ -1297,6 +1300,14 @@ pub(crate) mod channels {
         for (c, tc) in t.iter().take(acc.n.len()).enumerate() {
             let (a, b) = tc.scaled(k);
             acc.add(c, a, b);
+        }
+    }
+
+    /// `t[c] += ratio[c]·other[c]` for the channels with an accumulator cell (`ratio` has one
+    /// entry per cell).
+    pub(crate) fn add_scaled(t: &mut [OrderSplit], other: &[OrderSplit], ratio: &[f64]) {
+        for ((tc, oc), r) in t.iter_mut().zip(other).zip(ratio) {
+            tc.add_scaled(oc, *r);
         }
     }
 }

@@ -396,6 +396,9 @@ impl Weight for SceneChannelPath<'_> {
     fn record(acc: &mut Accum, cell: usize, t: &SceneChannelTally, k: f64) {
         channels::record(acc, cell, t, k);
     }
+    fn add_tally(t: &mut SceneChannelTally, other: &SceneChannelTally, ratio: &[f64]) {
+        channels::add_scaled(t, other, ratio);
+    }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
     }

@@ -87,6 +87,10 @@ pub trait Weight: Sized {
 
     /// Add the tally of one path, each score times `k`, to `cell` of `acc`.
     fn record(acc: &mut Accum, cell: usize, t: &Self::Tally, k: f64);
+    /// `t += ratio·other`, channel by channel (`ratio[c]` for the scores of accumulator cell
+    /// `c`; weights with one cell use `ratio[0]`): a second source's path joins the sample of
+    /// the first (the Moon with the Sun, `run.rs`).
+    fn add_tally(t: &mut Self::Tally, other: &Self::Tally, ratio: &[f64]);
     /// A fresh accumulator of `cells` cells for this weight.
     fn accum(cells: usize) -> Accum;
 }
@@ -165,6 +169,13 @@ impl OrderSplit {
         }
     }
 
+    /// `self += k·other`, part by part.
+    #[inline]
+    pub fn add_scaled(&mut self, other: &OrderSplit, k: f64) {
+        self.single += k * other.single;
+        self.multiple += k * other.multiple;
+    }
+
     /// (single, multiple), each multiplied by `k`.
     #[inline]
     pub fn scaled(&self, k: f64) -> (f64, f64) {
@@ -238,6 +249,9 @@ impl Weight for Scalar {
     fn record(acc: &mut Accum, cell: usize, t: &OrderSplit, k: f64) {
         acc.add(cell, t.single * k, t.multiple * k);
     }
+    fn add_tally(t: &mut OrderSplit, other: &OrderSplit, ratio: &[f64]) {
+        t.add_scaled(other, ratio[0]);
+    }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
     }
@@ -277,6 +291,11 @@ macro_rules! polarized_tally {
         fn record(acc: &mut Accum, cell: usize, t: &StokesTally, k: f64) {
             let x = t.map(|v| v * k);
             acc.add_stokes(cell, x[0], x[1], x[2], x[3], x[4]);
+        }
+        fn add_tally(t: &mut StokesTally, other: &StokesTally, ratio: &[f64]) {
+            for (a, b) in t.iter_mut().zip(other) {
+                *a += ratio[0] * b;
+            }
         }
         fn accum(cells: usize) -> Accum {
             Accum::new_polarized(cells)

@@ -236,6 +236,10 @@ pub fn write_files(
                 format!("{:?}", p.n_samples),
             ),
         ];
+        if let Some(m) = &exp.moon {
+            meta.push(("moon_zenith_deg".into(), format!("{}", m.zenith_deg)));
+            meta.push(("moon_azimuth_deg".into(), format!("{}", m.azimuth_deg)));
+        }
         if let Some((vza, vaa)) = p.view {
             meta.push(("view_zenith_deg".into(), format!("{vza}")));
             meta.push(("view_azimuth_deg".into(), format!("{vaa}")));

@@ -108,12 +108,21 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
         let to_rad = e0 * mu_s / std::f64::consts::PI;
         // The direct beam's downwelling flux at an altitude, exact, in the tally's units
         // (E0·cos SZA); none without a Sun.
+        let opt = &exp.optics[r.wavelength];
         let direct_at = |z: f64| {
-            if sun_up {
-                crate::direct_flux::direct_transmittance(&exp.optics[r.wavelength], exp.sun_dir, z)
+            let sun = if sun_up {
+                crate::direct_flux::direct_transmittance(opt, exp.sun_dir, z)
             } else {
                 0.0
-            }
+            };
+            // The Moon's beam beside the Sun's, in the Sun's units (E_moon·μ_moon/(E0·μ)).
+            let moon = exp.moon.as_ref().map_or(0.0, |m| {
+                crate::direct_flux::direct_transmittance(opt, m.dir, z)
+                    * exp.moon_ratio(r.wavelength)
+                    * m.dir.z.max(0.0)
+                    / mu_s
+            });
+            sun + moon
         };
         // An HDRF's downwelling flux at its level, from its last cell and the direct beam.
         let hdrf_flux = match &m.kind {

@@ -86,6 +86,13 @@ fn write_globals(f: &mut netcdf::FileMut, exp: &Experiment) -> Result<(), netcdf
     f.add_attribute("polarized", if exp.polarized { "true" } else { "false" })?;
     f.add_attribute("sun_zenith", exp.sun_zenith_deg)?;
     f.add_attribute("sun_azimuth", exp.sun_azimuth_deg)?;
+    if let Some(m) = &exp.moon {
+        // The Moon shines beside the Sun: radiances and fluxes are the sum, BRFs stay in the
+        // Sun's units.
+        f.add_attribute("moon_zenith", m.zenith_deg)?;
+        f.add_attribute("moon_azimuth", m.azimuth_deg)?;
+        f.add_attribute("moon_irradiance", m.irradiance.clone())?;
+    }
     f.add_attribute("experiment", exp.source_text.as_str())?;
     let nw = exp.wavelengths.len();
     f.add_dimension("wavelength", nw)?;
