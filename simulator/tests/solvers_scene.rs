@@ -10,7 +10,7 @@
 //! pass-through there then counted that part twice, +4 %.)
 
 mod common;
-use common::bundles::{flat_plane, lambertian, tmp, with_plate, write_plane};
+use common::bundles::{flat_plane, lambertian, tmp, with_plate, with_plate_turned, write_plane};
 use common::*;
 
 fn experiment_for(bundle: &std::path::Path, solvers: &str) -> String {
@@ -164,5 +164,89 @@ fn canopy_solvers_by_name() {
         e.contains("scene.solvers.leaf") && e.contains("leaves"),
         "{e}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A plane `mirror` relays sunlight to other surfaces (the Sun's image in it is a second
+/// direct source): a vertical glass wall (n = 1.5; 200 m × 200 m, the plane y = 0 from z = 1 m)
+/// stands on a Lambertian soil (ρ 0.3), lit from the south at SZA 30°, no atmosphere. The soil
+/// south of the wall sees the Sun's image at (0, sin 30°, cos 30°) wherever the ray towards it
+/// meets the wall (y from −116 m to 0 within its width), so at first order (the soil's
+/// `max_generations = 1`: each sample is its next-event estimates, exact) the BRF there is
+/// ρ·(1 + R(60°)) with the Fresnel reflectance R written out here, and ρ farther south; with a
+/// black wall both are ρ. Nadir and a view from the south (past the wall). Then through an
+/// absorbing layer, which checks the relayed beam's transmittances.
+#[test]
+fn mirror_walls_relay_sunlight_in_closed_form() {
+    let dir = tmp("mirror-wall");
+    let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, 0.3));
+    // The plate turned about x by 90°: template y becomes z, z becomes −y.
+    let upright = [1.0, 0.0, 0.0, 0.0, 0.0, 1.0, 0.0, -1.0, 0.0];
+    let wall = |name: &str, solver| {
+        with_plate_turned(
+            &plane,
+            &dir.join(name),
+            (0.0, 0.0, 101.0),
+            100.0,
+            upright,
+            7,
+            "glass",
+            lambertian(0.0),
+            solver,
+        )
+    };
+    let glass = wall(
+        "glass",
+        Some(bundle::SolverSpec::Mirror {
+            refractive_index: 1.5,
+            absorption_index: 0.0,
+        }),
+    );
+    let black = wall("black", None);
+    let text = |bundle: &std::path::Path, target: &str| {
+        format!(
+            "seed = 4\n[spectral]\nwavelengths = [550.0]\n\
+             [scene]\ntype = \"bundle\"\npath = \"{}\"\n\
+             [scene.solvers.soil]\ntype = \"generic\"\nmax_generations = 1\n\
+             [illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 180.0\n{}\
+             target_m = {target}\ntarget_height_m = 0.0\n",
+            bundle.display(),
+            mdistant_toml("area", &[0.0, 30.0], &[0.0, 180.0], 2000)
+        )
+    };
+    let relayed = "[499920.0, 3999900.0, 500080.0, 3999980.0]";
+    let beyond = "[499920.0, 3999600.0, 500080.0, 3999800.0]";
+    // Fresnel reflectance of n = 1.5 at 60° incidence (the Sun on the wall), unpolarized.
+    let (ci, n) = (0.5f64, 1.5f64);
+    let ct = (1.0 - (1.0 - ci * ci) / (n * n)).sqrt();
+    let rs = ((ci - n * ct) / (ci + n * ct)).powi(2);
+    let rp = ((n * ci - ct) / (n * ci + ct)).powi(2);
+    let r = 0.5 * (rs + rp);
+    for (bundle, target, want) in [
+        (&glass, relayed, 0.3 * (1.0 + r)),
+        (&glass, beyond, 0.3),
+        (&black, relayed, 0.3),
+    ] {
+        for b in brf(&text(bundle, target)) {
+            println!("{} {target}: {b:?} (closed form {want})", bundle.display());
+            // (The standard error of constant samples is rounding: ~1e-9.)
+            assert!((b.0 - want).abs() < 1e-9 && b.1 < 1e-7, "{b:?} vs {want}");
+        }
+    }
+    // Under a purely absorbing layer (τ 0.3, ω 0) the relayed beam's transmittance, the Sun's to
+    // the mirror point times the layer's from there to the soil along the image, is the Sun's
+    // to the soil, exp(−τ/μs), since the image has the Sun's elevation: the BRF is
+    // ρ·(1 + R)·exp(−τ/μs)·exp(−τ/μv) at view zenith θv.
+    let absorbing = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.3\nsingle_scattering_albedo = 0.0\n";
+    let mu_s = 30f64.to_radians().cos();
+    for (b, vza) in
+        brf(&text(&glass, relayed).replacen("[scene]", &format!("{absorbing}[scene]"), 1))
+            .into_iter()
+            .zip([0.0f64, 30.0])
+    {
+        let want = 0.3 * (1.0 + r) * (-0.3 / mu_s).exp() * (-0.3 / vza.to_radians().cos()).exp();
+        println!("absorbing layer, view zenith {vza}: {b:?} (closed form {want})");
+        assert!((b.0 - want).abs() < 1e-9 && b.1 < 1e-7, "{b:?} vs {want}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -340,6 +340,14 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 let surface = mirror.as_ref().unwrap_or(&base);
                 if shines && mirror.is_none() {
                     w.see_sun_surface(tally, order, surface, d, sun, || g.sun_at_surface(&h));
+                    // Sunlight relayed by plane mirrors arrives from the Sun's images in them.
+                    for k in 0..g.mirror_count() {
+                        if let Some(image) = g.mirror_image(k) {
+                            w.see_sun_surface(tally, order, surface, d, image, || {
+                                g.sun_via_mirror(&h, k, image)
+                            });
+                        }
+                    }
                 }
                 // How many directions continue the path from this surface.
                 let fan = match solver {

@@ -1171,6 +1171,57 @@ impl InstanceBvh {
         })
     }
 
+    /// The distinct planes of the primitives whose material `is_mirror` (unit world normal, up
+    /// to sign, and material), or `None` when there are more than `max` of them. Primitives of
+    /// one template and instances with one rotation share a plane (normals within 1e-9).
+    pub fn mirror_planes(
+        &self,
+        is_mirror: impl Fn(u16) -> bool,
+        max: usize,
+    ) -> Option<Vec<(DVec3, u16)>> {
+        let per_template: Vec<Vec<(DVec3, u16)>> = self
+            .templates
+            .iter()
+            .map(|t| {
+                let mut out = Vec::new();
+                let mut add = |n: DVec3, m: u16| {
+                    if is_mirror(m) {
+                        push_plane(&mut out, (n.normalize(), m));
+                    }
+                };
+                match t {
+                    TemplateBlas::Tris(b) => b
+                        .prims
+                        .iter()
+                        .zip(&b.materials)
+                        .for_each(|(p, &m)| add(p.normal64(), m)),
+                    TemplateBlas::Discs(b) => b
+                        .prims
+                        .iter()
+                        .zip(&b.materials)
+                        .for_each(|(p, &m)| add(p.normal64(), m)),
+                }
+                out
+            })
+            .collect();
+        let mut planes = Vec::new();
+        if per_template.iter().all(|p| p.is_empty()) {
+            return Some(planes);
+        }
+        for rec in &self.records {
+            for &(n_t, m) in &per_template[rec.template as usize] {
+                push_plane(
+                    &mut planes,
+                    ((linv64(rec).transpose() * n_t).normalize(), m),
+                );
+                if planes.len() > max {
+                    return None;
+                }
+            }
+        }
+        Some(planes)
+    }
+
     /// Whether anything is hit with `t` in `(tmin, tmax)` (shadow rays): any-hit traversal that
     /// stops at the first hit found.
     pub fn occluded(&self, origin: DVec3, dir: DVec3, tmin: f64, tmax: f64) -> bool {
@@ -1339,6 +1390,16 @@ impl InstanceBvh {
 
 /// The inverse linear part of an instance in f64.
 #[inline(always)]
+/// Add the plane (unit normal up to sign, material) to `planes` unless one like it is there.
+fn push_plane(planes: &mut Vec<(DVec3, u16)>, (n, m): (DVec3, u16)) {
+    if !planes
+        .iter()
+        .any(|(q, k)| *k == m && n.dot(*q).abs() > 1.0 - 1e-9)
+    {
+        planes.push((n, m));
+    }
+}
+
 fn linv64(rec: &InstanceRecord) -> DMat3 {
     let l = rec.linv.map(|x| x as f64);
     DMat3::from_cols_array(&l)
@@ -1754,6 +1815,42 @@ mod tests {
         // tmin just past the triangle.
         assert!(!bvh.occluded(at(0.5, 0.5) + DVec3::Z, -DVec3::Z, 1.0 + 1e-6, 2.0));
         assert!(bvh.occluded(at(0.5, 0.5) + DVec3::Z, -DVec3::Z, 1.0 - 1e-6, 2.0));
+    }
+
+    /// Mirror planes: the box's faces of the mirror materials, turned by each instance; the
+    /// same rotation twice and the two opposite faces of the box (one plane up to sign) count
+    /// once; more than `max` distinct planes give `None`.
+    #[test]
+    fn mirror_planes_are_the_distinct_turned_faces() {
+        let tr = |angle: f64| InstanceTransform {
+            translation: DVec3::new(10.0 * angle, 0.0, 0.0),
+            linear: rot_z_scale(angle, 2.0),
+        };
+        // Materials 10..22 are the box's triangles: 12, 13 its top; 14, 15 the −y face and
+        // 18, 19 the +y face (the same plane).
+        let is_mirror = |m: u16| [12, 13, 14, 15, 18, 19].contains(&m);
+        let bvh = InstanceBvh::new(
+            vec![box_mesh()],
+            vec![(0, tr(0.0)), (0, tr(0.3)), (0, tr(0.3))],
+            DVec3::ZERO,
+        )
+        .unwrap();
+        let planes = bvh.mirror_planes(|m| [12, 13].contains(&m), 16).unwrap();
+        assert_eq!(planes.len(), 2, "{planes:?}");
+        assert!(planes.iter().all(|(n, _)| (n.z.abs() - 1.0).abs() < 1e-12));
+        let planes = bvh.mirror_planes(is_mirror, 16).unwrap();
+        // The top once (a rotation about z keeps it; materials 12 and 13 apart), and per
+        // rotation the ±y faces (14, 15, 18, 19: four materials).
+        assert_eq!(planes.len(), 2 + 2 * 4, "{planes:?}");
+        let sides: Vec<&(DVec3, u16)> = planes.iter().filter(|(_, m)| *m == 14).collect();
+        assert_eq!(sides.len(), 2);
+        let want = DVec3::new(-(0.3f64.sin()), 0.3f64.cos(), 0.0);
+        assert!(
+            sides.iter().any(|(n, _)| n.dot(want).abs() > 1.0 - 1e-6),
+            "{sides:?}"
+        );
+        assert!(bvh.mirror_planes(is_mirror, 9).is_none());
+        assert!(bvh.mirror_planes(|_| false, 0).unwrap().is_empty());
     }
 
     /// Invalid inputs are refused; empty scenes and empty templates hit nothing.

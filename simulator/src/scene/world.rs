@@ -133,6 +133,20 @@ pub struct SurfaceHit {
     pub terrain: bool,
 }
 
+/// A plane mirror of a scene ([`Scene::mirror_planes`]): the surfaces of `material` with this
+/// unit normal (up to sign) reflect sunlight onto other surfaces from one direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct MirrorPlane {
+    pub normal: DVec3,
+    pub material: u16,
+    /// The `mirror` solver's complex refractive index (n, k).
+    pub index: (f64, f64),
+}
+
+/// Most distinct mirror planes a scene relays sunlight through (each costs one more ray per
+/// surface next-event estimate).
+pub const MAX_MIRROR_PLANES: usize = 16;
+
 /// The id of the material named `name` in a scene's table, or an error listing the table.
 pub fn material_id(materials: &[(String, BrdfSpec)], name: &str) -> Result<usize, String> {
     materials
@@ -175,6 +189,9 @@ pub struct Scene {
     pub(super) solvers: Vec<bundle::SolverSpec>,
     /// Whether a material is `null` (pass-through): shadow rays then skip such surfaces.
     pub(super) has_null: bool,
+    /// The scene's plane mirrors, found on first use ([`Scene::mirror_planes`]; reset with
+    /// the solvers).
+    pub(super) mirror_planes: std::sync::OnceLock<Vec<MirrorPlane>>,
     pub georef: Option<Georef>,
     /// Horizontal extent of the scene's content [xmin, ymin, xmax, ymax] (local frame), m.
     pub extent: [f64; 4],
@@ -479,6 +496,54 @@ impl Scene {
             .iter()
             .any(|s| matches!(s, bundle::SolverSpec::Null {}));
         self.solvers = solvers;
+        self.mirror_planes = Default::default();
+    }
+
+    /// The plane mirrors of the scene (surfaces of `mirror` solvers): the flat ground, if it is
+    /// one, and every distinct plane of mirror triangles and discs of the objects. Empty when
+    /// there are more than [`MAX_MIRROR_PLANES`] (a warning says so once) and for mirrors of
+    /// the terrain and of bent scenes, whose sunlight is then not relayed
+    /// (`integrator/geometry/scene_layers.rs`, `SceneInLayers::sun_via_mirror`).
+    pub fn mirror_planes(&self) -> &[MirrorPlane] {
+        self.mirror_planes.get_or_init(|| {
+            let index = |m: u16| match self.solver(m) {
+                bundle::SolverSpec::Mirror {
+                    refractive_index,
+                    absorption_index,
+                } => Some((refractive_index, absorption_index)),
+                _ => None,
+            };
+            if !self.solvers.iter().any(|s| matches!(s, bundle::SolverSpec::Mirror { .. })) {
+                return Vec::new();
+            }
+            let mut planes = Vec::new();
+            if let Some(g) = self.ground.as_ref().filter(|g| g.sphere.is_none()) {
+                if index(g.material).is_some() {
+                    planes.push((DVec3::Z, g.material));
+                }
+            }
+            if let Some(o) = &self.objects {
+                let room = MAX_MIRROR_PLANES - planes.len();
+                match o.mirror_planes(|m| index(m).is_some(), room) {
+                    Some(p) => planes.extend(p),
+                    None => {
+                        tracing::warn!(
+                            "scene `{}`: more than {MAX_MIRROR_PLANES} distinct mirror planes; the sunlight the mirrors reflect onto other surfaces is not estimated (they still reflect what the paths meet)",
+                            self.name
+                        );
+                        return Vec::new();
+                    }
+                }
+            }
+            planes
+                .into_iter()
+                .map(|(normal, material)| MirrorPlane {
+                    normal,
+                    material,
+                    index: index(material).expect("a mirror material"),
+                })
+                .collect()
+        })
     }
 
     /// Give the material named `name` the solver `spec` (an error names the scene's materials

@@ -226,8 +226,25 @@ pub fn reseal(dir: &Path) {
 pub fn with_plate(
     src: &Path,
     out: &Path,
+    centre: (f64, f64, f64),
+    half: f32,
+    index: u8,
+    name: &str,
+    brdf: BrdfSpec,
+    solver: Option<SolverSpec>,
+) -> PathBuf {
+    const IDENTITY: [f32; 9] = [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0];
+    with_plate_turned(src, out, centre, half, IDENTITY, index, name, brdf, solver)
+}
+
+/// [`with_plate`] with the plate turned by the instance's linear part `linear` (column-major).
+#[allow(clippy::too_many_arguments)]
+pub fn with_plate_turned(
+    src: &Path,
+    out: &Path,
     (cx, cy, z): (f64, f64, f64),
     half: f32,
+    linear: [f32; 9],
     index: u8,
     name: &str,
     brdf: BrdfSpec,
@@ -257,7 +274,7 @@ pub fn with_plate(
     });
     b.instances.push(Instance {
         translation: [cx, cy, z],
-        linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+        linear,
         template: (b.templates.len() - 1) as u32,
     });
     b.write(out, true).unwrap();

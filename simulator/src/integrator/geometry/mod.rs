@@ -133,6 +133,26 @@ pub trait Geometry<W: Weight> {
         }
     }
 
+    /// How many plane mirrors relay sunlight to this geometry's surfaces (scene geometries;
+    /// none by default).
+    fn mirror_count(&self) -> usize {
+        0
+    }
+
+    /// The direction from which mirror `k` relays sunlight to the surfaces (the Sun's image in
+    /// it), when the Sun lights its face.
+    fn mirror_image(&self, _k: usize) -> Option<DVec3> {
+        None
+    }
+
+    /// The sunlight mirror `k` relays to the surface hit `h` from direction `image`, in units of
+    /// the Sun's irradiance: the mirror's Fresnel reflectance times the Sun's transmittance to
+    /// the mirror point and on to `h`, 0 when `image` does not meet that mirror first or the Sun
+    /// does not reach it.
+    fn sun_via_mirror(&self, _h: &Self::Hit, _k: usize, _image: DVec3) -> f64 {
+        0.0
+    }
+
     /// Whether the Sun shines (false: `illumination.type = "none"`, thermal emission only: the
     /// estimator then makes no next-event estimate).
     fn sun_shines(&self) -> bool {
