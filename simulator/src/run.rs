@@ -152,7 +152,7 @@ fn channel_walks(
         range,
         sample_stream(exp, ids),
         |rng| Some(sensor::backward_start_altitude(toa, m, cell, rng)),
-        |_| ChannelPath::new(&geometry),
+        |g, _| ChannelPath::new(g),
     )
 }
 
@@ -298,7 +298,7 @@ fn scene_channel_walks(
         range,
         sample_stream(exp, ids),
         |rng| Some(sensor::scene_start(&geometry.base, m, cell, rng)),
-        |_| SceneChannelPath::new(&geometry),
+        |g, _| SceneChannelPath::new(g),
     )
 }
 
@@ -433,7 +433,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     range,
                     stream,
                     |rng| sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
-                    at_sensor,
+                    |_, d0| at_sensor(d0),
                 )
             } else {
                 let lit_from = |sun| {
@@ -448,7 +448,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     range,
                     stream,
                     |rng| Some(sensor::scene_start(&g, m, cell, rng)),
-                    at_sensor,
+                    |_, d0| at_sensor(d0),
                 )
             }
         }
@@ -472,7 +472,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     range,
                     stream,
                     |rng| sensor::spherical_start(shell, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
-                    at_sensor,
+                    |_, d0| at_sensor(d0),
                 )
             } else {
                 let lit_from = |sun| {
@@ -489,7 +489,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     range,
                     stream,
                     |rng| Some(sensor::backward_start(opt, m, cell, rng)),
-                    at_sensor,
+                    |_, d0| at_sensor(d0),
                 )
             }
         }
@@ -498,19 +498,20 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
 
 /// Backward walks of one cell into `cells` accumulator cells (one, or one per wavelength of a
 /// spectral walk): each sample's stream, its start (None: the line of sight misses the medium,
-/// a zero sample) and the weight it starts with (given the direction it leaves the sensor).
+/// a zero sample) and the weight it starts with (given the geometry it walks and the direction
+/// it leaves the sensor).
 /// With the Moon beside the Sun (`moon`), every sample is a Sun-lit walk plus an independent
 /// Moon-lit one in the Sun's units, so the samples' scatter holds both sources' noise.
 #[allow(clippy::too_many_arguments)]
-fn backward_block<G: Geometry<W>, W: Adjoint>(
-    g: &G,
-    moon: Option<&MoonWalks<'_, G>>,
+fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
+    g: &'g G,
+    moon: Option<&'g MoonWalks<'_, G>>,
     settings: &crate::integrator::settings::IntegratorSettings,
     cells: usize,
     range: std::ops::Range<u64>,
     stream: impl Fn(u64) -> Stream,
     start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
-    weight: impl Fn(DVec3) -> W,
+    weight: impl Fn(&'g G, DVec3) -> W,
 ) -> Accum {
     let mut acc = W::accum(cells);
     if settings.replicates {
@@ -521,13 +522,15 @@ fn backward_block<G: Geometry<W>, W: Adjoint>(
         let mut rng = stream(s);
         acc.begin_sample(s);
         let mut t = match start(&mut rng) {
-            Some((p0, d0)) => backward::walk(g, p0, d0, weight(d0), settings, &mut rng),
+            Some((p0, d0)) => backward::walk(g, p0, d0, weight(g, d0), settings, &mut rng),
             None => W::zero_tally(),
         };
         if let Some(mw) = moon {
             let mut rng = (mw.stream)(s);
             if let Some((p0, d0)) = start(&mut rng) {
-                let tm = backward::walk(&mw.g, p0, d0, weight(d0), settings, &mut rng);
+                // The weight is bound to the Moon's geometry (channel weights carry its
+                // transmittances).
+                let tm = backward::walk(&mw.g, p0, d0, weight(&mw.g, d0), settings, &mut rng);
                 W::add_tally(&mut t, &tm, &mw.ratio);
             }
         }

@@ -1179,31 +1179,32 @@ impl InstanceBvh {
         is_mirror: impl Fn(u16) -> bool,
         max: usize,
     ) -> Option<Vec<(DVec3, u16)>> {
+        // Per template, its mirror planes; a template with more than `max` already ends the
+        // search (a curved mirror mesh would otherwise cost a quadratic dedup).
         let per_template: Vec<Vec<(DVec3, u16)>> = self
             .templates
             .iter()
             .map(|t| {
-                let mut out = Vec::new();
-                let mut add = |n: DVec3, m: u16| {
-                    if is_mirror(m) {
-                        push_plane(&mut out, (n.normalize(), m));
+                let (normals, materials): (Vec<DVec3>, &[u16]) = match t {
+                    TemplateBlas::Tris(b) => {
+                        (b.prims.iter().map(|p| p.normal64()).collect(), &b.materials)
+                    }
+                    TemplateBlas::Discs(b) => {
+                        (b.prims.iter().map(|p| p.normal64()).collect(), &b.materials)
                     }
                 };
-                match t {
-                    TemplateBlas::Tris(b) => b
-                        .prims
-                        .iter()
-                        .zip(&b.materials)
-                        .for_each(|(p, &m)| add(p.normal64(), m)),
-                    TemplateBlas::Discs(b) => b
-                        .prims
-                        .iter()
-                        .zip(&b.materials)
-                        .for_each(|(p, &m)| add(p.normal64(), m)),
+                let mut out = Vec::new();
+                for (n, &m) in normals.iter().zip(materials) {
+                    if is_mirror(m) {
+                        push_plane(&mut out, (n.normalize(), m));
+                        if out.len() > max {
+                            return None;
+                        }
+                    }
                 }
-                out
+                Some(out)
             })
-            .collect();
+            .collect::<Option<_>>()?;
         let mut planes = Vec::new();
         if per_template.iter().all(|p| p.is_empty()) {
             return Some(planes);
@@ -1388,18 +1389,21 @@ impl InstanceBvh {
     }
 }
 
-/// The inverse linear part of an instance in f64.
-#[inline(always)]
+/// Normals within this of each other (1 − |cos|) are one mirror plane.
+pub const SAME_PLANE: f64 = 1e-9;
+
 /// Add the plane (unit normal up to sign, material) to `planes` unless one like it is there.
 fn push_plane(planes: &mut Vec<(DVec3, u16)>, (n, m): (DVec3, u16)) {
     if !planes
         .iter()
-        .any(|(q, k)| *k == m && n.dot(*q).abs() > 1.0 - 1e-9)
+        .any(|(q, k)| *k == m && n.dot(*q).abs() > 1.0 - SAME_PLANE)
     {
         planes.push((n, m));
     }
 }
 
+/// The inverse linear part of an instance in f64.
+#[inline(always)]
 fn linv64(rec: &InstanceRecord) -> DMat3 {
     let l = rec.linv.map(|x| x as f64);
     DMat3::from_cols_array(&l)
@@ -1819,7 +1823,7 @@ mod tests {
 
     /// Mirror planes: the box's faces of the mirror materials, turned by each instance; the
     /// same rotation twice and the two opposite faces of the box (one plane up to sign) count
-    /// once; more than `max` distinct planes give `None`.
+    /// once; more than `max` distinct planes give `None`; normals follow the inverse transpose.
     #[test]
     fn mirror_planes_are_the_distinct_turned_faces() {
         let tr = |angle: f64| InstanceTransform {
@@ -1851,6 +1855,16 @@ mod tests {
         );
         assert!(bvh.mirror_planes(is_mirror, 9).is_none());
         assert!(bvh.mirror_planes(|_| false, 0).unwrap().is_empty());
+        // Normals turn with the inverse transpose: a shear of x along y keeps the ±y faces in
+        // planes y = const (the linear part itself would tilt the normal to (0.45, 0.89, 0)).
+        let shear = InstanceTransform {
+            translation: DVec3::ZERO,
+            linear: Mat3::from_cols(Vec3::X, Vec3::new(0.5, 1.0, 0.0), Vec3::Z),
+        };
+        let bvh = InstanceBvh::new(vec![box_mesh()], vec![(0, shear)], DVec3::ZERO).unwrap();
+        let planes = bvh.mirror_planes(|m| m == 14, 16).unwrap();
+        assert_eq!(planes.len(), 1);
+        assert!((planes[0].0.y.abs() - 1.0).abs() < 1e-12, "{planes:?}");
     }
 
     /// Invalid inputs are refused; empty scenes and empty templates hit nothing.

@@ -143,6 +143,27 @@ pub struct MirrorPlane {
     pub index: (f64, f64),
 }
 
+impl MirrorPlane {
+    /// The Sun's image in this plane seen from the lit side (`sun`: unit vector towards the
+    /// Sun): `s − 2(s·n)n`; none for a Sun in the plane.
+    pub fn image(&self, sun: DVec3) -> Option<DVec3> {
+        let c = sun.dot(self.normal);
+        (c.abs() > 1e-9).then(|| sun - 2.0 * c * self.normal)
+    }
+}
+
+/// What a surface sees of a mirror plane towards the Sun's image in it ([`Scene::mirror_seen`]).
+#[derive(Clone, Copy, Debug)]
+pub struct MirrorPoint {
+    /// The ray's start (off the surface) and the mirror hit.
+    pub start: DVec3,
+    pub hit: SurfaceHit,
+    /// Cosine of the Sun's incidence on the mirror.
+    pub cos: f64,
+    /// Length of the ray from `start` to the hit, m.
+    pub distance: f64,
+}
+
 /// Most distinct mirror planes a scene relays sunlight through (each costs one more ray per
 /// surface next-event estimate).
 pub const MAX_MIRROR_PLANES: usize = 16;
@@ -501,9 +522,10 @@ impl Scene {
 
     /// The plane mirrors of the scene (surfaces of `mirror` solvers): the flat ground, if it is
     /// one, and every distinct plane of mirror triangles and discs of the objects. Empty when
-    /// there are more than [`MAX_MIRROR_PLANES`] (a warning says so once) and for mirrors of
-    /// the terrain and of bent scenes, whose sunlight is then not relayed
-    /// (`integrator/geometry/scene_layers.rs`, `SceneInLayers::sun_via_mirror`).
+    /// there are more than [`MAX_MIRROR_PLANES`] (a warning says so once); the terrain's mirrors
+    /// and a bent scene's ground (a sphere) are not listed, so their sunlight is not relayed
+    /// (`Geometry::sun_via_mirror` of the scene geometries). Bent scenes turn no instance, so
+    /// their objects' planes are the templates'.
     pub fn mirror_planes(&self) -> &[MirrorPlane] {
         self.mirror_planes.get_or_init(|| {
             let index = |m: u16| match self.solver(m) {
@@ -555,6 +577,55 @@ impl Scene {
         table[id] = spec;
         self.set_solvers(table);
         Ok(())
+    }
+
+    /// The mirror point of plane `k` ([`Scene::mirror_planes`]) that the surface hit `h` sees
+    /// towards the Sun's `image` in it: the ray's start (offset off `h`), the mirror hit (first
+    /// along the ray past `null` surfaces, of the plane's material and normal, its face towards
+    /// the Sun), the cosine of the Sun's incidence there and the ray's length; `None` when the
+    /// ray meets anything else first or nothing. The caller adds the Fresnel reflectance of the
+    /// plane's `index`, the Sun's visibility and the transmittances.
+    pub fn mirror_seen(
+        &self,
+        h: &SurfaceHit,
+        k: usize,
+        image: DVec3,
+        sun: DVec3,
+    ) -> Option<MirrorPoint> {
+        let planes = self.mirror_planes();
+        let start = self.offset(h.point, h.normal, image);
+        let (mut o, mut distance) = (start, 0.0);
+        for _ in 0..64 {
+            let m = self.intersect(o, image, f64::INFINITY)?;
+            // (`t` runs on across the cells of a periodic scene, where `m.point` is wrapped.)
+            distance += m.t;
+            if let bundle::SolverSpec::Null {} = self.solver(m.material) {
+                o = self.offset(m.point, m.normal, image);
+                continue;
+            }
+            // The hit must lie in plane k: of its material, its normal nearest to k's of all
+            // the planes (nearly parallel planes are apart), and within the planes' tolerance.
+            let nearest = planes
+                .iter()
+                .enumerate()
+                .filter(|(_, p)| p.material == m.material)
+                .map(|(i, p)| (i, m.normal.dot(p.normal).abs()))
+                .max_by(|a, b| a.1.total_cmp(&b.1));
+            // `m.normal` faces the ray, so the Sun must light that face.
+            let cos = sun.dot(m.normal);
+            return match nearest {
+                Some((i, c)) if i == k && c > 1.0 - super::instances::SAME_PLANE && cos > 0.0 => {
+                    Some(MirrorPoint {
+                        start,
+                        hit: m,
+                        cos,
+                        distance,
+                    })
+                }
+                _ => None,
+            };
+        }
+        None
     }
 
     /// Occlusion that looks through `null` materials: closest hits, stepping past each null

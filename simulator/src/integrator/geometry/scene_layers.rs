@@ -74,6 +74,12 @@ impl SceneInLayers<'_> {
     }
 }
 
+/// The Fresnel reflectance of the scene's mirror plane `k` for the Sun's incidence cosine `cos`.
+pub(crate) fn mirror_reflectance(scene: &Scene, k: usize, cos: f64) -> f64 {
+    let (n, k_abs) = scene.mirror_planes()[k].index;
+    crate::integrator::solver::fresnel_reflectance(n, k_abs, cos)
+}
+
 /// The surface at a scene hit: black for [`BLACK`], a Lambertian from the texture where one
 /// covers a terrain hit, else the material's model.
 pub(crate) fn scene_surface<'m>(
@@ -242,41 +248,21 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
     }
 
     fn mirror_image(&self, k: usize) -> Option<DVec3> {
-        let n = self.scene.mirror_planes()[k].normal;
-        let c = self.sun.dot(n);
-        // The Sun's image in the plane (either face: the lit one).
-        (c.abs() > 1e-9).then(|| self.sun - 2.0 * c * n)
+        self.scene.mirror_planes()[k].image(self.sun)
     }
 
-    /// A ray from the hit towards the image must meet that mirror first (past `null` surfaces);
-    /// the Sun must reach the mirror point. Transmittances: the layers' along the ray and the
-    /// Sun's to the mirror point.
+    /// The mirror point seen towards the image (`Scene::mirror_seen`) must see the Sun.
+    /// Transmittances: the layers' along the ray and the Sun's to the mirror point.
     fn sun_via_mirror(&self, h: &SurfaceHit, k: usize, image: DVec3) -> f64 {
-        let plane = self.scene.mirror_planes()[k];
-        let start = self.scene.offset(h.point, h.normal, image);
-        let mut o = start;
-        for _ in 0..64 {
-            let Some(m) = self.scene.intersect(o, image, f64::INFINITY) else {
-                return 0.0;
-            };
-            if let crate::integrator::solver::SolverSpec::Null {} = self.scene.solver(m.material) {
-                o = self.scene.offset(m.point, m.normal, image);
-                continue;
-            }
-            if m.material != plane.material || m.normal.dot(plane.normal).abs() < 1.0 - 1e-6 {
-                return 0.0;
-            }
-            let cos = self.sun.dot(m.normal);
-            if cos <= 0.0 || !self.sees_sun(self.scene.offset(m.point, m.normal, self.sun)) {
-                return 0.0;
-            }
-            let r =
-                crate::integrator::solver::fresnel_reflectance(plane.index.0, plane.index.1, cos);
-            let t = (m.point - start).length();
-            let path = self.atmosphere.optical_path(start.z, image.z, t);
-            return r * (-path).exp() * self.t_sun(m.point.z);
+        let Some(m) = self.scene.mirror_seen(h, k, image, self.sun) else {
+            return 0.0;
+        };
+        let y = m.hit.point;
+        if !self.sees_sun(self.scene.offset(y, m.hit.normal, self.sun)) {
+            return 0.0;
         }
-        0.0
+        let path = self.atmosphere.optical_path(m.start.z, image.z, m.distance);
+        mirror_reflectance(self.scene, k, m.cos) * (-path).exp() * self.t_sun(y.z)
     }
 }
 

@@ -24,7 +24,7 @@
 
 use glam::DVec3;
 
-use super::scene_layers::scene_surface;
+use super::scene_layers::{mirror_reflectance, scene_surface};
 use super::shells::split_flight;
 use super::{stratified_estimate, Event, Geometry, Light, Split};
 use crate::atmosphere::spherical::{ShellEnd, SphericalShell};
@@ -212,6 +212,33 @@ impl<W: Weight> Geometry<W> for SceneInShells<'_> {
     fn leave(&self, h: &SurfaceHit, d: DVec3) -> (DVec3, usize) {
         let p = self.scene.offset(h.point, h.normal, d) + self.lift();
         (p, self.shell_of(p))
+    }
+    #[inline]
+    fn mirror_count(&self) -> usize {
+        self.scene.mirror_planes().len()
+    }
+
+    fn mirror_image(&self, k: usize) -> Option<DVec3> {
+        self.scene.mirror_planes()[k].image(self.sun)
+    }
+
+    /// As in plane-parallel layers, with the shells' optical depth along the ray and the Sun's
+    /// transmittance and visibility from the mirror point (bent scenes turn no instance, so
+    /// their mirror planes are the templates').
+    fn sun_via_mirror(&self, h: &SurfaceHit, k: usize, image: DVec3) -> f64 {
+        let Some(m) = self.scene.mirror_seen(h, k, image, self.sun) else {
+            return 0.0;
+        };
+        let q = self.scene.offset(m.hit.point, m.hit.normal, self.sun) + self.lift();
+        let sun = self.sun_seen(q, self.shell_of(q));
+        if sun <= 0.0 {
+            return 0.0;
+        }
+        let p = m.start + self.lift();
+        let depth = self
+            .shell
+            .optical_depth_within(p, self.shell_of(p), image, m.distance);
+        mirror_reflectance(self.scene, k, m.cos) * (-depth).exp() * sun
     }
     #[inline]
     fn solver(&self, h: &Self::Hit) -> crate::integrator::solver::SolverSpec {
