@@ -175,7 +175,7 @@ fn canopy_solvers_by_name() {
 /// `max_generations = 1`: each sample is its next-event estimates, exact) the BRF there is
 /// ρ·(1 + R(60°)) with the Fresnel reflectance R written out here, and ρ farther south; with a
 /// black wall both are ρ. Nadir and a view from the south (past the wall). Then through an
-/// absorbing layer, which checks the relayed beam's transmittances.
+/// absorbing layer, plane-parallel and as a spherical shell.
 #[test]
 fn mirror_walls_relay_sunlight_in_closed_form() {
     let dir = tmp("mirror-wall");
@@ -247,6 +247,21 @@ fn mirror_walls_relay_sunlight_in_closed_form() {
         let want = 0.3 * (1.0 + r) * (-0.3 / mu_s).exp() * (-0.3 / vza.to_radians().cos()).exp();
         println!("absorbing layer, view zenith {vza}: {b:?} (closed form {want})");
         assert!((b.0 - want).abs() < 1e-9 && b.1 < 1e-7, "{b:?} vs {want}");
+    }
+    // The same layer as a spherical shell (the scene bent onto the Earth, `SceneInShells`):
+    // the slant paths are a little shorter than in plane-parallel layers (+0.09 % here), the
+    // same for the Sun's beam and its image's, so with the glass wall the BRF is the black
+    // wall's times 1 + R (over 100 m the local vertical turns by 2e-5 rad: to 1e-5).
+    let shell = "[geometry]\ntype = \"spherical_shell\"\n";
+    let in_shell = |bundle| {
+        brf(&text(bundle, relayed).replacen("[scene]", &format!("{shell}{absorbing}[scene]"), 1))
+    };
+    for (g, b) in in_shell(&glass).into_iter().zip(in_shell(&black)) {
+        println!(
+            "spherical shell: glass {g:?}, black {b:?}, ratio − (1 + R) = {:.2e}",
+            g.0 / b.0 - 1.0 - r
+        );
+        assert!((g.0 / b.0 - 1.0 - r).abs() < 1e-5, "{g:?} / {b:?}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
