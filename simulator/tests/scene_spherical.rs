@@ -119,6 +119,52 @@ fn flat_bundle_on_the_sphere_equals_1d_spherical() {
     assert!(errs.is_empty(), "{}", errs.join("\n"));
 }
 
+/// Twilight over a 3D scene: with the Sun 5° below the horizon only the shells' sunlit air
+/// lights the ground, and the flat bundle of the test above (background of the same material)
+/// gives the 1D spherical walk's radiances (no BRF without the Sun above the horizon: the rows
+/// have none). E0 = 1000 so that the radiances sit far above the test's absolute floor.
+#[test]
+fn twilight_over_a_flat_bundle_equals_1d_spherical() {
+    let b = write_plane(&tmp("twilight-2km"), &flat_plane(2000.0, 0.0, -1000.0, 0.3));
+    let head = |seed: u64| {
+        format!(
+            "seed = {seed}\n[spectral]\nwavelengths = [550.0]\n\
+             [geometry]\ntype = \"spherical_shell\"\n\
+             [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.3\n\
+             [illumination]\ntype = \"directional\"\nzenith = 95.0\nazimuth = 30.0\nirradiance = 1000.0\n"
+        )
+    };
+    let m = mdistant_toml("toa", &[0.0, 40.0, 60.0], &[0.0, 30.0, 210.0], 100_000);
+    let e3 = experiment(&format!(
+        "{}[scene]\ntype = \"bundle\"\npath = \"{}\"\n{m}target_m = [499000.0, 3999000.0, 501000.0, 4001000.0]\n",
+        head(21),
+        b.display(),
+    ));
+    let e1 = experiment(&format!(
+        "{}[surface]\ntype = \"lambertian\"\nreflectance = 0.3\n{m}",
+        head(22)
+    ));
+    let (r3, r1) = (run_rows(&e3), run_rows(&e1));
+    let cmps: Vec<common::Cmp> = r3
+        .iter()
+        .zip(&r1)
+        .map(|(x, y)| {
+            assert!(x.brf.is_none() && y.brf.is_none(), "no BRF in twilight");
+            let (va, ea) = x.radiance.unwrap();
+            let (vb, eb) = y.radiance.unwrap();
+            common::Cmp {
+                label: format!("vza {:?} vaa {:?}", x.vza, x.vaa),
+                reference: vb,
+                value: va,
+                stderr: (ea * ea + eb * eb).sqrt(),
+            }
+        })
+        .collect();
+    if let Err(e) = common::check_all("twilight: flat bundle on the sphere = 1D", &cmps) {
+        panic!("{e}");
+    }
+}
+
 /// Canopies stay plane-parallel: a clear error names the key.
 #[test]
 fn canopy_under_a_spherical_shell_is_refused() {

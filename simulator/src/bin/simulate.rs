@@ -684,10 +684,12 @@ fn write_products(
             "{:<16} {} × {} px, quicklook: {what}",
             img.id, img.width, img.height
         );
+        let quantity = if img.has_brf { "BRF" } else { "radiance" };
         for (w, (b, e, s)) in exp.wavelengths.iter().zip(products::imagery::medians(img)) {
             println!(
-                "{:<16} {w:>8.2} nm: median BRF {b:.5}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
+                "{:<16} {w:>8.2} nm: median {quantity} {}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
                 img.id,
+                summary_value(b),
                 100.0 * e,
                 s
             );

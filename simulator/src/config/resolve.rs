@@ -348,10 +348,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let scene: Option<Arc<Scene>> = match &cfg.scene {
         None => None,
         Some(sc) => {
-            if sun.dir.z <= 1e-6 {
+            // Plane-parallel layers refuse a Sun below the horizon already; in spherical shells a
+            // scene may lie in twilight (the shells' sunlit air lights it; radiances only).
+            if sun.dir.z <= 1e-6 && planet_radius.is_none() {
                 return Err(ctx.err(
                     "illumination.zenith",
-                    "the Sun must be above the horizon to render a 3D scene",
+                    "the Sun must be above the horizon to render a 3D scene in plane-parallel layers (use geometry.type = \"spherical_shell\" for twilight)",
                 ));
             }
             // Under a spherical shell the scene is bent onto the planet (scene::curvature).

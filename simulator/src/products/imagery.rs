@@ -42,6 +42,9 @@ pub struct ImageProduct {
     pub geotransform: Option<[f64; 6]>,
     /// WKT of the CRS (empty when the scene has none).
     pub wkt: String,
+    /// Whether the BRF is defined (the Sun above the target's horizon): without, the files
+    /// carry radiances only and `brf` holds π·L/E0 (normalised by cos SZA = 1).
+    pub has_brf: bool,
     /// `[wavelength][pixel]`, row-major from the north / the top.
     pub brf: Vec<Vec<f64>>,
     pub brf_stderr: Vec<Vec<f64>>,
@@ -113,6 +116,7 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                         .as_ref()
                         .and_then(|s| s.georef.as_ref())
                         .map_or(String::new(), |g| g.wkt.clone()),
+                    has_brf: exp.sun_up(),
                     brf: blank.clone(),
                     brf_stderr: blank.clone(),
                     brf_single: blank.clone(),
@@ -260,8 +264,8 @@ pub fn write_files(
                 "standard error of the radiance",
             ),
         ];
-        if !exp.sun_shines {
-            // No Sun (thermal emission only): there is no BRF.
+        if !p.has_brf {
+            // No Sun (thermal emission only) or the Sun below the horizon: there is no BRF.
             sets.retain(|s| !s.0.starts_with("brf"));
         }
         if let Some((bt, bt_se)) = &p.brightness_temperature {
@@ -337,14 +341,20 @@ pub fn write_files(
         written.push(path);
         return Ok((written, d));
     }
-    let channels: Vec<&[f64]> = p.brf.iter().map(|v| v.as_slice()).collect();
+    let (images, unit) = if p.has_brf {
+        (&p.brf, "BRF")
+    } else {
+        (&p.radiance, "W m-2 sr-1 nm-1 radiance")
+    };
+    let channels: Vec<&[f64]> = images.iter().map(|v| v.as_slice()).collect();
     let what = write_quicklook_png(&path, p.width, p.height, &exp.wavelengths, &channels)?;
     written.push(path);
-    Ok((written, format!("{what} BRF")))
+    Ok((written, format!("{what} {unit}")))
 }
 
-/// Per wavelength: median BRF, median relative standard error and median single-scattering
-/// fraction over the pixels with a finite, positive BRF (for summaries).
+/// Per wavelength: median BRF (the median radiance where [`ImageProduct::has_brf`] is false),
+/// median relative standard error and median single-scattering fraction over the pixels with
+/// a finite, positive BRF (for summaries).
 pub fn medians(p: &ImageProduct) -> Vec<(f64, f64, f64)> {
     let med = |mut v: Vec<f64>| -> f64 {
         if v.is_empty() {
@@ -358,8 +368,9 @@ pub fn medians(p: &ImageProduct) -> Vec<(f64, f64, f64)> {
             let ok: Vec<usize> = (0..p.brf[iw].len())
                 .filter(|&c| p.brf[iw][c].is_finite() && p.brf[iw][c] > 0.0)
                 .collect();
+            let value = if p.has_brf { &p.brf } else { &p.radiance };
             (
-                med(ok.iter().map(|&c| p.brf[iw][c]).collect()),
+                med(ok.iter().map(|&c| value[iw][c]).collect()),
                 med(ok
                     .iter()
                     .map(|&c| p.brf_stderr[iw][c] / p.brf[iw][c])

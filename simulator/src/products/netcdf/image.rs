@@ -85,6 +85,10 @@ pub(super) fn write(f: &mut netcdf::FileMut, p: &ImageProduct) -> Result<(), net
             "standard error of radiance",
         ),
     ];
+    if !p.has_brf {
+        // No Sun (thermal emission only) or the Sun below the horizon: radiances only.
+        sets.retain(|s| !s.0.starts_with("brf"));
+    }
     if let Some(st) = &p.stokes {
         sets.extend([
             (
