@@ -165,6 +165,46 @@ fn twilight_over_a_flat_bundle_equals_1d_spherical() {
     }
 }
 
+/// A twilight image's products hold radiances only: `simulate run` writes the radiance
+/// GeoTIFFs and a radiance quicklook, no BRF GeoTIFF, and `results.nc` keeps the BRF variable
+/// (its layout unchanged) filled with NaN; the summary says "median radiance".
+#[test]
+fn twilight_images_hold_radiances_only() {
+    let dir = tmp("twilight-image");
+    let b = write_plane(&dir, &flat_plane(2000.0, 0.0, -1000.0, 0.3));
+    let exp = dir.join("twilight.toml");
+    std::fs::write(
+        &exp,
+        format!(
+            "seed = 3\n[spectral]\nwavelengths = [550.0]\n\
+             [geometry]\ntype = \"spherical_shell\"\n\
+             [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.3\n\
+             [illumination]\ntype = \"directional\"\nzenith = 95.0\nirradiance = 1000.0\n\
+             [scene]\ntype = \"bundle\"\npath = \"{}\"\n\
+             [[measures]]\nid = \"toa\"\ntype = \"ortho\"\npixel_size_m = 500.0\nspp = 64\n",
+            b.display()
+        ),
+    )
+    .unwrap();
+    let out = dir.join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+        .args(["run", exp.to_str().unwrap(), "-o", out.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&o.stdout);
+    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
+    assert!(stdout.contains("median radiance") && stdout.contains("radiance"), "{stdout}");
+    assert!(out.join("toa_radiance.tif").exists() && out.join("toa.png").exists());
+    assert!(!out.join("toa_brf.tif").exists() && !out.join("toa_brf_stderr.tif").exists());
+    let nc = netcdf::open(out.join("results.nc")).unwrap();
+    let brf: Vec<f64> = nc.variable("toa_brf").unwrap().get_values(..).unwrap();
+    let rad: Vec<f64> = nc.variable("toa_radiance").unwrap().get_values(..).unwrap();
+    assert_eq!(brf.len(), 16);
+    assert!(brf.iter().all(|v| v.is_nan()), "{brf:?}");
+    assert!(rad.iter().all(|v| v.is_finite() && *v > 0.0), "{rad:?}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 /// Canopies stay plane-parallel: a clear error names the key.
 #[test]
 fn canopy_under_a_spherical_shell_is_refused() {

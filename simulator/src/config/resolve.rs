@@ -69,9 +69,9 @@ pub struct Experiment {
 }
 
 impl Experiment {
-    /// The cosine that normalises samples and BRFs: cos SZA when the Sun is above the target's
-    /// horizon, else 1 (twilight in spherical shells: radiance only, no BRF).
-    /// Whether the Sun is above the target's horizon (SZA below 90° by more than 0.2″).
+    /// Whether the Sun is above the target's horizon (SZA below 90° by more than 0.2″). The
+    /// target is the origin of the local frame: a large bent scene near the terminator has the
+    /// Sun up or down by this one vertical, not by each pixel's.
     pub fn sun_up(&self) -> bool {
         self.sun_shines && self.sun_dir.z > 1e-6
     }
@@ -85,6 +85,8 @@ impl Experiment {
         }
     }
 
+    /// The cosine that normalises samples and BRFs: cos SZA when the Sun is above the target's
+    /// horizon, else 1 (twilight in spherical shells: radiance only, no BRF).
     pub fn mu_norm(&self) -> f64 {
         if self.sun_up() {
             self.sun_dir.z

@@ -16,7 +16,10 @@
 //!   band's wavelength, delta-method error);
 //! * both: `ID.png`, a quicklook of the BRF (true colour when wavelengths near 660/550/440 nm
 //!   were simulated, grey otherwise; see `products::image`), or in thermal runs of the first
-//!   wavelength's brightness temperature (grey from its 1st to its 99th percentile).
+//!   wavelength's brightness temperature (grey from its 1st to its 99th percentile), or without
+//!   the Sun above the horizon (twilight) of the radiance;
+//! * without the Sun above the horizon (thermal emission only, twilight) there is no BRF: the
+//!   BRF-normalised files (`ID_brf*.tif`, `ID_q.tif`, `ID_u.tif`) are not written.
 //!
 //! Units: radiance W m⁻² sr⁻¹ nm⁻¹ (the irradiance's unit per sr), BRF dimensionless.
 
@@ -264,10 +267,7 @@ pub fn write_files(
                 "standard error of the radiance",
             ),
         ];
-        if !p.has_brf {
-            // No Sun (thermal emission only) or the Sun below the horizon: there is no BRF.
-            sets.retain(|s| !s.0.starts_with("brf"));
-        }
+
         if let Some((bt, bt_se)) = &p.brightness_temperature {
             sets.extend([
                 ("brightness_temperature", bt, "K", "brightness temperature"),
@@ -301,6 +301,11 @@ pub fn write_files(
                     "standard error of the degree of linear polarization",
                 ),
             ]);
+        }
+        if !p.has_brf {
+            // No Sun (thermal emission only) or the Sun below the horizon: no BRF-normalised
+            // files (the radiances, brightness temperatures and DoLP stay).
+            sets.retain(|s| !(s.0.starts_with("brf") || s.0 == "q" || s.0 == "u"));
         }
         for (name, data, units, long) in sets {
             let bands: Vec<ImageBand> = exp

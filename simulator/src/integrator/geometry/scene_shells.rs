@@ -46,7 +46,8 @@ pub struct SceneInShells<'a> {
     /// (`Scene::sun_clearance`, in the bent scene's frame): shadow rays from points above it
     /// are not cast.
     pub clearance: Option<std::sync::Arc<crate::scene::sun_clearance::SunClearance>>,
-    /// cos SZA at the scene's origin (normalises samples to BRF).
+    /// cos SZA at the scene's origin (normalises samples to BRF), or 1 with the Sun below the
+    /// horizon there (twilight: radiances only).
     pub mu_norm: f64,
     /// nm (for reflectance textures).
     pub wavelength: f64,

@@ -9,6 +9,8 @@
 //! * data `ID_brf`, `ID_brf_stderr`, `ID_brf_single`, `ID_brf_multiple`, `ID_radiance`,
 //!   `ID_radiance_stderr` on `(wavelength, ID_y, ID_x)`; polarized runs add `ID_q`, `ID_u`,
 //!   `ID_dolp`, `ID_dolp_stderr`; ortho images carry the view angles as attributes `vza`, `vaa`;
+//!   without the Sun above the horizon (thermal emission only, twilight) the BRF-normalised
+//!   ones (`ID_brf*`, `ID_q`, `ID_u`) are NaN;
 //! * `ID_n_samples(wavelength)`: the fewest samples of any pixel;
 //! * `ID_pixel_samples(wavelength, y, x)`: the samples of each pixel (adaptive rounds stop
 //!   pixels that meet the target early).
@@ -85,10 +87,6 @@ pub(super) fn write(f: &mut netcdf::FileMut, p: &ImageProduct) -> Result<(), net
             "standard error of radiance",
         ),
     ];
-    if !p.has_brf {
-        // No Sun (thermal emission only) or the Sun below the horizon: radiances only.
-        sets.retain(|s| !s.0.starts_with("brf"));
-    }
     if let Some(st) = &p.stokes {
         sets.extend([
             (
@@ -112,8 +110,15 @@ pub(super) fn write(f: &mut netcdf::FileMut, p: &ImageProduct) -> Result<(), net
             ),
         ]);
     }
+    // No Sun (thermal emission only) or the Sun below the horizon: the BRF-normalised variables
+    // stay (the file's layout does not change) but are left empty (NaN), as in the tables.
+    let empty = |name: &str| !p.has_brf && (name.starts_with("brf") || name == "q" || name == "u");
     for (name, data, units, long) in sets {
-        let flat: Vec<f64> = data.iter().flatten().copied().collect();
+        let flat: Vec<f64> = if empty(name) {
+            vec![f64::NAN; data.iter().map(|v| v.len()).sum()]
+        } else {
+            data.iter().flatten().copied().collect()
+        };
         let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &["wavelength", &dy, &dx])?;
         v.put_attribute("units", units)?;
         v.put_attribute("long_name", long)?;
