@@ -192,8 +192,15 @@ fn twilight_images_hold_radiances_only() {
         .output()
         .unwrap();
     let stdout = String::from_utf8_lossy(&o.stdout);
-    assert!(o.status.success(), "{stdout}\n{}", String::from_utf8_lossy(&o.stderr));
-    assert!(stdout.contains("median radiance") && stdout.contains("radiance"), "{stdout}");
+    assert!(
+        o.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        stdout.contains("median radiance") && stdout.contains("radiance"),
+        "{stdout}"
+    );
     assert!(out.join("toa_radiance.tif").exists() && out.join("toa.png").exists());
     assert!(!out.join("toa_brf.tif").exists() && !out.join("toa_brf_stderr.tif").exists());
     let nc = netcdf::open(out.join("results.nc")).unwrap();
