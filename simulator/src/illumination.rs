@@ -293,7 +293,7 @@ impl IlluminationConfig {
                     "needs `time` with `latitude` and `longitude` (the Moon's position is computed for that time and place)",
                 ))
             }
-            (true, Some(t)) => Some(moon_with_sun(
+            (true, Some(t)) => Some(moon_at(
                 ctx,
                 wavelengths,
                 spherical,
@@ -303,8 +303,9 @@ impl IlluminationConfig {
                     longitude.unwrap_or(0.0),
                     elevation.unwrap_or(0.0),
                 ),
-                moon_irradiance.as_ref(),
-                &irradiance,
+                "illumination.moon",
+                ("moon_irradiance", moon_irradiance.as_ref()),
+                || Ok(irradiance.clone()),
             )?),
         };
         if let Some(k) = sun_distance_factor {
@@ -376,71 +377,21 @@ fn irradiance_at(
     })
 }
 
-/// `moon = true` with a directional Sun at `time`: the Moon at that time and place, its
-/// irradiance `given` (a lunar spectrum) or the lunar model on the Sun's spectrum at 1 AU
-/// `solar_1au`.
+/// The Moon at `time` and place (both Moon keys): its position (refused below the horizon of a
+/// plane-parallel run, an error at `key`) and its irradiance at the run wavelengths, `given` as
+/// (key, lunar spectrum) or the lunar magnitude law applied to the solar spectrum at 1 AU that
+/// `solar_1au` reads (a phase beyond the law is an error at `key` asking for the given key).
 #[allow(clippy::too_many_arguments)]
-fn moon_with_sun(
+fn moon_at(
     ctx: &ConfigCtx,
     wavelengths: &[f64],
     spherical: bool,
     time: &str,
     (lat, lon, elevation): (f64, f64, f64),
-    given: Option<&IrradianceValue>,
-    solar_1au: &[f64],
+    key: &str,
+    given: (&str, Option<&IrradianceValue>),
+    solar_1au: impl FnOnce() -> Result<Vec<f64>, ConfigError>,
 ) -> Result<Moonlight, ConfigError> {
-    let p = crate::moon::moon_position(time, lat, lon, elevation)
-        .map_err(|m| ctx.err("illumination.time", m))?;
-    tracing::info!(
-        "Moon at {time} (with the Sun): zenith {:.4}°, azimuth {:.4}°, phase angle {:.2}°, distance {:.0} km",
-        p.zenith,
-        p.azimuth,
-        p.phase_angle,
-        p.distance_km
-    );
-    if !spherical && p.zenith >= 90.0 {
-        return Err(ctx.err(
-            "illumination.moon",
-            format!("the Moon is below the horizon at {time} (zenith {:.2}°) and a plane-parallel atmosphere has no twilight: drop `moon` or use geometry.type = \"spherical_shell\"", p.zenith),
-        ));
-    }
-    let irradiance = match given {
-        Some(v) => irradiance_at(ctx, "illumination.moon_irradiance", v, wavelengths)?,
-        None => {
-            let ratio = crate::moon::irradiance_ratio(&p).map_err(|m| {
-                ctx.err(
-                    "illumination.moon",
-                    m.replace("give `irradiance`", "give `moon_irradiance`"),
-                )
-            })?;
-            solar_1au.iter().map(|e| e * ratio).collect()
-        }
-    };
-    let azimuth_deg = p.azimuth.rem_euclid(360.0);
-    Ok(Moonlight {
-        zenith_deg: p.zenith,
-        azimuth_deg,
-        dir: direction_from_angles(p.zenith.to_radians(), azimuth_deg.to_radians()),
-        irradiance,
-    })
-}
-
-/// `type = "moon"`: the Moon's position at `time` and place, and its irradiance.
-fn resolve_moon(
-    ctx: &ConfigCtx,
-    wavelengths: &[f64],
-    spherical: bool,
-    time: &str,
-    (lat, lon, elevation): (f64, f64, f64),
-    irradiance: Option<&IrradianceValue>,
-    solar_spectrum: Option<&str>,
-) -> Result<Sun, ConfigError> {
-    if irradiance.is_some() && solar_spectrum.is_some() {
-        return Err(ctx.err(
-            "illumination.solar_spectrum",
-            "is used only by the lunar model, not with a given `irradiance`",
-        ));
-    }
     let lat = ctx.finite("illumination.latitude", lat)?;
     let lon = ctx.finite("illumination.longitude", lon)?;
     let elevation = ctx.finite("illumination.elevation", elevation)?;
@@ -455,29 +406,68 @@ fn resolve_moon(
     );
     if !spherical && p.zenith >= 90.0 {
         return Err(ctx.err(
-            "illumination.time",
+            key,
             format!("the Moon is below the horizon at {time} (zenith {:.2}°); a plane-parallel atmosphere has no twilight (use geometry.type = \"spherical_shell\")", p.zenith),
         ));
     }
-    let e0 = match (irradiance, solar_spectrum) {
-        (Some(_), Some(_)) => unreachable!("checked above"),
-        (Some(v), None) => irradiance_at(ctx, "illumination.irradiance", v, wavelengths)?,
-        (None, name) => {
-            let ratio =
-                crate::moon::irradiance_ratio(&p).map_err(|m| ctx.err("illumination.time", m))?;
-            let spectrum = IrradianceValue::Spectrum(name.unwrap_or("thuillier_2003").to_string());
-            irradiance_at(ctx, "illumination.solar_spectrum", &spectrum, wavelengths)?
-                .into_iter()
-                .map(|e| e * ratio)
-                .collect()
+    let (given_key, given) = given;
+    let irradiance = match given {
+        Some(v) => irradiance_at(ctx, &format!("illumination.{given_key}"), v, wavelengths)?,
+        None => {
+            let ratio = crate::moon::irradiance_ratio(&p).map_err(|m| {
+                ctx.err(
+                    key,
+                    m.replace("give `irradiance`", &format!("give `{given_key}`")),
+                )
+            })?;
+            solar_1au()?.into_iter().map(|e| e * ratio).collect()
         }
     };
-    Ok(Sun {
+    Ok(Moonlight {
         zenith_deg: p.zenith,
         azimuth_deg: p.azimuth,
         dir: direction_from_angles(p.zenith.to_radians(), p.azimuth.to_radians()),
+        irradiance,
+    })
+}
+
+/// `type = "moon"`: the Moon's position at `time` and place, and its irradiance (given, or the
+/// lunar model on `solar_spectrum`).
+fn resolve_moon(
+    ctx: &ConfigCtx,
+    wavelengths: &[f64],
+    spherical: bool,
+    time: &str,
+    place: (f64, f64, f64),
+    irradiance: Option<&IrradianceValue>,
+    solar_spectrum: Option<&str>,
+) -> Result<Sun, ConfigError> {
+    if irradiance.is_some() && solar_spectrum.is_some() {
+        return Err(ctx.err(
+            "illumination.solar_spectrum",
+            "is used only by the lunar model, not with a given `irradiance`",
+        ));
+    }
+    let m = moon_at(
+        ctx,
+        wavelengths,
+        spherical,
+        time,
+        place,
+        "illumination.time",
+        ("irradiance", irradiance),
+        || {
+            let name = solar_spectrum.unwrap_or("thuillier_2003").to_string();
+            let spectrum = IrradianceValue::Spectrum(name);
+            irradiance_at(ctx, "illumination.solar_spectrum", &spectrum, wavelengths)
+        },
+    )?;
+    Ok(Sun {
+        zenith_deg: m.zenith_deg,
+        azimuth_deg: m.azimuth_deg,
+        dir: m.dir,
         distance_au: None,
-        irradiance: e0,
+        irradiance: m.irradiance,
         shines: true,
         moon: None,
     })
