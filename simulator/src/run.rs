@@ -142,8 +142,9 @@ fn channel_walks(
     let m = &exp.measures[im];
     let toa = g.reference.toa();
     let ids = [key, im as u64, cell as u64];
-    let geometry = ReferenceLayers::new(g, exp.sun_dir).with_sun_shining(exp.sun_shines);
-    let moon = moon_walks(exp, ids, moon_ratio, |dir| ReferenceLayers::new(g, dir));
+    let (geometry, moon) = sun_and_moon(exp, ids, moon_ratio, |dir| {
+        ReferenceLayers::new(g, dir).with_sun_shining(exp.sun_shines)
+    });
     backward_block(
         &geometry,
         moon.as_ref(),
@@ -170,20 +171,21 @@ struct MoonWalks<'a, G> {
     stream: Box<dyn Fn(u64) -> Stream + 'a>,
 }
 
-/// [`MoonWalks`] for the walks keyed `ids` when the experiment has a Moon beside the Sun,
-/// with the geometry `lit_from(moon direction)`.
-fn moon_walks<'a, G>(
+/// The walks keyed `ids`: the geometry lit from the Sun, `lit_from(Sun direction)`, and when the
+/// experiment has a Moon beside the Sun its [`MoonWalks`] in `lit_from(Moon direction)`
+/// (`ratio`: E_moon/E_sun per accumulator cell).
+fn sun_and_moon<'a, G>(
     exp: &'a Experiment,
     ids: [u64; 3],
     ratio: &[f64],
-    lit_from: impl FnOnce(DVec3) -> G,
-) -> Option<MoonWalks<'a, G>> {
-    let moon = exp.moon.as_ref()?;
-    Some(MoonWalks {
+    lit_from: impl Fn(DVec3) -> G,
+) -> (G, Option<MoonWalks<'a, G>>) {
+    let moon = exp.moon.as_ref().map(|moon| MoonWalks {
         g: lit_from(moon.dir),
         ratio: ratio.to_vec(),
         stream: Box::new(sample_stream(exp, [ids[0] | MOON_STREAM, ids[1], ids[2]])),
-    })
+    });
+    (lit_from(exp.sun_dir), moon)
 }
 
 /// Tag of the random streams of spectral ALIS groups (keyed by the group's first wavelength
@@ -248,7 +250,17 @@ fn run_block_spectral(
     // One cell per wavelength of the group, split into one accumulator each.
     let ratio: Vec<f64> = group.iter().map(|&iw| exp.moon_ratio(iw)).collect();
     let all = match &exp.scene {
-        Some(_) => scene_channel_walks(exp, &g, sg.reference_member, group, key, im, cell, range),
+        Some(_) => scene_channel_walks(
+            exp,
+            &g,
+            sg.reference_member,
+            group,
+            key,
+            &ratio,
+            im,
+            cell,
+            range,
+        ),
         None => channel_walks(exp, &g, key, &ratio, im, cell, range),
     };
     (0..group.len())
@@ -262,7 +274,8 @@ fn run_block_spectral(
 
 /// Backward walks of a 3D scene in plane-parallel layers over the wavelengths `group`
 /// (channels `g`, whose reference is member `reference` of the group; `scene_alis.rs`): one
-/// accumulator cell per wavelength.
+/// accumulator cell per wavelength; `moon_ratio`: E_moon/E_sun per wavelength (used with the
+/// Moon beside the Sun).
 #[allow(clippy::too_many_arguments)]
 fn scene_channel_walks(
     exp: &Experiment,
@@ -270,6 +283,7 @@ fn scene_channel_walks(
     reference: usize,
     group: &[usize],
     key: u64,
+    moon_ratio: &[f64],
     im: usize,
     cell: usize,
     range: std::ops::Range<u64>,
@@ -282,14 +296,11 @@ fn scene_channel_walks(
         .map(|&iw| exp.optics[iw].scene_models.as_slice())
         .collect();
     let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
-    let lit_from = |sun| {
+    let ids = [key, im as u64, cell as u64];
+    let (geometry, moon) = sun_and_moon(exp, ids, moon_ratio, |sun| {
         let base = scene_in_layers(exp, sun, g.reference, opt, None);
         SceneChannels::new(base, g, &models, &wavelengths, reference)
-    };
-    let geometry = lit_from(exp.sun_dir);
-    let ids = [key, im as u64, cell as u64];
-    let ratio: Vec<f64> = group.iter().map(|&iw| exp.moon_ratio(iw)).collect();
-    let moon = moon_walks(exp, ids, &ratio, lit_from);
+    });
     backward_block(
         &geometry,
         moon.as_ref(),
@@ -413,7 +424,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
         Method::Scene => {
             let scene = exp.scene.as_ref().expect("scene method without a scene");
             if let Some(shell) = &opt.shell {
-                let lit_from = |sun| SceneInShells {
+                let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| SceneInShells {
                     shell,
                     scene,
                     models: &opt.scene_models,
@@ -423,11 +434,10 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     wavelength: opt.wavelength,
                     emission: opt.scene_emission.as_ref(),
                     shines: exp.sun_shines,
-                };
-                let g = lit_from(exp.sun_dir);
+                });
                 backward_block::<_, B>(
                     &g,
-                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
+                    moon.as_ref(),
                     settings,
                     1,
                     range,
@@ -436,13 +446,12 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     |_, d0| at_sensor(d0),
                 )
             } else {
-                let lit_from = |sun| {
+                let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
                     scene_in_layers(exp, sun, &opt.atmosphere, opt, opt.scene_emission.as_ref())
-                };
-                let g = lit_from(exp.sun_dir);
+                });
                 backward_block::<_, B>(
                     &g,
-                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
+                    moon.as_ref(),
                     settings,
                     1,
                     range,
@@ -454,7 +463,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
         }
         Method::Backward => {
             if let Some(shell) = &opt.shell {
-                let lit_from = |sun| Shells {
+                let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| Shells {
                     shell,
                     surface: &opt.surface,
                     sun,
@@ -462,11 +471,10 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     solver: settings.surface_solver,
                     surface_emission: opt.surface_emission.as_ref(),
                     shines: exp.sun_shines,
-                };
-                let g = lit_from(exp.sun_dir);
+                });
                 backward_block::<_, B>(
                     &g,
-                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
+                    moon.as_ref(),
                     settings,
                     1,
                     range,
@@ -475,15 +483,14 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     |_, d0| at_sensor(d0),
                 )
             } else {
-                let lit_from = |sun| {
+                let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
                     Layers::new(&opt.atmosphere, &opt.surface, sun)
                         .with_emission(opt.surface_emission.as_ref(), exp.sun_shines)
                         .with_solver(settings.surface_solver)
-                };
-                let g = lit_from(exp.sun_dir);
+                });
                 backward_block::<_, B>(
                     &g,
-                    moon_walks(exp, ids, &ratio, lit_from).as_ref(),
+                    moon.as_ref(),
                     settings,
                     1,
                     range,
