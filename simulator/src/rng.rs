@@ -61,8 +61,47 @@ pub struct Stream {
     pos: usize,
     /// Quasi-random draws left (0: Philox only), the point index and the scrambling seed.
     qmc_left: u32,
+    qmc_dim: u32,
     qmc_index: u32,
     qmc_seed: u32,
+    /// With `sobol`: the sample's first surface fan has not yet taken its points
+    /// ([`Stream::take_fan`]).
+    qmc_fan: bool,
+}
+
+/// Quasi-random draws of a fan's copy: the two numbers of its direction. (Taking the first
+/// draws of the path it continues from the same point as well, up to 8, measured no better on
+/// the street canyon of BENCHMARKS.md.)
+pub const FAN_DIMS: u32 = 2;
+
+/// The quasi-random numbers of one surface fan of `n` copies ([`Stream::take_fan`]): copy `j`
+/// of the sample with point index `i` draws its direction's two numbers from point `i·n + j` of
+/// a 2D Owen-scrambled Sobol sequence of its own (keyed by the sample's sequence), so over a
+/// cell's samples the fans' directions form one low-discrepancy set.
+#[derive(Clone, Copy, Debug)]
+pub struct FanPoints {
+    first: u64,
+    seed: u32,
+}
+
+/// A stream's quasi-random state, saved around a fan ([`Stream::qmc_state`]).
+#[derive(Clone, Copy, Debug)]
+pub struct QmcState {
+    left: u32,
+    dim: u32,
+    index: u32,
+    seed: u32,
+}
+
+impl FanPoints {
+    /// Make `rng`'s next [`FAN_DIMS`] draws those of copy `j`'s point.
+    pub fn enter(&self, j: u32, rng: &mut Stream) {
+        let g = self.first + u64::from(j);
+        rng.qmc_seed = mix64(u64::from(self.seed) ^ ((g / QMC_POINTS) << 32)) as u32;
+        rng.qmc_index = (g % QMC_POINTS) as u32;
+        rng.qmc_left = FAN_DIMS;
+        rng.qmc_dim = 0;
+    }
 }
 
 impl Stream {
@@ -78,8 +117,10 @@ impl Stream {
             buf: [0; 4],
             pos: 4,
             qmc_left: 0,
+            qmc_dim: 0,
             qmc_index: 0,
             qmc_seed: 0,
+            qmc_fan: false,
         }
     }
 
@@ -106,15 +147,50 @@ impl Stream {
             s.qmc_left = QMC_DIMS;
             s.qmc_index = (j % QMC_POINTS) as u32;
             s.qmc_seed = h as u32;
+            s.qmc_fan = true;
         }
         s
+    }
+
+    /// The quasi-random state, to be restored after a fan ([`Stream::restore_qmc`]).
+    pub fn qmc_state(&self) -> QmcState {
+        QmcState {
+            left: self.qmc_left,
+            dim: self.qmc_dim,
+            index: self.qmc_index,
+            seed: self.qmc_seed,
+        }
+    }
+
+    pub fn restore_qmc(&mut self, q: QmcState) {
+        self.qmc_left = q.left;
+        self.qmc_dim = q.dim;
+        self.qmc_index = q.index;
+        self.qmc_seed = q.seed;
+    }
+
+    /// With `sobol`, once per sample: the quasi-random points of a surface fan of `n` copies
+    /// (the first fan the sample's walk makes; later fans, and runs without `sobol`, draw
+    /// stratified pseudo-random numbers: `None`).
+    pub fn take_fan(&mut self, n: u32) -> Option<FanPoints> {
+        if !self.qmc_fan {
+            return None;
+        }
+        self.qmc_fan = false;
+        // The sample's point index within its replicate's sequence and that sequence's key
+        // (`for_sample`), salted so the fan's points are independent of the sample's own.
+        Some(FanPoints {
+            first: u64::from(self.qmc_index) * u64::from(n),
+            seed: mix64(u64::from(self.qmc_seed) ^ 0xFA17_0000_0000_0001) as u32,
+        })
     }
 
     /// A quasi-random draw: the Sobol coordinate (24 bits) plus Philox bits below them, so the
     /// value keeps 53 random bits (and `-ln u` its full range) within the stratum.
     #[cold]
     fn next_qmc(&mut self) -> f64 {
-        let dim = QMC_DIMS - self.qmc_left;
+        let dim = self.qmc_dim;
+        self.qmc_dim += 1;
         self.qmc_left -= 1;
         let v = sobol_burley::sample(self.qmc_index, dim, self.qmc_seed) as f64;
         let jitter = self.next_philox_f64() * (1.0 / (1u64 << 24) as f64);
@@ -168,6 +244,40 @@ impl Stream {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A surface fan's quasi-random points: taken once per Sobol sample (never without Sobol);
+    /// the 4 copies of a sample's fan are one aligned block of its 2D sequence, so each of the
+    /// 2 × 2, 4 × 1 and 1 × 4 cells of [0, 1)² holds exactly one of their directions' numbers;
+    /// the stream's own quasi-random state comes back with `restore_qmc`.
+    #[test]
+    fn fan_points_are_taken_once_and_stratified() {
+        assert!(Stream::for_sample(3, [1, 2, 3, 4], false)
+            .take_fan(4)
+            .is_none());
+        for sample in [0u64, 5, 16 * 7 + 3, 16 * 40_000 + 9] {
+            let mut s = Stream::for_sample(3, [1, 2, 3, sample], true);
+            let before = s.qmc_state();
+            let fan = s.take_fan(4).expect("a Sobol sample's first fan");
+            assert!(s.take_fan(4).is_none(), "a second fan of the sample");
+            let mut cells = [[0u32; 4]; 3];
+            for j in 0..4 {
+                fan.enter(j, &mut s);
+                let (u0, u1) = (s.next_f64(), s.next_f64());
+                assert!((0.0..1.0).contains(&u0) && (0.0..1.0).contains(&u1));
+                let (a, b) = ((u0 * 2.0) as usize, (u1 * 2.0) as usize);
+                cells[0][a * 2 + b] += 1;
+                cells[1][(u0 * 4.0) as usize] += 1;
+                cells[2][(u1 * 4.0) as usize] += 1;
+            }
+            assert_eq!(cells, [[1; 4]; 3], "sample {sample}");
+            s.restore_qmc(before);
+            let q = s.qmc_state();
+            assert_eq!(
+                (q.left, q.dim, q.index, q.seed),
+                (before.left, before.dim, before.index, before.seed)
+            );
+        }
+    }
 
     /// Without Sobol a sample's stream is `Stream::new` (bit-identical default runs); with it
     /// the first draws of each replicate's 64 samples among a cell's 1024 are stratified (each

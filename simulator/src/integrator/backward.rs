@@ -503,17 +503,44 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
         };
     match fan {
         Fan::Sampled(n) => {
+            // Stratified: copy j draws its sampler's two numbers from cell j of an a × b grid
+            // of [0, 1)², so each copy is unbiased and together they cover the hemisphere
+            // evenly (a cosine sampler's first number sets the zenith, the second the azimuth).
+            // With the `sobol` sampler the sample's first fan takes its numbers from a Sobol
+            // sequence over all the cell's fans instead (`Stream::take_fan`).
+            let (a, b) = solver::fan_strata(n);
+            let qmc = rng.take_fan(n);
+            let saved = rng.qmc_state();
             let k = 1.0 / f64::from(n);
-            for _ in 0..n {
+            for j in 0..n {
+                let u = match &qmc {
+                    Some(points) => {
+                        points.enter(j, rng);
+                        [rng.next_f64(), rng.next_f64(), rng.next_f64()]
+                    }
+                    None => [
+                        (f64::from(j / b) + rng.next_f64()) / f64::from(a),
+                        (f64::from(j % b) + rng.next_f64()) / f64::from(b),
+                        rng.next_f64(),
+                    ],
+                };
+                let Some(sample) = surface.sample_at(-d, u) else {
+                    continue;
+                };
+                let drawn = SurfaceAt::Forced {
+                    base: surface,
+                    sample,
+                };
                 let mut c = w.splittable().expect("fan-out weights copy");
                 let i = c.intensity();
                 if i > 0.0 {
                     c.rescale_to(i * k, i);
                 }
-                if let Some(d2) = c.reflect(surface, d, rng) {
+                if let Some(d2) = c.reflect(&drawn, d, rng) {
                     continue_from(c, d2, rng, tally, budget);
                 }
             }
+            rng.restore_qmc(saved);
         }
         Fan::Classic(nz, na) => {
             let wo = -d;

@@ -31,6 +31,19 @@ pub fn generic_samples(first: u32, decay: f64, g: u32) -> u32 {
     (n.round() as u32).max(1)
 }
 
+/// The grid `(a, b)`, `a·b = n`, whose cells stratify a fan of `n` directions: `a` the largest
+/// divisor of `n` not above √n (zenith cells), `b = n/a` (azimuth cells); 4 → 2 × 2,
+/// 8 → 2 × 4, a prime `n` → 1 × n.
+pub fn fan_strata(n: u32) -> (u32, u32) {
+    let n = n.max(1);
+    let a = (1..=n)
+        .take_while(|a| a * a <= n)
+        .filter(|a| n % a == 0)
+        .last()
+        .unwrap_or(1);
+    (a, n / a)
+}
+
 /// The `classic` quadrature of a surface with unit normal `n` for light leaving along `wo`:
 /// each node's direction towards the light and its weight `f·cos·ΔΩ = f·π/(n_θ n_φ)` as a
 /// [`SurfaceSample`] (pdf `1/ΔΩ`), given the BRDF·cos evaluator `eval_cos(wi)`.
@@ -146,6 +159,21 @@ pub fn fresnel_matrix(n: f64, k: f64, cos_i: f64) -> PhaseMatrix {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn fan_strata_split_n_into_a_grid() {
+        for (n, grid) in [
+            (1, (1, 1)),
+            (2, (1, 2)),
+            (4, (2, 2)),
+            (7, (1, 7)),
+            (8, (2, 4)),
+            (12, (3, 4)),
+            (16, (4, 4)),
+        ] {
+            assert_eq!(fan_strata(n), grid, "{n}");
+        }
+    }
 
     #[test]
     fn fresnel_dielectric_closed_forms() {

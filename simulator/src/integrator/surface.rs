@@ -147,19 +147,30 @@ impl SurfaceAt<'_> {
     /// walks still weigh that direction for their other channels.
     #[inline]
     pub fn sample(&self, wo: DVec3, rng: &mut Stream) -> Option<SurfaceSample> {
+        let u = match self {
+            SurfaceAt::Flat { .. } => [rng.next_f64(), rng.next_f64(), 0.0],
+            SurfaceAt::Scene { .. } => [rng.next_f64(), rng.next_f64(), rng.next_f64()],
+            SurfaceAt::Mirror { .. } | SurfaceAt::Forced { .. } => [0.0; 3],
+        };
+        self.sample_at(wo, u)
+    }
+
+    /// [`SurfaceAt::sample`] from the given uniform numbers `u` in [0, 1): a flat surface uses
+    /// the first two, a scene material all three, a mirror or a forced sample none. The
+    /// `generic` solver's fan stratifies the first two (`backward.rs`).
+    #[inline]
+    pub fn sample_at(&self, wo: DVec3, u: [f64; 3]) -> Option<SurfaceSample> {
         match self {
             SurfaceAt::Flat { bsdf, frame } => {
                 let wo_l = frame.map_or(wo, |f| f.local(wo));
-                let s = bsdf.sample(wo_l, rng.next_f64(), rng.next_f64());
+                let s = bsdf.sample(wo_l, u[0], u[1]);
                 (s.pdf > 0.0).then(|| SurfaceSample {
                     wi: frame.map_or(s.wi, |f| f.world(s.wi)),
                     weight: s.weight,
                     pdf: s.pdf,
                 })
             }
-            SurfaceAt::Scene { model, n } => {
-                model.sample(*n, wo, [rng.next_f64(), rng.next_f64(), rng.next_f64()])
-            }
+            SurfaceAt::Scene { model, n } => model.sample(*n, wo, u),
             SurfaceAt::Mirror { n, index } => {
                 let c = wo.dot(*n);
                 (c > 0.0).then(|| SurfaceSample {

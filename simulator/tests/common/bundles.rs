@@ -310,3 +310,63 @@ pub fn write_random_leaves(
     }
     std::fs::write(path, leaves).unwrap();
 }
+
+/// A copy of the bundle `src` in `out` with rows of box buildings: one template, a box
+/// `width` (x) × `length` (y) × `height` m on the ground (z ≥ 0), its four walls of material
+/// `wall` (id 7) and its roof of `roof` (id 8), placed with its footprint centred on (x, 0) for
+/// every x of `rows`: parallel street canyons running along y.
+pub fn with_building_rows(
+    src: &Path,
+    out: &Path,
+    rows: &[f64],
+    (width, length, height): (f32, f32, f32),
+    wall: BrdfSpec,
+    roof: BrdfSpec,
+) -> PathBuf {
+    let mut b = Bundle::open(src).unwrap();
+    for (index, name, brdf) in [(7u8, "wall", wall), (8, "roof", roof)] {
+        b.manifest.materials.push(Material {
+            index,
+            name: name.into(),
+            brdf,
+            class_codes: vec![],
+            source: "test".into(),
+            solver: None,
+            temperature: None,
+        });
+    }
+    let (hx, hy) = (0.5 * width, 0.5 * length);
+    // Corners 0–3 at the ground, 4–7 at the top, counter-clockwise seen from above.
+    let mut positions = Vec::new();
+    for z in [0.0, height] {
+        positions.extend([[-hx, -hy, z], [hx, -hy, z], [hx, hy, z], [-hx, hy, z]]);
+    }
+    let mut indices = Vec::new();
+    let mut materials = Vec::new();
+    for k in 0..4u32 {
+        let (a, b2) = (k, (k + 1) % 4);
+        indices.push([a, b2, b2 + 4]);
+        indices.push([a, b2 + 4, a + 4]);
+        materials.extend([7, 7]);
+    }
+    indices.push([4, 5, 6]);
+    indices.push([4, 6, 7]);
+    materials.extend([8, 8]);
+    b.templates.push(TemplateMesh {
+        name: "building".into(),
+        source: "test".into(),
+        positions,
+        indices,
+        materials,
+    });
+    let template = (b.templates.len() - 1) as u32;
+    for &x in rows {
+        b.instances.push(Instance {
+            translation: [x, 0.0, 0.0],
+            linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            template,
+        });
+    }
+    b.write(out, true).unwrap();
+    out.to_path_buf()
+}
