@@ -185,15 +185,16 @@ impl Stream {
         })
     }
 
-    /// A quasi-random draw: the Sobol coordinate (24 bits) plus Philox bits below them, so the
-    /// value keeps 53 random bits (and `-ln u` its full range) within the stratum.
+    /// A quasi-random draw: the Sobol coordinate (23 bits: sobol_burley's f32 in [0, 1)) plus
+    /// Philox bits below them, so the value keeps 53 random bits (and `-ln u` its full range)
+    /// within the stratum.
     #[cold]
     fn next_qmc(&mut self) -> f64 {
         let dim = self.qmc_dim;
         self.qmc_dim += 1;
         self.qmc_left -= 1;
         let v = sobol_burley::sample(self.qmc_index, dim, self.qmc_seed) as f64;
-        let jitter = self.next_philox_f64() * (1.0 / (1u64 << 24) as f64);
+        let jitter = self.next_philox_f64() * (1.0 / (1u64 << 23) as f64);
         (v + jitter).min(1.0 - f64::EPSILON)
     }
 
@@ -254,8 +255,14 @@ mod tests {
         assert!(Stream::for_sample(3, [1, 2, 3, 4], false)
             .take_fan(4)
             .is_none());
+        let sobol_part = |u: f64| (u * (1u64 << 23) as f64).floor();
         for sample in [0u64, 5, 16 * 7 + 3, 16 * 40_000 + 9] {
             let mut s = Stream::for_sample(3, [1, 2, 3, sample], true);
+            let mut plain = s.clone();
+            // The sample's own first two dimensions, then the fan.
+            for _ in 0..2 {
+                assert_eq!(sobol_part(s.next_f64()), sobol_part(plain.next_f64()));
+            }
             let before = s.qmc_state();
             let fan = s.take_fan(4).expect("a Sobol sample's first fan");
             assert!(s.take_fan(4).is_none(), "a second fan of the sample");
@@ -276,6 +283,11 @@ mod tests {
                 (q.left, q.dim, q.index, q.seed),
                 (before.left, before.dim, before.index, before.seed)
             );
+            // After the fan the sample's remaining quasi-random dimensions go on where they
+            // stopped (their Sobol parts equal those of a stream that made no fan).
+            for _ in 2..QMC_DIMS {
+                assert_eq!(sobol_part(s.next_f64()), sobol_part(plain.next_f64()));
+            }
         }
     }
 

@@ -365,13 +365,13 @@ fn canyon_street(
     )
 }
 
-/// The `generic` solver's fan where it pays (BENCHMARKS.md, "Per-material radiometry solvers"):
-/// four first-bounce directions on the shaded road of a street canyon. With the Sobol sampler
-/// (the fan's copies take quasi-random points, `Stream::take_fan`) and with the random one
-/// (stratified copies), the street's BRF agrees with the default solver's (z ≤ 4.5); with the
-/// random one its error at equal samples is below 0.75× the default's (the fan is made); over 16
-/// seeds the Sobol fan's reported errors match the scatter of its results (RMS z in
-/// 0.7–1.35: a 16-value estimate).
+/// The `generic` solver's fan where it pays (BENCHMARKS.md, "A scene where per-material solvers
+/// pay off"): four first-bounce directions on the shaded road of a street canyon. With the
+/// Sobol sampler (the fan's copies take quasi-random points, `Stream::take_fan`) and with the
+/// random one (stratified copies), the street's BRF agrees with the default solver's
+/// (z ≤ 4.5); with the random one its error at equal samples is below 0.75× the default's (the
+/// fan is made); over 48 seeds the scatter of the Sobol fan's results matches the RMS of its
+/// reported errors (ratio in 0.8–1.3: a 48-value estimate of a skewed quantity; 1.16 here).
 #[test]
 fn a_fan_on_a_shaded_street_is_unbiased_and_honest() {
     let dir = tmp("canyon-fan");
@@ -394,19 +394,19 @@ fn a_fan_on_a_shaded_street_is_unbiased_and_honest() {
             );
         }
     }
-    let runs: Vec<(f64, f64)> = (10..26).map(|seed| one(seed, "sobol", fan, 4000)).collect();
-    let mean = runs.iter().map(|r| r.0).sum::<f64>() / runs.len() as f64;
+    let runs: Vec<(f64, f64)> = (10..58).map(|seed| one(seed, "sobol", fan, 2000)).collect();
     let n = runs.len() as f64;
-    let rms = (runs
-        .iter()
-        .map(|r| ((r.0 - mean) / r.1).powi(2))
-        .sum::<f64>()
-        / n
-        * n
-        / (n - 1.0))
-        .sqrt();
-    println!("Sobol fan over 16 seeds: mean {mean:.5}, RMS z {rms:.3}");
-    assert!((0.7..1.35).contains(&rms), "RMS z {rms}");
+    let mean = runs.iter().map(|r| r.0).sum::<f64>() / n;
+    let scatter = (runs.iter().map(|r| (r.0 - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+    let reported = (runs.iter().map(|r| r.1 * r.1).sum::<f64>() / n).sqrt();
+    println!(
+        "Sobol fan over 48 seeds: mean {mean:.5}, scatter {scatter:.3e}, RMS reported error {reported:.3e}, ratio {:.3}",
+        scatter / reported
+    );
+    assert!(
+        (0.8..1.3).contains(&(scatter / reported)),
+        "scatter {scatter} vs reported {reported}"
+    );
     let _ = std::fs::remove_dir_all(&dir);
 }
 

@@ -451,6 +451,9 @@ fn collide<G: Geometry<W>, W: Adjoint>(
     w.scatter(phase, omega, d, peak, rng)
 }
 
+/// The largest f64 below 1.
+const LAST_BELOW_ONE: f64 = 1.0 - f64::EPSILON / 2.0;
+
 /// Most `null` surfaces a path crosses in a row before it is dropped (a guard against a ray
 /// caught between coincident pass-through surfaces).
 const MAX_PASS_THROUGH: u32 = 64;
@@ -504,13 +507,18 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
     match fan {
         Fan::Sampled(n) => {
             // Stratified: copy j draws its sampler's two numbers from cell j of an a × b grid
-            // of [0, 1)², so each copy is unbiased and together they cover the hemisphere
-            // evenly (a cosine sampler's first number sets the zenith, the second the azimuth).
-            // With the `sobol` sampler the sample's first fan takes its numbers from a Sobol
-            // sequence over all the cell's fans instead (`Stream::take_fan`).
+            // of [0, 1)² (cells of equal area, copies of weight 1/n: the sum is unbiased), so
+            // together they cover the hemisphere evenly (a cosine sampler's first number sets
+            // the zenith, the second the azimuth). With the `sobol` sampler the sample's first
+            // fan takes its numbers from points of a Sobol sequence instead
+            // (`Stream::take_fan`), each copy then uniform on its own; the sample's own
+            // quasi-random state is put back after the fan.
             let (a, b) = solver::fan_strata(n);
             let qmc = rng.take_fan(n);
-            let saved = rng.qmc_state();
+            let saved = qmc.map(|_| rng.qmc_state());
+            // (x + r)/m can round up to 1 when r is Philox's largest value.
+            let cell =
+                |x: u32, m: u32, r: f64| ((f64::from(x) + r) / f64::from(m)).min(LAST_BELOW_ONE);
             let k = 1.0 / f64::from(n);
             for j in 0..n {
                 let u = match &qmc {
@@ -519,8 +527,8 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
                         [rng.next_f64(), rng.next_f64(), rng.next_f64()]
                     }
                     None => [
-                        (f64::from(j / b) + rng.next_f64()) / f64::from(a),
-                        (f64::from(j % b) + rng.next_f64()) / f64::from(b),
+                        cell(j / b, a, rng.next_f64()),
+                        cell(j % b, b, rng.next_f64()),
                         rng.next_f64(),
                     ],
                 };
@@ -540,7 +548,9 @@ fn fan_out<G: Geometry<W>, W: Adjoint>(
                     continue_from(c, d2, rng, tally, budget);
                 }
             }
-            rng.restore_qmc(saved);
+            if let Some(saved) = saved {
+                rng.restore_qmc(saved);
+            }
         }
         Fan::Classic(nz, na) => {
             let wo = -d;
