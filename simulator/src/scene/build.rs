@@ -48,6 +48,7 @@ pub fn from_bundle(
     textures: &[TextureRequest],
     bend: Option<Curvature>,
 ) -> Result<Scene, String> {
+    let _returned = super::LargeBlocksReturned::new();
     let t0 = Instant::now();
     let mut bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
     // The buffers are moved out of the bundle (and freed) as soon as their acceleration
