@@ -2137,3 +2137,254 @@ mod tests {
         }
     }
 }
+
+#[cfg(test)]
+mod amac_probe {
+    use super::*;
+    use glam::UVec2;
+    use obvhs::cwbvh::{firstbithigh, Traversal};
+    use obvhs::faststack::FastStack;
+
+    struct Lane {
+        st: Traversal,
+        ray: Ray,
+        origin: DVec3,
+        dir: DVec3,
+        tmin: f64,
+        s0: f64,
+        best: Best,
+        idx: usize,
+        buf: [u32; 64],
+    }
+
+    #[inline(always)]
+    fn prefetch<T>(p: *const T) {
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            std::arch::x86_64::_mm_prefetch(p as *const i8, std::arch::x86_64::_MM_HINT_T0);
+        }
+    }
+
+    impl InstanceBvh {
+        fn lane(&self, idx: usize, origin: DVec3, dir: DVec3, tmax: f64) -> Option<Lane> {
+            let tmin = 0.0;
+            let (a, b) = clip(origin, dir, self.lo_pad, self.hi_pad, tmin, tmax)?;
+            let s0 = a;
+            let o32 = (origin + dir * s0 - self.render_origin).as_vec3();
+            let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
+            let d32 = dir.as_vec3();
+            let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
+            let ray = Ray::new(
+                Vec3A::from(o32),
+                d,
+                (tmin - s0) as f32 - self.pad,
+                (b - s0) as f32 + self.pad,
+            );
+            Some(Lane {
+                st: self.tlas.new_traversal(d),
+                ray,
+                origin,
+                dir,
+                tmin,
+                s0,
+                best: Best {
+                    t: b,
+                    slot: u32::MAX,
+                    prim: u32::MAX,
+                },
+                idx,
+                buf: [0; 64],
+            })
+        }
+
+        #[inline(always)]
+        fn next_node(&self, l: &Lane) -> Option<usize> {
+            let hits_imask = l.st.current_group.y;
+            if hits_imask & 0xff000000 == 0 {
+                return None;
+            }
+            let off = firstbithigh(hits_imask);
+            let slot = (off - 24) ^ (l.st.oct_inv4 & 0xff);
+            let rel = (hits_imask & !(0xffffffffu32 << slot)).count_ones();
+            Some((l.st.current_group.x + rel) as usize)
+        }
+
+        #[inline(always)]
+        fn step(&self, l: &mut Lane) -> bool {
+            while l.st.primitive_group.y != 0 {
+                let k = firstbithigh(l.st.primitive_group.y);
+                l.st.primitive_group.y &= !(1u32 << k);
+                let c = (l.st.primitive_group.x + k) as usize;
+                for j in self.cluster_start[c]..self.cluster_start[c + 1] {
+                    if let Some((t, prim)) =
+                        self.hit_instance::<false>(j, l.origin, l.dir, l.tmin, l.best.t, &mut l.buf)
+                    {
+                        l.best = Best { t, slot: j, prim };
+                        let bound = (t - l.s0) as f32 + self.pad;
+                        if bound < l.ray.tmax {
+                            l.ray.tmax = bound;
+                        }
+                    }
+                }
+            }
+            l.st.primitive_group = UVec2::ZERO;
+            if let Some(n) = self.next_node(l) {
+                let off = firstbithigh(l.st.current_group.y);
+                l.st.current_group.y &= !(1u32 << off);
+                if l.st.current_group.y & 0xff000000 != 0 {
+                    l.st.stack.push(l.st.current_group);
+                }
+                let node = &self.tlas.nodes[n];
+                l.st.hitmask = node.intersect_ray(&l.ray, l.st.oct_inv4);
+                l.st.current_group.x = node.child_base_idx;
+                l.st.primitive_group.x = node.primitive_base_idx;
+                l.st.current_group.y = (l.st.hitmask & 0xff000000) | (node.imask as u32);
+                l.st.primitive_group.y = l.st.hitmask & 0x00ffffff;
+            } else {
+                l.st.current_group = UVec2::ZERO;
+            }
+            if l.st.primitive_group.y == 0 && (l.st.current_group.y & 0xff000000) == 0 {
+                if l.st.stack.is_empty() {
+                    return true;
+                }
+                l.st.current_group = l.st.stack.pop_fast();
+            }
+            let mut g = l.st.primitive_group.y;
+            while g != 0 {
+                let k = firstbithigh(g);
+                g &= !(1u32 << k);
+                let c = (l.st.primitive_group.x + k) as usize;
+                let j = self.cluster_start[c] as usize;
+                prefetch(&self.records[j]);
+                prefetch(&self.records[(j + 2).min(self.records.len() - 1)]);
+            }
+            if let Some(n) = self.next_node(l) {
+                prefetch(&self.tlas.nodes[n]);
+            }
+            false
+        }
+
+        fn closest_many(
+            &self,
+            rays: &[(DVec3, DVec3)],
+            tmax: &[f64],
+            k: usize,
+        ) -> Vec<Option<f64>> {
+            let mut out = vec![None; rays.len()];
+            let mut next = 0;
+            let mut lanes: Vec<Lane> = Vec::with_capacity(k);
+            loop {
+                while lanes.len() < k && next < rays.len() {
+                    if let Some(l) = self.lane(next, rays[next].0, rays[next].1, tmax[next]) {
+                        lanes.push(l);
+                    }
+                    next += 1;
+                }
+                if lanes.is_empty() {
+                    break;
+                }
+                let mut i = 0;
+                while i < lanes.len() {
+                    if self.step(&mut lanes[i]) {
+                        let l = lanes.swap_remove(i);
+                        if l.best.slot != u32::MAX {
+                            out[l.idx] = Some(l.best.t);
+                        }
+                    } else {
+                        i += 1;
+                    }
+                }
+            }
+            out
+        }
+    }
+
+    #[test]
+    #[ignore]
+    fn amac_probe_grenoble_instances() {
+        let scene = crate::scene::build::from_bundle(
+            std::path::Path::new("../out/grenoble"),
+            &crate::scene::build::Background::Flat {
+                altitude: None,
+                brdf: None,
+            },
+            &[],
+            &[],
+            None,
+        )
+        .unwrap();
+        let objects = scene.objects.as_ref().unwrap();
+        let e = scene.extent;
+        let mut rng = crate::rng::Stream::new(1, [0, 0, 0, 0]);
+        let top = scene.z_range[1] + 100.0;
+        let rays: Vec<(DVec3, DVec3)> = (0..1_000_000)
+            .map(|_| {
+                let o = DVec3::new(
+                    e[0] + (e[2] - e[0]) * rng.next_f64(),
+                    e[1] + (e[3] - e[1]) * rng.next_f64(),
+                    top,
+                );
+                let zen = std::f64::consts::PI - 30f64.to_radians() * rng.next_f64().sqrt();
+                let d = crate::frame::direction_from_angles(
+                    zen,
+                    std::f64::consts::TAU * rng.next_f64(),
+                );
+                (o, d)
+            })
+            .collect();
+        let (terrain, _) = scene.terrain.as_ref().unwrap();
+        for _ in 0..2 {
+            // The whole query (terrain, then instances bounded by its hit), one ray at a time
+            // and interleaved.
+            let s = std::time::Instant::now();
+            let whole: Vec<_> = rays
+                .iter()
+                .map(|&(o, d)| scene.intersect(o, d, f64::INFINITY).map(|h| h.t))
+                .collect();
+            let t_whole = s.elapsed().as_secs_f64();
+            let s = std::time::Instant::now();
+            let ter = terrain.closest_many(&rays, 16);
+            let bound: Vec<f64> = ter
+                .iter()
+                .map(|h| h.map_or(f64::INFINITY, |h| h.0))
+                .collect();
+            let inst = objects.closest_many(&rays, &bound, 16);
+            let t_il = s.elapsed().as_secs_f64();
+            let same = whole
+                .iter()
+                .zip(inst.iter().zip(&bound))
+                .filter(|(w, (i, b))| {
+                    let t = i.unwrap_or(**b);
+                    w.map(|v| v.to_bits()) == Some(t).filter(|t| t.is_finite()).map(|v| v.to_bits())
+                })
+                .count();
+            println!(
+                "whole scene: sequential {:.3e} rays/s, interleaved (16) {:.3e} rays/s, same hits {same}",
+                rays.len() as f64 / t_whole,
+                rays.len() as f64 / t_il
+            );
+            let s = std::time::Instant::now();
+            let a: Vec<_> = rays
+                .iter()
+                .map(|&(o, d)| objects.intersect(o, d, 0.0, f64::INFINITY).map(|h| h.t))
+                .collect();
+            let ta = s.elapsed().as_secs_f64();
+            println!("sequential: {:.3e} rays/s", rays.len() as f64 / ta);
+            for k in [1, 8, 16, 32] {
+                let s = std::time::Instant::now();
+                let b2 = objects.closest_many(&rays, &vec![f64::INFINITY; rays.len()], k);
+                let tb = s.elapsed().as_secs_f64();
+                let same = a
+                    .iter()
+                    .zip(&b2)
+                    .filter(|(x, y)| x.map(|v| v.to_bits()) == y.map(|v| v.to_bits()))
+                    .count();
+                println!(
+                    "interleaved k={k}: {:.3e} rays/s, same hits {same}/{}",
+                    rays.len() as f64 / tb,
+                    rays.len()
+                );
+            }
+        }
+    }
+}

@@ -582,3 +582,199 @@ mod tests {
             .is_none());
     }
 }
+
+#[cfg(test)]
+mod amac_probe {
+    use super::*;
+    use glam::UVec2;
+    use obvhs::cwbvh::firstbithigh;
+    use obvhs::cwbvh::Traversal;
+    use obvhs::faststack::FastStack;
+
+    struct Lane {
+        st: Traversal,
+        ray: Ray,
+        o: Vec3A,
+        d: Vec3A,
+        o2: DVec3,
+        dir: DVec3,
+        lo: f64,
+        t0: f64,
+        best: (f64, usize),
+        idx: usize,
+    }
+
+    #[inline(always)]
+    fn prefetch<T>(p: *const T) {
+        #[cfg(target_arch = "x86_64")]
+        unsafe {
+            std::arch::x86_64::_mm_prefetch(p as *const i8, std::arch::x86_64::_MM_HINT_T0);
+        }
+    }
+
+    impl TerrainBvh {
+        fn lane(&self, idx: usize, origin: DVec3, dir: DVec3) -> Option<Lane> {
+            let (t0, t1) = clip(origin, dir, self.lo, self.hi, 0.0, f64::INFINITY)?;
+            let o2 = origin + dir * t0;
+            let o = Vec3A::from((o2 - self.render_origin).as_vec3());
+            let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
+            let d32 = dir.as_vec3();
+            let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
+            let (lo, hi) = (-t0, t1 - t0);
+            let ray = Ray::new(o, d, -self.pad, up(hi) + self.pad);
+            Some(Lane {
+                st: self.bvh.new_traversal(d),
+                ray,
+                o,
+                d,
+                o2,
+                dir,
+                lo,
+                t0,
+                best: (hi, usize::MAX),
+                idx,
+            })
+        }
+
+        /// One iteration of obvhs' traverse! loop; true when the lane is done. Prefetches
+        /// what the next iteration reads.
+        #[inline(always)]
+        fn step(&self, l: &mut Lane) -> bool {
+            while l.st.primitive_group.y != 0 {
+                let k = firstbithigh(l.st.primitive_group.y);
+                l.st.primitive_group.y &= !(1u32 << k);
+                let id = (l.st.primitive_group.x + k) as usize;
+                if self.tris[id].may_hit(l.o, l.d) {
+                    if let Some(t) = moller_trumbore(l.o2, l.dir, &self.verts[id])
+                        .filter(|&t| t > l.lo && t < l.best.0)
+                    {
+                        l.best = (t, id);
+                        l.ray.tmax = up(t);
+                    }
+                }
+            }
+            l.st.primitive_group = UVec2::ZERO;
+            if l.st.current_group.y & 0xff000000 != 0 {
+                let hits_imask = l.st.current_group.y;
+                let off = firstbithigh(hits_imask);
+                let base = l.st.current_group.x;
+                l.st.current_group.y &= !(1u32 << off);
+                if l.st.current_group.y & 0xff000000 != 0 {
+                    l.st.stack.push(l.st.current_group);
+                }
+                let slot = (off - 24) ^ (l.st.oct_inv4 & 0xff);
+                let rel = (hits_imask & !(0xffffffffu32 << slot)).count_ones();
+                let node = &self.bvh.nodes[(base + rel) as usize];
+                l.st.hitmask = node.intersect_ray(&l.ray, l.st.oct_inv4);
+                l.st.current_group.x = node.child_base_idx;
+                l.st.primitive_group.x = node.primitive_base_idx;
+                l.st.current_group.y = (l.st.hitmask & 0xff000000) | (node.imask as u32);
+                l.st.primitive_group.y = l.st.hitmask & 0x00ffffff;
+            } else {
+                l.st.current_group = UVec2::ZERO;
+            }
+            if l.st.primitive_group.y == 0 && (l.st.current_group.y & 0xff000000) == 0 {
+                if l.st.stack.is_empty() {
+                    return true;
+                }
+                l.st.current_group = l.st.stack.pop_fast();
+            }
+            // Prefetch the next iteration's reads.
+            if l.st.primitive_group.y != 0 {
+                let id = (l.st.primitive_group.x + firstbithigh(l.st.primitive_group.y)) as usize;
+                prefetch(&self.tris[id]);
+                prefetch(&self.verts[id]);
+            }
+            if l.st.current_group.y & 0xff000000 != 0 {
+                let hits_imask = l.st.current_group.y;
+                let off = firstbithigh(hits_imask);
+                let slot = (off - 24) ^ (l.st.oct_inv4 & 0xff);
+                let rel = (hits_imask & !(0xffffffffu32 << slot)).count_ones();
+                prefetch(&self.bvh.nodes[(l.st.current_group.x + rel) as usize]);
+            }
+            false
+        }
+
+        pub(crate) fn closest_many(
+            &self,
+            rays: &[(DVec3, DVec3)],
+            k: usize,
+        ) -> Vec<Option<(f64, usize)>> {
+            let mut out = vec![None; rays.len()];
+            let mut next = 0;
+            let mut lanes: Vec<Lane> = Vec::with_capacity(k);
+            loop {
+                while lanes.len() < k && next < rays.len() {
+                    if let Some(l) = self.lane(next, rays[next].0, rays[next].1) {
+                        lanes.push(l);
+                    }
+                    next += 1;
+                }
+                if lanes.is_empty() {
+                    break;
+                }
+                let mut i = 0;
+                while i < lanes.len() {
+                    if self.step(&mut lanes[i]) {
+                        let l = lanes.swap_remove(i);
+                        if l.best.1 != usize::MAX {
+                            out[l.idx] = Some((l.t0 + l.best.0, l.best.1));
+                        }
+                    } else {
+                        i += 1;
+                    }
+                }
+            }
+            out
+        }
+    }
+
+    #[test]
+    #[ignore]
+    fn amac_probe_grenoble() {
+        let b = Bundle::open(std::path::Path::new("../out/grenoble")).unwrap();
+        let t = TerrainBvh::new(&b, None);
+        let (lo, hi) = t.bounds();
+        let mut rng = crate::rng::Stream::new(1, [0, 0, 0, 0]);
+        let top = hi.z + 100.0;
+        let rays: Vec<(DVec3, DVec3)> = (0..1_000_000)
+            .map(|_| {
+                let o = DVec3::new(
+                    lo.x + (hi.x - lo.x) * rng.next_f64(),
+                    lo.y + (hi.y - lo.y) * rng.next_f64(),
+                    top,
+                );
+                let zen = std::f64::consts::PI - 30f64.to_radians() * rng.next_f64().sqrt();
+                let d = crate::frame::direction_from_angles(
+                    zen,
+                    std::f64::consts::TAU * rng.next_f64(),
+                );
+                (o, d)
+            })
+            .collect();
+        for _ in 0..2 {
+            let s = std::time::Instant::now();
+            let a: Vec<_> = rays
+                .iter()
+                .map(|&(o, d)| t.intersect(o, d).map(|h| h.t))
+                .collect();
+            let ta = s.elapsed().as_secs_f64();
+            println!("sequential: {:.3e} rays/s", rays.len() as f64 / ta);
+            for k in [1, 4, 8, 16, 32] {
+                let s = std::time::Instant::now();
+                let b2 = t.closest_many(&rays, k);
+                let tb = s.elapsed().as_secs_f64();
+                let same = a
+                    .iter()
+                    .zip(&b2)
+                    .filter(|(x, y)| x.map(|v| v.to_bits()) == y.map(|v| v.0.to_bits()))
+                    .count();
+                println!(
+                    "interleaved k={k}: {:.3e} rays/s, same hits {same}/{}",
+                    rays.len() as f64 / tb,
+                    rays.len()
+                );
+            }
+        }
+    }
+}
