@@ -76,8 +76,8 @@ pub const FAN_DIMS: u32 = 2;
 
 /// The quasi-random numbers of one surface fan of `n` copies ([`Stream::take_fan`]): copy `j`
 /// of the sample with point index `i` draws its direction's two numbers from point `i·n + j` of
-/// a 2D Owen-scrambled Sobol sequence of its own (keyed by the sample's sequence), so over a
-/// cell's samples the fans' directions form one low-discrepancy set.
+/// a 2D Owen-scrambled Sobol sequence of its own (keyed by the sample's replicate sequence),
+/// so over a replicate's samples their first fans' directions form one low-discrepancy set.
 #[derive(Clone, Copy, Debug)]
 pub struct FanPoints {
     first: u64,

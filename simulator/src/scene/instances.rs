@@ -1306,6 +1306,23 @@ impl InstanceBvh {
         }
     }
 
+    /// The f32 traversal ray of the clipped segment `[a, b]` in the render frame, starting at
+    /// `a` where it enters the scene's box; direction components below 2.4·10⁻⁷ are snapped to
+    /// zero (obvhs would replace their inverse by ±1/ε, which shrinks the slab; the drift is
+    /// within the pad, as for the terrain).
+    #[inline(always)]
+    fn f32_ray(&self, origin: DVec3, dir: DVec3, tmin: f64, a: f64, b: f64) -> Ray {
+        let o32 = (origin + dir * a - self.render_origin).as_vec3();
+        let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
+        let d32 = dir.as_vec3();
+        Ray::new(
+            Vec3A::from(o32),
+            Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z)),
+            (tmin - a) as f32 - self.pad,
+            (b - a) as f32 + self.pad,
+        )
+    }
+
     /// The traversal proper on the clipped segment `[a, b]` (`a ≥ tmin`, `b ≤ tmax`).
     #[inline(always)]
     fn trace_in<const ANY: bool>(
@@ -1317,20 +1334,9 @@ impl InstanceBvh {
         b: f64,
         buf: &mut [u32],
     ) -> Option<Best> {
-        // f32 ray in the render frame, starting where it enters the scene's box; direction
-        // components below 2.4·10⁻⁷ are snapped to zero (obvhs would replace their inverse by
-        // ±1/ε, which shrinks the slab; the drift is within the pad, as for the terrain).
         let s0 = a;
-        let o32 = (origin + dir * s0 - self.render_origin).as_vec3();
-        let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
-        let d32 = dir.as_vec3();
         let pad = self.pad;
-        let ray = Ray::new(
-            Vec3A::from(o32),
-            Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z)),
-            (tmin - s0) as f32 - pad,
-            (b - s0) as f32 + pad,
-        );
+        let ray = self.f32_ray(origin, dir, tmin, a, b);
         let mut best = Best {
             t: b,
             slot: u32::MAX,
@@ -2140,84 +2146,29 @@ mod tests {
 
 #[cfg(test)]
 mod amac_probe {
+    use super::super::interleave::{self, prefetch};
     use super::*;
-    use glam::UVec2;
-    use obvhs::cwbvh::{firstbithigh, Traversal};
-    use obvhs::faststack::FastStack;
 
     struct Lane {
-        st: Traversal,
+        st: obvhs::cwbvh::Traversal,
         ray: Ray,
         origin: DVec3,
         dir: DVec3,
-        tmin: f64,
         s0: f64,
         best: Best,
         idx: usize,
         buf: [u32; 64],
     }
 
-    #[inline(always)]
-    fn prefetch<T>(p: *const T) {
-        #[cfg(target_arch = "x86_64")]
-        unsafe {
-            std::arch::x86_64::_mm_prefetch(p as *const i8, std::arch::x86_64::_MM_HINT_T0);
-        }
-    }
-
     impl InstanceBvh {
-        fn lane(&self, idx: usize, origin: DVec3, dir: DVec3, tmax: f64) -> Option<Lane> {
-            let tmin = 0.0;
-            let (a, b) = clip(origin, dir, self.lo_pad, self.hi_pad, tmin, tmax)?;
-            let s0 = a;
-            let o32 = (origin + dir * s0 - self.render_origin).as_vec3();
-            let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
-            let d32 = dir.as_vec3();
-            let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
-            let ray = Ray::new(
-                Vec3A::from(o32),
-                d,
-                (tmin - s0) as f32 - self.pad,
-                (b - s0) as f32 + self.pad,
-            );
-            Some(Lane {
-                st: self.tlas.new_traversal(d),
-                ray,
-                origin,
-                dir,
-                tmin,
-                s0,
-                best: Best {
-                    t: b,
-                    slot: u32::MAX,
-                    prim: u32::MAX,
-                },
-                idx,
-                buf: [0; 64],
-            })
-        }
-
-        #[inline(always)]
-        fn next_node(&self, l: &Lane) -> Option<usize> {
-            let hits_imask = l.st.current_group.y;
-            if hits_imask & 0xff000000 == 0 {
-                return None;
-            }
-            let off = firstbithigh(hits_imask);
-            let slot = (off - 24) ^ (l.st.oct_inv4 & 0xff);
-            let rel = (hits_imask & !(0xffffffffu32 << slot)).count_ones();
-            Some((l.st.current_group.x + rel) as usize)
-        }
-
+        /// One step of a lane: its primitive group's clusters (their instances' templates
+        /// traced at once), then the next node; true when done.
         #[inline(always)]
         fn step(&self, l: &mut Lane) -> bool {
-            while l.st.primitive_group.y != 0 {
-                let k = firstbithigh(l.st.primitive_group.y);
-                l.st.primitive_group.y &= !(1u32 << k);
-                let c = (l.st.primitive_group.x + k) as usize;
+            for c in interleave::primitives(&l.st) {
                 for j in self.cluster_start[c]..self.cluster_start[c + 1] {
                     if let Some((t, prim)) =
-                        self.hit_instance::<false>(j, l.origin, l.dir, l.tmin, l.best.t, &mut l.buf)
+                        self.hit_instance::<false>(j, l.origin, l.dir, 0.0, l.best.t, &mut l.buf)
                     {
                         l.best = Best { t, slot: j, prim };
                         let bound = (t - l.s0) as f32 + self.pad;
@@ -2227,43 +2178,18 @@ mod amac_probe {
                     }
                 }
             }
-            l.st.primitive_group = UVec2::ZERO;
-            if let Some(n) = self.next_node(l) {
-                let off = firstbithigh(l.st.current_group.y);
-                l.st.current_group.y &= !(1u32 << off);
-                if l.st.current_group.y & 0xff000000 != 0 {
-                    l.st.stack.push(l.st.current_group);
-                }
-                let node = &self.tlas.nodes[n];
-                l.st.hitmask = node.intersect_ray(&l.ray, l.st.oct_inv4);
-                l.st.current_group.x = node.child_base_idx;
-                l.st.primitive_group.x = node.primitive_base_idx;
-                l.st.current_group.y = (l.st.hitmask & 0xff000000) | (node.imask as u32);
-                l.st.primitive_group.y = l.st.hitmask & 0x00ffffff;
-            } else {
-                l.st.current_group = UVec2::ZERO;
+            if interleave::visit(&self.tlas, &mut l.st, &l.ray) {
+                return true;
             }
-            if l.st.primitive_group.y == 0 && (l.st.current_group.y & 0xff000000) == 0 {
-                if l.st.stack.is_empty() {
-                    return true;
-                }
-                l.st.current_group = l.st.stack.pop_fast();
-            }
-            let mut g = l.st.primitive_group.y;
-            while g != 0 {
-                let k = firstbithigh(g);
-                g &= !(1u32 << k);
-                let c = (l.st.primitive_group.x + k) as usize;
+            for c in interleave::primitives(&l.st) {
                 let j = self.cluster_start[c] as usize;
                 prefetch(&self.records[j]);
                 prefetch(&self.records[(j + 2).min(self.records.len() - 1)]);
             }
-            if let Some(n) = self.next_node(l) {
-                prefetch(&self.tlas.nodes[n]);
-            }
             false
         }
 
+        /// Closest hits (t) of `rays` within `tmax`, `k` traced at a time.
         fn closest_many(
             &self,
             rays: &[(DVec3, DVec3)],
@@ -2271,30 +2197,35 @@ mod amac_probe {
             k: usize,
         ) -> Vec<Option<f64>> {
             let mut out = vec![None; rays.len()];
-            let mut next = 0;
-            let mut lanes: Vec<Lane> = Vec::with_capacity(k);
-            loop {
-                while lanes.len() < k && next < rays.len() {
-                    if let Some(l) = self.lane(next, rays[next].0, rays[next].1, tmax[next]) {
-                        lanes.push(l);
+            interleave::run(
+                rays.len(),
+                k,
+                |idx| {
+                    let (origin, dir) = rays[idx];
+                    let (a, b) = clip(origin, dir, self.lo_pad, self.hi_pad, 0.0, tmax[idx])?;
+                    let ray = self.f32_ray(origin, dir, 0.0, a, b);
+                    Some(Lane {
+                        st: self.tlas.new_traversal(ray.direction),
+                        ray,
+                        origin,
+                        dir,
+                        s0: a,
+                        best: Best {
+                            t: b,
+                            slot: u32::MAX,
+                            prim: u32::MAX,
+                        },
+                        idx,
+                        buf: [0; 64],
+                    })
+                },
+                |l| self.step(l),
+                |l| {
+                    if l.best.slot != u32::MAX {
+                        out[l.idx] = Some(l.best.t);
                     }
-                    next += 1;
-                }
-                if lanes.is_empty() {
-                    break;
-                }
-                let mut i = 0;
-                while i < lanes.len() {
-                    if self.step(&mut lanes[i]) {
-                        let l = lanes.swap_remove(i);
-                        if l.best.slot != u32::MAX {
-                            out[l.idx] = Some(l.best.t);
-                        }
-                    } else {
-                        i += 1;
-                    }
-                }
-            }
+                },
+            );
             out
         }
     }

@@ -8,6 +8,8 @@ pub mod build;
 pub mod curvature;
 pub mod emission;
 pub mod instances;
+#[cfg(test)]
+mod interleave;
 pub mod material;
 pub(crate) mod sah;
 pub mod sun_clearance;

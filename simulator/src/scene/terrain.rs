@@ -89,6 +89,19 @@ impl Tri32 {
     }
 }
 
+/// A ray clipped to the terrain box ([`TerrainBvh::clipped`]): the clip start `t0` and the
+/// f64 start `o2` there, the f32 start and direction, the f64 segment `(lo, hi)` from the clip
+/// start, and obvhs' traversal ray.
+struct Clipped {
+    t0: f64,
+    o2: DVec3,
+    o: Vec3A,
+    d: Vec3A,
+    lo: f64,
+    hi: f64,
+    ray: Ray,
+}
+
 /// All terrain triangles of a bundle under one CWBVH.
 pub struct TerrainBvh {
     bvh: CwBvh,
@@ -289,6 +302,30 @@ impl TerrainBvh {
         self.trace::<true>(origin, dir, tmax).is_some()
     }
 
+    /// The ray `origin + t·dir`, `0 < t < tmax`, clipped in f64 to the padded terrain box, and
+    /// its f32 traversal ray from the clip start.
+    #[inline(always)]
+    fn clipped(&self, origin: DVec3, dir: DVec3, tmax: f64) -> Option<Clipped> {
+        let (t0, t1) = clip(origin, dir, self.lo, self.hi, 0.0, tmax)?;
+        let o2 = origin + dir * t0;
+        let o = Vec3A::from((o2 - self.render_origin).as_vec3());
+        let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
+        let d32 = dir.as_vec3();
+        let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
+        // The f64 segment is (−t0, t1 − t0) from the clip start (t > 0 in the caller's frame).
+        let (lo, hi) = (-t0, t1 - t0);
+        let ray = Ray::new(o, d, -self.pad, up(hi) + self.pad);
+        Some(Clipped {
+            t0,
+            o2,
+            o,
+            d,
+            lo,
+            hi,
+            ray,
+        })
+    }
+
     /// The traversal: (clip start `t0`, leaf slot, `t` from the clip start) of the closest hit
     /// (with `ANY`, of the first hit found).
     #[inline]
@@ -301,16 +338,15 @@ impl TerrainBvh {
         if self.verts.is_empty() || !origin.is_finite() || !dir.is_finite() || tmax.is_nan() {
             return None;
         }
-        // Clip in f64 to the padded terrain box.
-        let (t0, t1) = clip(origin, dir, self.lo, self.hi, 0.0, tmax)?;
-        let o2 = origin + dir * t0;
-        let o = Vec3A::from((o2 - self.render_origin).as_vec3());
-        let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
-        let d32 = dir.as_vec3();
-        let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
-        // The f64 segment is (−t0, t1 − t0) from the clip start (t > 0 in the caller's frame).
-        let (lo, hi) = (-t0, t1 - t0);
-        let ray = Ray::new(o, d, -self.pad, up(hi) + self.pad);
+        let Clipped {
+            t0,
+            o2,
+            o,
+            d,
+            lo,
+            hi,
+            ray,
+        } = self.clipped(origin, dir, tmax)?;
         let mut best = (hi, usize::MAX);
         let test = |id: usize, best_t: f64| -> Option<f64> {
             if !self.tris[id].may_hit(o, d) {
@@ -585,146 +621,70 @@ mod tests {
 
 #[cfg(test)]
 mod amac_probe {
+    use super::super::interleave::{self, prefetch};
     use super::*;
-    use glam::UVec2;
-    use obvhs::cwbvh::firstbithigh;
-    use obvhs::cwbvh::Traversal;
-    use obvhs::faststack::FastStack;
 
     struct Lane {
-        st: Traversal,
-        ray: Ray,
-        o: Vec3A,
-        d: Vec3A,
-        o2: DVec3,
+        st: obvhs::cwbvh::Traversal,
+        c: Clipped,
         dir: DVec3,
-        lo: f64,
-        t0: f64,
         best: (f64, usize),
         idx: usize,
     }
 
-    #[inline(always)]
-    fn prefetch<T>(p: *const T) {
-        #[cfg(target_arch = "x86_64")]
-        unsafe {
-            std::arch::x86_64::_mm_prefetch(p as *const i8, std::arch::x86_64::_MM_HINT_T0);
-        }
-    }
-
     impl TerrainBvh {
-        fn lane(&self, idx: usize, origin: DVec3, dir: DVec3) -> Option<Lane> {
-            let (t0, t1) = clip(origin, dir, self.lo, self.hi, 0.0, f64::INFINITY)?;
-            let o2 = origin + dir * t0;
-            let o = Vec3A::from((o2 - self.render_origin).as_vec3());
-            let snap = |x: f32| if x.abs() < 2.0 * f32::EPSILON { 0.0 } else { x };
-            let d32 = dir.as_vec3();
-            let d = Vec3A::new(snap(d32.x), snap(d32.y), snap(d32.z));
-            let (lo, hi) = (-t0, t1 - t0);
-            let ray = Ray::new(o, d, -self.pad, up(hi) + self.pad);
-            Some(Lane {
-                st: self.bvh.new_traversal(d),
-                ray,
-                o,
-                d,
-                o2,
-                dir,
-                lo,
-                t0,
-                best: (hi, usize::MAX),
-                idx,
-            })
-        }
-
-        /// One iteration of obvhs' traverse! loop; true when the lane is done. Prefetches
-        /// what the next iteration reads.
+        /// One step of a lane: its primitive group's triangles, then the next node; true
+        /// when done.
         #[inline(always)]
         fn step(&self, l: &mut Lane) -> bool {
-            while l.st.primitive_group.y != 0 {
-                let k = firstbithigh(l.st.primitive_group.y);
-                l.st.primitive_group.y &= !(1u32 << k);
-                let id = (l.st.primitive_group.x + k) as usize;
-                if self.tris[id].may_hit(l.o, l.d) {
-                    if let Some(t) = moller_trumbore(l.o2, l.dir, &self.verts[id])
-                        .filter(|&t| t > l.lo && t < l.best.0)
+            for id in interleave::primitives(&l.st) {
+                if self.tris[id].may_hit(l.c.o, l.c.d) {
+                    if let Some(t) = moller_trumbore(l.c.o2, l.dir, &self.verts[id])
+                        .filter(|&t| t > l.c.lo && t < l.best.0)
                     {
                         l.best = (t, id);
-                        l.ray.tmax = up(t);
+                        l.c.ray.tmax = up(t);
                     }
                 }
             }
-            l.st.primitive_group = UVec2::ZERO;
-            if l.st.current_group.y & 0xff000000 != 0 {
-                let hits_imask = l.st.current_group.y;
-                let off = firstbithigh(hits_imask);
-                let base = l.st.current_group.x;
-                l.st.current_group.y &= !(1u32 << off);
-                if l.st.current_group.y & 0xff000000 != 0 {
-                    l.st.stack.push(l.st.current_group);
-                }
-                let slot = (off - 24) ^ (l.st.oct_inv4 & 0xff);
-                let rel = (hits_imask & !(0xffffffffu32 << slot)).count_ones();
-                let node = &self.bvh.nodes[(base + rel) as usize];
-                l.st.hitmask = node.intersect_ray(&l.ray, l.st.oct_inv4);
-                l.st.current_group.x = node.child_base_idx;
-                l.st.primitive_group.x = node.primitive_base_idx;
-                l.st.current_group.y = (l.st.hitmask & 0xff000000) | (node.imask as u32);
-                l.st.primitive_group.y = l.st.hitmask & 0x00ffffff;
-            } else {
-                l.st.current_group = UVec2::ZERO;
+            if interleave::visit(&self.bvh, &mut l.st, &l.c.ray) {
+                return true;
             }
-            if l.st.primitive_group.y == 0 && (l.st.current_group.y & 0xff000000) == 0 {
-                if l.st.stack.is_empty() {
-                    return true;
-                }
-                l.st.current_group = l.st.stack.pop_fast();
-            }
-            // Prefetch the next iteration's reads.
-            if l.st.primitive_group.y != 0 {
-                let id = (l.st.primitive_group.x + firstbithigh(l.st.primitive_group.y)) as usize;
+            if let Some(id) = interleave::primitives(&l.st).next() {
                 prefetch(&self.tris[id]);
                 prefetch(&self.verts[id]);
-            }
-            if l.st.current_group.y & 0xff000000 != 0 {
-                let hits_imask = l.st.current_group.y;
-                let off = firstbithigh(hits_imask);
-                let slot = (off - 24) ^ (l.st.oct_inv4 & 0xff);
-                let rel = (hits_imask & !(0xffffffffu32 << slot)).count_ones();
-                prefetch(&self.bvh.nodes[(l.st.current_group.x + rel) as usize]);
             }
             false
         }
 
+        /// Closest hits (t, leaf slot) of `rays`, `k` traced at a time.
         pub(crate) fn closest_many(
             &self,
             rays: &[(DVec3, DVec3)],
             k: usize,
         ) -> Vec<Option<(f64, usize)>> {
             let mut out = vec![None; rays.len()];
-            let mut next = 0;
-            let mut lanes: Vec<Lane> = Vec::with_capacity(k);
-            loop {
-                while lanes.len() < k && next < rays.len() {
-                    if let Some(l) = self.lane(next, rays[next].0, rays[next].1) {
-                        lanes.push(l);
+            interleave::run(
+                rays.len(),
+                k,
+                |idx| {
+                    let (origin, dir) = rays[idx];
+                    let c = self.clipped(origin, dir, f64::INFINITY)?;
+                    Some(Lane {
+                        st: self.bvh.new_traversal(c.d),
+                        best: (c.hi, usize::MAX),
+                        c,
+                        dir,
+                        idx,
+                    })
+                },
+                |l| self.step(l),
+                |l| {
+                    if l.best.1 != usize::MAX {
+                        out[l.idx] = Some((l.c.t0 + l.best.0, l.best.1));
                     }
-                    next += 1;
-                }
-                if lanes.is_empty() {
-                    break;
-                }
-                let mut i = 0;
-                while i < lanes.len() {
-                    if self.step(&mut lanes[i]) {
-                        let l = lanes.swap_remove(i);
-                        if l.best.1 != usize::MAX {
-                            out[l.idx] = Some((l.t0 + l.best.0, l.best.1));
-                        }
-                    } else {
-                        i += 1;
-                    }
-                }
-            }
+                },
+            );
             out
         }
     }

@@ -219,6 +219,25 @@ pub fn reseal(dir: &Path) {
     std::fs::write(dir.join("manifest.toml"), toml::to_string(&m).unwrap()).unwrap();
 }
 
+/// Add a material of manifest id `index` (no land-cover classes) to `b`.
+fn push_material(
+    b: &mut Bundle,
+    index: u8,
+    name: &str,
+    brdf: BrdfSpec,
+    solver: Option<SolverSpec>,
+) {
+    b.manifest.materials.push(Material {
+        index,
+        name: name.into(),
+        brdf,
+        class_codes: vec![],
+        source: "test".into(),
+        solver,
+        temperature: None,
+    });
+}
+
 /// A copy of the bundle `src` in `out` with one more material (`index`, `name`, `brdf`,
 /// `solver`) and a horizontal square plate of it, `2·half` m wide, centred on (`cx`, `cy`) at
 /// height `z` (local frame), as one instanced template.
@@ -251,15 +270,7 @@ pub fn with_plate_turned(
     solver: Option<SolverSpec>,
 ) -> PathBuf {
     let mut b = Bundle::open(src).unwrap();
-    b.manifest.materials.push(Material {
-        index,
-        name: name.into(),
-        brdf,
-        class_codes: vec![],
-        source: "test".into(),
-        solver,
-        temperature: None,
-    });
+    push_material(&mut b, index, name, brdf, solver);
     b.templates.push(TemplateMesh {
         name: "plate".into(),
         source: "test".into(),
@@ -324,17 +335,8 @@ pub fn with_building_rows(
     roof: BrdfSpec,
 ) -> PathBuf {
     let mut b = Bundle::open(src).unwrap();
-    for (index, name, brdf) in [(7u8, "wall", wall), (8, "roof", roof)] {
-        b.manifest.materials.push(Material {
-            index,
-            name: name.into(),
-            brdf,
-            class_codes: vec![],
-            source: "test".into(),
-            solver: None,
-            temperature: None,
-        });
-    }
+    push_material(&mut b, 7, "wall", wall, None);
+    push_material(&mut b, 8, "roof", roof, None);
     let (hx, hy) = (0.5 * width, 0.5 * length);
     // Corners 0–3 at the ground, 4–7 at the top, counter-clockwise seen from above.
     let mut positions = Vec::new();
