@@ -18,7 +18,9 @@ use crate::integrator::geometry::scene_layers::SceneInLayers;
 use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::geometry::Geometry;
+use crate::integrator::scene_alis::SceneChannelTally;
 use crate::integrator::settings::IntegratorKind;
+use crate::integrator::weight::Weight;
 use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
 use crate::integrator::Accum;
 use crate::measure::{Measure, MeasureKind};
@@ -154,6 +156,7 @@ fn channel_walks(
         sample_stream(exp, ids),
         |rng| Some(sensor::backward_start_altitude(toa, m, cell, rng)),
         |g, _| ChannelPath::new(g),
+        |_, _| {},
     )
 }
 
@@ -224,20 +227,20 @@ impl SpectralGroup {
 
 /// A block of spectral ALIS walks: every walk carries all wavelengths of `group` (one
 /// accumulator per wavelength).
-fn run_block_spectral(
+/// `f` of the channels of wavelength group `group` (its atmospheres, reference and layer
+/// tables, surfaces).
+fn with_channels<R>(
     exp: &Experiment,
     sg: &SpectralGroup,
     group: &[usize],
-    im: usize,
-    cell: usize,
-    range: std::ops::Range<u64>,
-) -> Vec<Accum> {
+    f: impl FnOnce(&crate::integrator::backward_alis::Channels) -> R,
+) -> R {
     use crate::integrator::backward_alis::{Channels, Kind};
     let atms: Vec<&crate::atmosphere::PlaneParallel> =
         group.iter().map(|&iw| &exp.optics[iw].atmosphere).collect();
     let surfaces: Vec<&crate::bsdf::Bsdf> =
         group.iter().map(|&iw| &exp.optics[iw].surface).collect();
-    let g = Channels {
+    f(&Channels {
         atms: &atms,
         reference: &sg.reference,
         layers: &sg.layers,
@@ -245,14 +248,28 @@ fn run_block_spectral(
             surfaces: &surfaces,
             reference_surface: &exp.optics[group[sg.reference_member]].surface,
         },
-    };
+    })
+}
+
+/// `pool`: the above-scene pool of a pooled ortho image (`integrator/above_scene.rs`), entry
+/// `s` for sample `s`; None for whole walks.
+#[allow(clippy::too_many_arguments)]
+fn run_block_spectral(
+    exp: &Experiment,
+    sg: &SpectralGroup,
+    group: &[usize],
+    im: usize,
+    cell: usize,
+    range: std::ops::Range<u64>,
+    pool: Option<&[SceneChannelTally]>,
+) -> Vec<Accum> {
     let key = GROUP_STREAM | group[0] as u64;
     // One cell per wavelength of the group, split into one accumulator each.
     let ratio: Vec<f64> = group.iter().map(|&iw| exp.moon_ratio(iw)).collect();
-    let all = match &exp.scene {
+    let all = with_channels(exp, sg, group, |g| match &exp.scene {
         Some(_) => scene_channel_walks(
             exp,
-            &g,
+            g,
             sg.reference_member,
             group,
             key,
@@ -260,9 +277,10 @@ fn run_block_spectral(
             im,
             cell,
             range,
+            pool,
         ),
-        None => channel_walks(exp, &g, key, &ratio, im, cell, range),
-    };
+        None => channel_walks(exp, g, key, &ratio, im, cell, range),
+    });
     (0..group.len())
         .map(|c| {
             let mut a = Accum::new(1);
@@ -287,7 +305,9 @@ fn scene_channel_walks(
     im: usize,
     cell: usize,
     range: std::ops::Range<u64>,
+    pool: Option<&[SceneChannelTally]>,
 ) -> Accum {
+    use crate::integrator::above_scene::Part;
     use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
     let m = &exp.measures[im];
     let opt = &exp.optics[group[reference]];
@@ -299,8 +319,14 @@ fn scene_channel_walks(
     let ids = [key, im as u64, cell as u64];
     let (geometry, moon) = sun_and_moon(exp, ids, moon_ratio, |sun| {
         let base = scene_in_layers(exp, sun, g.reference, opt, None);
-        SceneChannels::new(base, g, &models, &wavelengths, reference)
+        let part = if pool.is_some() {
+            Part::AfterEntry
+        } else {
+            Part::Whole
+        };
+        SceneChannels::new(base, g, &models, &wavelengths, reference).scoring(part)
     });
+    let ones = vec![1.0; group.len()];
     backward_block(
         &geometry,
         moon.as_ref(),
@@ -310,7 +336,76 @@ fn scene_channel_walks(
         sample_stream(exp, ids),
         |rng| Some(sensor::scene_start(&geometry.base, m, cell, rng)),
         |g, _| SceneChannelPath::new(g),
+        |s, t| {
+            if let Some(p) = pool {
+                SceneChannelPath::add_tally(t, &p[s as usize], &ones);
+            }
+        },
     )
+}
+
+/// Tag of the random streams of the above-scene pools (`integrator/above_scene.rs`): keyed
+/// by the group, the measure and the sample index, not the pixel.
+const POOL_STREAM: u64 = 1 << 60;
+
+/// Whether ortho measure `m` of a run with wavelength groups pools the light of the atmosphere
+/// above the scene (`integrator.above_scene`, `integrator/above_scene.rs`).
+fn pools_above_scene(exp: &Experiment, m: &Measure) -> bool {
+    use crate::integrator::settings::AboveScene;
+    let applies = exp.scene.is_some()
+        && exp.integrator.spectral_alis.is_some()
+        && exp.moon.is_none()
+        && matches!(m.kind, MeasureKind::Ortho(_));
+    match exp.integrator.above_scene {
+        AboveScene::Walked => false,
+        AboveScene::Pooled => applies,
+        AboveScene::Auto => applies && m.cell_count() >= crate::integrator::above_scene::MIN_PIXELS,
+    }
+}
+
+/// Entries `range` of the above-scene pool of ortho measure `im` over wavelength group `group`:
+/// entry `s` is the mean score of [`batch`](crate::integrator::above_scene::batch) walks that
+/// end where they first go below the scene's top (`above_scene.rs`), on streams keyed by `s`.
+fn above_scene_pool(
+    exp: &Experiment,
+    sg: &SpectralGroup,
+    group: &[usize],
+    im: usize,
+    range: std::ops::Range<u64>,
+) -> Vec<SceneChannelTally> {
+    use crate::integrator::above_scene::{batch, Part};
+    use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
+    let m = &exp.measures[im];
+    let opt = &exp.optics[group[sg.reference_member]];
+    let models: Vec<&[crate::scene::material::SurfaceModel]> = group
+        .iter()
+        .map(|&iw| exp.optics[iw].scene_models.as_slice())
+        .collect();
+    let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
+    let key = POOL_STREAM | GROUP_STREAM | group[0] as u64;
+    let batch = batch(m.cell_count());
+    let mean = vec![1.0 / batch as f64; group.len()];
+    with_channels(exp, sg, group, |g| {
+        range
+            .into_par_iter()
+            .map(|s| {
+                let base = scene_in_layers(exp, exp.sun_dir, g.reference, opt, None);
+                let geometry =
+                    SceneChannels::new(base, g, &models, &wavelengths, sg.reference_member)
+                        .scoring(Part::BeforeEntry);
+                let stream = sample_stream(exp, [key, im as u64, s]);
+                let mut sum = SceneChannelPath::zero_tally();
+                for b in 0..batch {
+                    let mut rng = stream(b);
+                    let (p0, d0) = sensor::scene_start(&geometry.base, m, 0, &mut rng);
+                    let w = SceneChannelPath::new(&geometry);
+                    let t = backward::walk(&geometry, p0, d0, w, &exp.integrator, &mut rng);
+                    SceneChannelPath::add_tally(&mut sum, &t, &mean);
+                }
+                sum
+            })
+            .collect()
+    })
 }
 
 /// The 3D scene of `exp` in the plane-parallel layers `atmosphere`, lit from `sun` (the Sun's
@@ -444,6 +539,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     stream,
                     |rng| sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
                     |_, d0| at_sensor(d0),
+                    |_, _| {},
                 )
             } else {
                 let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
@@ -458,6 +554,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     stream,
                     |rng| Some(sensor::scene_start(&g, m, cell, rng)),
                     |_, d0| at_sensor(d0),
+                    |_, _| {},
                 )
             }
         }
@@ -481,6 +578,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     stream,
                     |rng| sensor::spherical_start(shell, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
                     |_, d0| at_sensor(d0),
+                    |_, _| {},
                 )
             } else {
                 let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
@@ -497,6 +595,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     stream,
                     |rng| Some(sensor::backward_start(opt, m, cell, rng)),
                     |_, d0| at_sensor(d0),
+                    |_, _| {},
                 )
             }
         }
@@ -519,6 +618,7 @@ fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
     stream: impl Fn(u64) -> Stream,
     start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
     weight: impl Fn(&'g G, DVec3) -> W,
+    pool: impl Fn(u64, &mut W::Tally),
 ) -> Accum {
     let mut acc = W::accum(cells);
     if settings.replicates {
@@ -541,6 +641,7 @@ fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
                 W::add_tally(&mut t, &tm, &mw.ratio);
             }
         }
+        pool(s, &mut t);
         W::record(&mut acc, 0, &t, k);
     }
     acc
@@ -564,7 +665,7 @@ pub fn pilot_blocks(
     cells.par_iter().for_each(|&c| {
         let r = range.clone();
         match &spectral {
-            Some(sg) => drop(run_block_spectral(exp, sg, group, im, c, r)),
+            Some(sg) => drop(run_block_spectral(exp, sg, group, im, c, r, None)),
             None => drop(run_block(exp, group[0], im, c, r, ckd_alis.as_ref())),
         }
     });
@@ -785,7 +886,15 @@ fn run_task(
         m.adaptive && m.is_image() && m.target_rel_stderr.is_some() && method != Method::Forward;
     let mut have = vec![0u64; walk_cells.len()];
     let mut want = vec![next; walk_cells.len()];
+    // Pooled ortho images (`integrator/above_scene.rs`): entry s serves sample s of every pixel.
+    let pooled = spectral.is_some() && pools_above_scene(exp, m);
+    let mut pool: Vec<SceneChannelTally> = Vec::new();
     loop {
+        if let (true, Some(sg), Some(&end)) = (pooled, &spectral, want.iter().max()) {
+            if end > pool.len() as u64 {
+                pool.extend(above_scene_pool(exp, sg, group, im, pool.len() as u64..end));
+            }
+        }
         let blocks: Vec<(usize, u64)> = walk_cells
             .iter()
             .enumerate()
@@ -809,7 +918,15 @@ fn run_task(
                     let range = (b * bs).max(have[i])..((b + 1) * bs).min(want[i]);
                     let n = range.end - range.start;
                     let a = match &spectral {
-                        Some(sg) => run_block_spectral(exp, sg, group, im, c, range),
+                        Some(sg) => run_block_spectral(
+                            exp,
+                            sg,
+                            group,
+                            im,
+                            c,
+                            range,
+                            pooled.then_some(pool.as_slice()),
+                        ),
                         None => vec![run_block(exp, iw0, im, c, range, ckd_alis.as_ref())],
                     };
                     bar.inc(n * per_walk);

@@ -59,14 +59,15 @@ pub struct PlaneParallel {
 /// Equal altitude bins over the atmosphere, each holding the number of layer bottoms above its
 /// top, so that a lookup scans a layer or two instead of a binary search.
 #[derive(Clone, Debug, Default)]
-struct ZGrid {
+pub(crate) struct ZGrid {
     ground: f64,
     inv_h: f64,
     start: Vec<u32>,
 }
 
 impl ZGrid {
-    fn new(z: &[f64]) -> Self {
+    /// The grid over the boundaries `z` (top first, descending).
+    pub(crate) fn new(z: &[f64]) -> Self {
         let n = z.len() - 1;
         let (toa, ground) = (z[0], z[n]);
         if toa.partial_cmp(&ground) != Some(std::cmp::Ordering::Greater) {
@@ -85,6 +86,47 @@ impl ZGrid {
             inv_h: 1.0 / h,
             start,
         }
+    }
+
+    /// `z[1..].partition_point(|&b| b > zq)` for the boundaries `z` the grid was made from (the
+    /// number of layer bottoms above `zq`): the grid's bin, then a short scan.
+    #[inline]
+    pub(crate) fn bottoms_above(&self, z: &[f64], zq: f64) -> usize {
+        let n = z.len() - 1;
+        let mut i = if self.start.is_empty() || !zq.is_finite() {
+            return z[1..].partition_point(|&b| b > zq);
+        } else {
+            let k = ((zq - self.ground) * self.inv_h).max(0.0) as usize;
+            self.start[k.min(self.start.len() - 1)] as usize
+        };
+        // Bottoms z[1..][j] = z[j + 1] descend: move to the first one not above zq.
+        while i > 0 && z[i] <= zq {
+            i -= 1;
+        }
+        while i < n && z[i + 1] > zq {
+            i += 1;
+        }
+        i
+    }
+
+    /// `z.partition_point(|&b| b > zq)`: boundaries (top included) above `zq`.
+    #[inline]
+    pub(crate) fn boundaries_above(&self, z: &[f64], zq: f64) -> usize {
+        if z[0] > zq {
+            1 + self.bottoms_above(z, zq)
+        } else {
+            0
+        }
+    }
+
+    /// `z.partition_point(|&b| b >= zq)`: boundaries (top included) at or above `zq`.
+    #[inline]
+    pub(crate) fn boundaries_at_or_above(&self, z: &[f64], zq: f64) -> usize {
+        let mut i = self.boundaries_above(z, zq);
+        while i < z.len() && z[i] >= zq {
+            i += 1;
+        }
+        i
     }
 }
 
@@ -370,32 +412,13 @@ impl PlaneParallel {
     /// the altitude grid and a short scan.
     #[inline]
     pub(crate) fn bottoms_above(&self, z: f64) -> usize {
-        let n = self.z.len() - 1;
-        let g = &self.zgrid;
-        let mut i = if g.start.is_empty() || !z.is_finite() {
-            return self.z[1..].partition_point(|&b| b > z);
-        } else {
-            let k = ((z - g.ground) * g.inv_h).max(0.0) as usize;
-            g.start[k.min(g.start.len() - 1)] as usize
-        };
-        // Bottoms z[1..][j] = z[j + 1] descend: move to the first one not above z.
-        while i > 0 && self.z[i] <= z {
-            i -= 1;
-        }
-        while i < n && self.z[i + 1] > z {
-            i += 1;
-        }
-        i
+        self.zgrid.bottoms_above(&self.z, z)
     }
 
     /// `self.z.partition_point(|&b| b > z)`: boundaries (top included) above `z`.
     #[inline]
     fn boundaries_above(&self, z: f64) -> usize {
-        if self.z[0] > z {
-            1 + self.bottoms_above(z)
-        } else {
-            0
-        }
+        self.zgrid.boundaries_above(&self.z, z)
     }
 
     /// Layer count (including an empty placeholder when there is no atmosphere).
@@ -605,6 +628,11 @@ mod tests {
             assert_eq!(
                 atm.boundaries_above(z),
                 atm.z.partition_point(|&b| b > z),
+                "z = {z}"
+            );
+            assert_eq!(
+                atm.zgrid.boundaries_at_or_above(&atm.z, z),
+                atm.z.partition_point(|&b| b >= z),
                 "z = {z}"
             );
         }

@@ -452,6 +452,25 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             IntegratorKind::Backward => {}
         }
     }
+    // `integrator.above_scene = "pooled"` (`integrator/above_scene.rs`) is built for ortho
+    // images walked over wavelength groups, lit by the Sun alone.
+    if integrator.above_scene == crate::integrator::settings::AboveScene::Pooled {
+        let why = if scene.is_none() {
+            Some("needs a 3D scene (`[scene]`)")
+        } else if integrator.spectral_alis.is_none() {
+            Some("is built for walks over wavelength groups: add `integrator.spectral_walk = \"alis\"`")
+        } else if sun.moon.is_some() {
+            Some("is not built for the Moon beside the Sun (`illumination.moon`)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(ctx.err(
+                "integrator.above_scene",
+                format!("\"pooled\" {why}; or leave it at \"auto\""),
+            ));
+        }
+    }
     // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
     if let (Some(sc), Some(_)) = (&scene, integrator.spectral_alis) {
         if let Some((name, solver)) = sc

@@ -84,7 +84,7 @@ use super::peak_sampling::PeakSampling;
 use super::surface::SurfaceAt;
 use super::weight::{OrderSplit, Weight};
 use crate::accum::Accum;
-use crate::atmosphere::PlaneParallel;
+use crate::atmosphere::{PlaneParallel, ZGrid};
 use crate::bsdf::{Bsdf, SurfaceEmission};
 use crate::phase::PhaseFunction;
 use crate::rng::Stream;
@@ -134,6 +134,8 @@ impl Channels<'_> {
 /// the optical depth τ_c at each boundary.
 pub struct Layers {
     z: Vec<f64>,
+    /// Altitude index over `z` (a bin, then a short scan, instead of a binary search).
+    zgrid: ZGrid,
     sigma_s: Vec<f64>,
     k: Vec<Vec<f64>>,
     /// The same coefficients layer-major (`[i·nc + c]`), for the vectorized layer loop.
@@ -253,6 +255,7 @@ impl Layers {
             s
         });
         Layers {
+            zgrid: ZGrid::new(&z),
             z,
             sigma_s,
             k,
@@ -362,7 +365,7 @@ impl Layers {
     /// Layer index and fraction `f` (0 at the layer's top) of altitude `z`.
     fn locate(&self, z: f64) -> (usize, f64) {
         let n = self.sigma_s.len();
-        let i = self.z.partition_point(|&b| b > z).clamp(1, n) - 1;
+        let i = self.zgrid.boundaries_above(&self.z, z).clamp(1, n) - 1;
         (i, self.fraction(i, z))
     }
 
@@ -381,9 +384,9 @@ impl Layers {
     fn start_layer(&self, z: f64, dz: f64) -> usize {
         let n = self.sigma_s.len();
         if dz < 0.0 {
-            self.z.partition_point(|&b| b > z).clamp(1, n) - 1
+            self.zgrid.boundaries_above(&self.z, z).clamp(1, n) - 1
         } else {
-            self.z.partition_point(|&b| b >= z).clamp(1, n) - 1
+            self.zgrid.boundaries_at_or_above(&self.z, z).clamp(1, n) - 1
         }
     }
 

@@ -26,6 +26,7 @@
 //! (survival biasing); Russian roulette starts at scattering order `rr_depth` and only touches
 //! weights below [`RR_THRESHOLD`], so it is unbiased and costs little variance.
 
+pub mod above_scene;
 pub mod backward;
 pub mod backward_alis;
 pub mod forward;

@@ -53,9 +53,10 @@ use std::cell::RefCell;
 
 use glam::DVec3;
 
+use super::above_scene::Part;
 use super::backward::Adjoint;
 use super::backward_alis::{channels, Channels, PhaseCache};
-use super::geometry::scene_layers::{scene_surface, SceneInLayers};
+use super::geometry::scene_layers::{scene_surface, FlightToSplit, SceneInLayers};
 use super::geometry::{Event, Geometry, Light, Split};
 use super::peak_sampling::PeakSampling;
 use super::surface::SurfaceAt;
@@ -85,6 +86,9 @@ pub struct SceneChannels<'a> {
     pub wavelengths: &'a [f64],
     /// The channel whose wavelength is the reference's.
     pub reference_channel: usize,
+    /// Which part of each walk's score is made (`above_scene.rs`; [`Part::Whole`] by
+    /// default).
+    pub part: Part,
     /// Phase-function values per cos Θ (the walks of a block run one after another).
     cache: RefCell<PhaseCache>,
 }
@@ -108,8 +112,21 @@ impl<'a> SceneChannels<'a> {
             models,
             wavelengths,
             reference_channel,
+            part: Part::Whole,
             cache: RefCell::new(PhaseCache::new(channels.layers.phase_ids())),
         }
+    }
+
+    /// The same geometry scoring only `part` of each walk (`above_scene.rs`).
+    pub fn scoring(mut self, part: Part) -> Self {
+        self.part = part;
+        self
+    }
+
+    /// The scene's top, m.
+    #[inline]
+    fn top(&self) -> f64 {
+        self.base.scene.z_range[1]
     }
 
     fn nc(&self) -> usize {
@@ -143,7 +160,8 @@ impl<'a> SceneChannels<'a> {
 
     /// Add to `acc` (per channel) the expected next-event estimate of the flight from `p` along
     /// `d` carrying factors `e`, which comes below the scene's top at `reach` and hits the
-    /// scene at `t_hit` (module header).
+    /// scene at `t_hit` (module header); `entered`: whether the path has been below the top
+    /// before this flight (which part of it [`Self::part`] scores).
     #[allow(clippy::too_many_arguments)]
     fn expected_flight(
         &self,
@@ -154,15 +172,22 @@ impl<'a> SceneChannels<'a> {
         e: &[f64; SCENE_CHANNELS],
         acc: &mut [f64; SCENE_CHANNELS],
         rng: &mut Stream,
+        entered: bool,
     ) {
         let nc = self.nc();
         let atm = self.base.atmosphere;
         let sun = self.base.sun;
-        let top = self.base.scene.z_range[1];
+        let top = self.top();
         let cos = sun.dot(d);
-        // Above the top, exactly (see `SceneInLayers::expected_atmospheric` for the cases).
+        // Above the top, exactly (see `SceneInLayers::expected_atmospheric` for the cases): the
+        // part before the path's first entry below the top unless only what follows is scored.
         let exits_up = d.z > 0.0 && p.z <= top && t_hit == f64::INFINITY;
-        if p.z > top || exits_up {
+        let above = match self.part {
+            Part::Whole => true,
+            Part::AfterEntry => entered,
+            Part::BeforeEntry => !entered,
+        };
+        if above && (p.z > top || exits_up) {
             // Per channel as the scalar geometry does in its own atmosphere (runs of layers
             // with equal optics in one exponential), times the path factor.
             let b = 1.0 / sun.z;
@@ -179,8 +204,11 @@ impl<'a> SceneChannels<'a> {
                 acc[c] += e[c] * sum;
             }
         }
-        // Below the top: one point of the reference's collision density (as the scalar
-        // geometry draws it).
+        // Below the top (after the entry: not the pool's): one point of the reference's
+        // collision density (as the scalar geometry draws it).
+        if self.part == Part::BeforeEntry {
+            return;
+        }
         let Some((q, t, p_seg)) = self.base.forced_point_below_top(p, d, reach, t_hit, rng) else {
             return;
         };
@@ -207,6 +235,10 @@ pub struct SceneChannelPath<'a> {
     e: [f64; SCENE_CHANNELS],
     /// After a split flight: the collided branch's factors (`take_collision_branch`).
     e_coll: [f64; SCENE_CHANNELS],
+    /// Whether the path has been below the scene's top (and, after a split flight, whether the
+    /// collided branch has: `take_collision_branch`), for [`SceneChannels::part`].
+    entered: bool,
+    entered_coll: bool,
     /// Reference layer of the last collision (set by the flight, used by the scattering).
     layer: usize,
     /// The last surface hit (set by the flight, used by the reflection and its estimate).
@@ -221,6 +253,8 @@ impl<'a> SceneChannelPath<'a> {
             w: 1.0,
             e: [1.0; SCENE_CHANNELS],
             e_coll: [1.0; SCENE_CHANNELS],
+            entered: false,
+            entered_coll: false,
             layer: 0,
             hit: None,
             g,
@@ -391,6 +425,7 @@ impl Weight for SceneChannelPath<'_> {
     #[inline]
     fn take_collision_branch(&mut self) {
         self.e = self.e_coll;
+        self.entered = self.entered_coll;
     }
     /// One accumulator cell per channel (`cell` must be 0).
     fn record(acc: &mut Accum, cell: usize, t: &SceneChannelTally, k: f64) {
@@ -485,11 +520,40 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
     ) -> Event<'_, DVec3, SurfaceHit> {
         let nc = self.nc();
         let atm = self.base.atmosphere;
+        let top = self.top();
+        if self.part == Part::BeforeEntry {
+            // The pool's walks stay above the top (they end where they first go below it), so
+            // no flight of theirs can meet the scene.
+            if let Some(acc) = acc {
+                if atm.total_tau() > 0.0 {
+                    let inf = f64::INFINITY;
+                    self.expected_flight(p, d, inf, inf, &w.e, acc, rng, false);
+                }
+            }
+            let t_top = if d.z < 0.0 {
+                (p.z - top) / -d.z
+            } else {
+                f64::INFINITY
+            };
+            let s = -rng.next_f64_open0().ln();
+            return match (atm.total_tau() > 0.0)
+                .then(|| atm.march(p.z, d.z, s, t_top))
+                .flatten()
+            {
+                Some(t) => {
+                    self.channels.layers.carry(&mut w.e[..nc], p.z, d.z, t);
+                    let q = p + d * t;
+                    w.layer = atm.layer_at_altitude(q.z);
+                    self.base.collision_at(q)
+                }
+                None => Event::Escape,
+            };
+        }
         let (reach, hit) = self.base.first_hit(p, d);
         let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
         if let Some(acc) = acc {
             if atm.total_tau() > 0.0 {
-                self.expected_flight(p, d, reach, t_hit, &w.e, acc, rng);
+                self.expected_flight(p, d, reach, t_hit, &w.e, acc, rng, w.entered);
             }
         }
         let s = -rng.next_f64_open0().ln();
@@ -498,16 +562,20 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
         } else {
             None
         };
+        // A straight flight goes below the top iff one of its ends does.
         if let Some(t) = t_coll {
             self.channels.layers.carry(&mut w.e[..nc], p.z, d.z, t);
             let q = p + d * t;
+            w.entered |= p.z < top || q.z < top;
             w.layer = atm.layer_at_altitude(q.z);
             self.base.collision_at(q)
         } else if let Some(h) = hit {
             self.channels.layers.carry(&mut w.e[..nc], p.z, d.z, h.t);
+            w.entered = true;
             w.hit = Some(h);
             Event::Surface(h)
         } else {
+            w.entered |= p.z < top;
             Event::Escape
         }
     }
@@ -523,23 +591,66 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
     ) -> Option<Split<'_, DVec3, SurfaceHit>> {
         let nc = self.nc();
         let atm = self.base.atmosphere;
+        let top = self.top();
+        if self.part == Part::BeforeEntry {
+            // The pool's walks split their flights as the pixels' do (or the before-part's
+            // variance per walk is many times theirs): a flight ends at the top, where the
+            // walk ends, or at TOA.
+            let t_end = if d.z < 0.0 {
+                (p.z - top) / -d.z
+            } else {
+                f64::INFINITY
+            };
+            if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
+                return None;
+            }
+            let p_collision = -(-atm.optical_path(p.z, d.z, t_end)).exp_m1();
+            if p_collision.is_nan() || p_collision <= 0.0 {
+                return None;
+            }
+            let f = FlightToSplit {
+                reach: f64::INFINITY,
+                hit: None,
+                t_hit: t_end,
+                p_collision,
+            };
+            if let Some(acc) = acc {
+                let inf = f64::INFINITY;
+                self.expected_flight(p, d, inf, inf, &w.e, acc, rng, false);
+            }
+            let t = self.base.forced_distance(p, d, &f, rng);
+            let q = p + d * t;
+            w.e_coll = w.e;
+            self.channels.layers.carry(&mut w.e_coll[..nc], p.z, d.z, t);
+            w.layer = atm.layer_at_altitude(q.z);
+            return Some(Split {
+                p_collision,
+                collision: self.base.collision_at(q),
+                end: Event::Escape,
+            });
+        }
         let f = self.base.flight_to_split(p, d)?;
         let hit = f.hit;
         if let Some(acc) = acc {
-            self.expected_flight(p, d, f.reach, f.t_hit, &w.e, acc, rng);
+            self.expected_flight(p, d, f.reach, f.t_hit, &w.e, acc, rng, w.entered);
         }
         let t = self.base.forced_distance(p, d, &f, rng);
         let q = p + d * t;
         w.e_coll = w.e;
+        w.entered_coll = w.entered || p.z < top || q.z < top;
         self.channels.layers.carry(&mut w.e_coll[..nc], p.z, d.z, t);
         w.layer = atm.layer_at_altitude(q.z);
         let end = match hit {
             Some(h) => {
                 self.channels.layers.carry(&mut w.e[..nc], p.z, d.z, h.t);
+                w.entered = true;
                 w.hit = Some(h);
                 Event::Surface(h)
             }
-            None => Event::Escape,
+            None => {
+                w.entered |= p.z < top;
+                Event::Escape
+            }
         };
         Some(Split {
             p_collision: f.p_collision,
@@ -559,7 +670,13 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
         w: &mut SceneChannelPath<'a>,
         acc: &mut [f64; SCENE_CHANNELS],
     ) {
-        if !(pos.z > self.base.scene.z_range[1] || self.base.sees_sun(pos)) {
+        let above = pos.z > self.top();
+        let scored = match self.part {
+            Part::Whole => true,
+            Part::AfterEntry => w.entered,
+            Part::BeforeEntry => true,
+        };
+        if !scored || !(above || self.base.sees_sun(pos)) {
             return;
         }
         let mut rp = [0.0; SCENE_CHANNELS];

@@ -52,6 +52,25 @@ pub struct IntegratorSettings {
     /// `integrator.forced_flights`: the first this many flights of a backward path are split
     /// into a forced collision and the uncollided branch (`backward.rs`); 0: off.
     pub forced_flights: u32,
+    /// `integrator.above_scene`: how ortho images of a scene estimate the light that the
+    /// atmosphere above the scene sends before a path first goes below the scene's top
+    /// (`integrator/above_scene.rs`).
+    pub above_scene: AboveScene,
+}
+
+/// `integrator.above_scene` (`integrator/above_scene.rs`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AboveScene {
+    /// Pooled where it applies (ortho images of at least
+    /// [`above_scene::MIN_PIXELS`](super::above_scene::MIN_PIXELS) pixels walked over
+    /// wavelength groups), walked elsewhere.
+    #[default]
+    Auto,
+    /// Every pixel's own walks (each sample scores it).
+    Walked,
+    /// One estimate shared by every pixel of the image.
+    Pooled,
 }
 
 /// `integrator.sampler`: where each sample's random numbers come from.
@@ -137,6 +156,9 @@ pub struct IntegratorConfig {
     /// "random" (default) or "sobol" (quasi-random first dimensions, `rng.rs`).
     #[serde(default)]
     pub sampler: Sampler,
+    /// Ortho images of scenes: "auto" (default), "walked" or "pooled" (`above_scene.rs`).
+    #[serde(default)]
+    pub above_scene: AboveScene,
     /// Backward walks: split the first N flights of each path into a forced collision and the
     /// uncollided branch (0–4, default [`FORCED_FLIGHTS`]).
     #[serde(default)]
@@ -293,6 +315,7 @@ impl IntegratorSettings {
             }
         };
         Ok(IntegratorSettings {
+            above_scene: cfg.above_scene,
             forced_flights,
             replicates: cfg.sampler == Sampler::Sobol,
             surface_solver: Default::default(),
