@@ -568,28 +568,35 @@ fn to_pairs(nodes: &[Bvh2Node]) -> Tree {
 /// of 7 entries per binary node) to about a third; the boxes are freed before it. A tree deeper
 /// than obvhs' traversal stack allows ([`super::CWBVH_MAX_DEPTH`], only pathological inputs)
 /// is rebuilt with median splits.
-fn build_tlas(aabbs: Vec<Aabb>) -> Result<Tlas, String> {
+fn build_tlas(mut aabbs: Vec<Aabb>) -> Result<Tlas, String> {
     let n = aabbs.len();
     let params = |balanced| SahParams {
         max_leaf: TLAS_MAX_LEAF,
         isect: TLAS_INSTANCE_COST,
         balanced,
     };
-    let (mut nodes, mut idx) = super::sah::build(&aabbs, params(false));
+    // A rebuild starts from the boxes in the order the last build left them (`sah::build`):
+    // its slots index that order, mapped back to the instances through the last build's.
+    let rebuild = |aabbs: &mut Vec<Aabb>, idx: &[u32]| {
+        let (nodes, again) = super::sah::build(aabbs, params(true));
+        let idx: Vec<u32> = again.iter().map(|&k| idx[k as usize]).collect();
+        (nodes, idx)
+    };
+    let (mut nodes, mut idx) = super::sah::build(&mut aabbs, params(false));
     // obvhs' conversion recurses over the binary tree: no very deep one.
     let mut binary_depth = super::sah::depth(&nodes);
     if binary_depth > TLAS_BINARY_DEPTH {
-        (nodes, idx) = super::sah::build(&aabbs, params(true));
+        (nodes, idx) = rebuild(&mut aabbs, &idx);
         binary_depth = super::sah::depth(&nodes);
     }
     super::release_free_memory();
-    // A wide tree is never deeper than its binary one: keep the boxes only if a rebuild may be
-    // needed.
-    let mut kept = (binary_depth > super::CWBVH_MAX_DEPTH).then_some(aabbs);
+    // A wide tree is never deeper than its binary one: keep the boxes (and their order) only
+    // if a rebuild may be needed.
+    let mut kept = (binary_depth > super::CWBVH_MAX_DEPTH).then(|| (aabbs, idx.clone()));
     let mut tlas = cluster_cwbvh(nodes, idx);
     if tlas.depth > super::CWBVH_MAX_DEPTH {
-        if let Some(aabbs) = kept.take() {
-            let (nodes, idx) = super::sah::build(&aabbs, params(true));
+        if let Some((mut aabbs, idx)) = kept.take() {
+            let (nodes, idx) = rebuild(&mut aabbs, &idx);
             drop(aabbs);
             tlas = cluster_cwbvh(nodes, idx);
         }

@@ -35,18 +35,21 @@ pub(crate) struct SahParams {
     pub balanced: bool,
 }
 
-/// The tree over `aabbs` (module header): (nodes, slot → input index). Empty input → empty.
-pub(crate) fn build(aabbs: &[Aabb], p: SahParams) -> (Vec<Bvh2Node>, Vec<u32>) {
-    let n = aabbs.len();
+/// The tree over `boxes` (module header): (nodes, slot → input index). Empty input → empty.
+/// `boxes` is left in slot order (`boxes[k]` is the box of input `idx[k]`): the build moves
+/// each box with its index, so its passes read the boxes in order instead of through the
+/// index (a cache miss per box on large inputs), with no copy of them.
+pub(crate) fn build(boxes: &mut [Aabb], p: SahParams) -> (Vec<Bvh2Node>, Vec<u32>) {
+    let n = boxes.len();
     if n == 0 {
         return (Vec::new(), Vec::new());
     }
     let mut idx: Vec<u32> = (0..n as u32).collect();
-    let (b0, c0) = bound(aabbs, &idx);
+    let (b0, c0) = bound(boxes);
     // About 2n / (mean leaf size) nodes; only the pages written count.
     let mut nodes = Vec::with_capacity(2 * n);
     nodes.push(Bvh2Node::default());
-    subtree(&mut nodes, 0, aabbs, &mut idx, 0, b0, c0, p);
+    subtree(&mut nodes, 0, boxes, &mut idx, 0, b0, c0, p);
     (nodes, idx)
 }
 
@@ -69,23 +72,16 @@ pub(crate) fn depth(nodes: &[Bvh2Node]) -> usize {
     deepest
 }
 
-/// Box of the primitives `ix` and box of their centroids.
-fn bound(aabbs: &[Aabb], ix: &[u32]) -> (Aabb, Aabb) {
+/// Box of `boxes` and box of their centroids (centroids are computed where needed rather than
+/// stored: 16 B per primitive less at the build's peak).
+fn bound(boxes: &[Aabb]) -> (Aabb, Aabb) {
     let mut b = Aabb::INVALID;
     let mut c = Aabb::INVALID;
-    for &i in ix {
-        let a = &aabbs[i as usize];
+    for a in boxes {
         b = b.union(a);
         c.extend(a.center());
     }
     (b, c)
-}
-
-/// Centroid of primitive `i` (computed where needed rather than stored: 16 B per primitive
-/// less at the build's peak).
-#[inline(always)]
-fn centroid(aabbs: &[Aabb], i: u32) -> Vec3A {
-    aabbs[i as usize].center()
 }
 
 fn half_area(b: &Aabb) -> f32 {
@@ -102,7 +98,7 @@ fn half_area(b: &Aabb) -> f32 {
 fn subtree(
     out: &mut Vec<Bvh2Node>,
     root: usize,
-    aabbs: &[Aabb],
+    boxes: &mut [Aabb],
     idx: &mut [u32],
     base: usize,
     nb: Aabb,
@@ -112,17 +108,18 @@ fn subtree(
     let n = idx.len();
     out[root] = Bvh2Node::new(nb, n as u32, base as u32);
     if n <= PARALLEL_MIN {
-        return sequential(out, root, aabbs, idx, base, cb, p);
+        return sequential(out, root, boxes, idx, base, cb, p);
     }
     let Some(Split {
         mid,
         left,
         right: rside,
-    }) = split(aabbs, idx, nb, cb, p)
+    }) = split(boxes, idx, nb, cb, p)
     else {
         return;
     };
     let (li, ri) = idx.split_at_mut(mid);
+    let (lb, rb) = boxes.split_at_mut(mid);
     let l = out.len();
     out.extend([Bvh2Node::default(); 2]);
     out[root].prim_count = 0;
@@ -130,8 +127,8 @@ fn subtree(
     let mut right = Vec::with_capacity(2 * ri.len());
     right.push(Bvh2Node::default());
     rayon::join(
-        || subtree(out, l, aabbs, li, base, left.0, left.1, p),
-        || subtree(&mut right, 0, aabbs, ri, base + mid, rside.0, rside.1, p),
+        || subtree(out, l, lb, li, base, left.0, left.1, p),
+        || subtree(&mut right, 0, rb, ri, base + mid, rside.0, rside.1, p),
     );
     // right[0] goes to slot l + 1, right[i ≥ 1] to the end of `out`.
     let shift = out.len() as u32 - 1;
@@ -151,7 +148,7 @@ fn subtree(
 fn sequential(
     out: &mut Vec<Bvh2Node>,
     root: usize,
-    aabbs: &[Aabb],
+    boxes: &mut [Aabb],
     idx: &mut [u32],
     base: usize,
     cb: Aabb,
@@ -161,7 +158,9 @@ fn sequential(
     let mut todo = vec![(root, 0usize, idx.len(), cb)];
     while let Some((ni, start, end, cb)) = todo.pop() {
         let range = &mut idx[start..end];
-        let Some(Split { mid, left, right }) = split(aabbs, range, out[ni].aabb, cb, p) else {
+        let Some(Split { mid, left, right }) =
+            split(&mut boxes[start..end], range, out[ni].aabb, cb, p)
+        else {
             continue;
         };
         let mid = start + mid;
@@ -191,7 +190,7 @@ struct Split {
 /// `idx` in place, `None` to keep it as a leaf. The three axes are binned in one pass over the
 /// primitives, and the bins also give the two sides' boxes (unions of exact boxes, so the same
 /// as a pass over each side would).
-fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> Option<Split> {
+fn split(boxes: &mut [Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> Option<Split> {
     let count = idx.len();
     if count <= 1 {
         return None;
@@ -206,8 +205,7 @@ fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> O
     let mut bcb = [[Aabb::INVALID; BINS]; 3];
     let mut bc = [[0u32; BINS]; 3];
     if binned.iter().any(|&b| b) {
-        for &i in idx.iter() {
-            let a = &aabbs[i as usize];
+        for a in boxes.iter() {
             let c = a.center();
             for axis in 0..3 {
                 if binned[axis] {
@@ -256,11 +254,12 @@ fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> O
         // In-place partition.
         let (mut a, mut b) = (0, count);
         while a < b {
-            if bin(centroid(aabbs, idx[a]), axis) < k {
+            if bin(boxes[a].center(), axis) < k {
                 a += 1;
             } else {
                 b -= 1;
                 idx.swap(a, b);
+                boxes.swap(a, b);
             }
         }
         let side = |bins: std::ops::Range<usize>| {
@@ -283,13 +282,21 @@ fn split(aabbs: &[Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) -> O
         2
     };
     let mid = count / 2;
-    idx.select_nth_unstable_by(mid, |&a, &b| {
-        centroid(aabbs, a)[axis].total_cmp(&centroid(aabbs, b)[axis])
+    // The same selection on local positions (the same comparisons, so the same order as on
+    // the indices themselves), then applied to both.
+    let mut perm: Vec<u32> = (0..count as u32).collect();
+    perm.select_nth_unstable_by(mid, |&a, &b| {
+        let (ca, cb) = (boxes[a as usize].center(), boxes[b as usize].center());
+        ca[axis].total_cmp(&cb[axis])
     });
+    let moved_idx: Vec<u32> = perm.iter().map(|&k| idx[k as usize]).collect();
+    let moved_boxes: Vec<Aabb> = perm.iter().map(|&k| boxes[k as usize]).collect();
+    idx.copy_from_slice(&moved_idx);
+    boxes.copy_from_slice(&moved_boxes);
     Some(Split {
         mid,
-        left: bound(aabbs, &idx[..mid]),
-        right: bound(aabbs, &idx[mid..]),
+        left: bound(&boxes[..mid]),
+        right: bound(&boxes[mid..]),
     })
 }
 
@@ -348,9 +355,10 @@ mod tests {
         };
         let reference = {
             let mut idx: Vec<u32> = (0..a.len() as u32).collect();
-            let (b0, c0) = bound(&a, &idx);
+            let mut boxes = a.clone();
+            let (b0, c0) = bound(&boxes);
             let mut nodes = vec![Bvh2Node::new(b0, a.len() as u32, 0)];
-            sequential(&mut nodes, 0, &a, &mut idx, 0, c0, p);
+            sequential(&mut nodes, 0, &mut boxes, &mut idx, 0, c0, p);
             canonical(&nodes, &idx)
         };
         for threads in [1, 2] {
@@ -358,7 +366,9 @@ mod tests {
                 .num_threads(threads)
                 .build()
                 .unwrap();
-            let (nodes, idx) = pool.install(|| build(&a, p));
+            let mut boxes = a.clone();
+            let (nodes, idx) = pool.install(|| build(&mut boxes, p));
+            assert!(idx.iter().zip(&boxes).all(|(&i, b)| a[i as usize] == *b));
             assert_eq!(canonical(&nodes, &idx), reference, "{threads} threads");
             // Boxes hold their children and primitives; each input once.
             let mut seen = vec![0u8; a.len()];
@@ -378,7 +388,7 @@ mod tests {
             assert!(seen.iter().all(|&s| s == 1));
         }
         let (nodes, _) = build(
-            &a,
+            &mut a.clone(),
             SahParams {
                 balanced: true,
                 ..p
@@ -390,6 +400,6 @@ mod tests {
             "{}",
             depth(&nodes)
         );
-        assert_eq!(build(&[], p).0.len(), 0);
+        assert_eq!(build(&mut [], p).0.len(), 0);
     }
 }

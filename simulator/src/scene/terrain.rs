@@ -386,7 +386,7 @@ fn balanced_cwbvh(boxes: &[Aabb]) -> CwBvh {
         isect: 1.0,
         balanced: true,
     };
-    let (nodes, order) = super::sah::build(boxes, params);
+    let (nodes, order) = super::sah::build(&mut boxes.to_vec(), params);
     let bvh2 = obvhs::bvh2::Bvh2 {
         nodes,
         primitive_indices: order,
