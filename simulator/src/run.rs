@@ -327,6 +327,8 @@ fn scene_channel_walks(
         SceneChannels::new(base, g, &models, &wavelengths, reference).scoring(part)
     });
     let ones = vec![1.0; group.len()];
+    // The Moon's walks have no pool of their own (`pools_above_scene` excludes them).
+    debug_assert!(pool.is_none() || moon.is_none());
     backward_block(
         &geometry,
         moon.as_ref(),
@@ -386,20 +388,22 @@ fn above_scene_pool(
     let batch = batch(m.cell_count());
     let mean = vec![1.0 / batch as f64; group.len()];
     with_channels(exp, sg, group, |g| {
+        let geometry = || {
+            let base = scene_in_layers(exp, exp.sun_dir, g.reference, opt, None);
+            SceneChannels::new(base, g, &models, &wavelengths, sg.reference_member)
+                .scoring(Part::BeforeEntry)
+        };
         range
             .into_par_iter()
-            .map(|s| {
-                let base = scene_in_layers(exp, exp.sun_dir, g.reference, opt, None);
-                let geometry =
-                    SceneChannels::new(base, g, &models, &wavelengths, sg.reference_member)
-                        .scoring(Part::BeforeEntry);
+            .map_init(geometry, |geometry, s| {
+                let geometry = &*geometry;
                 let stream = sample_stream(exp, [key, im as u64, s]);
                 let mut sum = SceneChannelPath::zero_tally();
                 for b in 0..batch {
                     let mut rng = stream(b);
                     let (p0, d0) = sensor::scene_start(&geometry.base, m, 0, &mut rng);
-                    let w = SceneChannelPath::new(&geometry);
-                    let t = backward::walk(&geometry, p0, d0, w, &exp.integrator, &mut rng);
+                    let w = SceneChannelPath::new(geometry);
+                    let t = backward::walk(geometry, p0, d0, w, &exp.integrator, &mut rng);
                     SceneChannelPath::add_tally(&mut sum, &t, &mean);
                 }
                 sum

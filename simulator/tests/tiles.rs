@@ -5,6 +5,8 @@
 //! checkpoints of N shards, gathered in one folder, must assemble to results equal to the
 //! unsplit run's in every bit, for shard counts that do and do not divide the tasks. An image
 //! with `target_rel_stderr` (its rounds are decided over the whole image) is never tiled.
+//! The same holds for an image walked over a wavelength group whose above-scene light is pooled
+//! (`integrator.above_scene = "pooled"`): every tile recomputes the same pool entries.
 //! `merge::collect` names a shard that left nothing.
 
 mod common;
@@ -23,8 +25,20 @@ fn exp_text(bundle: &std::path::Path, extra: &str) -> String {
 fn tiled_shards_merge_bit_for_bit() {
     let dir = tmp("tiles");
     let b = write_plane(&dir.join("bundle"), &flat_plane(1000.0, 0.0, -500.0, 0.2));
-    let exp = experiment(&exp_text(&b, ""));
-    let unsplit = simulator::run::run(&exp, false);
+    let pooled = "[integrator]\nspectral_walk = \"alis\"\nabove_scene = \"pooled\"\n";
+    for (variant, extra) in [("", ""), ("pooled", pooled)] {
+        let exp = experiment(&exp_text(&b, extra));
+        let unsplit = simulator::run::run(&exp, false);
+        tiled_runs_equal(&dir.join(variant), &exp, &unsplit);
+    }
+}
+
+fn tiled_runs_equal(
+    dir: &std::path::Path,
+    exp: &simulator::config::Experiment,
+    unsplit: &[simulator::run::MeasureResult],
+) {
+    let exp = exp.clone();
     for shards in [3usize, 4, 7] {
         let units = simulator::run::units::units(&exp, shards);
         assert!(
