@@ -225,8 +225,6 @@ impl SpectralGroup {
     }
 }
 
-/// A block of spectral ALIS walks: every walk carries all wavelengths of `group` (one
-/// accumulator per wavelength).
 /// `f` of the channels of wavelength group `group` (its atmospheres, reference and layer
 /// tables, surfaces).
 fn with_channels<R>(
@@ -251,8 +249,9 @@ fn with_channels<R>(
     })
 }
 
-/// `pool`: the above-scene pool of a pooled ortho image (`integrator/above_scene.rs`), entry
-/// `s` for sample `s`; None for whole walks.
+/// A block of spectral ALIS walks: every walk carries all wavelengths of `group` (one
+/// accumulator per wavelength). `pool`: the above-scene pool of a pooled ortho image
+/// (`integrator/above_scene.rs`), entry `s` for sample `s`; None for whole walks.
 #[allow(clippy::too_many_arguments)]
 fn run_block_spectral(
     exp: &Experiment,
@@ -311,11 +310,7 @@ fn scene_channel_walks(
     use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
     let m = &exp.measures[im];
     let opt = &exp.optics[group[reference]];
-    let models: Vec<&[crate::scene::material::SurfaceModel]> = group
-        .iter()
-        .map(|&iw| exp.optics[iw].scene_models.as_slice())
-        .collect();
-    let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
+    let (models, wavelengths) = group_scene_models(exp, group);
     let ids = [key, im as u64, cell as u64];
     let (geometry, moon) = sun_and_moon(exp, ids, moon_ratio, |sun| {
         let base = scene_in_layers(exp, sun, g.reference, opt, None);
@@ -344,6 +339,20 @@ fn scene_channel_walks(
             }
         },
     )
+}
+
+/// Per wavelength of `group`: the scene's material models, and the wavelength (nm).
+fn group_scene_models<'a>(
+    exp: &'a Experiment,
+    group: &[usize],
+) -> (Vec<&'a [crate::scene::material::SurfaceModel]>, Vec<f64>) {
+    group
+        .iter()
+        .map(|&iw| {
+            let o = &exp.optics[iw];
+            (o.scene_models.as_slice(), o.wavelength)
+        })
+        .unzip()
 }
 
 /// Tag of the random streams of the above-scene pools (`integrator/above_scene.rs`): keyed
@@ -379,11 +388,7 @@ fn above_scene_pool(
     use crate::integrator::scene_alis::{SceneChannelPath, SceneChannels};
     let m = &exp.measures[im];
     let opt = &exp.optics[group[sg.reference_member]];
-    let models: Vec<&[crate::scene::material::SurfaceModel]> = group
-        .iter()
-        .map(|&iw| exp.optics[iw].scene_models.as_slice())
-        .collect();
-    let wavelengths: Vec<f64> = group.iter().map(|&iw| exp.optics[iw].wavelength).collect();
+    let (models, wavelengths) = group_scene_models(exp, group);
     let key = POOL_STREAM | GROUP_STREAM | group[0] as u64;
     let batch = batch(m.cell_count());
     let mean = vec![1.0 / batch as f64; group.len()];

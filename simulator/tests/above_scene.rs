@@ -19,7 +19,7 @@
 mod common;
 
 use bundle::{BrdfSpec, Spectrum};
-use common::bundles::{tmp, write_plane, PlaneSpec};
+use common::bundles::{tmp, write_two_material_slope};
 use common::{experiment, run_on_1_and_2_threads};
 use simulator::accum::TOTAL;
 use simulator::integrator::above_scene::batch;
@@ -31,30 +31,7 @@ fn scene_text(dir: &std::path::Path, seed: u64, above: &str, pixel: f64, spp: u6
             values: vec![0.04, 0.12],
         },
     };
-    let soil = BrdfSpec::Lambertian {
-        reflectance: Spectrum::Table {
-            wavelengths_nm: vec![440.0, 660.0],
-            values: vec![0.12, 0.35],
-        },
-    };
-    let b = write_plane(
-        dir,
-        &PlaneSpec {
-            x0: -1000.0,
-            y0: -1000.0,
-            size: 2000.0,
-            h0: 150.0,
-            sx: 0.2,
-            sy: -0.1,
-            tiles: 2,
-            n: 8,
-            raster_width: 4,
-            raster: vec![0, 1, 0, 1, 1, 0, 1, 0, 0, 0, 1, 1, 1, 1, 0, 0],
-            materials: vec![("grass".into(), grass), ("soil".into(), soil)],
-            frame_origin: [500_000.0, 4_000_000.0, 0.0],
-            wkt: String::new(),
-        },
-    );
+    let b = write_two_material_slope(dir, grass, 0.2, -0.1, 8);
     format!(
         "seed = {seed}\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
          [atmosphere]\ntype = \"molecular\"\n\

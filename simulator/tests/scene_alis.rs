@@ -23,7 +23,7 @@
 mod common;
 
 use bundle::{BrdfSpec, Spectrum};
-use common::bundles::{tmp, write_plane, write_random_leaves, PlaneSpec};
+use common::bundles::{tmp, write_random_leaves, write_two_material_slope};
 use common::{compare_brf_rows, experiment, run_on_1_and_2_threads, run_rows};
 
 /// The experiment text with the spectral walk turned on and another seed.
@@ -119,30 +119,7 @@ fn bundle_text(dir: &std::path::Path, spp_area: u64, spp_image: u64) -> String {
         },
         rho_c: None,
     };
-    let soil = BrdfSpec::Lambertian {
-        reflectance: Spectrum::Table {
-            wavelengths_nm: vec![440.0, 660.0],
-            values: vec![0.12, 0.35],
-        },
-    };
-    let b = write_plane(
-        dir,
-        &PlaneSpec {
-            x0: -1000.0,
-            y0: -1000.0,
-            size: 2000.0,
-            h0: 150.0,
-            sx: 0.05,
-            sy: -0.03,
-            tiles: 2,
-            n: 4,
-            raster_width: 4,
-            raster: vec![0, 1, 0, 1, 1, 0, 1, 0, 0, 0, 1, 1, 1, 1, 0, 0],
-            materials: vec![("grass".into(), rpv), ("soil".into(), soil)],
-            frame_origin: [500_000.0, 4_000_000.0, 0.0],
-            wkt: String::new(),
-        },
-    );
+    let b = write_two_material_slope(dir, rpv, 0.05, -0.03, 4);
     format!(
         "{HEAD}[scene]\ntype = \"bundle\"\npath = \"{}\"\n{}\
          [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 1000.0\nzenith = 10.0\nazimuth = 60.0\nspp = {spp_image}\n",

@@ -66,6 +66,19 @@ pub enum Part {
     BeforeEntry,
 }
 
+impl Part {
+    /// Whether a contribution is scored that the path makes after its first entry below the
+    /// scene's top (`entered`) or before it.
+    #[inline]
+    pub fn scores(self, entered: bool) -> bool {
+        match self {
+            Part::Whole => true,
+            Part::AfterEntry => entered,
+            Part::BeforeEntry => !entered,
+        }
+    }
+}
+
 /// Pool walks per sample index for an image of `pixels` pixels: `pixels/16` within 64 … 1024,
 /// so the pool costs at most 1/16 of a (short) walk per pixel sample, and its share of a
 /// pixel's variance, about `1/B` of the before-part's, stays small.

@@ -56,7 +56,7 @@ use glam::DVec3;
 use super::above_scene::Part;
 use super::backward::Adjoint;
 use super::backward_alis::{channels, Channels, PhaseCache};
-use super::geometry::scene_layers::{scene_surface, FlightToSplit, SceneInLayers};
+use super::geometry::scene_layers::{scene_surface, SceneInLayers};
 use super::geometry::{Event, Geometry, Light, Split};
 use super::peak_sampling::PeakSampling;
 use super::surface::SurfaceAt;
@@ -129,6 +129,17 @@ impl<'a> SceneChannels<'a> {
         self.base.scene.z_range[1]
     }
 
+    /// Distance from `p` (above the top) along `d` down to the top (∞ going up): where the
+    /// flights of the pool's walks end.
+    #[inline]
+    fn to_top(&self, p: DVec3, d: DVec3) -> f64 {
+        if d.z < 0.0 {
+            (p.z - self.top()) / -d.z
+        } else {
+            f64::INFINITY
+        }
+    }
+
     fn nc(&self) -> usize {
         self.channels.atms.len()
     }
@@ -182,12 +193,7 @@ impl<'a> SceneChannels<'a> {
         // Above the top, exactly (see `SceneInLayers::expected_atmospheric` for the cases): the
         // part before the path's first entry below the top unless only what follows is scored.
         let exits_up = d.z > 0.0 && p.z <= top && t_hit == f64::INFINITY;
-        let above = match self.part {
-            Part::Whole => true,
-            Part::AfterEntry => entered,
-            Part::BeforeEntry => !entered,
-        };
-        if above && (p.z > top || exits_up) {
+        if self.part.scores(entered) && (p.z > top || exits_up) {
             // Per channel as the scalar geometry does in its own atmosphere (runs of layers
             // with equal optics in one exponential), times the path factor.
             let b = 1.0 / sun.z;
@@ -530,14 +536,9 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
                     self.expected_flight(p, d, inf, inf, &w.e, acc, rng, false);
                 }
             }
-            let t_top = if d.z < 0.0 {
-                (p.z - top) / -d.z
-            } else {
-                f64::INFINITY
-            };
             let s = -rng.next_f64_open0().ln();
             return match (atm.total_tau() > 0.0)
-                .then(|| atm.march(p.z, d.z, s, t_top))
+                .then(|| atm.march(p.z, d.z, s, self.to_top(p, d)))
                 .flatten()
             {
                 Some(t) => {
@@ -593,29 +594,15 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
         let atm = self.base.atmosphere;
         let top = self.top();
         if self.part == Part::BeforeEntry {
-            // The pool's walks split their flights as the pixels' do (or the before-part's
-            // variance per walk is many times theirs): a flight ends at the top, where the
-            // walk ends, or at TOA.
-            let t_end = if d.z < 0.0 {
-                (p.z - top) / -d.z
-            } else {
-                f64::INFINITY
-            };
-            if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
+            // The pool's walks split their flights too (or the before-part's variance per
+            // walk is many times the pixels'): a flight ends at the top, where the walk ends,
+            // or at TOA.
+            if !self.base.can_split(d) {
                 return None;
             }
-            let p_collision = -(-atm.optical_path(p.z, d.z, t_end)).exp_m1();
-            if p_collision.is_nan() || p_collision <= 0.0 {
-                return None;
-            }
-            let f = FlightToSplit {
-                reach: f64::INFINITY,
-                hit: None,
-                t_hit: t_end,
-                p_collision,
-            };
+            let inf = f64::INFINITY;
+            let f = self.base.split_ending(p, d, inf, None, self.to_top(p, d))?;
             if let Some(acc) = acc {
-                let inf = f64::INFINITY;
                 self.expected_flight(p, d, inf, inf, &w.e, acc, rng, false);
             }
             let t = self.base.forced_distance(p, d, &f, rng);
@@ -624,7 +611,7 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
             self.channels.layers.carry(&mut w.e_coll[..nc], p.z, d.z, t);
             w.layer = atm.layer_at_altitude(q.z);
             return Some(Split {
-                p_collision,
+                p_collision: f.p_collision,
                 collision: self.base.collision_at(q),
                 end: Event::Escape,
             });
@@ -670,13 +657,7 @@ impl<'a> Geometry<SceneChannelPath<'a>> for SceneChannels<'a> {
         w: &mut SceneChannelPath<'a>,
         acc: &mut [f64; SCENE_CHANNELS],
     ) {
-        let above = pos.z > self.top();
-        let scored = match self.part {
-            Part::Whole => true,
-            Part::AfterEntry => w.entered,
-            Part::BeforeEntry => true,
-        };
-        if !scored || !(above || self.base.sees_sun(pos)) {
+        if !self.part.scores(w.entered) || !(pos.z > self.top() || self.base.sees_sun(pos)) {
             return;
         }
         let mut rp = [0.0; SCENE_CHANNELS];

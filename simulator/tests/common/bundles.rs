@@ -62,6 +62,42 @@ pub fn flat_plane(size: f64, h0: f64, x0: f64, reflectance: f64) -> PlaneSpec {
 /// WKT of UTM 31N (EPSG:32631), written by hand (no GDAL needed to build the bundle).
 pub const UTM31N_EPSG: u32 = 32631;
 
+/// A 2 km sloped plane (`sx`, `sy`; `n` nodes per tile side, 2 × 2 tiles) at 150 m, 500 km /
+/// 4000 km from the frame origin, of two spectral materials in a 4 × 4 pattern: `grass` and a
+/// soil of Lambertian reflectance 0.12 at 440 nm to 0.35 at 660 nm (the spectral scene tests).
+pub fn write_two_material_slope(
+    dir: &Path,
+    grass: BrdfSpec,
+    sx: f64,
+    sy: f64,
+    n: usize,
+) -> PathBuf {
+    let soil = BrdfSpec::Lambertian {
+        reflectance: Spectrum::Table {
+            wavelengths_nm: vec![440.0, 660.0],
+            values: vec![0.12, 0.35],
+        },
+    };
+    write_plane(
+        dir,
+        &PlaneSpec {
+            x0: -1000.0,
+            y0: -1000.0,
+            size: 2000.0,
+            h0: 150.0,
+            sx,
+            sy,
+            tiles: 2,
+            n,
+            raster_width: 4,
+            raster: vec![0, 1, 0, 1, 1, 0, 1, 0, 0, 0, 1, 1, 1, 1, 0, 0],
+            materials: vec![("grass".into(), grass), ("soil".into(), soil)],
+            frame_origin: [500_000.0, 4_000_000.0, 0.0],
+            wkt: String::new(),
+        },
+    )
+}
+
 pub fn write_plane(dir: &Path, p: &PlaneSpec) -> PathBuf {
     let indices: Vec<u8> = (0..p.materials.len() as u8).collect();
     write_plane_with_indices(dir, p, &indices)

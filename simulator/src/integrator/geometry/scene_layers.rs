@@ -281,14 +281,33 @@ impl SceneInLayers<'_> {
     /// walk here and the spectral one (`scene_alis.rs`).
     #[inline]
     pub(crate) fn flight_to_split(&self, p: DVec3, d: DVec3) -> Option<FlightToSplit> {
-        let atm = self.atmosphere;
-        if d.z.abs() < 1e-6 || atm.total_tau() <= 0.0 {
+        if !self.can_split(d) {
             return None;
         }
         let (reach, hit) = self.first_hit(p, d);
         let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        self.split_ending(p, d, reach, hit, t_hit)
+    }
+
+    /// Whether a flight along `d` may be split (not nearly horizontal, not a clear sky).
+    #[inline]
+    pub(crate) fn can_split(&self, d: DVec3) -> bool {
+        d.z.abs() >= 1e-6 && self.atmosphere.total_tau() > 0.0
+    }
+
+    /// The flight from `p` along `d` ending at `t_end` (its hit `hit`, `reach` as in
+    /// [`FlightToSplit`]) as a flight to split: `None` for a zero optical path.
+    #[inline]
+    pub(crate) fn split_ending(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        reach: f64,
+        hit: Option<SurfaceHit>,
+        t_end: f64,
+    ) -> Option<FlightToSplit> {
         // Optical path to the flight's end (tau_at_altitude clamps beyond the atmosphere).
-        let s_end = atm.optical_path(p.z, d.z, t_hit);
+        let s_end = self.atmosphere.optical_path(p.z, d.z, t_end);
         let p_collision = -(-s_end).exp_m1();
         if p_collision.is_nan() || p_collision <= 0.0 {
             return None;
@@ -296,7 +315,7 @@ impl SceneInLayers<'_> {
         Some(FlightToSplit {
             reach,
             hit,
-            t_hit,
+            t_hit: t_end,
             p_collision,
         })
     }
