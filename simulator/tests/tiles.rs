@@ -90,7 +90,7 @@ fn merge_names_a_shard_that_left_nothing() {
     let out = dir.join("plan");
     let shards = 3;
     let plan = Plan {
-        simulator_version: env!("CARGO_PKG_VERSION").into(),
+        simulator_version: simulator::BUILD_ID.into(),
         experiment: "exp.toml".into(),
         workdir: dir.clone(),
         experiment_hash: simulator::run::checkpoint::experiment_hash(&exp),

@@ -591,12 +591,12 @@ fn merge_command(plan_dir: &std::path::Path) -> anyhow::Result<()> {
         .canonicalize()
         .with_context(|| format!("plan folder {}", plan_dir.display()))?;
     let plan = Plan::read(&out).map_err(anyhow::Error::msg)?;
-    if plan.simulator_version != env!("CARGO_PKG_VERSION") {
+    if plan.simulator_version != simulator::BUILD_ID {
         anyhow::bail!(
-            "{}: planned with simulator {}, this is {}: merge with the version that ran the shards",
+            "{}: planned with simulator {}, this is {}: merge with the build that ran the shards",
             out.join(simulator::cluster::PLAN_FILE).display(),
             plan.simulator_version,
-            env!("CARGO_PKG_VERSION")
+            simulator::BUILD_ID
         );
     }
     // The experiment is read from the folder the plan was made in, as the tasks read it (the

@@ -44,13 +44,15 @@ pub struct Estimate {
 /// The manifest.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Plan {
-    /// Version of the simulator that wrote the plan (shards must run the same).
+    /// Build of the simulator that wrote the plan ([`crate::BUILD_ID`]: version and source
+    /// digest; shards and merge must run the same).
     pub simulator_version: String,
     /// The experiment file as given to `simulate plan` (relative to `workdir`).
     pub experiment: PathBuf,
     /// The folder `simulate plan` ran in: tasks and `merge` read the experiment from there.
     pub workdir: PathBuf,
-    /// Hash of the experiment text, the version and every input file (as in checkpoints).
+    /// Hash of the experiment text, the build ([`crate::BUILD_ID`]) and every input file (as in
+    /// checkpoints).
     pub experiment_hash: String,
     /// The `--spp` override of every measure, if any.
     #[serde(default, skip_serializing_if = "Option::is_none")]

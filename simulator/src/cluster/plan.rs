@@ -125,7 +125,7 @@ pub fn plan(experiment: &Path, out: &Path, o: &Options) -> anyhow::Result<Plan> 
     };
     let workdir = std::env::current_dir().context("the current folder")?;
     let plan = Plan {
-        simulator_version: env!("CARGO_PKG_VERSION").into(),
+        simulator_version: crate::BUILD_ID.into(),
         experiment: experiment.to_path_buf(),
         workdir,
         experiment_hash: crate::run::checkpoint::experiment_hash(&exp),

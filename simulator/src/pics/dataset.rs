@@ -122,7 +122,7 @@ pub fn fill(
 ) -> Result<(), netcdf::Error> {
     f.add_attribute("Conventions", "CF-1.10")?;
     f.add_attribute("title", "Simulated TOA reflectance of a calibration site")?;
-    f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
+    f.add_attribute("source", format!("simulator {}", crate::BUILD_ID))?;
     f.add_attribute("site_file", site_path.display().to_string())?;
     f.add_dimension("acquisition", rows.len())?;
     {

@@ -228,7 +228,7 @@ pub fn write_files(
         let mut meta = vec![
             (
                 "software".to_string(),
-                format!("simulator {}", env!("CARGO_PKG_VERSION")),
+                format!("simulator {}", crate::BUILD_ID),
             ),
             (
                 "sun_zenith_deg".to_string(),

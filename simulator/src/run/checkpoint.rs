@@ -1,8 +1,9 @@
 //! Checkpoints: after each work unit (`units.rs`) its sums are written to `DIR/wWWW_mMMM.json`
 //! (a whole (wavelength, measure) task) or `DIR/wWWW_mMMM_tTTTTTofTTTTTT.json` (a pixel tile),
-//! atomically, stamped with a hash of the experiment text, the simulator version and every
-//! input file the experiment names (`input_digest.rs`: a rebuilt bundle, a replaced phase
-//! table). A later run of the same experiment into the same folder reuses them, so an
+//! atomically, stamped with a hash of the experiment text, the simulator's build (its version
+//! and a digest of its sources, [`crate::BUILD_ID`]: estimators can change while the version
+//! does not) and every input file the experiment names (`input_digest.rs`: a rebuilt bundle,
+//! a replaced phase table). A later run of the same experiment into the same folder reuses them, so an
 //! interrupted run resumes where it stopped; any change to the experiment or its inputs
 //! invalidates them. A whole task whose file is absent is assembled from a complete set of
 //! tile files when the folder has one (the checkpoints of a run split into shards, collected
@@ -32,18 +33,18 @@ struct Stored {
     acc: Accum,
 }
 
-/// FNV-1a 64 of the experiment text, the simulator's version and the digest of every input
-/// file the experiment names ([`crate::input_digest`]): identifies the run a checkpoint
+/// FNV-1a 64 of the experiment text, the simulator's build ([`crate::BUILD_ID`]: version and
+/// source digest) and the digest of every input file the experiment names ([`crate::input_digest`]): identifies the run a checkpoint
 /// belongs to. Computed once per run (it reads the inputs).
 pub fn experiment_hash(exp: &Experiment) -> String {
     let inputs = crate::input_digest::digest(&exp.source_text, &exp.source_path);
+    hash_of(&exp.source_text, crate::BUILD_ID, &inputs)
+}
+
+/// FNV-1a 64 of the experiment text, a build id and an input digest, in hex.
+fn hash_of(text: &str, build: &str, inputs: &str) -> String {
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in exp
-        .source_text
-        .bytes()
-        .chain(env!("CARGO_PKG_VERSION").bytes())
-        .chain(inputs.bytes())
-    {
+    for b in text.bytes().chain(build.bytes()).chain(inputs.bytes()) {
         h ^= b as u64;
         h = h.wrapping_mul(0x0000_0100_0000_01b3);
     }
@@ -163,7 +164,7 @@ pub fn store(
     })?;
     let s = Stored {
         experiment_hash: key.to_string(),
-        version: env!("CARGO_PKG_VERSION").into(),
+        version: crate::BUILD_ID.into(),
         measure: exp.measures[r.measure].id.clone(),
         wavelength_nm: exp.wavelengths[r.wavelength],
         method: r.method.name().into(),
@@ -176,4 +177,32 @@ pub fn store(
     };
     let text = serde_json::to_string(&s).expect("checkpoint serialises");
     crate::products::write_atomic(&path(dir, r.wavelength, u), text.as_bytes())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The build id is the crate version and a source digest, and it is part of the key: two
+    /// builds of the same version whose sources differ never share checkpoints.
+    #[test]
+    fn build_id_keys_checkpoints() {
+        let (version, digest) = crate::BUILD_ID
+            .split_once("+src.")
+            .expect("version+src.digest");
+        assert_eq!(version, env!("CARGO_PKG_VERSION"));
+        assert_eq!(digest.len(), 16);
+        assert!(digest.chars().all(|c| c.is_ascii_hexdigit()));
+        let a = hash_of("seed = 1", "0.1.0+src.0000000000000001", "inputs");
+        let b = hash_of("seed = 1", "0.1.0+src.0000000000000002", "inputs");
+        assert_ne!(a, b);
+        assert_eq!(
+            a,
+            hash_of("seed = 1", "0.1.0+src.0000000000000001", "inputs")
+        );
+        assert_ne!(
+            a,
+            hash_of("seed = 2", "0.1.0+src.0000000000000001", "inputs")
+        );
+    }
 }

@@ -77,7 +77,7 @@ pub fn fill(
 fn write_globals(f: &mut netcdf::FileMut, exp: &Experiment) -> Result<(), netcdf::Error> {
     f.add_attribute("Conventions", "CF-1.10")?;
     f.add_attribute("title", "Monte Carlo radiative transfer simulation")?;
-    f.add_attribute("source", format!("simulator {}", env!("CARGO_PKG_VERSION")))?;
+    f.add_attribute("source", format!("simulator {}", crate::BUILD_ID))?;
     f.add_attribute(
         "history",
         format!("created by `simulate run {}`", exp.source_path.display()),
