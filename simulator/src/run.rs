@@ -361,7 +361,7 @@ const POOL_STREAM: u64 = 1 << 60;
 
 /// Whether ortho measure `m` of a run with wavelength groups pools the light of the atmosphere
 /// above the scene (`integrator.above_scene`, `integrator/above_scene.rs`).
-fn pools_above_scene(exp: &Experiment, m: &Measure) -> bool {
+pub(crate) fn pools_above_scene(exp: &Experiment, m: &Measure) -> bool {
     use crate::integrator::settings::AboveScene;
     let applies = exp.scene.is_some()
         && exp.integrator.spectral_alis.is_some()

@@ -107,14 +107,22 @@ fn pooled_image_equals_walked_image() {
 }
 
 /// The split at the first entry holds whatever else the walk does: collision estimates instead
-/// of expected ones, no forced collision (two split flights are refused in spectral scene
-/// walks: `config_errors`).
+/// of expected ones, no forced collision, two split flights (the second can be nearly
+/// horizontal and optically thousands deep: its uncollided branch has no weight left and must
+/// stop before its path factors overflow, or pixels are NaN; every pixel is checked finite).
 #[test]
 fn pooled_variants_equal_walked_image() {
     let dir = tmp("above-scene-variants");
+    // Every variant's walked image also agrees with the default walk's (one split flight,
+    // expected estimates): the variants are unbiased, not only pooled like walked.
+    let reference = simulator::run::run(
+        &experiment(&scene_text(&dir, 8, "walked", 62.5, 128)),
+        false,
+    );
     for (case, key) in [
         ("collision estimates", "local_estimate = \"collision\"\n"),
         ("no forced collision", "forced_flights = 0\n"),
+        ("two split flights", "forced_flights = 2\n"),
     ] {
         let text = |seed, above| {
             scene_text(&dir, seed, above, 62.5, 128)
@@ -123,7 +131,21 @@ fn pooled_variants_equal_walked_image() {
         let pooled = simulator::run::run(&experiment(&text(6, "auto")), false);
         let walked = simulator::run::run(&experiment(&text(7, "walked")), false);
         assert_eq!(pooled[0].acc.n.len(), 1024);
+        for r in pooled.iter().chain(&walked) {
+            for c in 0..r.acc.n.len() {
+                let (m, e) = r.acc.mean_stderr(c, TOTAL);
+                assert!(
+                    m.is_finite() && e.is_finite(),
+                    "{case}: pixel {c}: {m} ± {e}"
+                );
+            }
+        }
         compare(case, &pooled, &walked);
+        compare(
+            &format!("{case}, walked against the default walk"),
+            &walked,
+            &reference,
+        );
     }
 }
 
@@ -158,7 +180,25 @@ fn config_errors() {
     );
     let e = err(&text.replace("above_scene = \"pooled\"", "above_scene = \"pool\""));
     assert!(e.contains("above_scene"), "{e}");
-    // Two split flights in a spectral scene walk (their path factors overflow).
-    let e = err(&text.replace("[integrator]\n", "[integrator]\nforced_flights = 2\n"));
-    assert!(e.contains("integrator.forced_flights"), "{e}");
+    // No scene: nothing to pool above (a 1D surface and a radiance meter instead).
+    let scene = &text[text.find("[scene]").unwrap()..];
+    let e = err(&text.replace(
+        scene,
+        "[surface]\ntype = \"lambertian\"\nreflectance = 0.2\n\
+         [[measures]]\nid = \"nadir\"\ntype = \"radiancemeter\"\norigin = [0.0, 0.0, 700.0]\n\
+         direction = [0.0, 0.0, -1.0]\nspp = 100\n",
+    ));
+    assert!(
+        e.contains("integrator.above_scene") && e.contains("scene"),
+        "{e}"
+    );
+    // The Moon beside the Sun (a Grenoble June afternoon, first quarter).
+    let e = err(&text.replace(
+        "zenith = 40.0\nazimuth = 30.0\n",
+        "time = \"2026-06-21T15:00:00Z\"\nlatitude = 45.2\nlongitude = 5.74\nmoon = true\n",
+    ));
+    assert!(
+        e.contains("integrator.above_scene") && e.contains("Moon"),
+        "{e}"
+    );
 }

@@ -294,8 +294,10 @@ impl PlaneParallel {
     /// The ray starts at altitude `z0` (m) with vertical direction cosine `dz` (> 0 up) and
     /// travels at most `tmax` metres. Layers are homogeneous, so the extinction coefficient
     /// (m⁻¹) is constant inside each and the optical path is exact whatever the direction,
-    /// horizontal included. Returns the distance of the collision, or `None` when the ray
-    /// reaches `tmax` or leaves the atmosphere (through the top, or below the ground) first.
+    /// horizontal included. A ray starting above the top or below the bottom enters there
+    /// (there is no air outside). Returns the distance of the collision, or `None` when the
+    /// ray reaches `tmax` or leaves the atmosphere (through the top, or below the ground)
+    /// first.
     /// Used by the 3D walks, whose positions are metres rather than optical depths. Rays with
     /// |dz| ≥ 10⁻³ find the collision by a binary search over the boundaries' optical depths
     /// (the optical path is |Δτ|/|dz| in a plane-parallel atmosphere); flatter rays walk the
@@ -304,19 +306,24 @@ impl PlaneParallel {
         let n = self.albedo.len();
         let (toa, ground) = (self.z[0], self.z[n]);
         let mut t = 0.0;
-        // Enter the atmosphere from above.
+        // Enter the atmosphere from above, or from below: a 3D scene may reach under the
+        // atmosphere's bottom, where there is no air (the resolver warns), and a ray going up
+        // from there meets the air at the bottom (as `optical_path` counts it).
         if z0 >= toa {
             if dz >= 0.0 {
                 return None;
             }
             t = (z0 - toa) / -dz;
         } else if z0 < ground {
-            return None;
+            if dz <= 0.0 {
+                return None;
+            }
+            t = (ground - z0) / dz;
         }
         if t >= tmax {
             return None;
         }
-        let z = (z0 + t * dz).min(toa);
+        let z = (z0 + t * dz).clamp(ground, toa);
         // Not too close to horizontal: the optical path from z is |τ(z) − τ(z')| / |dz|, so the
         // collision is where τ reaches τ(z) ± s·|dz|: a binary search over the boundaries' τ
         // instead of a walk through every layer crossed (τ is linear in z inside a layer).
@@ -707,8 +714,9 @@ mod tests {
         assert_eq!(a.fly(0.0, -0.3, 0.001), FlightEnd::Surface);
     }
     /// `march` (metres) agrees with `fly` (optical depth): the optical depth between start and
-    /// collision equals s·|dz|, layer crossings included, on both of its paths; horizontal rays collide at s/k; `tmax`
-    /// and leaving the atmosphere give `None`.
+    /// collision equals s·|dz|, layer crossings included, on both of its paths; rays from
+    /// below the ground going up enter there; horizontal rays collide at s/k; `tmax` and
+    /// leaving the atmosphere give `None`.
     #[test]
     fn march_agrees_with_fly() {
         let atm = three_layers();
@@ -724,7 +732,8 @@ mod tests {
             };
             let s = -rng.next_f64_open0().ln();
             let tau0 = atm.tau_at_altitude(z0);
-            let expect = if z0 < atm.ground() {
+            // Below the ground (a scene reaching under it) only upward rays enter the air.
+            let expect = if z0 < atm.ground() && dz <= 0.0 {
                 None
             } else {
                 match atm.fly(tau0, dz, s) {

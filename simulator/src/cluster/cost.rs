@@ -4,9 +4,10 @@
 //! otherwise; fewer if `spp` is smaller) is walked for up to 64 cells spread evenly over the
 //! measure, on all the planning machine's threads, twice (the cheaper pass counts: the first
 //! also pays for cold caches); CPU seconds per walk = the process's CPU time (`getrusage`: it
-//! does not depend on other load on the machine) / walks. A unit then costs `spp × walks per sample × that` (walks per sample: its cells for
-//! backward measures, 1 for forward ones; with `target_rel_stderr`, `spp` is the cap, so the
-//! estimate is an upper bound). A shard's wall time on C CPUs is its CPU seconds / C.
+//! does not depend on other load on the machine) / walks. A unit then costs `spp × walks per
+//! sample × that` (walks per sample: its cells for backward measures, 1 for forward ones, plus
+//! the above-scene pool's `batch` walks for a pooled image, charged as whole walks; with
+//! `target_rel_stderr`, `spp` is the cap, so the estimate is an upper bound). A shard's wall time on C CPUs is its CPU seconds / C.
 //!
 //! The time limit asked of Slurm is twice the heaviest shard's wall time plus twice the load
 //! time plus 5 minutes (the pilot sees few pixels, and compute nodes differ from the planning
@@ -77,7 +78,15 @@ pub fn unit_cpu_seconds(exp: &Experiment, per_walk: &[Vec<f64>], u: &Unit) -> f6
     let groups = crate::run::wavelength_groups(exp);
     let g = groups.iter().position(|g| *g == u.group).unwrap_or(0);
     let m = &exp.measures[u.measure];
-    per_walk[g][u.measure] * (m.spp * walks(exp, u)) as f64
+    // A pooled image's unit also walks the above-scene pool for its samples (every tile of the
+    // image recomputes it): `batch` short walks per sample, charged as whole walks (they end at
+    // the scene's top, so this bounds them from above).
+    let pool = if crate::run::pools_above_scene(exp, m) {
+        crate::integrator::above_scene::batch(m.cell_count())
+    } else {
+        0
+    };
+    per_walk[g][u.measure] * (m.spp * (walks(exp, u) + pool)) as f64
 }
 
 /// Bytes of the result sums unit `u` holds (one accumulator per wavelength of its group).

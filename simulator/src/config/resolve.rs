@@ -471,19 +471,6 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             ));
         }
     }
-    // Spectral walks through a scene (`scene_alis.rs`) split one flight at most: a second split
-    // flight can be nearly horizontal and thousands of kilometres long, and each wavelength's
-    // path factor exp(−(τ_c − τ_ref)) along it overflows while the uncollided weight underflows
-    // (0·∞: pixels of NaN, found with forced_flights = 2 in `tests/above_scene.rs`).
-    if scene.is_some() && integrator.spectral_alis.is_some() && integrator.forced_flights > 1 {
-        return Err(ctx.err(
-            "integrator.forced_flights",
-            format!(
-                "{} split flights are not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): at most 1",
-                integrator.forced_flights
-            ),
-        ));
-    }
     // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
     if let (Some(sc), Some(_)) = (&scene, integrator.spectral_alis) {
         if let Some((name, solver)) = sc

@@ -298,6 +298,13 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                 walk_on(g, next, settings, peak, rng, tally, budget);
             }
             w.rescale_to(i * (1.0 - p), i);
+            // A flight of optical depth beyond ~37 leaves the uncollided branch no weight in
+            // f64 (1 − p rounds to 0): whatever it would score is 0 × its factors. Stop it
+            // there: walking on costs time, and a spectral walk's path factors along a long
+            // flight, exp(τ_ref − τ_c), can overflow, which would make those zeros 0·∞ = NaN.
+            if w.intensity() == 0.0 {
+                break;
+            }
         }
         match event {
             Event::Escape => break,
