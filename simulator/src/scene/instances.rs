@@ -90,6 +90,7 @@ use obvhs::ray::{Ray, RayHit};
 use obvhs::BvhBuildParams;
 
 use super::sah::SahParams;
+use std::path::PathBuf;
 
 use super::clip;
 
@@ -568,7 +569,49 @@ fn to_pairs(nodes: &[Bvh2Node]) -> Tree {
 /// of 7 entries per binary node) to about a third; the boxes are freed before it. A tree deeper
 /// than obvhs' traversal stack allows ([`super::CWBVH_MAX_DEPTH`], only pathological inputs)
 /// is rebuilt with median splits.
-fn build_tlas(mut aabbs: Vec<Aabb>) -> Result<Tlas, String> {
+fn build_tlas(aabbs: Vec<Aabb>, cache_dir: Option<PathBuf>) -> Result<Tlas, String> {
+    use super::tlas_cache;
+    let n = aabbs.len();
+    // A tree built before from exactly these boxes by this build (`tlas_cache.rs`).
+    let cache = cache_dir
+        .filter(|_| n >= tlas_cache::MIN_INSTANCES)
+        .map(|dir| (dir, tlas_cache::key(&aabbs)));
+    if let Some((dir, key)) = &cache {
+        if let Some(c) = tlas_cache::load(dir, key).filter(|c| c.order.len() == n) {
+            tracing::debug!(
+                "instance TLAS: {n} instances in {} clusters, {} CWBVH nodes, {} levels (cached in {})",
+                c.cluster_start.len().saturating_sub(1),
+                c.nodes.len(),
+                c.depth,
+                dir.display()
+            );
+            return Ok(Tlas {
+                tree: tlas_cache::Cached::tree(c.nodes, c.total_aabb),
+                cluster_start: c.cluster_start,
+                order: c.order,
+                depth: c.depth,
+            });
+        }
+    }
+    let tlas = build_tlas_uncached(aabbs)?;
+    if let Some((dir, key)) = &cache {
+        let view = tlas_cache::View {
+            nodes: &tlas.tree.nodes,
+            total_aabb: tlas.tree.total_aabb,
+            cluster_start: &tlas.cluster_start,
+            order: &tlas.order,
+            depth: tlas.depth,
+        };
+        match tlas_cache::store(dir, key, &view) {
+            Ok(()) => tracing::debug!("instance TLAS cached in {}", dir.display()),
+            Err(e) => tracing::debug!("instance TLAS not cached: {e}"),
+        }
+    }
+    Ok(tlas)
+}
+
+/// [`build_tlas`] without the cache.
+fn build_tlas_uncached(mut aabbs: Vec<Aabb>) -> Result<Tlas, String> {
     let n = aabbs.len();
     let params = |balanced| SahParams {
         max_leaf: TLAS_MAX_LEAF,
@@ -1048,7 +1091,7 @@ impl InstanceBvh {
             cluster_start,
             order,
             depth: tlas_depth,
-        } = build_tlas(aabbs)?;
+        } = build_tlas(aabbs, super::tlas_cache::dir())?;
         // Records in TLAS slot order, permuted in place (slot k takes record order[k]) so that
         // the records are never held twice.
         permute_in_place(&mut ids, order.clone());
@@ -1553,6 +1596,46 @@ mod tests {
             }
         }
         best
+    }
+
+    /// The top-level tree read from the disk cache (`tlas_cache.rs`) is the tree built
+    /// without it, node for node; the first build writes the cache, the second reads it, and
+    /// other boxes are not served another tree.
+    #[test]
+    fn cached_tlas_equals_built() {
+        let mut rng = Stream::new(17, [5, 0, 0, 0]);
+        let n = super::super::tlas_cache::MIN_INSTANCES + 123;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|_| {
+                let c = Vec3A::new(
+                    8e3 * rng.next_f64() as f32,
+                    8e3 * rng.next_f64() as f32,
+                    20.0 * rng.next_f64() as f32,
+                );
+                let h = Vec3A::splat(0.5 + 3.0 * rng.next_f64() as f32);
+                Aabb::new(c - h, c + h)
+            })
+            .collect();
+        let dir = std::env::temp_dir().join(format!("eosim-tlas-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let built = build_tlas(boxes.clone(), None).unwrap();
+        let first = build_tlas(boxes.clone(), Some(dir.clone())).unwrap();
+        let files = || std::fs::read_dir(&dir).map_or(0, |d| d.count());
+        assert_eq!(files(), 1, "the first build writes the cache");
+        let cached = build_tlas(boxes.clone(), Some(dir.clone())).unwrap();
+        for t in [&first, &cached] {
+            assert!(t.tree.nodes == built.tree.nodes);
+            assert_eq!(t.tree.total_aabb, built.tree.total_aabb);
+            assert_eq!(t.cluster_start, built.cluster_start);
+            assert_eq!(t.order, built.order);
+            assert_eq!(t.depth, built.depth);
+        }
+        let mut moved = boxes;
+        moved[7].max.x += 1.0;
+        let other = build_tlas(moved, Some(dir.clone())).unwrap();
+        assert_eq!(files(), 2);
+        assert_eq!(other.order.len(), n);
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// The two-level BVH agrees with a brute-force f64 search (same instance and primitive,

@@ -15,6 +15,7 @@ pub(crate) mod sah;
 pub mod sun_clearance;
 pub mod terrain;
 pub mod texture;
+pub(crate) mod tlas_cache;
 pub mod world;
 
 pub use terrain::{TerrainBvh, TerrainHit};
