@@ -570,39 +570,46 @@ fn to_pairs(nodes: &[Bvh2Node]) -> Tree {
 /// than obvhs' traversal stack allows ([`super::CWBVH_MAX_DEPTH`], only pathological inputs)
 /// is rebuilt with median splits.
 fn build_tlas(aabbs: Vec<Aabb>, cache_dir: Option<PathBuf>) -> Result<Tlas, String> {
-    use super::tlas_cache;
+    use super::bvh_cache::{self, Kind};
     let n = aabbs.len();
-    // A tree built before from exactly these boxes by this build (`tlas_cache.rs`).
+    // A tree built before from exactly these boxes by this build (`bvh_cache.rs`); its
+    // lists are the cluster starts (rising from 0 to the record count) and the slot order.
     let cache = cache_dir
-        .filter(|_| n >= tlas_cache::MIN_INSTANCES)
-        .map(|dir| (dir, tlas_cache::key(&aabbs)));
+        .filter(|_| n >= bvh_cache::MIN_PRIMITIVES)
+        .map(|dir| (dir, bvh_cache::key(Kind::Instances, &aabbs)));
     if let Some((dir, key)) = &cache {
-        if let Some(c) = tlas_cache::load(dir, key).filter(|c| c.order.len() == n) {
+        let valid = |c: &bvh_cache::Cached| {
+            c.second.len() == n
+                && c.first.first() == Some(&0)
+                && c.first.last() == Some(&(n as u32))
+                && c.first.windows(2).all(|w| w[0] <= w[1])
+        };
+        if let Some(c) = bvh_cache::load(dir, key).filter(valid) {
             tracing::debug!(
                 "instance TLAS: {n} instances in {} clusters, {} CWBVH nodes, {} levels (cached in {})",
-                c.cluster_start.len().saturating_sub(1),
+                c.first.len().saturating_sub(1),
                 c.nodes.len(),
                 c.depth,
                 dir.display()
             );
             return Ok(Tlas {
-                tree: tlas_cache::Cached::tree(c.nodes, c.total_aabb),
-                cluster_start: c.cluster_start,
-                order: c.order,
+                tree: bvh_cache::Cached::tree(c.nodes, c.total_aabb, Vec::new()),
+                cluster_start: c.first,
+                order: c.second,
                 depth: c.depth,
             });
         }
     }
     let tlas = build_tlas_uncached(aabbs)?;
     if let Some((dir, key)) = &cache {
-        let view = tlas_cache::View {
+        let view = bvh_cache::View {
             nodes: &tlas.tree.nodes,
             total_aabb: tlas.tree.total_aabb,
-            cluster_start: &tlas.cluster_start,
-            order: &tlas.order,
+            first: &tlas.cluster_start,
+            second: &tlas.order,
             depth: tlas.depth,
         };
-        match tlas_cache::store(dir, key, &view) {
+        match bvh_cache::store(dir, key, &view) {
             Ok(()) => tracing::debug!("instance TLAS cached in {}", dir.display()),
             Err(e) => tracing::debug!("instance TLAS not cached: {e}"),
         }
@@ -1091,7 +1098,7 @@ impl InstanceBvh {
             cluster_start,
             order,
             depth: tlas_depth,
-        } = build_tlas(aabbs, super::tlas_cache::dir())?;
+        } = build_tlas(aabbs, super::bvh_cache::dir())?;
         // Records in TLAS slot order, permuted in place (slot k takes record order[k]) so that
         // the records are never held twice.
         permute_in_place(&mut ids, order.clone());
@@ -1598,13 +1605,13 @@ mod tests {
         best
     }
 
-    /// The top-level tree read from the disk cache (`tlas_cache.rs`) is the tree built
+    /// The top-level tree read from the disk cache (`bvh_cache.rs`) is the tree built
     /// without it, node for node; the first build writes the cache, the second reads it, and
     /// other boxes are not served another tree.
     #[test]
     fn cached_tlas_equals_built() {
         let mut rng = Stream::new(17, [5, 0, 0, 0]);
-        let n = super::super::tlas_cache::MIN_INSTANCES + 123;
+        let n = super::super::bvh_cache::MIN_PRIMITIVES + 123;
         let boxes: Vec<Aabb> = (0..n)
             .map(|_| {
                 let c = Vec3A::new(

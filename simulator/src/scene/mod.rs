@@ -5,6 +5,7 @@
 
 pub mod area_mask;
 pub mod build;
+pub(crate) mod bvh_cache;
 pub mod curvature;
 pub mod emission;
 pub mod instances;
@@ -15,7 +16,6 @@ pub(crate) mod sah;
 pub mod sun_clearance;
 pub mod terrain;
 pub mod texture;
-pub(crate) mod tlas_cache;
 pub mod world;
 
 pub use terrain::{TerrainBvh, TerrainHit};

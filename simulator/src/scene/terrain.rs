@@ -187,18 +187,7 @@ impl TerrainBvh {
                 )
             })
             .collect();
-        let mut params = BvhBuildParams::medium_build();
-        params.max_prims_per_leaf = 3;
-        let mut bvh = build_cwbvh(&boxes, params, &mut std::time::Duration::default());
-        let depth = super::cwbvh_depth(&bvh);
-        if depth > super::CWBVH_MAX_DEPTH {
-            // obvhs' traversal would silently drop subtrees: rebuild with median splits.
-            tracing::warn!(
-                "terrain BVH of {} triangles has {depth} levels; rebuilt with median splits",
-                boxes.len()
-            );
-            bvh = balanced_cwbvh(&boxes);
-        }
+        let mut bvh = cached_cwbvh(&boxes, super::bvh_cache::dir());
         tracing::debug!(
             "terrain CWBVH: {} triangles, {} nodes, {} levels",
             boxes.len(),
@@ -377,6 +366,57 @@ impl TerrainBvh {
     }
 }
 
+/// The terrain's tree over `boxes`: obvhs' build (median splits if that is too deep for its
+/// traversal), or the same tree from the disk cache (`bvh_cache.rs`) when `cache_dir` holds
+/// one built from exactly these boxes by this build.
+fn cached_cwbvh(boxes: &[Aabb], cache_dir: Option<std::path::PathBuf>) -> CwBvh {
+    use super::bvh_cache::{self, Kind};
+    let n = boxes.len();
+    let cache = cache_dir
+        .filter(|_| n >= bvh_cache::MIN_PRIMITIVES)
+        .map(|dir| (dir, bvh_cache::key(Kind::Terrain, boxes)));
+    if let Some((dir, key)) = &cache {
+        // The slot order must be a permutation of the triangles.
+        let valid = |c: &bvh_cache::Cached| {
+            let mut seen = vec![false; n];
+            c.first.len() == n
+                && c.first
+                    .iter()
+                    .all(|&i| (i as usize) < n && !std::mem::replace(&mut seen[i as usize], true))
+        };
+        if let Some(c) = bvh_cache::load(dir, key).filter(valid) {
+            tracing::debug!("terrain CWBVH read from the cache in {}", dir.display());
+            return bvh_cache::Cached::tree(c.nodes, c.total_aabb, c.first);
+        }
+    }
+    let mut params = BvhBuildParams::medium_build();
+    params.max_prims_per_leaf = 3;
+    let mut bvh = build_cwbvh(boxes, params, &mut std::time::Duration::default());
+    let depth = super::cwbvh_depth(&bvh);
+    if depth > super::CWBVH_MAX_DEPTH {
+        // obvhs' traversal would silently drop subtrees: rebuild with median splits.
+        tracing::warn!(
+            "terrain BVH of {} triangles has {depth} levels; rebuilt with median splits",
+            boxes.len()
+        );
+        bvh = balanced_cwbvh(boxes);
+    }
+    if let Some((dir, key)) = &cache {
+        let view = bvh_cache::View {
+            nodes: &bvh.nodes,
+            total_aabb: bvh.total_aabb,
+            first: &bvh.primitive_indices,
+            second: &[],
+            depth: super::cwbvh_depth(&bvh),
+        };
+        match bvh_cache::store(dir, key, &view) {
+            Ok(()) => tracing::debug!("terrain CWBVH cached in {}", dir.display()),
+            Err(e) => tracing::debug!("terrain CWBVH not cached: {e}"),
+        }
+    }
+    bvh
+}
+
 /// A CWBVH over `boxes` from a binary tree split at the centroids' median (depth ⌈log₂ n⌉, so
 /// at most 32 binary levels and fewer wide ones): the fallback for a PLOC tree too deep for
 /// obvhs' traversal stack. The `primitive_indices` map leaf slots to input indices.
@@ -477,6 +517,36 @@ mod tests {
             });
         }
         tiles
+    }
+
+    /// The terrain's tree read from the disk cache (`bvh_cache.rs`) is the tree obvhs builds,
+    /// node for node and slot for slot; the first build writes it, the second reads it.
+    #[test]
+    fn cached_tree_equals_built() {
+        let mut rng = crate::rng::Stream::new(23, [6, 0, 0, 0]);
+        let n = super::super::bvh_cache::MIN_PRIMITIVES + 77;
+        let boxes: Vec<Aabb> = (0..n)
+            .map(|_| {
+                let c = Vec3A::new(
+                    5e3 * rng.next_f64() as f32,
+                    5e3 * rng.next_f64() as f32,
+                    300.0 * rng.next_f64() as f32,
+                );
+                Aabb::new(c - Vec3A::splat(20.0), c + Vec3A::splat(20.0))
+            })
+            .collect();
+        let dir = std::env::temp_dir().join(format!("eosim-terrain-bvh-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        let built = cached_cwbvh(&boxes, None);
+        let first = cached_cwbvh(&boxes, Some(dir.clone()));
+        assert_eq!(std::fs::read_dir(&dir).map_or(0, |d| d.count()), 1);
+        let cached = cached_cwbvh(&boxes, Some(dir.clone()));
+        for t in [&first, &cached] {
+            assert!(t.nodes == built.nodes);
+            assert_eq!(t.primitive_indices, built.primitive_indices);
+            assert_eq!(t.total_aabb, built.total_aabb);
+        }
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// The median-split fallback tree is valid for obvhs (every node and triangle reached once,

@@ -1,17 +1,17 @@
-//! A disk cache of the instances' top-level tree, so that a scene rendered again (the same
-//! bundle, another experiment, the next Python call or cluster shard) skips the binned-SAH
-//! build and obvhs' conversion: about 1.7 of the 2.1 s that the Grenoble bundle's 1.27 M
-//! instances take to build on 2 cores (BENCHMARKS.md).
+//! A disk cache of the scene's large BVHs (the instances' top level and the terrain's tree),
+//! so that a scene rendered again (the same bundle, another experiment, the next Python call
+//! or cluster shard) skips their builds: the binned-SAH build and obvhs' conversion of the
+//! instances' top level, obvhs' PLOC build of the terrain (BENCHMARKS.md).
 //!
-//! **Key.** The tree is a function of its input boxes (the instances' padded f32 boxes, in
-//! input order) and of the code that builds it. A file is keyed by a 128-bit hash of every
-//! box's bits and of [`crate::BUILD_ID`] (version and source digest), so a cached tree is used
-//! only for exactly the boxes it was built from, by the build that built it: the tree, and so
-//! every image, is bit-identical with and without the cache (`tests`).
+//! **Key.** A tree is a function of its input boxes (padded f32 boxes, in input order) and of
+//! the code that builds it. A file is keyed by a 128-bit hash of its [`Kind`], every box's
+//! bits and [`crate::BUILD_ID`] (version and source digest), so a cached tree is used only
+//! for exactly the boxes it was built from, by the build that built it: the tree, and so every
+//! image, is bit-identical with and without the cache (`tests`).
 //!
-//! **Where.** `$EOSIM_CACHE_DIR/tlas` if that variable is set (`off` or empty: no cache),
-//! else `$XDG_CACHE_HOME/eosim/tlas`, else `$HOME/.cache/eosim/tlas`. Only trees over at least
-//! [`MIN_INSTANCES`] instances are cached; the [`KEEP`] most recently used files are kept.
+//! **Where.** `$EOSIM_CACHE_DIR/bvh` if that variable is set (`off` or empty: no cache), else
+//! `$XDG_CACHE_HOME/eosim/bvh`, else `$HOME/.cache/eosim/bvh`. Only trees over at least
+//! [`MIN_PRIMITIVES`] boxes are cached; the [`KEEP`] most recently used files are kept.
 //!
 //! **Safety.** A file is written whole to a temporary name and renamed (concurrent shards
 //! building the same scene never read a partial file), and read back only if its magic
@@ -19,9 +19,10 @@
 //! built as without a cache. A cache that cannot be written (read-only home, full disk) costs
 //! nothing but a debug message.
 //!
-//! File layout (little-endian): magic `EOSIMTL1`, key (16 B), node count, record count,
-//! cluster-start count, depth (u64 each), the tree's box (6 × f32), the 80-byte CWBVH nodes,
-//! the cluster starts and the slot → instance order (u32), then the payload's checksum (u64).
+//! File layout (little-endian): magic `EOSIMBV1`, key (16 B), node count, lengths of the two
+//! index lists, depth (u64 each), the tree's box (6 × f32), the 80-byte CWBVH nodes, the two
+//! index lists (u32; the top level's cluster starts and slot → instance order, the terrain's
+//! slot → triangle order and nothing), then the payload's checksum (u64).
 
 use std::path::{Path, PathBuf};
 
@@ -29,31 +30,49 @@ use obvhs::aabb::Aabb;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
 
-/// Trees over fewer instances build in well under 0.1 s: not cached.
-pub(crate) const MIN_INSTANCES: usize = 100_000;
+/// Trees over fewer boxes build in about 0.1 s or less: not cached.
+pub(crate) const MIN_PRIMITIVES: usize = 50_000;
 /// Cache files kept (least recently used removed first).
 pub(crate) const KEEP: usize = 8;
 
-const MAGIC: &[u8; 8] = b"EOSIMTL1";
+const MAGIC: &[u8; 8] = b"EOSIMBV1";
+
+/// Which tree a file holds (part of its key and name).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) enum Kind {
+    /// The instances' top level (`instances.rs`): lists = cluster starts, slot order.
+    Instances,
+    /// The terrain's tree (`terrain.rs`): lists = slot → triangle order, nothing.
+    Terrain,
+}
+
+impl Kind {
+    fn name(self) -> &'static str {
+        match self {
+            Kind::Instances => "instances",
+            Kind::Terrain => "terrain",
+        }
+    }
+}
 const HEADER: usize = 8 + 16 + 4 * 8 + 6 * 4;
 
-/// What is cached: the tree and its record layout (`instances.rs`' `Tlas`).
+/// What is cached: the tree (no primitive indices) and two index lists ([`Kind`]).
 #[derive(Debug, PartialEq)]
 pub(crate) struct Cached {
     pub nodes: Vec<CwBvhNode>,
     pub total_aabb: Aabb,
-    pub cluster_start: Vec<u32>,
-    pub order: Vec<u32>,
+    pub first: Vec<u32>,
+    pub second: Vec<u32>,
     pub depth: usize,
 }
 
 impl Cached {
-    /// The tree as built (`instances.rs` keeps no primitive indices: the clusters are the
-    /// slots).
-    pub fn tree(nodes: Vec<CwBvhNode>, total_aabb: Aabb) -> CwBvh {
+    /// The tree with the given primitive indices.
+    pub fn tree(nodes: Vec<CwBvhNode>, total_aabb: Aabb, primitive_indices: Vec<u32>) -> CwBvh {
         CwBvh {
             nodes,
             total_aabb,
+            primitive_indices,
             ..Default::default()
         }
     }
@@ -63,8 +82,8 @@ impl Cached {
 pub(crate) struct View<'a> {
     pub nodes: &'a [CwBvhNode],
     pub total_aabb: Aabb,
-    pub cluster_start: &'a [u32],
-    pub order: &'a [u32],
+    pub first: &'a [u32],
+    pub second: &'a [u32],
     pub depth: usize,
 }
 
@@ -74,25 +93,25 @@ pub(crate) fn dir() -> Option<PathBuf> {
         if v.is_empty() || v == "off" {
             return None;
         }
-        return Some(PathBuf::from(v).join("tlas"));
+        return Some(PathBuf::from(v).join("bvh"));
     }
     let base = std::env::var_os("XDG_CACHE_HOME")
         .filter(|v| !v.is_empty())
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("eosim").join("tlas"))
+    Some(base.join("eosim").join("bvh"))
 }
 
-/// 128-bit key of the boxes and this build: two FNV-1a-64 streams with different offsets,
-/// fed 32-bit words.
-pub(crate) fn key(boxes: &[Aabb]) -> [u8; 16] {
+/// 128-bit key of the kind, the boxes and this build: two FNV-1a-64 streams with different
+/// offsets, fed 32-bit words.
+pub(crate) fn key(kind: Kind, boxes: &[Aabb]) -> [u8; 16] {
     let mut a: u64 = 0xcbf2_9ce4_8422_2325;
     let mut b: u64 = 0x6c62_272e_07bb_0142;
     let mut eat = |x: u32| {
         a = (a ^ x as u64).wrapping_mul(0x0000_0100_0000_01b3);
         b = (b ^ (x as u64).rotate_left(17)).wrapping_mul(0x0000_0100_0000_0193 | 1 << 40);
     };
-    for byte in crate::BUILD_ID.bytes() {
+    for byte in crate::BUILD_ID.bytes().chain(kind.name().bytes()) {
         eat(byte as u32);
     }
     eat(boxes.len() as u32);
@@ -111,7 +130,7 @@ pub(crate) fn key(boxes: &[Aabb]) -> [u8; 16] {
 
 fn file(dir: &Path, key: &[u8; 16]) -> PathBuf {
     let hex: String = key.iter().map(|b| format!("{b:02x}")).collect();
-    dir.join(format!("tlas-{hex}.bin"))
+    dir.join(format!("bvh-{hex}.bin"))
 }
 
 fn fnv(bytes: &[u8]) -> u64 {
@@ -153,7 +172,7 @@ fn parse(bytes: &[u8], key: &[u8; 16]) -> Option<Cached> {
     }
     let u64_at = |o: usize| u64::from_le_bytes(bytes[o..o + 8].try_into().expect("8 bytes"));
     let f32_at = |o: usize| f32::from_le_bytes(bytes[o..o + 4].try_into().expect("4 bytes"));
-    let (n_nodes, n_order, n_starts, depth) = (
+    let (n_nodes, n_first, n_second, depth) = (
         u64_at(24) as usize,
         u64_at(32) as usize,
         u64_at(40) as usize,
@@ -162,7 +181,7 @@ fn parse(bytes: &[u8], key: &[u8; 16]) -> Option<Cached> {
     let node = std::mem::size_of::<CwBvhNode>();
     let payload = n_nodes
         .checked_mul(node)?
-        .checked_add(4 * (n_order + n_starts))?;
+        .checked_add(n_first.checked_add(n_second)?.checked_mul(4)?)?;
     if bytes.len() != HEADER.checked_add(payload)?.checked_add(8)? {
         return None;
     }
@@ -183,20 +202,11 @@ fn parse(bytes: &[u8], key: &[u8; 16]) -> Option<Cached> {
             .map(|c| u32::from_le_bytes(c.try_into().expect("4 bytes")))
             .collect()
     };
-    let cluster_start = words(n_nodes * node, n_starts);
-    let order = words(n_nodes * node + 4 * n_starts, n_order);
-    // The layout the renderer relies on: cluster starts rising from 0 to the record count.
-    if cluster_start.first() != Some(&0)
-        || cluster_start.last() != Some(&(n_order as u32))
-        || cluster_start.windows(2).any(|w| w[0] > w[1])
-    {
-        return None;
-    }
     Some(Cached {
         nodes,
         total_aabb,
-        cluster_start,
-        order,
+        first: words(n_nodes * node, n_first),
+        second: words(n_nodes * node + 4 * n_first, n_second),
         depth,
     })
 }
@@ -206,16 +216,15 @@ fn parse(bytes: &[u8], key: &[u8; 16]) -> Option<Cached> {
 pub(crate) fn store(dir: &Path, key: &[u8; 16], c: &View) -> Result<(), String> {
     std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
     let node_bytes: &[u8] = bytemuck::cast_slice(c.nodes);
-    let mut body =
-        Vec::with_capacity(node_bytes.len() + 4 * (c.order.len() + c.cluster_start.len()));
+    let mut body = Vec::with_capacity(node_bytes.len() + 4 * (c.first.len() + c.second.len()));
     body.extend_from_slice(node_bytes);
-    for &x in c.cluster_start.iter().chain(c.order) {
+    for &x in c.first.iter().chain(c.second) {
         body.extend_from_slice(&x.to_le_bytes());
     }
     let mut out = Vec::with_capacity(HEADER + body.len() + 8);
     out.extend_from_slice(MAGIC);
     out.extend_from_slice(key);
-    for n in [c.nodes.len(), c.order.len(), c.cluster_start.len(), c.depth] {
+    for n in [c.nodes.len(), c.first.len(), c.second.len(), c.depth] {
         out.extend_from_slice(&(n as u64).to_le_bytes());
     }
     let (lo, hi) = (c.total_aabb.min, c.total_aabb.max);
@@ -240,7 +249,7 @@ fn prune(dir: &Path) {
         .filter(|e| {
             let name = e.file_name();
             let name = name.to_string_lossy();
-            name.starts_with("tlas-") && name.ends_with(".bin")
+            name.starts_with("bvh-") && name.ends_with(".bin")
         })
         .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
         .collect();
@@ -258,8 +267,8 @@ mod tests {
         View {
             nodes: &c.nodes,
             total_aabb: c.total_aabb,
-            cluster_start: &c.cluster_start,
-            order: &c.order,
+            first: &c.first,
+            second: &c.second,
             depth: c.depth,
         }
     }
@@ -275,28 +284,30 @@ mod tests {
                 glam::Vec3A::new(-1.0, -2.0, -3.0),
                 glam::Vec3A::new(4.0, 5.0, 6.0),
             ),
-            cluster_start: vec![0, 2, 5],
-            order: vec![4, 0, 3, 1, 2],
+            first: vec![0, 2, 5],
+            second: vec![4, 0, 3, 1, 2],
             depth: 2,
         }
     }
 
     /// A stored tree reads back equal; another key, a flipped byte or a cut file read as no
-    /// tree; the key depends on every box bit; only the most recent files are kept.
+    /// tree; the key depends on every box bit and the kind; only the most recent files are
+    /// kept.
     #[test]
     fn round_trip_and_rejections() {
-        let dir = std::env::temp_dir().join(format!("eosim-tlas-cache-{}", std::process::id()));
+        let dir = std::env::temp_dir().join(format!("eosim-bvh-cache-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let boxes = vec![Aabb::new(glam::Vec3A::ZERO, glam::Vec3A::ONE); 4];
-        let k = key(&boxes);
+        let k = key(Kind::Instances, &boxes);
         let mut other = boxes.clone();
         other[3].max.z = f32::from_bits(1.0f32.to_bits() + 1);
-        assert_ne!(k, key(&other));
-        assert_eq!(k, key(&boxes.clone()));
+        assert_ne!(k, key(Kind::Instances, &other));
+        assert_ne!(k, key(Kind::Terrain, &boxes));
+        assert_eq!(k, key(Kind::Instances, &boxes.clone()));
         let c = sample();
         store(&dir, &k, &view(&c)).unwrap();
         assert_eq!(load(&dir, &k), Some(sample()));
-        assert_eq!(load(&dir, &key(&other)), None);
+        assert_eq!(load(&dir, &key(Kind::Instances, &other)), None);
         let path = file(&dir, &k);
         let good = std::fs::read(&path).unwrap();
         for at in [3, 20, 30, HEADER + 5, good.len() - 2] {
@@ -313,12 +324,12 @@ mod tests {
                 glam::Vec3A::ZERO,
                 glam::Vec3A::splat(i as f32 + 2.0),
             )];
-            store(&dir, &key(&b), &view(&c)).unwrap();
+            store(&dir, &key(Kind::Terrain, &b), &view(&c)).unwrap();
         }
         let n = std::fs::read_dir(&dir)
             .unwrap()
             .flatten()
-            .filter(|e| e.file_name().to_string_lossy().starts_with("tlas-"))
+            .filter(|e| e.file_name().to_string_lossy().starts_with("bvh-"))
             .count();
         assert_eq!(n, KEEP);
         let _ = std::fs::remove_dir_all(&dir);
