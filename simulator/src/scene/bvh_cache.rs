@@ -13,8 +13,9 @@
 //! `$XDG_CACHE_HOME/eosim/bvh`, else `$HOME/.cache/eosim/bvh`. Only trees over at least
 //! [`MIN_PRIMITIVES`] boxes are cached; the [`KEEP`] most recently used files are kept.
 //!
-//! **Safety.** A file is written whole to a temporary name and renamed (concurrent shards
-//! building the same scene never read a partial file), and read back only if its magic
+//! **Safety.** A file is written whole to a temporary name of its own (process and call) and
+//! renamed (concurrent shards or threads building the same scene never read a partial file;
+//! temporaries left by a killed process are removed after an hour), and read back only if its magic
 //! number, key, lengths and FNV-1a checksum of the payload all match; otherwise the tree is
 //! built as without a cache. A cache that cannot be written (read-only home, full disk) costs
 //! nothing but a debug message.
@@ -233,26 +234,50 @@ pub(crate) fn store(dir: &Path, key: &[u8; 16], c: &View) -> Result<(), String> 
     }
     out.extend_from_slice(&body);
     out.extend_from_slice(&fnv(&body).to_le_bytes());
+    // A temporary name of this process and call (threads of one process may store the same
+    // tree at once), renamed into place.
+    static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let path = file(dir, key);
-    crate::products::write_atomic(&path, &out).map_err(|e| e.to_string())?;
+    let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    let name = path.file_name().map(|n| n.to_string_lossy().to_string());
+    let tmp = path.with_file_name(format!(
+        ".{}.{}.{call}.partial",
+        name.unwrap_or_default(),
+        std::process::id()
+    ));
+    let written = std::fs::write(&tmp, &out).and_then(|()| std::fs::rename(&tmp, &path));
+    if let Err(e) = written {
+        let _ = std::fs::remove_file(&tmp);
+        return Err(format!("{}: {e}", path.display()));
+    }
     prune(dir);
     Ok(())
 }
 
-/// Remove all but the [`KEEP`] most recently modified cache files.
+/// Remove all but the [`KEEP`] most recently modified cache files, and temporaries over an
+/// hour old (left by a process killed while writing).
 fn prune(dir: &Path) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
-    let mut files: Vec<(std::time::SystemTime, PathBuf)> = entries
-        .flatten()
-        .filter(|e| {
-            let name = e.file_name();
-            let name = name.to_string_lossy();
-            name.starts_with("bvh-") && name.ends_with(".bin")
-        })
-        .filter_map(|e| Some((e.metadata().ok()?.modified().ok()?, e.path())))
-        .collect();
+    let now = std::time::SystemTime::now();
+    let mut files: Vec<(std::time::SystemTime, PathBuf)> = Vec::new();
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        let Some(modified) = e.metadata().ok().and_then(|m| m.modified().ok()) else {
+            continue;
+        };
+        if name.starts_with("bvh-") && name.ends_with(".bin") {
+            files.push((modified, e.path()));
+        } else if name.starts_with(".bvh-")
+            && name.ends_with(".partial")
+            && now
+                .duration_since(modified)
+                .is_ok_and(|age| age.as_secs() > 3600)
+        {
+            let _ = std::fs::remove_file(e.path());
+        }
+    }
     files.sort_by_key(|f| std::cmp::Reverse(f.0));
     for (_, p) in files.into_iter().skip(KEEP) {
         let _ = std::fs::remove_file(p);
