@@ -11,7 +11,8 @@
 //!
 //! **Where.** `$EOSIM_CACHE_DIR/bvh` if that variable is set (`off` or empty: no cache), else
 //! `$XDG_CACHE_HOME/eosim/bvh`, else `$HOME/.cache/eosim/bvh`. Only trees over at least
-//! [`MIN_PRIMITIVES`] boxes are cached; the [`KEEP`] most recently used files are kept.
+//! [`MIN_PRIMITIVES`] boxes are cached; the [`KEEP`] most recently used files are kept, within
+//! [`KEEP_BYTES`] (1 GiB) in all.
 //!
 //! **Safety.** A file is written whole to a temporary name of its own (process and call) and
 //! renamed (concurrent shards or threads building the same scene never read a partial file;
@@ -33,8 +34,10 @@ use obvhs::cwbvh::CwBvh;
 
 /// Trees over fewer boxes build in about 0.1 s or less: not cached.
 pub(crate) const MIN_PRIMITIVES: usize = 50_000;
-/// Cache files kept (least recently used removed first).
+/// Cache files kept (least recently used removed first), and the most bytes they may hold
+/// together (the most recent file is always kept).
 pub(crate) const KEEP: usize = 8;
+pub(crate) const KEEP_BYTES: u64 = 1 << 30;
 
 const MAGIC: &[u8; 8] = b"EOSIMBV1";
 
@@ -261,14 +264,18 @@ fn prune(dir: &Path) {
         return;
     };
     let now = std::time::SystemTime::now();
-    let mut files: Vec<(std::time::SystemTime, PathBuf)> = Vec::new();
+    let mut files: Vec<(std::time::SystemTime, u64, PathBuf)> = Vec::new();
     for e in entries.flatten() {
         let name = e.file_name().to_string_lossy().to_string();
-        let Some(modified) = e.metadata().ok().and_then(|m| m.modified().ok()) else {
+        let Some((modified, len)) = e
+            .metadata()
+            .ok()
+            .and_then(|m| Some((m.modified().ok()?, m.len())))
+        else {
             continue;
         };
         if name.starts_with("bvh-") && name.ends_with(".bin") {
-            files.push((modified, e.path()));
+            files.push((modified, len, e.path()));
         } else if name.starts_with(".bvh-")
             && name.ends_with(".partial")
             && now
@@ -279,8 +286,12 @@ fn prune(dir: &Path) {
         }
     }
     files.sort_by_key(|f| std::cmp::Reverse(f.0));
-    for (_, p) in files.into_iter().skip(KEEP) {
-        let _ = std::fs::remove_file(p);
+    let mut total = 0u64;
+    for (k, (_, len, p)) in files.into_iter().enumerate() {
+        total += len;
+        if k >= KEEP || (k > 0 && total > KEEP_BYTES) {
+            let _ = std::fs::remove_file(p);
+        }
     }
 }
 
