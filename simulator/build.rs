@@ -1,19 +1,25 @@
-//! Build identity: a digest of the simulator's and the bundle crate's sources, so that
-//! checkpoints and cluster plans made by one build are not reused by a build whose estimators
-//! differ while the crate version stays the same (`SIMULATOR_BUILD_ID`, read by
-//! `simulator::BUILD_ID`).
+//! Build identity: a digest of the simulator's and the bundle crate's sources, of the data
+//! compiled into the binary (`simulator/data`: solar spectra, AFGL profiles, spectral
+//! responses, the PICS catalogue) and of the dependency versions (`Cargo.lock`), so that
+//! checkpoints, cluster plans and BVH cache files made by one build are not reused by a build
+//! whose estimators, tables or libraries differ while the crate version stays the same
+//! (`SIMULATOR_BUILD_ID`, read by `simulator::BUILD_ID`).
 
 use std::path::{Path, PathBuf};
 
-fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
+/// Every file under `dir` (`rs` only: only Rust sources), symbolic links not followed.
+fn files(dir: &Path, rs: bool, out: &mut Vec<PathBuf>) {
     let Ok(entries) = std::fs::read_dir(dir) else {
         return;
     };
     for e in entries.flatten() {
+        let Ok(kind) = e.file_type() else {
+            continue;
+        };
         let p = e.path();
-        if p.is_dir() {
-            sources(&p, out);
-        } else if p.extension().is_some_and(|x| x == "rs") {
+        if kind.is_dir() {
+            files(&p, rs, out);
+        } else if kind.is_file() && (!rs || p.extension().is_some_and(|x| x == "rs")) {
             out.push(p);
         }
     }
@@ -21,17 +27,27 @@ fn sources(dir: &Path, out: &mut Vec<PathBuf>) {
 
 fn main() {
     let manifest = PathBuf::from(std::env::var("CARGO_MANIFEST_DIR").expect("set by cargo"));
-    // The bundle crate is absent from a source package of the simulator alone: then only its
-    // own sources count.
-    let roots = [manifest.join("src"), manifest.join("../bundle/src")];
-    let mut files = Vec::new();
-    for r in &roots {
+    // The bundle crate and the workspace's lock file are absent from a source package of the
+    // simulator alone: then only what is there counts.
+    let roots = [
+        (manifest.join("src"), true),
+        (manifest.join("../bundle/src"), true),
+        (manifest.join("data"), false),
+    ];
+    let mut all = Vec::new();
+    for (r, rs) in &roots {
         if r.is_dir() {
             println!("cargo:rerun-if-changed={}", r.display());
-            sources(r, &mut files);
+            files(r, *rs, &mut all);
         }
     }
-    files.sort();
+    let lock = manifest.join("../Cargo.lock");
+    if lock.is_file() {
+        println!("cargo:rerun-if-changed={}", lock.display());
+        all.push(lock);
+    }
+    all.sort();
+    let files = all;
     // FNV-1a 64 over each file's path (relative to the manifest) and bytes.
     let mut h: u64 = 0xcbf2_9ce4_8422_2325;
     let mut eat = |bytes: &[u8]| {

@@ -19,9 +19,11 @@
 //! BRF = π·L/(E0·cos SZA) with E0 the solar irradiance normal to the beam.
 
 /// This build's identity: the crate version and a digest of the simulator's and the bundle
-/// crate's sources (`simulator/build.rs`), e.g. `0.1.0+src.1f3a…`. Checkpoints and cluster
-/// plans are stamped with it, so a rebuilt simulator whose estimators changed while the crate
-/// version did not never resumes or merges another build's partial sums.
+/// crate's sources, the data compiled in (`simulator/data`) and the dependency versions
+/// (`Cargo.lock`) (`simulator/build.rs`), e.g. `0.1.0+src.1f3a…`. Checkpoints, cluster plans
+/// and BVH cache files are stamped with it, so a rebuilt simulator whose estimators, tables or
+/// libraries changed while the crate version did not never resumes or merges another build's
+/// partial sums, nor reads its trees.
 pub const BUILD_ID: &str = env!("SIMULATOR_BUILD_ID");
 
 pub mod absorption;

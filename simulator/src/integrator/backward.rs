@@ -302,6 +302,8 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
             // f64 (1 − p rounds to 0): whatever it would score is 0 × its factors. Stop it
             // there: walking on costs time, and a spectral walk's path factors along a long
             // flight, exp(τ_ref − τ_c), can overflow, which would make those zeros 0·∞ = NaN.
+            // (The rounding itself drops a spectral channel's exp(−τ_c) where τ_c ≪ τ_ref, as
+            // it did before this stop; carrying exp(−s_end) instead of 1 − p would keep it.)
             if w.intensity() == 0.0 {
                 break;
             }

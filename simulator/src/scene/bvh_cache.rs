@@ -4,8 +4,9 @@
 //! instances' top level, obvhs' PLOC build of the terrain (BENCHMARKS.md).
 //!
 //! **Key.** A tree is a function of its input boxes (padded f32 boxes, in input order) and of
-//! the code that builds it. A file is keyed by a 128-bit hash of its [`Kind`], every box's
-//! bits and [`crate::BUILD_ID`] (version and source digest), so a cached tree is used only
+//! the code that builds it. A file is keyed by 128 bits of a SHA-256 over its [`Kind`], every
+//! box's bits, the node size and [`crate::BUILD_ID`] (version, source and data digest, and
+//! the dependency versions of `Cargo.lock`, obvhs' included), so a cached tree is used only
 //! for exactly the boxes it was built from, by the build that built it: the tree, and so every
 //! image, is bit-identical with and without the cache (`tests`).
 //!
@@ -16,15 +17,15 @@
 //!
 //! **Safety.** A file is written whole to a temporary name of its own (process and call) and
 //! renamed (concurrent shards or threads building the same scene never read a partial file;
-//! temporaries left by a killed process are removed after an hour), and read back only if its magic
-//! number, key, lengths and FNV-1a checksum of the payload all match; otherwise the tree is
-//! built as without a cache. A cache that cannot be written (read-only home, full disk) costs
+//! temporaries left by a killed process are removed after an hour), and read back only if its
+//! magic number, key, lengths and checksum (SHA-256) of the payload all match and the caller
+//! finds its index lists a valid layout; otherwise the tree is built as without a cache. A cache that cannot be written (read-only home, full disk) costs
 //! nothing but a debug message.
 //!
-//! File layout (little-endian): magic `EOSIMBV1`, key (16 B), node count, lengths of the two
+//! File layout (native byte order, little-endian on every supported machine): magic `EOSIMBV1`, key (16 B), node count, lengths of the two
 //! index lists, depth (u64 each), the tree's box (6 × f32), the 80-byte CWBVH nodes, the two
 //! index lists (u32; the top level's cluster starts and slot → instance order, the terrain's
-//! slot → triangle order and nothing), then the payload's checksum (u64).
+//! slot → triangle order and nothing), then the payload's checksum (8 bytes of its SHA-256).
 
 use std::path::{Path, PathBuf};
 
@@ -106,29 +107,32 @@ pub(crate) fn dir() -> Option<PathBuf> {
     Some(base.join("eosim").join("bvh"))
 }
 
-/// 128-bit key of the kind, the boxes and this build: two FNV-1a-64 streams with different
-/// offsets, fed 32-bit words.
+/// 128-bit key of the kind, the boxes and this build: the first half of a SHA-256 over the
+/// build id (which covers the dependency versions, obvhs' included), the node size, the kind
+/// and every box's bits.
 pub(crate) fn key(kind: Kind, boxes: &[Aabb]) -> [u8; 16] {
-    let mut a: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut b: u64 = 0x6c62_272e_07bb_0142;
-    let mut eat = |x: u32| {
-        a = (a ^ x as u64).wrapping_mul(0x0000_0100_0000_01b3);
-        b = (b ^ (x as u64).rotate_left(17)).wrapping_mul(0x0000_0100_0000_0193 | 1 << 40);
-    };
-    for byte in crate::BUILD_ID.bytes().chain(kind.name().bytes()) {
-        eat(byte as u32);
-    }
-    eat(boxes.len() as u32);
-    for x in boxes {
-        for v in [x.min, x.max] {
-            eat(v.x.to_bits());
-            eat(v.y.to_bits());
-            eat(v.z.to_bits());
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    h.update(crate::BUILD_ID.as_bytes());
+    h.update((std::mem::size_of::<CwBvhNode>() as u64).to_le_bytes());
+    h.update(kind.name().as_bytes());
+    h.update((boxes.len() as u64).to_le_bytes());
+    // In chunks, so the boxes' bits are fed without a copy of them all.
+    let mut buf = Vec::with_capacity(24 * 4096);
+    for chunk in boxes.chunks(4096) {
+        buf.clear();
+        for x in chunk {
+            for v in [x.min, x.max] {
+                for c in [v.x, v.y, v.z] {
+                    buf.extend_from_slice(&c.to_bits().to_le_bytes());
+                }
+            }
         }
+        h.update(&buf);
     }
+    let d = h.finalize();
     let mut k = [0u8; 16];
-    k[..8].copy_from_slice(&a.to_le_bytes());
-    k[8..].copy_from_slice(&b.to_le_bytes());
+    k.copy_from_slice(&d[..16]);
     k
 }
 
@@ -137,18 +141,11 @@ fn file(dir: &Path, key: &[u8; 16]) -> PathBuf {
     dir.join(format!("bvh-{hex}.bin"))
 }
 
-fn fnv(bytes: &[u8]) -> u64 {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    // Eight bytes at a time (the payload is 80-byte nodes and u32s: a multiple of 4).
-    let mut chunks = bytes.chunks_exact(8);
-    for c in &mut chunks {
-        h = (h ^ u64::from_le_bytes(c.try_into().expect("8 bytes")))
-            .wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    for &b in chunks.remainder() {
-        h = (h ^ b as u64).wrapping_mul(0x0000_0100_0000_01b3);
-    }
-    h
+/// The payload's checksum: the first 8 bytes of its SHA-256.
+fn checksum(bytes: &[u8]) -> u64 {
+    use sha2::{Digest, Sha256};
+    let d = Sha256::digest(bytes);
+    u64::from_le_bytes(d[..8].try_into().expect("8 bytes"))
 }
 
 /// The cached tree of `key` in `dir`, if a valid one is there (touched, so that it counts as
@@ -190,7 +187,7 @@ fn parse(bytes: &[u8], key: &[u8; 16]) -> Option<Cached> {
         return None;
     }
     let body = &bytes[HEADER..HEADER + payload];
-    if fnv(body) != u64_at(HEADER + payload) {
+    if checksum(body) != u64_at(HEADER + payload) {
         return None;
     }
     let b = |i: usize| f32_at(56 + 4 * i);
@@ -236,15 +233,19 @@ pub(crate) fn store(dir: &Path, key: &[u8; 16], c: &View) -> Result<(), String> 
         out.extend_from_slice(&v.to_le_bytes());
     }
     out.extend_from_slice(&body);
-    out.extend_from_slice(&fnv(&body).to_le_bytes());
+    out.extend_from_slice(&checksum(&body).to_le_bytes());
     // A temporary name of this process and call (threads of one process may store the same
     // tree at once), renamed into place.
     static CALLS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
     let path = file(dir, key);
     let call = CALLS.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let name = path.file_name().map(|n| n.to_string_lossy().to_string());
+    // Process, call and clock: unique across the hosts of a cluster sharing the folder too.
+    let nanos = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map_or(0, |d| d.subsec_nanos());
     let tmp = path.with_file_name(format!(
-        ".{}.{}.{call}.partial",
+        ".{}.{}.{call}.{nanos}.partial",
         name.unwrap_or_default(),
         std::process::id()
     ));

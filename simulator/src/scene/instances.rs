@@ -573,16 +573,21 @@ fn build_tlas(aabbs: Vec<Aabb>, cache_dir: Option<PathBuf>) -> Result<Tlas, Stri
     use super::bvh_cache::{self, Kind};
     let n = aabbs.len();
     // A tree built before from exactly these boxes by this build (`bvh_cache.rs`); its
-    // lists are the cluster starts (rising from 0 to the record count) and the slot order.
+    // lists are the cluster starts (rising from 0 to the record count) and the slot order (a
+    // permutation of the instances).
     let cache = cache_dir
         .filter(|_| n >= bvh_cache::MIN_PRIMITIVES)
         .map(|dir| (dir, bvh_cache::key(Kind::Instances, &aabbs)));
     if let Some((dir, key)) = &cache {
         let valid = |c: &bvh_cache::Cached| {
+            let mut seen = vec![false; n];
             c.second.len() == n
                 && c.first.first() == Some(&0)
                 && c.first.last() == Some(&(n as u32))
                 && c.first.windows(2).all(|w| w[0] <= w[1])
+                && c.second
+                    .iter()
+                    .all(|&i| (i as usize) < n && !std::mem::replace(&mut seen[i as usize], true))
         };
         if let Some(c) = bvh_cache::load(dir, key).filter(valid) {
             tracing::debug!(
