@@ -1615,19 +1615,8 @@ mod tests {
     /// other boxes are not served another tree.
     #[test]
     fn cached_tlas_equals_built() {
-        let mut rng = Stream::new(17, [5, 0, 0, 0]);
         let n = super::super::bvh_cache::MIN_PRIMITIVES + 123;
-        let boxes: Vec<Aabb> = (0..n)
-            .map(|_| {
-                let c = Vec3A::new(
-                    8e3 * rng.next_f64() as f32,
-                    8e3 * rng.next_f64() as f32,
-                    20.0 * rng.next_f64() as f32,
-                );
-                let h = Vec3A::splat(0.5 + 3.0 * rng.next_f64() as f32);
-                Aabb::new(c - h, c + h)
-            })
-            .collect();
+        let boxes = super::super::sah::tests::boxes(n, 17);
         let dir = std::env::temp_dir().join(format!("eosim-tlas-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let built = build_tlas(boxes.clone(), None).unwrap();

@@ -301,11 +301,13 @@ fn split(boxes: &mut [Aabb], idx: &mut [u32], nb: Aabb, cb: Aabb, p: SahParams) 
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::rng::Stream;
 
-    fn boxes(n: usize, seed: u64) -> Vec<Aabb> {
+    /// `n` random boxes (1–5 m half-size) over a 10 km × 10 km × 30 m slab (test fixture,
+    /// also of the BVH cache tests).
+    pub(crate) fn boxes(n: usize, seed: u64) -> Vec<Aabb> {
         let mut rng = Stream::new(seed, [3, 0, 0, 0]);
         (0..n)
             .map(|_| {

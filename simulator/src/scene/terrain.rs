@@ -523,18 +523,8 @@ mod tests {
     /// node for node and slot for slot; the first build writes it, the second reads it.
     #[test]
     fn cached_tree_equals_built() {
-        let mut rng = crate::rng::Stream::new(23, [6, 0, 0, 0]);
         let n = super::super::bvh_cache::MIN_PRIMITIVES + 77;
-        let boxes: Vec<Aabb> = (0..n)
-            .map(|_| {
-                let c = Vec3A::new(
-                    5e3 * rng.next_f64() as f32,
-                    5e3 * rng.next_f64() as f32,
-                    300.0 * rng.next_f64() as f32,
-                );
-                Aabb::new(c - Vec3A::splat(20.0), c + Vec3A::splat(20.0))
-            })
-            .collect();
+        let boxes = super::super::sah::tests::boxes(n, 23);
         let dir = std::env::temp_dir().join(format!("eosim-terrain-bvh-{}", std::process::id()));
         let _ = std::fs::remove_dir_all(&dir);
         let built = cached_cwbvh(&boxes, None);
