@@ -19,7 +19,7 @@ use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::geometry::Geometry;
 use crate::integrator::scene_alis::SceneChannelTally;
-use crate::integrator::settings::IntegratorKind;
+use crate::integrator::settings::{IntegratorKind, IntegratorSettings};
 use crate::integrator::weight::Weight;
 use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
 use crate::integrator::Accum;
@@ -153,7 +153,7 @@ fn channel_walks(
         &exp.integrator,
         g.outputs(),
         range,
-        sample_stream(exp, ids),
+        SampleStreams::new(exp, ids),
         |rng| Some(sensor::backward_start_altitude(toa, m, cell, rng)),
         |g, _| ChannelPath::new(g),
         |_, _| {},
@@ -330,7 +330,7 @@ fn scene_channel_walks(
         &exp.integrator,
         group.len(),
         range,
-        sample_stream(exp, ids),
+        SampleStreams::new(exp, ids),
         |rng| Some(sensor::scene_start(&geometry.base, m, cell, rng)),
         |g, _| SceneChannelPath::new(g),
         |s, t| {
@@ -456,8 +456,54 @@ fn sun_clearance(
 /// The random stream of each sample `s` of the walks keyed `ids` (Sobol-scrambled or not, as
 /// `integrator.sampler` says).
 fn sample_stream(exp: &Experiment, ids: [u64; 3]) -> impl Fn(u64) -> Stream + '_ {
-    let sobol = exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol;
-    move |s| Stream::for_sample(exp.seed, [ids[0], ids[1], ids[2], s], sobol)
+    let streams = SampleStreams::new(exp, ids);
+    move |s| streams.sample(s)
+}
+
+/// Tag of the streams of first-order split walks (`integrator.first_order_splits`): they are
+/// independent of the samples' own walks.
+const SPLIT_STREAM: u64 = 1 << 59;
+
+/// The random streams of the backward walks keyed `ids`: each sample's own, and its
+/// first-order split walks'.
+#[derive(Clone, Copy)]
+struct SampleStreams {
+    seed: u64,
+    sobol: bool,
+    ids: [u64; 3],
+}
+
+impl SampleStreams {
+    fn new(exp: &Experiment, ids: [u64; 3]) -> Self {
+        Self {
+            seed: exp.seed,
+            sobol: exp.integrator.sampler == crate::integrator::settings::Sampler::Sobol,
+            ids,
+        }
+    }
+
+    /// Sample `s`'s stream.
+    fn sample(&self, s: u64) -> Stream {
+        let [a, b, c] = self.ids;
+        Stream::for_sample(self.seed, [a, b, c, s], self.sobol)
+    }
+
+    /// The stream of first-order walk `j` (1 ≤ j < `k`) of sample `s`, `k` walks per sample:
+    /// index `s'` of the split family ([`SPLIT_STREAM`]), in the same replicate as `s` (the
+    /// replicates' means stay independent, `accum.rs`), whose points the samples of that
+    /// replicate share out `k − 1` each (so with the Sobol sampler a replicate's split walks
+    /// are stratified among themselves, as its samples are).
+    fn split(&self, s: u64, j: u32, k: u32) -> Stream {
+        let r = crate::accum::replicate_of(s) as u64;
+        let reps = crate::accum::REPLICATES as u64;
+        let point = (s / reps) * u64::from(k - 1) + u64::from(j - 1);
+        let [a, b, c] = self.ids;
+        Stream::for_sample(
+            self.seed,
+            [a | SPLIT_STREAM, b, c, point * reps + r],
+            self.sobol,
+        )
+    }
 }
 
 fn run_block_at(
@@ -489,7 +535,7 @@ fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
     let m = &exp.measures[im];
     let ids = [iw as u64, im as u64, cell as u64];
     let settings = &exp.integrator;
-    let stream = sample_stream(exp, ids);
+    let stream = SampleStreams::new(exp, ids);
     let hint = || sensor::frame_azimuth(m, cell);
     let at_sensor = |d0| B::at_sensor(d0, hint);
     let ratio = [exp.moon_ratio(iw)];
@@ -624,7 +670,7 @@ fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
     settings: &crate::integrator::settings::IntegratorSettings,
     cells: usize,
     range: std::ops::Range<u64>,
-    stream: impl Fn(u64) -> Stream,
+    streams: SampleStreams,
     start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
     weight: impl Fn(&'g G, DVec3) -> W,
     pool: impl Fn(u64, &mut W::Tally),
@@ -634,13 +680,34 @@ fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
         acc.enable_replicates();
     }
     let k = Geometry::<W>::light(g).normalization;
+    // First-order splitting: walks that stop after their first collision (their scores are
+    // exactly the first-order part of a full walk's, `max_depth` = 1).
+    let splits = settings.first_order_splits;
+    let first_order = (splits > 1).then(|| IntegratorSettings {
+        max_depth: 1,
+        ..settings.clone()
+    });
+    let ones = vec![1.0; cells.max(1)];
     for s in range {
-        let mut rng = stream(s);
+        let mut rng = streams.sample(s);
         acc.begin_sample(s);
         let mut t = match start(&mut rng) {
             Some((p0, d0)) => backward::walk(g, p0, d0, weight(g, d0), settings, &mut rng),
             None => W::zero_tally(),
         };
+        if let Some(fo) = &first_order {
+            // The sample's first-order scores become the mean of its own and `splits − 1`
+            // independent first-order walks' (the same expectation), its higher orders stay.
+            let mut others = W::zero_tally();
+            for j in 1..splits {
+                let mut rng = streams.split(s, j, splits);
+                if let Some((p0, d0)) = start(&mut rng) {
+                    let tj = backward::walk(g, p0, d0, weight(g, d0), fo, &mut rng);
+                    W::add_tally(&mut others, &tj, &ones);
+                }
+            }
+            W::mean_first_order(&mut t, &others, splits);
+        }
         if let Some(mw) = moon {
             let mut rng = (mw.stream)(s);
             if let Some((p0, d0)) = start(&mut rng) {
@@ -800,18 +867,28 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
 }
 
 /// End of the next round: the sample count at which the target should be met (the standard
-/// error falls as 1/√n), with a 10 % margin, at least `min_grow` more samples and at most 4×
-/// the samples done (or `min_grow` more, if that is larger), rounded up to whole units
-/// (`block`: a block, or a whole cycle of g-point blocks in CKD runs). Depends only on
-/// results, so it is thread-count independent.
+/// error falls as 1/√n), times `margin` (1.1 for uniform rounds, whose every round costs the
+/// whole measure; 1.0 for adaptive images, whose short extra round costs only the pixels
+/// still above the target), at least `min_grow` more samples and at most 4× the samples done
+/// (or `min_grow` more, if that is larger), rounded up to whole units (`block`: a block, or a
+/// whole cycle of g-point blocks in CKD runs). Depends only on results, so it is thread-count
+/// independent.
 /// The most blocks one round of a task lists at once.
 const MAX_ROUND_BLOCKS: u64 = 1 << 18;
 /// Blocks run in parallel before their sums are merged (and their accumulators freed).
 const MERGE_CHUNK: usize = 4096;
 
-fn next_round_end(done: u64, rel: f64, target: f64, spp: u64, block: u64, min_grow: u64) -> u64 {
+fn next_round_end(
+    done: u64,
+    rel: f64,
+    target: f64,
+    margin: f64,
+    spp: u64,
+    block: u64,
+    min_grow: u64,
+) -> u64 {
     let grow = if rel.is_finite() && target > 0.0 {
-        (done as f64 * (rel / target).powi(2) * 1.1).ceil() as u64
+        (done as f64 * (rel / target).powi(2) * margin).ceil() as u64
     } else {
         done * 4
     };
@@ -908,8 +985,14 @@ fn run_task(
             .iter()
             .enumerate()
             .flat_map(|(i, &c)| {
-                let first = have[i].div_ceil(bs);
-                let last = want[i].div_ceil(bs);
+                // Adaptive pixels may stop inside a block (`pixel_unit` below): their next
+                // round starts in that block.
+                let first = have[i] / bs;
+                let last = if want[i] > have[i] {
+                    want[i].div_ceil(bs)
+                } else {
+                    first
+                };
                 (first..last).map(move |b| (c, b))
             })
             .collect();
@@ -992,10 +1075,21 @@ fn run_task(
         } else {
             (8 * bs).min(4 * done).max(bs)
         };
+        // Adaptive images aim at the target without a margin, and each pixel grows in
+        // quarter blocks (measured on the README render: 12 % fewer samples for the same
+        // stopping rule, BENCHMARKS.md).
+        let (margin, pixel_unit) = if adaptive && unit == bs {
+            (1.0, (bs / 4).max(1))
+        } else if adaptive {
+            (1.0, unit)
+        } else {
+            (1.1, unit)
+        };
         next = next_round_end(
             done,
             rel,
             m.target_rel_stderr.unwrap_or(0.0),
+            margin,
             m.spp,
             unit,
             min_grow,
@@ -1022,9 +1116,11 @@ fn run_task(
                 } else if next >= m.spp {
                     next
                 } else {
-                    next_round_end(have[i], rel_c, target, m.spp, unit, min_grow)
-                        .min(next)
-                        .max(have[i])
+                    next_round_end(
+                        have[i], rel_c, target, margin, m.spp, pixel_unit, pixel_unit,
+                    )
+                    .min(next)
+                    .max(have[i])
                 };
             }
         }
@@ -1156,4 +1252,43 @@ pub fn gather(
             }
         })
         .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// First-order split walks get streams of their own: per sample and walk a distinct index
+    /// in the split family, in the sample's replicate, unlike any sample's own stream.
+    #[test]
+    fn split_streams_are_distinct_and_keep_the_replicate() {
+        for sobol in [false, true] {
+            let streams = SampleStreams {
+                seed: 3,
+                sobol,
+                ids: [1, 2, 3],
+            };
+            for k in 2..=5u32 {
+                let mut seen = std::collections::HashSet::new();
+                for s in 0..300u64 {
+                    let own = streams.sample(s).next_u32();
+                    for j in 1..k {
+                        let r = crate::accum::replicate_of(s) as u64;
+                        let reps = crate::accum::REPLICATES as u64;
+                        let point = (s / reps) * u64::from(k - 1) + u64::from(j - 1);
+                        assert!(seen.insert(point * reps + r), "k {k}, s {s}, j {j}");
+                        let mut a = streams.split(s, j, k);
+                        let mut b = Stream::for_sample(
+                            3,
+                            [1 | SPLIT_STREAM, 2, 3, point * reps + r],
+                            sobol,
+                        );
+                        let x = a.next_u32();
+                        assert_eq!(x, b.next_u32());
+                        assert_ne!(x, own, "k {k}, s {s}, j {j}");
+                    }
+                }
+            }
+        }
+    }
 }

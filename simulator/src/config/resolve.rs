@@ -426,6 +426,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                     MeasureKind::Radiancemeter { .. } | MeasureKind::Hdrf { .. }
                 )
             }),
+            moon: sun.moon.is_some(),
         },
     )?;
 

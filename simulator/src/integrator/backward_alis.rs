@@ -1001,6 +1001,9 @@ impl Weight for ChannelPath<'_> {
     fn add_tally(t: &mut ChannelTally, other: &ChannelTally, ratio: &[f64]) {
         channels::add_scaled(t, other, ratio);
     }
+    fn mean_first_order(t: &mut ChannelTally, others: &ChannelTally, k: u32) {
+        channels::mean_first_order(t, others, k);
+    }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
     }
@@ -1311,6 +1314,13 @@ pub(crate) mod channels {
     pub(crate) fn add_scaled(t: &mut [OrderSplit], other: &[OrderSplit], ratio: &[f64]) {
         for ((tc, oc), r) in t.iter_mut().zip(other).zip(ratio) {
             tc.add_scaled(oc, *r);
+        }
+    }
+
+    /// [`Weight::mean_first_order`], channel by channel.
+    pub(crate) fn mean_first_order(t: &mut [OrderSplit], others: &[OrderSplit], k: u32) {
+        for (tc, oc) in t.iter_mut().zip(others) {
+            tc.mean_first_order(oc, k);
         }
     }
 }

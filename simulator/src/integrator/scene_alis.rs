@@ -440,6 +440,9 @@ impl Weight for SceneChannelPath<'_> {
     fn add_tally(t: &mut SceneChannelTally, other: &SceneChannelTally, ratio: &[f64]) {
         channels::add_scaled(t, other, ratio);
     }
+    fn mean_first_order(t: &mut SceneChannelTally, others: &SceneChannelTally, k: u32) {
+        channels::mean_first_order(t, others, k);
+    }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
     }

@@ -56,6 +56,10 @@ pub struct IntegratorSettings {
     /// atmosphere above the scene sends before a path first goes below the scene's top
     /// (`integrator/above_scene.rs`).
     pub above_scene: AboveScene,
+    /// `integrator.first_order_splits`: each backward sample's first-order (single-scattering)
+    /// scores are the mean over this many independent first-order walks, its own included
+    /// (`run.rs` `backward_block`); 1: off.
+    pub first_order_splits: u32,
 }
 
 /// `integrator.above_scene` (`integrator/above_scene.rs`).
@@ -163,7 +167,13 @@ pub struct IntegratorConfig {
     /// uncollided branch (0–4, default [`FORCED_FLIGHTS`]).
     #[serde(default)]
     pub forced_flights: Option<u32>,
+    /// Backward walks: first-order walks per sample (1–16, default 1 = off).
+    #[serde(default)]
+    pub first_order_splits: Option<u32>,
 }
+
+/// Most first-order walks per sample (`integrator.first_order_splits`).
+pub const MAX_FIRST_ORDER_SPLITS: u32 = 16;
 
 /// What of the rest of the run the integrator settings are checked against.
 #[derive(Clone, Copy, Debug)]
@@ -178,6 +188,8 @@ pub struct RunShape {
     /// The index of the first measure only the backward estimator computes (a radiancemeter or
     /// an HDRF), if any.
     pub radiancemeter: Option<usize>,
+    /// The Moon shines beside the Sun.
+    pub moon: bool,
 }
 
 impl IntegratorSettings {
@@ -314,7 +326,39 @@ impl IntegratorSettings {
                 ))
             }
         };
+        let first_order_splits = match cfg.first_order_splits {
+            None => 1,
+            Some(n) if (1..=MAX_FIRST_ORDER_SPLITS).contains(&n) => n,
+            Some(n) => {
+                return Err(ctx.err(
+                    "integrator.first_order_splits",
+                    format!("{n} must lie in 1 … {MAX_FIRST_ORDER_SPLITS} (first-order walks per sample; 1 turns splitting off)"),
+                ))
+            }
+        };
+        if first_order_splits > 1 {
+            let key = "integrator.first_order_splits";
+            if kind == IntegratorKind::Forward {
+                return Err(ctx.err(
+                    key,
+                    "splits the first order of backward walks (integrator.type \"auto\" or \"backward\", not \"forward\")",
+                ));
+            }
+            if run.polarized {
+                return Err(ctx.err(
+                    key,
+                    "is scalar only: a polarized path's Q, U and V are not split by scattering order (polarized = true)",
+                ));
+            }
+            if run.moon {
+                return Err(ctx.err(
+                    key,
+                    "is not implemented with the Moon beside the Sun (illumination.moon)",
+                ));
+            }
+        }
         Ok(IntegratorSettings {
+            first_order_splits,
             above_scene: cfg.above_scene,
             forced_flights,
             replicates: cfg.sampler == Sampler::Sobol,

@@ -93,6 +93,11 @@ pub trait Weight: Sized {
     fn add_tally(t: &mut Self::Tally, other: &Self::Tally, ratio: &[f64]);
     /// A fresh accumulator of `cells` cells for this weight.
     fn accum(cells: usize) -> Accum;
+    /// First-order splitting (`integrator.first_order_splits`, `run.rs`): replace `t`'s
+    /// first-order (single-scattering) scores by their mean over `t` and the `k − 1`
+    /// first-order walks whose tallies `others` sums; higher orders stay. Not for weights whose
+    /// tally does not separate the orders (Stokes: the resolver refuses splitting there).
+    fn mean_first_order(t: &mut Self::Tally, others: &Self::Tally, k: u32);
 }
 
 /// Russian roulette on the intensity: after `rr_depth` orders a path whose intensity is below
@@ -176,6 +181,13 @@ impl OrderSplit {
         self.multiple += k * other.multiple;
     }
 
+    /// First-order splitting: the single part becomes the mean over this path's and the
+    /// `k − 1` single parts that `others` sums.
+    #[inline]
+    pub fn mean_first_order(&mut self, others: &OrderSplit, k: u32) {
+        self.single = (self.single + others.single) / f64::from(k);
+    }
+
     /// (single, multiple), each multiplied by `k`.
     #[inline]
     pub fn scaled(&self, k: f64) -> (f64, f64) {
@@ -252,6 +264,9 @@ impl Weight for Scalar {
     fn add_tally(t: &mut OrderSplit, other: &OrderSplit, ratio: &[f64]) {
         t.add_scaled(other, ratio[0]);
     }
+    fn mean_first_order(t: &mut OrderSplit, others: &OrderSplit, k: u32) {
+        t.mean_first_order(others, k);
+    }
     fn accum(cells: usize) -> Accum {
         Accum::new(cells)
     }
@@ -296,6 +311,9 @@ macro_rules! polarized_tally {
             for (a, b) in t.iter_mut().zip(other) {
                 *a += ratio[0] * b;
             }
+        }
+        fn mean_first_order(_: &mut StokesTally, _: &StokesTally, _: u32) {
+            unreachable!("the resolver refuses integrator.first_order_splits with polarization")
         }
         fn accum(cells: usize) -> Accum {
             Accum::new_polarized(cells)
