@@ -489,21 +489,26 @@ impl SampleStreams {
     }
 
     /// The stream of first-order walk `j` (1 ≤ j < `k`) of sample `s`, `k` walks per sample:
-    /// index `s'` of the split family ([`SPLIT_STREAM`]), in the same replicate as `s` (the
-    /// replicates' means stay independent, `accum.rs`), whose points the samples of that
-    /// replicate share out `k − 1` each (so with the Sobol sampler a replicate's split walks
-    /// are stratified among themselves, as its samples are).
+    /// index [`split_index`] of the split family ([`SPLIT_STREAM`]).
     fn split(&self, s: u64, j: u32, k: u32) -> Stream {
-        let r = crate::accum::replicate_of(s) as u64;
-        let reps = crate::accum::REPLICATES as u64;
-        let point = (s / reps) * u64::from(k - 1) + u64::from(j - 1);
         let [a, b, c] = self.ids;
         Stream::for_sample(
             self.seed,
-            [a | SPLIT_STREAM, b, c, point * reps + r],
+            [a | SPLIT_STREAM, b, c, split_index(s, j, k)],
             self.sobol,
         )
     }
+}
+
+/// The sample index, in the split family, of first-order walk `j` (1 ≤ j < `k`) of sample
+/// `s`: in the same replicate as `s` (the replicates' means stay independent, `accum.rs`),
+/// whose points the samples of that replicate share out `k − 1` each, in sample order (so with
+/// the Sobol sampler a replicate's split walks are stratified among themselves, as its samples
+/// are).
+fn split_index(s: u64, j: u32, k: u32) -> u64 {
+    let reps = crate::accum::REPLICATES as u64;
+    let point = (s / reps) * u64::from(k - 1) + u64::from(j - 1);
+    point * reps + crate::accum::replicate_of(s) as u64
 }
 
 fn run_block_at(
@@ -866,6 +871,11 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
         .collect()
 }
 
+/// The most blocks one round of a task lists at once.
+const MAX_ROUND_BLOCKS: u64 = 1 << 18;
+/// Blocks run in parallel before their sums are merged (and their accumulators freed).
+const MERGE_CHUNK: usize = 4096;
+
 /// End of the next round: the sample count at which the target should be met (the standard
 /// error falls as 1/√n), times `margin` (1.1 for uniform rounds, whose every round costs the
 /// whole measure; 1.0 for adaptive images, whose short extra round costs only the pixels
@@ -873,11 +883,6 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
 /// (or `min_grow` more, if that is larger), rounded up to whole units (`block`: a block, or a
 /// whole cycle of g-point blocks in CKD runs). Depends only on results, so it is thread-count
 /// independent.
-/// The most blocks one round of a task lists at once.
-const MAX_ROUND_BLOCKS: u64 = 1 << 18;
-/// Blocks run in parallel before their sums are merged (and their accumulators freed).
-const MERGE_CHUNK: usize = 4096;
-
 fn next_round_end(
     done: u64,
     rel: f64,
@@ -1116,11 +1121,12 @@ fn run_task(
                 } else if next >= m.spp {
                     next
                 } else {
-                    next_round_end(
-                        have[i], rel_c, target, margin, m.spp, pixel_unit, pixel_unit,
-                    )
-                    .min(next)
-                    .max(have[i])
+                    // Above the target: grow to the projection in quarter blocks. At or below
+                    // it but not trusted yet: a whole block more, as the uniform schedule.
+                    let min_pixel = if rel_c > target { pixel_unit } else { min_grow };
+                    next_round_end(have[i], rel_c, target, margin, m.spp, pixel_unit, min_pixel)
+                        .min(next)
+                        .max(have[i])
                 };
             }
         }
@@ -1258,36 +1264,53 @@ pub fn gather(
 mod tests {
     use super::*;
 
-    /// First-order split walks get streams of their own: per sample and walk a distinct index
-    /// in the split family, in the sample's replicate, unlike any sample's own stream.
+    /// First-order split walks get indices of their own: distinct per sample and walk, in
+    /// the sample's replicate, and the first n samples of a replicate use exactly its first
+    /// n·(k − 1) points (a prefix, as Sobol stratification needs); their streams differ from
+    /// the samples' own.
     #[test]
-    fn split_streams_are_distinct_and_keep_the_replicate() {
+    fn split_indices_are_distinct_prefixes_in_the_replicate() {
+        let reps = crate::accum::REPLICATES as u64;
+        for k in 2..=5u32 {
+            let mut seen = std::collections::HashSet::new();
+            for s in 0..(20 * reps) {
+                for j in 1..k {
+                    let i = split_index(s, j, k);
+                    assert!(seen.insert(i), "k {k}, s {s}, j {j}: index {i} twice");
+                    assert_eq!(
+                        crate::accum::replicate_of(i),
+                        crate::accum::replicate_of(s),
+                        "k {k}, s {s}, j {j}"
+                    );
+                }
+                // After sample s, replicate r holds the points 0..n·(k − 1) of its sequence.
+                let r = crate::accum::replicate_of(s) as u64;
+                let n = s / reps + 1;
+                let points: std::collections::BTreeSet<u64> = seen
+                    .iter()
+                    .filter(|&&i| i % reps == r)
+                    .map(|&i| i / reps)
+                    .collect();
+                let want: std::collections::BTreeSet<u64> = (0..n * u64::from(k - 1)).collect();
+                assert_eq!(points, want, "k {k}, s {s}");
+            }
+        }
         for sobol in [false, true] {
             let streams = SampleStreams {
                 seed: 3,
                 sobol,
                 ids: [1, 2, 3],
             };
-            for k in 2..=5u32 {
-                let mut seen = std::collections::HashSet::new();
-                for s in 0..300u64 {
-                    let own = streams.sample(s).next_u32();
-                    for j in 1..k {
-                        let r = crate::accum::replicate_of(s) as u64;
-                        let reps = crate::accum::REPLICATES as u64;
-                        let point = (s / reps) * u64::from(k - 1) + u64::from(j - 1);
-                        assert!(seen.insert(point * reps + r), "k {k}, s {s}, j {j}");
-                        let mut a = streams.split(s, j, k);
-                        let mut b = Stream::for_sample(
-                            3,
-                            [1 | SPLIT_STREAM, 2, 3, point * reps + r],
-                            sobol,
-                        );
-                        let x = a.next_u32();
-                        assert_eq!(x, b.next_u32());
-                        assert_ne!(x, own, "k {k}, s {s}, j {j}");
-                    }
-                }
+            let own: std::collections::HashSet<u64> = (0..200)
+                .map(|s| {
+                    let mut r = streams.sample(s);
+                    (u64::from(r.next_u32()) << 32) | u64::from(r.next_u32())
+                })
+                .collect();
+            for s in 0..200 {
+                let mut r = streams.split(s, 1, 2);
+                let x = (u64::from(r.next_u32()) << 32) | u64::from(r.next_u32());
+                assert!(!own.contains(&x), "sobol {sobol}, s {s}");
             }
         }
     }

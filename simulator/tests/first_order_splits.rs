@@ -5,7 +5,7 @@
 //! * `same_seed_keeps_higher_orders`: with the same seed and sampler, a split run's
 //!   multiple-scattering sums are bit-identical to the unsplit run's (the sample's own walk
 //!   draws the same numbers), and its single-scattering sums differ. Scalar 1D, spectral 1D and
-//!   spectral 3D walks.
+//!   spectral 3D walks (walked whole and with the above-scene pool).
 //! * `split_image_equals_unsplit_image`: a sloped two-material bundle under the molecular
 //!   atmosphere at 440/550/660 nm, a 32 × 32 ortho image walked whole (no above-scene pool,
 //!   whose noise is common to every pixel), 3 walks per sample against 1 (other seeds). Per
@@ -13,10 +13,14 @@
 //!   4/√N, the RMS of z in 0.9 … 1.12 (honest standard errors), and the split must cut the
 //!   median pixel error of the single-scattering part at 660 nm by at least 25 % (3 walks: at
 //!   most 1 − 1/√3 = 42 %; measured 42 %).
-//! * `split_results_do_not_depend_on_threads`: a split image with a target (adaptive rounds,
-//!   pixels stopping inside blocks), Sobol sampler: bit-identical sums on 1 and 2 threads.
-//! * `config_errors`: out-of-range counts, polarization, the forward walk and the Moon are
-//!   refused, naming the key.
+//!   The same against a split image with the above-scene pool (bound 4·√(1/N + 1/B), the
+//!   pool being common to every pixel, `above_scene.rs`).
+//! * `split_results_do_not_depend_on_threads`: a pooled split image with a target (adaptive
+//!   rounds, some pixels stopping inside blocks, checked), Sobol sampler: bit-identical sums on
+//!   1 and 2 threads.
+//! * `config_errors`: out-of-range counts, polarization, the forward walk (explicit, and 1D
+//!   distant measures under "auto") are refused, naming the key; the Moon beside the Sun is
+//!   accepted.
 
 mod common;
 
@@ -24,6 +28,7 @@ use bundle::{BrdfSpec, Spectrum};
 use common::bundles::{tmp, write_two_material_slope};
 use common::{experiment, run_on_1_and_2_threads};
 use simulator::accum::{MULTIPLE, SINGLE, TOTAL};
+use simulator::integrator::above_scene::batch;
 use simulator::run::MeasureResult;
 
 fn scene_text(dir: &std::path::Path, seed: u64, splits: u32, pixel: f64, spp: u64) -> String {
@@ -103,11 +108,19 @@ fn same_seed_keeps_higher_orders() {
         same_higher_orders(&format!("1D, spectral {spectral}"), &run(1), &run(4));
     }
     let dir = tmp("first-order-splits-same-seed");
-    let run = |k| simulator::run::run(&experiment(&scene_text(&dir, 22, k, 250.0, 64)), false);
-    assert!(
-        same_higher_orders("3D scene", &run(1), &run(3)),
-        "3D scene: the split changed no single-scattering sum"
-    );
+    for above in ["walked", "pooled"] {
+        let run = |k| {
+            let text = scene_text(&dir, 22, k, 250.0, 64).replace(
+                "[integrator]\n",
+                &format!("[integrator]\nabove_scene = \"{above}\"\n"),
+            );
+            simulator::run::run(&experiment(&text), false)
+        };
+        assert!(
+            same_higher_orders(&format!("3D scene, {above}"), &run(1), &run(3)),
+            "3D scene, {above}: the split changed no single-scattering sum"
+        );
+    }
 }
 
 #[test]
@@ -120,11 +133,22 @@ fn split_image_equals_unsplit_image() {
             .replace("[integrator]\n", "[integrator]\nabove_scene = \"walked\"\n");
         simulator::run::run(&experiment(&text), false)
     };
-    let split = walked(31, 3);
     let plain = walked(32, 1);
+    compare("walked", &walked(31, 3), &plain, 4.0 / 1024f64.sqrt());
+    // With the above-scene pool (the default for such images): its part of each sample is
+    // added after the first orders are averaged, and is common to every pixel.
+    let pooled = simulator::run::run(&experiment(&scene_text(&dir, 33, 3, 62.5, 128)), false);
+    let bound = 4.0 * (1.0 / 1024.0 + 1.0 / batch(1024) as f64).sqrt();
+    compare("pooled", &pooled, &plain, bound);
+}
+
+/// Per wavelength, the per-pixel z of a split image against an unsplit one: mean within
+/// `bound`, RMS in 0.9 … 1.12, and at 660 nm the single-scattering part's median error below
+/// 0.75 of the unsplit one's.
+fn compare(case: &str, split: &[MeasureResult], plain: &[MeasureResult], bound: f64) {
     assert_eq!(split.len(), 3);
     assert_eq!(split[0].acc.n.len(), 1024);
-    for (s, p) in split.iter().zip(&plain) {
+    for (s, p) in split.iter().zip(plain) {
         let cells = s.acc.n.len();
         let (mut sum_z, mut sum_z2) = (0.0, 0.0);
         let (mut single_s, mut single_p) = (Vec::new(), Vec::new());
@@ -146,16 +170,18 @@ fn split_image_equals_unsplit_image() {
         };
         let ratio = median(&mut single_s) / median(&mut single_p);
         println!(
-            "wavelength {}: mean z {mean_z:+.3}, RMS z {rms_z:.3}, single-scattering error split/plain {ratio:.3}",
+            "{case}, wavelength {}: mean z {mean_z:+.3}, RMS z {rms_z:.3}, single-scattering error split/plain {ratio:.3}",
             s.wavelength
         );
-        let bound = 4.0 / n.sqrt();
-        assert!(mean_z.abs() <= bound, "mean z {mean_z} beyond {bound}");
-        assert!((0.9..=1.12).contains(&rms_z), "RMS z {rms_z}");
+        assert!(
+            mean_z.abs() <= bound,
+            "{case}: mean z {mean_z} beyond {bound}"
+        );
+        assert!((0.9..=1.12).contains(&rms_z), "{case}: RMS z {rms_z}");
         if s.wavelength == 2 {
             assert!(
                 ratio < 0.75,
-                "single-scattering error ratio {ratio} at 660 nm"
+                "{case}: single-scattering error ratio {ratio} at 660 nm"
             );
         }
     }
@@ -164,15 +190,24 @@ fn split_image_equals_unsplit_image() {
 #[test]
 fn split_results_do_not_depend_on_threads() {
     let dir = tmp("first-order-splits-threads");
-    let text = scene_text(&dir, 5, 2, 500.0, 100_000)
-        .replace("[integrator]\n", "[integrator]\nsampler = \"sobol\"\n")
-        .replace("spp = 100000\n", "spp = 100000\ntarget_rel_stderr = 0.02\n");
+    let text = scene_text(&dir, 5, 2, 250.0, 100_000)
+        .replace(
+            "[integrator]\n",
+            "[integrator]\nsampler = \"sobol\"\nabove_scene = \"pooled\"\n",
+        )
+        .replace("spp = 100000\n", "spp = 100000\ntarget_rel_stderr = 0.003\n");
     let exp = experiment(&text);
     let (a, b) = run_on_1_and_2_threads(&exp);
     assert_eq!(a.len(), 3);
     for (x, y) in a.iter().zip(&b) {
         assert_eq!(x.acc, y.acc, "results differ between 1 and 2 threads");
     }
+    // The adaptive rounds ran: some pixels stopped inside a 32-sample block.
+    assert!(
+        a[0].acc.n.iter().any(|&n| n % 32 != 0),
+        "no pixel stopped inside a block: {:?}",
+        a[0].acc.n
+    );
 }
 
 #[test]
@@ -210,19 +245,21 @@ fn config_errors() {
         e.contains("integrator.first_order_splits") && e.contains("forward"),
         "{e}"
     );
-    // The Moon beside the Sun (a Grenoble June afternoon, first quarter).
-    let e = err(&text.replace(
+    // With "auto", 1D distant measures walk forward: nothing would be split.
+    let e = err(&forward.replace("type = \"forward\"", "type = \"auto\""));
+    assert!(
+        e.contains("integrator.first_order_splits") && e.contains("backward"),
+        "{e}"
+    );
+    let ok = |t: &str| {
+        simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+            .unwrap_or_else(|e| panic!("refused: {e}\n{t}"));
+    };
+    // Splitting off (1) is accepted wherever; with the Moon beside the Sun it splits the
+    // Sun's walks.
+    ok(&forward.replace("first_order_splits = 2", "first_order_splits = 1"));
+    ok(&text.replace(
         "zenith = 30.0\nazimuth = 0.0\n",
         "time = \"2026-06-21T15:00:00Z\"\nlatitude = 45.2\nlongitude = 5.74\nmoon = true\n",
     ));
-    assert!(
-        e.contains("integrator.first_order_splits") && e.contains("Moon"),
-        "{e}"
-    );
-    // Splitting off (1) is accepted wherever.
-    simulator::config::Experiment::from_str(
-        &text.replace("first_order_splits = 2", "first_order_splits = 1"),
-        &common::data_dir().join("test.toml"),
-    )
-    .expect("first_order_splits = 1 is accepted");
 }

@@ -350,10 +350,19 @@ impl IntegratorSettings {
                     "is scalar only: a polarized path's Q, U and V are not split by scattering order (polarized = true)",
                 ));
             }
-            if run.moon {
+            // Which measures walk backward (as `run::method_for` decides): with "auto", a 1D
+            // plane-parallel run of distant measures walks forward and would ignore the key.
+            let backward = kind == IntegratorKind::Backward
+                || run.scene
+                || run.spherical
+                || run.moon
+                || alis
+                || spectral_alis.is_some()
+                || run.radiancemeter.is_some();
+            if !backward {
                 return Err(ctx.err(
                     key,
-                    "is not implemented with the Moon beside the Sun (illumination.moon)",
+                    "no measure of this run is walked backward (1D distant measures walk forward with integrator.type = \"auto\"): set integrator.type = \"backward\" or leave the key out",
                 ));
             }
         }
