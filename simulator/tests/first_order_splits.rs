@@ -195,7 +195,10 @@ fn split_results_do_not_depend_on_threads() {
             "[integrator]\n",
             "[integrator]\nsampler = \"sobol\"\nabove_scene = \"pooled\"\n",
         )
-        .replace("spp = 100000\n", "spp = 100000\ntarget_rel_stderr = 0.003\n");
+        .replace(
+            "spp = 100000\n",
+            "spp = 100000\ntarget_rel_stderr = 0.003\n",
+        );
     let exp = experiment(&text);
     let (a, b) = run_on_1_and_2_threads(&exp);
     assert_eq!(a.len(), 3);
