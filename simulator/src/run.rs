@@ -1083,13 +1083,8 @@ fn run_task(
         // Adaptive images aim at the target without a margin, and each pixel grows in
         // quarter blocks (measured on the README render: 12 % fewer samples for the same
         // stopping rule, BENCHMARKS.md).
-        let (margin, pixel_unit) = if adaptive && unit == bs {
-            (1.0, (bs / 4).max(1))
-        } else if adaptive {
-            (1.0, unit)
-        } else {
-            (1.1, unit)
-        };
+        let margin = if adaptive { 1.0 } else { 1.1 };
+        let pixel_unit = if unit == bs { (bs / 4).max(1) } else { unit };
         next = next_round_end(
             done,
             rel,

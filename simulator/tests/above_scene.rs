@@ -18,28 +18,18 @@
 
 mod common;
 
-use bundle::{BrdfSpec, Spectrum};
-use common::bundles::{tmp, write_two_material_slope};
+use common::bundles::{spectral_slope_image, tmp};
 use common::{experiment, run_on_1_and_2_threads};
 use simulator::accum::TOTAL;
 use simulator::integrator::above_scene::batch;
 
 fn scene_text(dir: &std::path::Path, seed: u64, above: &str, pixel: f64, spp: u64) -> String {
-    let grass = BrdfSpec::Lambertian {
-        reflectance: Spectrum::Table {
-            wavelengths_nm: vec![440.0, 660.0],
-            values: vec![0.04, 0.12],
-        },
-    };
-    let b = write_two_material_slope(dir, grass, 0.2, -0.1, 8);
-    format!(
-        "seed = {seed}\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
-         [atmosphere]\ntype = \"molecular\"\n\
-         [illumination]\ntype = \"directional\"\nzenith = 40.0\nazimuth = 30.0\n\
-         [integrator]\nspectral_walk = \"alis\"\nabove_scene = \"{above}\"\n\
-         [scene]\ntype = \"bundle\"\npath = \"{}\"\n\
-         [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = {pixel}\nzenith = 10.0\nazimuth = 60.0\nspp = {spp}\n",
-        b.display()
+    spectral_slope_image(
+        dir,
+        seed,
+        &format!("above_scene = \"{above}\"\n"),
+        pixel,
+        spp,
     )
 }
 

@@ -24,30 +24,15 @@
 
 mod common;
 
-use bundle::{BrdfSpec, Spectrum};
-use common::bundles::{tmp, write_two_material_slope};
+use common::bundles::{spectral_slope_image, tmp};
 use common::{experiment, run_on_1_and_2_threads};
 use simulator::accum::{MULTIPLE, SINGLE, TOTAL};
 use simulator::integrator::above_scene::batch;
 use simulator::run::MeasureResult;
 
 fn scene_text(dir: &std::path::Path, seed: u64, splits: u32, pixel: f64, spp: u64) -> String {
-    let grass = BrdfSpec::Lambertian {
-        reflectance: Spectrum::Table {
-            wavelengths_nm: vec![440.0, 660.0],
-            values: vec![0.04, 0.12],
-        },
-    };
-    let b = write_two_material_slope(dir, grass, 0.2, -0.1, 8);
-    format!(
-        "seed = {seed}\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
-         [atmosphere]\ntype = \"molecular\"\n\
-         [illumination]\ntype = \"directional\"\nzenith = 40.0\nazimuth = 30.0\n\
-         [integrator]\nspectral_walk = \"alis\"\nfirst_order_splits = {splits}\n\
-         [scene]\ntype = \"bundle\"\npath = \"{}\"\n\
-         [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = {pixel}\nzenith = 10.0\nazimuth = 60.0\nspp = {spp}\n",
-        b.display()
-    )
+    let integrator = format!("first_order_splits = {splits}\n");
+    spectral_slope_image(dir, seed, &integrator, pixel, spp)
 }
 
 /// A 1D run: Rayleigh over a Lambertian surface, three radiance meters, backward walks
@@ -222,20 +207,26 @@ fn config_errors() {
             .unwrap_or_else(|| panic!("accepted:\n{t}"))
             .to_string()
     };
-    for bad in ["0", "17"] {
-        let e = err(&text.replace(
-            "first_order_splits = 2",
-            &format!("first_order_splits = {bad}"),
-        ));
+    // Refused, naming the key and `why`.
+    let refused = |t: &str, why: &str| {
+        let e = err(t);
         assert!(
-            e.contains("integrator.first_order_splits") && e.contains("1 … 16"),
+            e.contains("integrator.first_order_splits") && e.contains(why),
             "{e}"
         );
+    };
+    for bad in ["0", "17"] {
+        refused(
+            &text.replace(
+                "first_order_splits = 2",
+                &format!("first_order_splits = {bad}"),
+            ),
+            "1 … 16",
+        );
     }
-    let e = err(&text.replace("seed = 1\n", "seed = 1\npolarized = true\n"));
-    assert!(
-        e.contains("integrator.first_order_splits") && e.contains("polarized"),
-        "{e}"
+    refused(
+        &text.replace("seed = 1\n", "seed = 1\npolarized = true\n"),
+        "polarized",
     );
     let forward = text
         .replace("type = \"backward\"", "type = \"forward\"")
@@ -243,16 +234,11 @@ fn config_errors() {
             &text[text.find("[[measures]]").unwrap()..],
             &common::mdistant_toml("toa", &[0.0], &[0.0], 100),
         );
-    let e = err(&forward);
-    assert!(
-        e.contains("integrator.first_order_splits") && e.contains("forward"),
-        "{e}"
-    );
+    refused(&forward, "forward");
     // With "auto", 1D distant measures walk forward: nothing would be split.
-    let e = err(&forward.replace("type = \"forward\"", "type = \"auto\""));
-    assert!(
-        e.contains("integrator.first_order_splits") && e.contains("backward"),
-        "{e}"
+    refused(
+        &forward.replace("type = \"forward\"", "type = \"auto\""),
+        "backward",
     );
     let ok = |t: &str| {
         simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))

@@ -62,6 +62,36 @@ pub fn flat_plane(size: f64, h0: f64, x0: f64, reflectance: f64) -> PlaneSpec {
 /// WKT of UTM 31N (EPSG:32631), written by hand (no GDAL needed to build the bundle).
 pub const UTM31N_EPSG: u32 = 32631;
 
+/// The spectral image experiment of the above-scene and first-order-splitting tests: a
+/// [`write_two_material_slope`] bundle in `dir` (grass of Lambertian reflectance 0.04 at 440 nm
+/// to 0.12 at 660 nm, slope 0.2 / −0.1) under the molecular atmosphere at 440/550/660 nm, the
+/// Sun at 40° zenith, walked over wavelength groups with the `[integrator]` lines `integrator`
+/// added, and an ortho image `img` of `pixel` m viewed from 10° zenith, `spp` samples.
+pub fn spectral_slope_image(
+    dir: &Path,
+    seed: u64,
+    integrator: &str,
+    pixel: f64,
+    spp: u64,
+) -> String {
+    let grass = BrdfSpec::Lambertian {
+        reflectance: Spectrum::Table {
+            wavelengths_nm: vec![440.0, 660.0],
+            values: vec![0.04, 0.12],
+        },
+    };
+    let b = write_two_material_slope(dir, grass, 0.2, -0.1, 8);
+    format!(
+        "seed = {seed}\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
+         [atmosphere]\ntype = \"molecular\"\n\
+         [illumination]\ntype = \"directional\"\nzenith = 40.0\nazimuth = 30.0\n\
+         [integrator]\nspectral_walk = \"alis\"\n{integrator}\
+         [scene]\ntype = \"bundle\"\npath = \"{}\"\n\
+         [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = {pixel}\nzenith = 10.0\nazimuth = 60.0\nspp = {spp}\n",
+        b.display()
+    )
+}
+
 /// A 2 km sloped plane (`sx`, `sy`; `n` nodes per tile side, 2 × 2 tiles) at 150 m, 500 km /
 /// 4000 km from the frame origin, of two spectral materials in a 4 × 4 pattern: `grass` and a
 /// soil of Lambertian reflectance 0.12 at 440 nm to 0.35 at 660 nm (the spectral scene tests).
