@@ -159,7 +159,7 @@ pub fn in_memory(
     fill: impl FnOnce(&mut netcdf::FileMut) -> netcdf::Result<()>,
 ) -> netcdf::Result<Raw> {
     static COUNT: AtomicU64 = AtomicU64::new(0);
-    let _session = simulator::netcdf_session();
+    let _session = engine::netcdf_session();
     // The name is never created on disk (diskless, not persisted); unique all the same.
     let name = std::env::temp_dir().join(format!(
         "eosim-in-memory-{}-{}.nc",

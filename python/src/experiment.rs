@@ -5,9 +5,9 @@
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
 
+use engine::config::resolve::Experiment as Exp;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
-use simulator::config::resolve::Experiment as Exp;
 use simulator::products;
 
 use crate::errors::{config, simulation, SimulationError};
@@ -129,7 +129,7 @@ impl Experiment {
 
     /// Memory the run needs, bytes: `{"results": …, "scene": …, "total": …}`.
     fn memory<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let m = simulator::config::memory::estimate(&self.exp);
+        let m = engine::config::memory::estimate(&self.exp);
         let d = PyDict::new(py);
         d.set_item("results", m.results_bytes)?;
         d.set_item("scene", m.scene_bytes)?;

@@ -68,7 +68,7 @@ pub fn pics_sweep<'py>(
             return Ok(None);
         };
         let times =
-            pics::acquisition_times(&rows).map_err(|m| simulator::error::ConfigError::Invalid {
+            pics::acquisition_times(&rows).map_err(|m| engine::error::ConfigError::Invalid {
                 path: site_path.clone(),
                 key: "acquisitions.time_utc".into(),
                 message: m,
@@ -77,7 +77,7 @@ pub fn pics_sweep<'py>(
             pics::fill_netcdf(f, &site_path, &rows, &times)
         })))
     })?;
-    let out: Result<_, simulator::error::ConfigError> = out;
+    let out: Result<_, engine::error::ConfigError> = out;
     let Some(raw) = out.map_err(config)? else {
         return Err(SimulationError::new_err("the sweep was cancelled"));
     };

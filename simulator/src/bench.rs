@@ -5,7 +5,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use crate::config::Experiment;
+use engine::config::Experiment;
 
 /// The workload as an experiment file; `{integrator}` and `{target}` are filled in.
 pub const WORKLOAD: &str = r#"

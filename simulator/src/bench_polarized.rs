@@ -16,8 +16,8 @@
 
 use std::path::Path;
 
-use crate::accum::{Accum, Q, TOTAL, U};
-use crate::config::Experiment;
+use engine::accum::{Accum, Q, TOTAL, U};
+use engine::config::Experiment;
 
 /// The five view directions: (zenith, azimuth) in degrees.
 const DIRECTIONS: [(f64, f64); 5] = [

@@ -13,16 +13,16 @@ use std::time::Instant;
 
 use glam::DVec3;
 
-use crate::config::Experiment;
-use crate::frame::direction_from_angles;
-use crate::scene::build::{from_bundle, Background};
+use engine::config::Experiment;
+use engine::frame::direction_from_angles;
+use engine::scene::build::{from_bundle, Background};
 
 pub use bundle::peak_rss_bytes;
 
-/// CPU time of this thread ([`crate::cpu_time`]): ray rates are per CPU-second of one thread,
+/// CPU time of this thread ([`engine::util::cpu_time`]): ray rates are per CPU-second of one thread,
 /// so a busy machine slows them less than wall time would; NaN where it cannot be read.
 fn thread_cpu_seconds() -> f64 {
-    crate::cpu_time::thread_seconds().unwrap_or(f64::NAN)
+    engine::util::cpu_time::thread_seconds().unwrap_or(f64::NAN)
 }
 
 /// Rays per CPU-second of `f` applied to every ray (one thread), and how many returned true.
@@ -60,7 +60,7 @@ pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Res
     );
 
     // Primary and shadow rays, one thread.
-    let mut rng = crate::rng::Stream::new(1, [0, 0, 0, 0]);
+    let mut rng = engine::rng::Stream::new(1, [0, 0, 0, 0]);
     let e = scene.extent;
     let top = scene.z_range[1] + 100.0;
     let origins: Vec<(DVec3, DVec3)> = (0..rays)

@@ -1,16 +1,16 @@
 //! Heavy-tail warnings: a standard error cannot be trusted when a few walks carry much of the
 //! estimate (peaked phase functions seen through a local estimate, glints, starved runs). For
 //! every (measure, wavelength) this checks each cell with at least
-//! [`TAIL_MIN_SAMPLES`](crate::accum::TAIL_MIN_SAMPLES) samples: the relative variance of its
-//! variance estimate (VOV, [`Accum::tail`](crate::accum::Accum::tail)) must stay below
+//! [`TAIL_MIN_SAMPLES`](engine::accum::TAIL_MIN_SAMPLES) samples: the relative variance of its
+//! variance estimate (VOV, [`Accum::tail`](engine::accum::Accum::tail)) must stay below
 //! [`VOV_LIMIT`] (MCNP's statistical check, X-5 Monte Carlo Team 2003). Cells with fewer samples
 //! (image pixels at a few hundred samples) are not judged.
 //!
 //! The warning names the measure, the wavelength, how many cells failed, the worst VOV and the
 //! largest single-walk share of the sum there.
 
-use crate::accum::{MeasureResult, VOV_LIMIT};
-use crate::config::Experiment;
+use engine::accum::{MeasureResult, VOV_LIMIT};
+use engine::config::Experiment;
 
 /// One (measure, wavelength) whose standard errors cannot be trusted.
 #[derive(Clone, Debug, PartialEq)]
@@ -54,7 +54,7 @@ pub fn check<'a>(
     for r in results {
         let acc = &r.acc;
         let (mut failed, mut judged) = (0, 0);
-        let mut worst: Option<(usize, crate::accum::Tail)> = None;
+        let mut worst: Option<(usize, engine::accum::Tail)> = None;
         for c in 0..acc.n.len() {
             let Some(t) = acc.tail(c) else { continue };
             judged += 1;

@@ -349,7 +349,7 @@ mod tests {
             };
             let text = crate::pics::experiment_text(&t, &acq, 0)
                 .unwrap_or_else(|e| panic!("{}: {e}", s.key));
-            crate::config::Experiment::from_str(&text, std::path::Path::new("catalogue"))
+            engine::config::Experiment::from_str(&text, std::path::Path::new("catalogue"))
                 .unwrap_or_else(|e| panic!("{}: {e}\n{text}", s.key));
         }
     }

@@ -20,14 +20,14 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use crate::config::resolve::Experiment;
 use crate::error::OutputError;
-use crate::measure::{Measure, MeasureKind};
 use crate::products::image::{
     sidecar_path, write_geotiff, write_png, write_quicklook_png, ImageBand,
 };
-use crate::scene::material::SurfaceModel;
-use crate::scene::Scene;
+use engine::config::resolve::Experiment;
+use engine::measure::{Measure, MeasureKind};
+use engine::scene::material::SurfaceModel;
+use engine::scene::Scene;
 
 /// Material index written where the ray hits nothing (or a black helper surface).
 pub const NO_HIT: u8 = 255;
@@ -99,7 +99,7 @@ fn render_one(
     let pixels: Vec<(u8, f64, Vec<f64>)> = (0..width * height)
         .into_par_iter()
         .map(|cell| {
-            let Some((o, d)) = crate::sensor::image_ray(scene, m, cell, 0.5, 0.5) else {
+            let Some((o, d)) = engine::sensor::image_ray(scene, m, cell, 0.5, 0.5) else {
                 return (NO_HIT, f64::NAN, vec![f64::NAN; nw]);
             };
             let Some(h) = scene.intersect(o, d, f64::INFINITY) else {
@@ -127,8 +127,8 @@ fn render_one(
                         return 0.0;
                     }
                     let model = match scene.texture_reflectance(&h, exp.wavelengths[iw]) {
-                        Some(r) => SurfaceModel::Opaque(crate::bsdf::Bsdf::Lambertian(
-                            crate::bsdf::Lambertian { reflectance: r },
+                        Some(r) => SurfaceModel::Opaque(engine::bsdf::Bsdf::Lambertian(
+                            engine::bsdf::Lambertian { reflectance: r },
                         )),
                         None => models[iw][h.material as usize].clone(),
                     };

@@ -20,8 +20,8 @@ mod common;
 
 use common::bundles::{spectral_slope_image, tmp};
 use common::{experiment, run_on_1_and_2_threads};
-use simulator::accum::TOTAL;
-use simulator::integrator::above_scene::batch;
+use engine::accum::TOTAL;
+use engine::integrator::above_scene::batch;
 
 fn scene_text(dir: &std::path::Path, seed: u64, above: &str, pixel: f64, spp: u64) -> String {
     spectral_slope_image(
@@ -158,7 +158,7 @@ fn config_errors() {
     let dir = tmp("above-scene-errors");
     let text = scene_text(&dir, 1, "pooled", 500.0, 100);
     let err = |t: &str| {
-        simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+        engine::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
             .err()
             .unwrap_or_else(|| panic!("accepted:\n{t}"))
             .to_string()

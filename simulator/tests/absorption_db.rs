@@ -15,10 +15,10 @@ mod common;
 use std::path::{Path, PathBuf};
 
 use common::{check_all, experiment, run_rows, Cmp};
-use simulator::absorption::{
+use engine::absorption::{
     gauss_legendre_unit, AtmosphereProfile, AxsDatabase, BoundsPolicy, OutOfRange, SpectralPoint,
 };
-use simulator::config::Experiment;
+use engine::config::Experiment;
 
 fn shared(sub: &str) -> Option<PathBuf> {
     let p = std::env::var_os("SIMULATOR_SHARED_DATA")
@@ -77,7 +77,7 @@ fn column_tau(
             .iter()
             .map(|&(s, x)| (s, if s == "O3" { x * o3_factor } else { x }))
             .collect();
-        let state = simulator::absorption::ThermoState {
+        let state = engine::absorption::ThermoState {
             pressure_pa: lvl.pressure_pa,
             temperature_k: lvl.temperature_k,
             mole_fractions: &mf,
@@ -170,7 +170,7 @@ fn rescaled_ozone_column() {
     assert!(want(320.0)[0] < closed_form(&db, &prof, 320.0, 1.0)[0] - 0.02);
     compare("axsdb CKD, O3 x1.25", &exp, &wl, &want);
 
-    let du = prof.column_density_m2("O3").unwrap() / simulator::atmosphere::thermo::DOBSON_UNIT;
+    let du = prof.column_density_m2("O3").unwrap() / engine::atmosphere::thermo::DOBSON_UNIT;
     let by_du = experiment(&text(
         &dbdir,
         &p,
@@ -248,8 +248,8 @@ fn user_and_cams_profiles() {
     let dir = std::env::temp_dir().join(format!("absorption_db_{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let csv = dir.join("profile.csv");
-    let t1 = simulator::atmosphere::molecular::PROFILES[5].1;
-    let t2 = include_str!("../data/afgl_1986/table_2a.csv");
+    let t1 = engine::atmosphere::molecular::PROFILES[5].1;
+    let t2 = include_str!("../../engine/data/afgl_1986/table_2a.csv");
     let mut s = String::from("# AFGL US standard, from the embedded tables\nz_km,p_hpa,t_k,H2O_ppmv,O3_ppmv,N2O_ppmv,CO_ppmv,CH4_ppmv,CO2_ppmv,O2_ppmv\n");
     for (a, b) in t1.lines().skip(1).zip(t2.lines().skip(1)) {
         let a: Vec<&str> = a.split(',').collect();
@@ -411,9 +411,8 @@ fn rrtmgp_run_equals_the_closed_form() {
     let Some(file) = shared("ckd/rrtmgp/rrtmgp-gas-sw-g224.nc") else {
         return;
     };
-    let rr = simulator::absorption::Rrtmgp::open(&file).unwrap();
-    let thermo =
-        simulator::atmosphere::thermo::load("afgl_1986-us_standard", Path::new(".")).unwrap();
+    let rr = engine::absorption::Rrtmgp::open(&file).unwrap();
+    let thermo = engine::atmosphere::thermo::load("afgl_1986-us_standard", Path::new(".")).unwrap();
     let grid: Vec<(f64, f64)> = (0..100)
         .map(|i| (i as f64 * 1e3, (i + 1) as f64 * 1e3))
         .collect();
@@ -476,7 +475,7 @@ fn ozone_continuum_from_cross_sections() {
         let (a, b) = (rows[i], rows[i + 1]);
         a.1 + (b.1 - a.1) * (w - a.0) / (b.0 - a.0)
     };
-    let th = simulator::atmosphere::thermo::load("afgl_1986-us_standard", Path::new(".")).unwrap();
+    let th = engine::atmosphere::thermo::load("afgl_1986-us_standard", Path::new(".")).unwrap();
     let (z, x, n) = (
         &th.gas.altitude_m,
         th.gas.mole_fraction("O3").unwrap(),

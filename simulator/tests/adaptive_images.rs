@@ -28,7 +28,7 @@ fn head(seed: u64) -> String {
     )
 }
 
-fn image(exp: &simulator::config::Experiment) -> simulator::products::imagery::ImageProduct {
+fn image(exp: &engine::config::Experiment) -> simulator::products::imagery::ImageProduct {
     let res = simulator::run::run(exp, false);
     simulator::products::imagery::image_products(exp, &res)
         .pop()
@@ -125,7 +125,7 @@ fn config_errors() {
         b.display()
     );
     let err = |extra: &str| {
-        simulator::config::Experiment::from_str(
+        engine::config::Experiment::from_str(
             &format!("{base}{extra}"),
             &common::data_dir().join("test.toml"),
         )

@@ -18,8 +18,8 @@
 mod common;
 use common::*;
 
-use simulator::config::Experiment;
-use simulator::phase::{PhaseFunction, Rayleigh, Tabulated};
+use engine::config::Experiment;
+use engine::phase::{PhaseFunction, Rayleigh, Tabulated};
 use std::path::{Path, PathBuf};
 
 const WASO_SSA: f64 = 0.975682810500885; // ncdump of fixtures/waso.mie.cdf, `ssa`
@@ -114,7 +114,7 @@ fn molecular_with_particles_equals_layered() {
     std::fs::create_dir_all(&dir).unwrap();
     let waso =
         Tabulated::load_libradtran(&data_dir().join("fixtures/waso.mie.cdf"), 350.0, 0).unwrap();
-    let depol = simulator::atmosphere::molecular::depolarization(350.0);
+    let depol = engine::atmosphere::molecular::depolarization(350.0);
     let rayleigh = PhaseFunction::Rayleigh(Rayleigh::new(depol).unwrap());
     let theta: Vec<f64> = (0..=3600).map(|i| i as f64 * 0.05).collect();
     let norm = 1.0 - (-2.0 / h).exp();

@@ -193,8 +193,8 @@ struct Ours {
 }
 
 fn cos_scattering_angle() -> f64 {
-    let sun = simulator::frame::direction_from_angles(SZA.to_radians(), 0.0);
-    let view = simulator::frame::direction_from_angles(VZA.to_radians(), VAA.to_radians());
+    let sun = engine::frame::direction_from_angles(SZA.to_radians(), 0.0);
+    let view = engine::frame::direction_from_angles(VZA.to_radians(), VAA.to_radians());
     // Incident propagation direction −sun, scattered along view.
     -sun.dot(view)
 }

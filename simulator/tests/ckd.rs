@@ -41,7 +41,7 @@ fn ckd_run_equals_the_g_point_quadrature() {
         return;
     };
     let full = run_rows(&experiment(&text(&file, 1, 760.0, None, 16 * 2048 * 8)));
-    let db = simulator::absorption::eradiate_v0::EradiateV0Ckd::open(&file, None).unwrap();
+    let db = engine::absorption::eradiate_v0::EradiateV0Ckd::open(&file, None).unwrap();
     let bin = db.bin_containing(760.0).unwrap();
     let (mut sum, mut var) = (vec![0.0; 2], vec![0.0; 2]);
     for g in 0..16 {
@@ -118,7 +118,7 @@ fn ckd_errors_name_the_key() {
     };
     let t = text(&file, 1, 760.0, None, 100);
     let try_ = |s: String| {
-        simulator::config::Experiment::from_str(&s, &common::data_dir().join("t.toml"))
+        engine::config::Experiment::from_str(&s, &common::data_dir().join("t.toml"))
             .unwrap_err()
             .to_string()
     };
@@ -175,7 +175,7 @@ fn ckd_band_is_sampled_by_bins() {
     let exp = experiment(&t);
     assert_eq!(exp.wavelengths, vec![650.0, 660.0, 670.0, 680.0]);
     let band = exp.band.as_ref().unwrap();
-    let srf = simulator::srf::Srf::builtin("sentinel_2a-msi-4")
+    let srf = engine::spectral::srf::Srf::builtin("sentinel_2a-msi-4")
         .unwrap()
         .unwrap();
     let total: f64 = srf
@@ -206,7 +206,7 @@ fn ckd_band_is_sampled_by_bins() {
         "{got} vs {}",
         num / den
     );
-    let e = simulator::config::Experiment::from_str(
+    let e = engine::config::Experiment::from_str(
         &t.replace("[spectral]\n", "[spectral]\nwavelength_step = 1.0\n"),
         &common::data_dir().join("t.toml"),
     )

@@ -26,8 +26,8 @@ mod common;
 
 use common::bundles::{spectral_slope_image, tmp};
 use common::{experiment, run_on_1_and_2_threads};
-use simulator::accum::{MULTIPLE, SINGLE, TOTAL};
-use simulator::integrator::above_scene::batch;
+use engine::accum::{MULTIPLE, SINGLE, TOTAL};
+use engine::integrator::above_scene::batch;
 use simulator::run::MeasureResult;
 
 fn scene_text(dir: &std::path::Path, seed: u64, splits: u32, pixel: f64, spp: u64) -> String {
@@ -202,7 +202,7 @@ fn split_results_do_not_depend_on_threads() {
 fn config_errors() {
     let text = layers_text(1, 2, false);
     let err = |t: &str| {
-        simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+        engine::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
             .err()
             .unwrap_or_else(|| panic!("accepted:\n{t}"))
             .to_string()
@@ -241,7 +241,7 @@ fn config_errors() {
         "backward",
     );
     let ok = |t: &str| {
-        simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+        engine::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
             .unwrap_or_else(|e| panic!("refused: {e}\n{t}"));
     };
     // Splitting off (1) is accepted wherever; with the Moon beside the Sun it splits the

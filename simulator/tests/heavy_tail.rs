@@ -31,7 +31,7 @@ fn starved_cloud_run_is_flagged() {
         msg.contains("\"cloud_top\"") && msg.contains("800 nm"),
         "{msg}"
     );
-    assert!(tails[0].vov > simulator::accum::VOV_LIMIT);
+    assert!(tails[0].vov > engine::accum::VOV_LIMIT);
 }
 
 #[test]

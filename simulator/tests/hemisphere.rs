@@ -7,7 +7,7 @@ mod common;
 use std::path::Path;
 
 use common::{experiment, run_rows};
-use simulator::config::Experiment;
+use engine::config::Experiment;
 
 const HEAD: &str = "[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0\nsingle_scattering_albedo = 1.0\nphase = { type = \"rayleigh\" }\n[surface]\ntype = \"lambertian\"\nreflectance = 0.3\n[illumination]\ntype = \"directional\"\nzenith = 40.0\nazimuth = 10.0\n[[measures]]\nid = \"hemi\"\ntype = \"mdistant\"\nspp = 64\n";
 

@@ -232,7 +232,7 @@ fn iprt_a1_a2_bottom_of_layer() {
             let mut measures = String::new();
             for (k, r) in sub.iter().enumerate() {
                 let look =
-                    simulator::frame::direction_from_angles(r.va.to_radians(), r.phi.to_radians());
+                    engine::frame::direction_from_angles(r.va.to_radians(), r.phi.to_radians());
                 measures += &format!(
                     "[[measures]]\nid = \"m{k}\"\ntype = \"radiancemeter\"\norigin = [0.0, 0.0, 0.0]\ndirection = [{:?}, {:?}, {:?}]\nframe_azimuth = {:?}\nspp = {spp}\n",
                     look.x,

@@ -87,10 +87,10 @@ use common::*;
 use std::f64::consts::PI;
 use std::sync::Arc;
 
-use simulator::atmosphere::{LayerOptics, PlaneParallel};
-use simulator::config::Experiment;
-use simulator::frame::direction_from_angles;
-use simulator::phase::{Mixture, PhaseFunction, Rayleigh, Tabulated};
+use engine::atmosphere::{LayerOptics, PlaneParallel};
+use engine::config::Experiment;
+use engine::frame::direction_from_angles;
+use engine::phase::{Mixture, PhaseFunction, Rayleigh, Tabulated};
 
 /// Rayleigh depolarization factor of every case.
 const DEPOL: f64 = 0.03;

@@ -18,9 +18,9 @@
 
 use std::path::{Path, PathBuf};
 
+use engine::bundle::{BrdfSpec, Spectrum};
+use engine::scene::build::ConeTrees;
 use glam::DVec3;
-use simulator::bundle::{BrdfSpec, Spectrum};
-use simulator::scene::build::ConeTrees;
 
 const MU: f64 = 1.066;
 const NU: f64 = 1.853;

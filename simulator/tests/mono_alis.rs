@@ -33,7 +33,7 @@ mod common;
 use common::artdeco::{layer, read_cumulative, shared_dir, single_scattering, Cumulative};
 use common::{data_dir, experiment, run_on_1_and_2_threads, run_rows, K};
 
-use simulator::config::Experiment;
+use engine::config::Experiment;
 use simulator::products::Row;
 
 const ABS_FLOOR: f64 = 1e-9;
@@ -247,7 +247,7 @@ fn aerosol_rpv_group_equals_independent_walks() {
     // The group's scattering really varies: Rayleigh+aerosol σ_s and the phase functions.
     let (a, b) = (&exp.optics[0].atmosphere, &exp.optics[23].atmosphere);
     let n = a.layer_count();
-    let tau_sca = |p: &simulator::atmosphere::PlaneParallel| -> f64 {
+    let tau_sca = |p: &engine::atmosphere::PlaneParallel| -> f64 {
         let t: Vec<(f64, f64)> = p.boundaries().collect();
         (0..n).map(|i| p.albedo(i) * (t[i + 1].1 - t[i].1)).sum()
     };

@@ -12,7 +12,7 @@
 mod common;
 use common::*;
 
-use simulator::moon::{irradiance_ratio, moon_position};
+use engine::sources::moon::{irradiance_ratio, moon_position};
 
 const PLACE: (f64, f64) = (28.55, 23.39); // Libya-4
 
@@ -96,7 +96,7 @@ fn moon_errors_name_their_key() {
     let load = |illumination: &str| {
         let path = dir.join("exp.toml");
         std::fs::write(&path, text(illumination)).unwrap();
-        simulator::config::resolve::Experiment::load(&path)
+        engine::config::resolve::Experiment::load(&path)
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default()
@@ -144,7 +144,8 @@ fn daytime_moon() -> String {
     for h in 0..(9 * 24) {
         let t = format!("2026-02-{:02}T{:02}:00:00Z", 20 + h / 24, h % 24);
         let m = moon_position(&t, PLACE.0, PLACE.1, 0.0).unwrap();
-        let s = simulator::sun_position::sun_position(&t, PLACE.0, PLACE.1, 0.0, None).unwrap();
+        let s =
+            engine::sources::sun_position::sun_position(&t, PLACE.0, PLACE.1, 0.0, None).unwrap();
         if m.zenith < 60.0 && s.zenith < 60.0 && m.phase_angle < 120.0 {
             return t;
         }
@@ -168,7 +169,8 @@ fn daytime_moon() -> String {
 fn moon_beside_the_sun_adds_its_light_in_closed_form() {
     let time = daytime_moon();
     let m = moon_position(&time, PLACE.0, PLACE.1, 0.0).unwrap();
-    let s = simulator::sun_position::sun_position(&time, PLACE.0, PLACE.1, 0.0, None).unwrap();
+    let s =
+        engine::sources::sun_position::sun_position(&time, PLACE.0, PLACE.1, 0.0, None).unwrap();
     println!(
         "{time}: Sun zenith {:.2}°, Moon zenith {:.2}° (phase angle {:.1}°)",
         s.zenith, m.zenith, m.phase_angle
@@ -350,7 +352,7 @@ fn moon_beside_the_sun_errors_name_their_key() {
     let (_, down) = times();
     let time = daytime_moon();
     let load = |illumination: &str, extra: &str| {
-        simulator::config::resolve::Experiment::from_str(
+        engine::config::resolve::Experiment::from_str(
             &(text(illumination) + extra),
             std::path::Path::new("twilight.toml"),
         )

@@ -224,7 +224,7 @@ fn scalar_vs_vector() {
 /// the case less symmetric).
 #[test]
 fn polarized_radiancemeter_matches_mdistant() {
-    let v = simulator::frame::direction_from_angles(60f64.to_radians(), 120f64.to_radians());
+    let v = engine::frame::direction_from_angles(60f64.to_radians(), 120f64.to_radians());
     let text = format!(
         "seed = 9\npolarized = true\n[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"layered\"\n\
          [[atmosphere.layers]]\nbottom = 0.0\ntop = 2.0\ntau_sca = 0.2\ntau_abs = 0.02\nphase = {{ type = \"hg\", g = 0.7 }}\n\
@@ -281,7 +281,7 @@ fn polarized_downward_matches_natraj_2009() {
             let (i, q, u) = (pick(&ti), pick(&tq), pick(&tu));
             for k in [0usize, 2, 4, 6] {
                 let phi = 30.0 * k as f64;
-                let look = simulator::frame::direction_from_angles(f64::acos(mu), phi.to_radians());
+                let look = engine::frame::direction_from_angles(f64::acos(mu), phi.to_radians());
                 measures += &format!(
                     "[[measures]]\nid = \"m{}\"\ntype = \"radiancemeter\"\norigin = [0.0, 0.0, 0.0]\ndirection = [{:?}, {:?}, {:?}]\nspp = 160000\n",
                     refs.len(),

@@ -13,7 +13,7 @@
 use std::path::Path;
 use std::time::Instant;
 
-use simulator::config::resolve::Experiment;
+use engine::config::resolve::Experiment;
 use simulator::products::Row;
 
 fn experiment(n: usize) -> Experiment {

@@ -38,7 +38,7 @@ fn seasonal_cycle_of_a_lambertian_site() {
     let e1au = rows[0].band_irradiance * rows[0].earth_sun_distance_au.powi(2);
     let mut szas = Vec::new();
     for r in &rows {
-        let p = simulator::sun_position::sun_position(
+        let p = engine::sources::sun_position::sun_position(
             &r.acquisition.time_utc,
             28.55,
             23.39,
@@ -114,7 +114,7 @@ fn cli_pics() {
     assert_eq!(csv.lines().count(), 7);
     let refl: Vec<f64> = {
         // HDF5 is not thread-safe: concurrent tests must not read while another writes.
-        let _session = simulator::netcdf_session();
+        let _session = engine::netcdf_session();
         let f = netcdf::open(out.join("pics.nc")).unwrap();
         f.variable("reflectance")
             .unwrap()
@@ -291,9 +291,14 @@ fn given_sun_angles_override_spa() {
         "{e}"
     );
     let rows = run(&site, &acqs, |_| {}).unwrap();
-    let p =
-        simulator::sun_position::sun_position("2026-06-15T09:45:00Z", 28.55, 23.39, 118.0, None)
-            .unwrap();
+    let p = engine::sources::sun_position::sun_position(
+        "2026-06-15T09:45:00Z",
+        28.55,
+        23.39,
+        118.0,
+        None,
+    )
+    .unwrap();
     assert!((rows[0].sza - p.zenith).abs() < 1e-9);
     assert_eq!((rows[1].sza, rows[1].saa), (60.0, 200.0));
     for r in &rows {
@@ -310,7 +315,7 @@ fn given_sun_angles_override_spa() {
     let nc = out.join("pics.nc");
     simulator::pics::write_netcdf(&nc, &site, &rows).unwrap();
     // HDF5 is not thread-safe: hold the library while reading (tests run concurrently).
-    let _session = simulator::netcdf_session();
+    let _session = engine::netcdf_session();
     let f = netcdf::open(&nc).unwrap();
     let t = f.variable("time").unwrap();
     let attr = |v: &netcdf::Variable, k: &str| -> String {

@@ -5,8 +5,8 @@
 
 use std::path::Path;
 
+use engine::config::Experiment;
 use proptest::prelude::*;
-use simulator::config::Experiment;
 
 const BASE: &str = r#"seed = 3
 polarized = false

@@ -59,9 +59,9 @@ use std::f64::consts::PI;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use simulator::config::Experiment;
+use engine::config::Experiment;
+use engine::spectral::srf::Srf;
 use simulator::products::{band_rows, rows, Row};
-use simulator::srf::Srf;
 
 /// Solar zenith angle of every case (deg).
 const SZA: f64 = 30.0;
@@ -862,7 +862,7 @@ fn reference_band_formation() {
         eprintln!("skipped: shared data folder not found");
         return;
     };
-    let tsis = simulator::solar::Spectrum::builtin("tsis_1").unwrap();
+    let tsis = engine::spectral::solar::Spectrum::builtin("tsis_1").unwrap();
     for id in ALL_CASES {
         let case = Case::parse(id);
         let r = load_reference(&shared, &case);

@@ -67,7 +67,7 @@ fn non_image_measures_form_one_table_equal_to_the_csv() {
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 
-    let _session = simulator::netcdf_session();
+    let _session = engine::netcdf_session();
     let f = netcdf::open(out.join("results.nc")).unwrap();
     assert_eq!(f.dimension_len("measure"), Some(4));
     assert_eq!(f.dimension_len("direction"), Some(6));

@@ -247,7 +247,7 @@ fn tilted_far_terrain_has_no_self_intersection() {
     let res = simulator::run::run(&e, false);
     let img = &simulator::products::imagery::image_products(&e, &res)[0];
     let n = glam::DVec3::new(-p.sx, -p.sy, 1.0).normalize();
-    let s = simulator::frame::direction_from_angles(sza.to_radians(), saa.to_radians());
+    let s = engine::frame::direction_from_angles(sza.to_radians(), saa.to_radians());
     let want = 0.4 * n.dot(s) / s.z;
     for (k, &v) in img.brf[0].iter().enumerate() {
         assert!((v - want).abs() < 1e-9, "pixel {k}: {v} vs {want}");
@@ -362,7 +362,7 @@ fn ortho_geotiff_matches_netcdf() {
     // results.nc is georeferenced for GDAL: the image variable opens with the GeoTIFF's
     // geotransform and CRS, one band per wavelength, the same pixels.
     drop(nc);
-    let _session = simulator::netcdf_session();
+    let _session = engine::netcdf_session();
     let sub = format!("NETCDF:\"{}\":toa_brf", out.join("results.nc").display());
     let g = Dataset::open(&sub).unwrap();
     assert_eq!(g.raster_size(), (4, 4));
@@ -541,7 +541,7 @@ fn textures_replace_the_reflectance_pixel_by_pixel() {
         "[[scene.textures]]\nmaterial = \"soil\"\nfile = \"{}\"",
         dir.join("utm32.tif").display()
     );
-    let err = simulator::config::Experiment::from_str(
+    let err = engine::config::Experiment::from_str(
         &text("", &tex_3, meas),
         &common::data_dir().join("t.toml"),
     )
@@ -606,16 +606,16 @@ fn terrain_is_watertight_for_distant_rays() {
         vec![("soil".into(), lambertian(0.25))],
     );
     let b = write_plane(&dir, &p);
-    let scene = simulator::scene::build::from_bundle(
+    let scene = engine::scene::build::from_bundle(
         &b,
-        &simulator::scene::build::Background::None,
+        &engine::scene::build::Background::None,
         &[],
         &[],
         None,
     )
     .unwrap();
-    let mut rng = simulator::rng::Stream::new(1, [0, 0, 0, 0]);
-    let sun = simulator::frame::direction_from_angles(25f64.to_radians(), 70f64.to_radians());
+    let mut rng = engine::rng::Stream::new(1, [0, 0, 0, 0]);
+    let sun = engine::frame::direction_from_angles(25f64.to_radians(), 70f64.to_radians());
     let (mut miss, mut occl, mut n) = (0, 0, 0);
     for k in 0..300_000 {
         // Every third ray exactly on a grid line of the 50 m quads (edges, diagonals' ends).
@@ -632,8 +632,7 @@ fn terrain_is_watertight_for_distant_rays() {
         }
         n += 1;
         let zen = std::f64::consts::PI - 0.3 * rng.next_f64();
-        let d =
-            simulator::frame::direction_from_angles(zen, std::f64::consts::TAU * rng.next_f64());
+        let d = engine::frame::direction_from_angles(zen, std::f64::consts::TAU * rng.next_f64());
         let target = glam::DVec3::new(x, y, 0.0);
         let o = target - d * (100_000.0 / -d.z);
         match scene.intersect(o, d, f64::INFINITY) {
@@ -718,11 +717,11 @@ fn scene_results_do_not_depend_on_threads() {
 /// occluded; and the map clears nearly all the unoccluded points above the geometry's top.
 #[test]
 fn sun_clearance_never_hides_a_shadow() {
+    use engine::scene::build::{canopy, from_bundle, Background};
     use glam::DVec3;
-    use simulator::scene::build::{canopy, from_bundle, Background};
     // 60 cone trees up to 25 m tall over 200 m × 200 m: shadows with gaps between them.
-    let mut rng = simulator::rng::Stream::new(4, [0, 0, 0, 0]);
-    let trees = simulator::scene::build::ConeTrees {
+    let mut rng = engine::rng::Stream::new(4, [0, 0, 0, 0]);
+    let trees = engine::scene::build::ConeTrees {
         positions: (0..60)
             .map(|_| {
                 DVec3::new(
@@ -746,7 +745,7 @@ fn sun_clearance_never_hides_a_shadow() {
         variants: 3,
         seed: 1,
     };
-    let ground = simulator::scene::build::CanopyGround {
+    let ground = engine::scene::build::CanopyGround {
         altitude: 0.0,
         extent: None,
         brdf: lambertian(0.2),
@@ -762,7 +761,7 @@ fn sun_clearance_never_hides_a_shadow() {
         None,
     )
     .unwrap();
-    let mut rng = simulator::rng::Stream::new(8, [0, 0, 0, 0]);
+    let mut rng = engine::rng::Stream::new(8, [0, 0, 0, 0]);
     for (name, scene) in [("canopy", &leafy), ("terrain", &hill)] {
         let (e, z) = (scene.extent, scene.z_range);
         let (mut cleared, mut free, mut high_free) = (0usize, 0usize, 0usize);
@@ -772,10 +771,8 @@ fn sun_clearance_never_hides_a_shadow() {
             } else {
                 80f64.to_radians() * rng.next_f64()
             };
-            let sun = simulator::frame::direction_from_angles(
-                zen,
-                std::f64::consts::TAU * rng.next_f64(),
-            );
+            let sun =
+                engine::frame::direction_from_angles(zen, std::f64::consts::TAU * rng.next_f64());
             let map = scene.sun_clearance(sun).expect("a map");
             for _ in 0..5000 {
                 let q = DVec3::new(

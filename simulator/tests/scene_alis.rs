@@ -159,7 +159,7 @@ fn config_errors() {
     let dir = tmp("alis-errors");
     let text = grouped(&bundle_text(&dir, 100, 100), 2);
     let err = |t: &str| {
-        simulator::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+        engine::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
             .err()
             .unwrap_or_else(|| panic!("accepted:\n{t}"))
             .to_string()

@@ -8,9 +8,9 @@ mod common;
 
 use common::bundles::{flat_plane, lambertian, tmp, write_plane, PlaneSpec};
 use common::{compare_brf_rows, experiment, mdistant_toml, run_rows};
+use engine::scene::build::{from_bundle, Background};
+use engine::scene::curvature::Curvature;
 use glam::DVec3;
-use simulator::scene::build::{from_bundle, Background};
-use simulator::scene::curvature::Curvature;
 
 /// A bent terrain lies on the sphere: rays hit a flat (constant-altitude) bundle 30 km from the
 /// origin at its altitude above the planet (within the chord error e²/(8R) of its 250 m quads),
@@ -35,7 +35,7 @@ fn bent_geometry_lies_on_the_sphere() {
     .unwrap();
     // Chord error of the quads' triangles (250 m sides, 354 m diagonals).
     let chord = 2.0 * 250f64.powi(2) / (8.0 * c.radius);
-    let mut rng = simulator::rng::Stream::new(7, [0, 0, 0, 0]);
+    let mut rng = engine::rng::Stream::new(7, [0, 0, 0, 0]);
     for k in 0..200 {
         // Rays from 5 km above, straight down the local vertical, inside and outside the
         // terrain's square.
@@ -220,7 +220,7 @@ fn canopy_under_a_spherical_shell_is_refused() {
         [scene]\ntype = \"canopy\"\n[[scene.objects]]\nleaves = \"nowhere.txt\"\n\
         reflectance = 0.4\ntransmittance = 0.4\n\
         [[measures]]\nid = \"toa\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0]\nazimuths = [0.0]\nspp = 16\n";
-    let err = simulator::config::Experiment::from_str(text, std::path::Path::new("."))
+    let err = engine::config::Experiment::from_str(text, std::path::Path::new("."))
         .err()
         .map(|e| e.to_string())
         .unwrap_or_default();
@@ -233,7 +233,7 @@ fn canopy_under_a_spherical_shell_is_refused() {
 /// The bent-terrain scene of the image tests: a 20 km flat Lambertian (0.3) terrain of 250 m
 /// quads on a 300 km planet, no scattering (τ = 0), Sun at 60° from the east, no background;
 /// `measure` is the `[[measures]]` table.
-fn bent_scene(name: &str, seed: u64, measure: &str) -> simulator::config::Experiment {
+fn bent_scene(name: &str, seed: u64, measure: &str) -> engine::config::Experiment {
     // 250 m quads: a facet's normal is the local vertical at its centre, within 180 m/R = 6e-4
     // rad of any of its points (hence the 1e-3 tolerances of the tests).
     let b = write_plane(
@@ -262,7 +262,7 @@ const BENT_SZA: f64 = 60.0;
 fn bent_lambertian_brf(x: f64, y: f64) -> f64 {
     let c = Curvature { radius: BENT_R };
     let n = (c.bend(DVec3::new(x, y, 0.0)) + DVec3::new(0.0, 0.0, BENT_R)).normalize();
-    let sun = simulator::frame::direction_from_angles(BENT_SZA.to_radians(), 90f64.to_radians());
+    let sun = engine::frame::direction_from_angles(BENT_SZA.to_radians(), 90f64.to_radians());
     0.3 * n.dot(sun) / BENT_SZA.to_radians().cos()
 }
 

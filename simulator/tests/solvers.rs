@@ -314,7 +314,7 @@ fn solver_errors_name_their_keys() {
             ),
         )
         .unwrap();
-        simulator::config::resolve::Experiment::load(&p)
+        engine::config::resolve::Experiment::load(&p)
             .err()
             .map(|e| e.to_string())
             .unwrap_or_default()

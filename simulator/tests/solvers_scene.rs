@@ -105,7 +105,7 @@ fn null_objects_leave_the_image_unchanged() {
         experiment_for(&with_black, "[scene.solvers.glas]\ntype = \"null\""),
     )
     .unwrap();
-    let e = simulator::config::resolve::Experiment::load(&p)
+    let e = engine::config::resolve::Experiment::load(&p)
         .err()
         .unwrap()
         .to_string();
@@ -153,7 +153,7 @@ fn canopy_solvers_by_name() {
             "the leaves should change the BRF: {b} ± {s}"
         );
     }
-    let e = simulator::config::resolve::Experiment::from_str(
+    let e = engine::config::resolve::Experiment::from_str(
         &text("[scene.solvers.leaf]\ntype = \"null\""),
         &dir.join("bad.toml"),
     )

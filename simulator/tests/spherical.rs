@@ -144,7 +144,7 @@ fn single_scattering_by_quadrature() {
         }
         Some(tau)
     };
-    let sun_for = |sza: f64| simulator::frame::direction_from_angles(sza.to_radians(), 0.0);
+    let sun_for = |sza: f64| engine::frame::direction_from_angles(sza.to_radians(), 0.0);
     let reference = |origin: DVec3, look: DVec3, sza: f64| -> f64 {
         let sun = sun_for(sza);
         let ds = 20.0;

@@ -75,8 +75,8 @@ fn white_furnace() {
 /// the directional-hemispherical reflectance. `optical_thickness = 0` and no atmosphere agree.
 #[test]
 fn no_atmosphere_equals_bare_surface() {
-    use simulator::bsdf::Bsdf;
-    use simulator::frame::direction_from_angles;
+    use engine::bsdf::Bsdf;
+    use engine::frame::direction_from_angles;
     let surfaces = [
         "type = \"lambertian\"\nreflectance = 0.3",
         "type = \"rpv\"\nrho_0 = 0.2\nk = 0.8\ng = -0.2\nrho_c = 0.25",
@@ -133,7 +133,7 @@ fn no_atmosphere_equals_bare_surface() {
 /// views at ξ ≈ ξ0 and 3ξ0 from it, and views far from it.
 #[test]
 fn rtls_hotspot_bare_surface() {
-    use simulator::frame::direction_from_angles;
+    use engine::frame::direction_from_angles;
     let (f_iso, f_vol, f_geo, sza) = (0.25, 0.12, 0.04, 30.0f64);
     let surf = format!(
         "type = \"rtls_hotspot\"\nf_iso = {f_iso}\nf_vol = {f_vol}\nf_geo = {f_geo}\nxi0 = 1.5"
@@ -203,7 +203,7 @@ fn rtls_hotspot_bare_surface() {
 /// single/multiple split.
 #[test]
 fn single_scattering_closed_form() {
-    use simulator::phase::HenyeyGreenstein;
+    use engine::phase::HenyeyGreenstein;
     let (tau, omega, g, rho, sza) = (0.4, 0.9, 0.7, 0.2, 40.0f64);
     let atm = format!(
         "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = {tau}\nsingle_scattering_albedo = {omega}\nphase = {{ type = \"hg\", g = {g} }}"
@@ -211,9 +211,9 @@ fn single_scattering_closed_form() {
     let surf = format!("type = \"lambertian\"\nreflectance = {rho}");
     let hg = HenyeyGreenstein::new(g).unwrap();
     let mu0 = sza.to_radians().cos();
-    let sun = simulator::frame::direction_from_angles(sza.to_radians(), 40f64.to_radians());
+    let sun = engine::frame::direction_from_angles(sza.to_radians(), 40f64.to_radians());
     let reference = |z: f64, a: f64| {
-        let v = simulator::frame::direction_from_angles(z.to_radians(), a.to_radians());
+        let v = engine::frame::direction_from_angles(z.to_radians(), a.to_radians());
         let mu = v.z;
         // Light travels along −sun and leaves along v: cos Θ = −sun·v.
         let p = hg.eval(-sun.dot(v));
@@ -328,7 +328,7 @@ fn radiancemeter_matches_distant() {
     let atm = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5\nphase = { type = \"hg\", g = 0.7 }";
     let surf = "type = \"lambertian\"\nreflectance = 0.3";
     // Looking down along −v with v at vza 30°, vaa 220°.
-    let v = simulator::frame::direction_from_angles(30f64.to_radians(), 220f64.to_radians());
+    let v = engine::frame::direction_from_angles(30f64.to_radians(), 220f64.to_radians());
     let measures = format!(
         "{}[[measures]]\nid = \"rm\"\ntype = \"radiancemeter\"\norigin = [1.0, 2.0, 100.0]\ndirection = [{}, {}, {}]\nspp = 200000\n",
         mdistant_toml("toa", &[30.0], &[220.0], 400_000),
@@ -412,7 +412,7 @@ single_scattering_albedo = 0.9
 /// itself is checked against the literature in `atmosphere::molecular`.
 #[test]
 fn molecular_equals_homogeneous() {
-    use simulator::atmosphere::molecular::{depolarization, rayleigh_cross_section, Profile};
+    use engine::atmosphere::molecular::{depolarization, rayleigh_cross_section, Profile};
     let p = Profile::builtin("afgl_1986-us_standard").unwrap();
     let tau = p.column(0.0, 100e3) * rayleigh_cross_section(550.0);
     let rho = depolarization(550.0);
@@ -450,7 +450,7 @@ fn molecular_equals_homogeneous() {
 /// naming the key.
 #[test]
 fn solar_spectrum_and_date() {
-    use simulator::solar::{day_of_year, earth_sun_factor, Spectrum};
+    use engine::spectral::solar::{day_of_year, earth_sun_factor, Spectrum};
     let atm = "[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2";
     let surf = "type = \"lambertian\"\nreflectance = 0.2";
     let m = mdistant_toml("toa", &[10.0, 50.0], &[0.0, 90.0], 2000);
@@ -467,7 +467,7 @@ fn solar_spectrum_and_date() {
         let (ra, rb) = (x.radiance.unwrap().0, y.radiance.unwrap().0);
         assert!((rb / ra / k - 1.0).abs() < 1e-12, "{rb} / {ra} vs {k}");
     }
-    let bad = simulator::config::Experiment::from_str(
+    let bad = engine::config::Experiment::from_str(
         &text.replace("wavelengths = [550.0]", "wavelengths = [3000.0]"),
         std::path::Path::new("x.toml"),
     )
@@ -477,7 +477,7 @@ fn solar_spectrum_and_date() {
         bad.contains("illumination.irradiance") && bad.contains("3000"),
         "{bad}"
     );
-    let bad = simulator::config::Experiment::from_str(
+    let bad = engine::config::Experiment::from_str(
         &text.replace("tsis_1", "no_such_sun"),
         std::path::Path::new("x.toml"),
     )
@@ -495,8 +495,8 @@ fn solar_spectrum_and_date() {
 /// same SRF and the TSIS-1 spectrum, to rounding.
 #[test]
 fn band_weighted_outputs() {
-    use simulator::solar::Spectrum;
-    use simulator::srf::Srf;
+    use engine::spectral::solar::Spectrum;
+    use engine::spectral::srf::Srf;
     let (wl, w) = Srf::builtin("sentinel_2a-msi-4")
         .unwrap()
         .unwrap()
@@ -531,7 +531,7 @@ fn band_weighted_outputs() {
         let mu0 = 30f64.to_radians().cos();
         assert!((std::f64::consts::PI * l / (b.irradiance * mu0) / v - 1.0).abs() < 1e-12);
     }
-    let err = simulator::config::Experiment::from_str(
+    let err = engine::config::Experiment::from_str(
         &text.replace("sentinel_2a-msi-4", "sentinel_2a-msi-99"),
         std::path::Path::new("x.toml"),
     )
@@ -545,7 +545,7 @@ fn band_weighted_outputs() {
 /// 1 AU irradiance is scaled by 1/r²; conflicting keys are errors naming them.
 #[test]
 fn illumination_from_time_and_place() {
-    use simulator::sun_position::sun_position;
+    use engine::sources::sun_position::sun_position;
     let ill = "type = \"directional\"\ntime = \"2024-06-21T10:30:00Z\"\nlatitude = 28.55\nlongitude = 23.39\nelevation = 118.0\nirradiance = 1.5";
     let text = format!(
         "[spectral]\nwavelengths = [550.0]\n[surface]\ntype = \"lambertian\"\nreflectance = 0.4\n[illumination]\n{ill}\n{}",
@@ -586,7 +586,7 @@ fn illumination_from_time_and_place() {
         ),
         (text.replace("10:30:00Z", "10:30:00"), "illumination.time"),
     ] {
-        let e = simulator::config::Experiment::from_str(&bad, std::path::Path::new("x.toml"))
+        let e = engine::config::Experiment::from_str(&bad, std::path::Path::new("x.toml"))
             .unwrap_err()
             .to_string();
         assert!(e.contains(key), "{key}: {e}");
@@ -598,7 +598,7 @@ fn illumination_from_time_and_place() {
 /// independent wavelengths with equal relative errors average down that way.
 #[test]
 fn band_precision_target() {
-    use simulator::srf::Srf;
+    use engine::spectral::srf::Srf;
     let (_, w) = Srf::builtin("sentinel_2a-msi-4")
         .unwrap()
         .unwrap()

@@ -16,15 +16,15 @@ use common::*;
 
 use std::path::Path;
 
-use simulator::bsdf::Rpv;
-use simulator::bundle::{BrdfSpec, Spectrum};
-use simulator::frame::direction_from_angles;
+use engine::bsdf::Rpv;
+use engine::bundle::{BrdfSpec, Spectrum};
+use engine::frame::direction_from_angles;
 
 /// RPV parameters (ρ₀ at 500 and 700 nm; k, Θ, ρ_c).
 const RHO_0: [f64; 2] = [0.1, 0.3];
 const K_G_RHOC: (f64, f64, f64) = (0.8, -0.2, 0.3);
 
-/// Writes the RPV table at 500 and 700 nm (`simulator::bsdf::tabulated::write_table`, the
+/// Writes the RPV table at 500 and 700 nm (`engine::bsdf::tabulated::write_table`, the
 /// documented layout).
 fn write_rpv_table(path: &Path) {
     let models: Vec<Rpv> = RHO_0
@@ -34,7 +34,7 @@ fn write_rpv_table(path: &Path) {
     let theta: Vec<f64> = (0..=44).map(|k| 2.0 * k as f64).collect();
     let dphi: Vec<f64> = (0..=36).map(|k| 5.0 * k as f64).collect();
     let wl = [500.0, 700.0];
-    simulator::bsdf::tabulated::write_table(path, &wl, &theta, &theta, &dphi, |w, ti, tr, dp| {
+    engine::bsdf::tabulated::write_table(path, &wl, &theta, &theta, &dphi, |w, ti, tr, dp| {
         let m = &models[if w == wl[0] { 0 } else { 1 }];
         // dphi = φ_r − φ_i, 0 = backscattering (both directions at one azimuth).
         let wi = direction_from_angles(f64::to_radians(ti), 0.0);
@@ -162,14 +162,14 @@ fn bad_table_is_reported_at_the_key() {
         "{head}[surface]\ntype = \"tabulated\"\nfile = \"{}\"\n",
         missing.display()
     );
-    let e = simulator::config::Experiment::from_str(&text, &dir.join("x.toml"))
+    let e = engine::config::Experiment::from_str(&text, &dir.join("x.toml"))
         .unwrap_err()
         .to_string();
     assert!(e.contains("surface.file") && e.contains("none.nc"), "{e}");
     // A file without `brdf`.
     let partial = dir.join("partial.nc");
     {
-        let _session = simulator::netcdf_session();
+        let _session = engine::netcdf_session();
         let mut nc = netcdf::create_with(&partial, netcdf::Options::_64BIT_OFFSET).unwrap();
         for name in ["wavelength", "theta_i", "theta_r", "dphi"] {
             nc.add_dimension(name, 1).unwrap();
@@ -186,7 +186,7 @@ fn bad_table_is_reported_at_the_key() {
         }
     }
     let text = format!("{head}[surface]\ntype = \"tabulated\"\nfile = \"partial.nc\"\n");
-    let e = simulator::config::Experiment::from_str(&text, &dir.join("x.toml"))
+    let e = engine::config::Experiment::from_str(&text, &dir.join("x.toml"))
         .unwrap_err()
         .to_string();
     assert!(

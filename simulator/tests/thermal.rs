@@ -16,7 +16,7 @@
 mod common;
 use common::*;
 
-use simulator::planck;
+use engine::sources::planck;
 use toml::{Table, Value};
 
 const WL: f64 = 10_000.0;
@@ -310,7 +310,7 @@ fn unsupported_shapes_name_their_key() {
     let ok_surf = "type = \"lambertian\"\nreflectance = 0.1\ntemperature = 290.0";
     let m = mdistant_toml("toa", &[0.0], &[0.0], 10);
     let err = |text: String| {
-        simulator::config::Experiment::from_str(&text, &data_dir().join("test.toml"))
+        engine::config::Experiment::from_str(&text, &data_dir().join("test.toml"))
             .unwrap_err()
             .to_string()
     };
@@ -383,7 +383,7 @@ fn products_carry_brightness_temperature() {
     let path = dir.join("results.nc");
     simulator::products::netcdf::write(&path, &exp, &rows, &[], &[]).unwrap();
     {
-        let _session = simulator::netcdf_session();
+        let _session = engine::netcdf_session();
         let f = netcdf::open(&path).unwrap();
         for (name, units) in [
             ("brightness_temperature", "K"),

@@ -27,8 +27,8 @@
 mod common;
 use common::*;
 
-use simulator::absorption::Rrtmgp;
-use simulator::planck;
+use engine::absorption::Rrtmgp;
+use engine::sources::planck;
 
 fn lw_file() -> Option<std::path::PathBuf> {
     let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -82,7 +82,7 @@ fn non_scattering_column_equals_closed_form() {
     // (linear in altitude between the profile's levels).
     let rr = Rrtmgp::open(&file).unwrap();
     let thermo =
-        simulator::atmosphere::thermo::load("afgl_1986-us_standard", std::path::Path::new("."))
+        engine::atmosphere::thermo::load("afgl_1986-us_standard", std::path::Path::new("."))
             .unwrap();
     let prof = &thermo.gas;
     let grid: Vec<(f64, f64)> = (0..50)
@@ -177,7 +177,7 @@ fn ckd_run_is_the_g_point_quadrature() {
     let ng = rr.gpoints_of_band(band).len();
     // The bin's quadrature weights: the lowest layer's Planck fractions, normalised.
     let thermo =
-        simulator::atmosphere::thermo::load("afgl_1986-us_standard", std::path::Path::new("."))
+        engine::atmosphere::thermo::load("afgl_1986-us_standard", std::path::Path::new("."))
             .unwrap();
     let (_, pf) = rr
         .layer_optics(&thermo.gas, &[(0.0, 2000.0)], band, true)
@@ -337,7 +337,7 @@ fn emission_needs_planck_fractions() {
         mdistant_toml("toa", &[0.0], &[0.0], 16)
     );
     let t = text(&sw, &[10_900.0], "", &rest);
-    let e = simulator::config::Experiment::from_str(&t, &data_dir().join("test.toml"))
+    let e = engine::config::Experiment::from_str(&t, &data_dir().join("test.toml"))
         .expect_err("a shortwave file cannot serve thermal emission")
         .to_string();
     assert!(

@@ -21,7 +21,7 @@ mod common;
 use bundle::{BrdfSpec, Spectrum};
 use common::bundles::{lambertian, tmp, with_plate, write_plane, PlaneSpec};
 use common::{check_all, experiment, run_rows, Cmp};
-use simulator::planck;
+use engine::sources::planck;
 
 const WL: f64 = 10_000.0;
 
@@ -257,7 +257,7 @@ fn a_material_without_temperature_is_named() {
         b.display(),
         mdistant(16, "")
     );
-    let e = simulator::config::Experiment::from_str(&text, &common::data_dir().join("t.toml"))
+    let e = engine::config::Experiment::from_str(&text, &common::data_dir().join("t.toml"))
         .err()
         .unwrap()
         .to_string();
@@ -269,7 +269,7 @@ fn a_material_without_temperature_is_named() {
         "[[measures]]",
         "[scene.temperatures]\nsand = 300.0\n[[measures]]",
     );
-    let e = simulator::config::Experiment::from_str(&bad, &common::data_dir().join("t.toml"))
+    let e = engine::config::Experiment::from_str(&bad, &common::data_dir().join("t.toml"))
         .err()
         .unwrap()
         .to_string();

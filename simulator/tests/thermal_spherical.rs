@@ -14,7 +14,7 @@
 mod common;
 use common::*;
 
-use simulator::planck;
+use engine::sources::planck;
 
 const WL: f64 = 10_000.0;
 

@@ -35,7 +35,7 @@ fn tiled_shards_merge_bit_for_bit() {
 
 fn tiled_runs_equal(
     dir: &std::path::Path,
-    exp: &simulator::config::Experiment,
+    exp: &engine::config::Experiment,
     unsplit: &[simulator::run::MeasureResult],
 ) {
     let exp = exp.clone();

@@ -11,15 +11,10 @@ use serde::Deserialize;
 use crate::procedural::ProceduralSpec;
 use crate::{load, Template, TileError};
 
-const BUILTIN: &str = include_str!("../data/catalogue.toml");
+/// The up axis of a mesh file (defined beside the loader that turns it to +z).
+pub use crate::load::UpAxis;
 
-/// Up axis of a mesh file.
-#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
-#[serde(rename_all = "lowercase")]
-pub enum UpAxis {
-    Y,
-    Z,
-}
+const BUILTIN: &str = include_str!("../data/catalogue.toml");
 
 /// One catalogue entry.
 #[derive(Clone, Debug, Deserialize, PartialEq)]

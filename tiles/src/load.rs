@@ -12,8 +12,17 @@
 
 use std::path::Path;
 
-use crate::catalogue::UpAxis;
+use serde::Deserialize;
+
 use crate::{Template, TileError};
+
+/// Up axis of a mesh file.
+#[derive(Clone, Copy, Debug, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "lowercase")]
+pub enum UpAxis {
+    Y,
+    Z,
+}
 
 /// Load `path` by its extension (obj, gltf, glb) and normalise it.
 pub fn load_mesh(path: &Path, unit_m: f64, up: UpAxis) -> Result<Template, TileError> {

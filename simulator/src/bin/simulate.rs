@@ -13,8 +13,8 @@ use std::time::Instant;
 use anyhow::Context;
 use clap::{Parser, Subcommand};
 
-use simulator::config::Experiment;
-use simulator::error::ConfigError;
+use engine::config::Experiment;
+use engine::error::ConfigError;
 use simulator::products;
 
 #[derive(Parser)]
@@ -325,19 +325,19 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 exp.wavelengths.len(),
                 exp.measures.len()
             );
-            let mem = simulator::config::memory::estimate(&exp);
+            let mem = engine::config::memory::estimate(&exp);
             println!(
                 "  memory: about {} (results {}, scene {})",
-                simulator::config::memory::human(mem.total()),
-                simulator::config::memory::human(mem.results_bytes),
-                simulator::config::memory::human(mem.scene_bytes)
+                engine::config::memory::human(mem.total()),
+                engine::config::memory::human(mem.results_bytes),
+                engine::config::memory::human(mem.scene_bytes)
             );
             // What the surfaces have to say beyond their parameters (tabulated BRDFs: file,
             // grids, reciprocity error), once each.
             let mut infos: Vec<String> = Vec::new();
             for o in &exp.optics {
                 let scene = o.scene_models.iter().filter_map(|m| match m {
-                    simulator::scene::material::SurfaceModel::Opaque(b) => Some(b),
+                    engine::scene::material::SurfaceModel::Opaque(b) => Some(b),
                     _ => None,
                 });
                 for b in std::iter::once(&o.surface).chain(scene) {

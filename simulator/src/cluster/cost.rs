@@ -17,9 +17,9 @@
 
 use std::time::Instant;
 
-use crate::config::resolve::Experiment;
 use crate::run::units::Unit;
 use crate::run::{method_for, Method};
+use engine::config::resolve::Experiment;
 
 /// Cells of measure `im` the pilot walks (at most 64, evenly spread).
 fn pilot_cells(exp: &Experiment, im: usize) -> Vec<usize> {
@@ -48,11 +48,12 @@ pub fn pilot(exp: &Experiment) -> Vec<Vec<f64>> {
                     // and page faults in a freshly loaded scene.
                     let cpu = (0..2)
                         .map(|_| {
-                            let (c0, t0) = (crate::cpu_time::process_seconds(), Instant::now());
+                            let (c0, t0) =
+                                (engine::util::cpu_time::process_seconds(), Instant::now());
                             crate::run::pilot_blocks(exp, group, im, &cells, 0..samples);
                             let wall = t0.elapsed().as_secs_f64();
                             // Where the process's CPU time is unknown: wall × threads.
-                            c0.zip(crate::cpu_time::process_seconds())
+                            c0.zip(engine::util::cpu_time::process_seconds())
                                 .map(|(a, b)| b - a)
                                 .unwrap_or(wall * threads)
                         })
@@ -82,7 +83,7 @@ pub fn unit_cpu_seconds(exp: &Experiment, per_walk: &[Vec<f64>], u: &Unit) -> f6
     // image recomputes it): `batch` short walks per sample, charged as whole walks (they end at
     // the scene's top, so this bounds them from above).
     let pool = if crate::run::pools_above_scene(exp, m) {
-        crate::integrator::above_scene::batch(m.cell_count())
+        engine::integrator::above_scene::batch(m.cell_count())
     } else {
         0
     };

@@ -12,10 +12,10 @@
 use std::path::Path;
 
 use super::manifest::Plan;
-use crate::config::resolve::Experiment;
 use crate::run::checkpoint;
 use crate::run::units::{shard_units, Unit};
 use crate::run::MeasureResult;
+use engine::config::resolve::Experiment;
 
 /// Why a shard is incomplete.
 #[derive(Debug, PartialEq)]

@@ -8,9 +8,9 @@ use anyhow::Context;
 
 use super::cost;
 use super::manifest::{Estimate, Plan, Resources};
-use crate::config::resolve::Experiment;
-use crate::error::ConfigError;
 use crate::run::units;
+use engine::config::resolve::Experiment;
+use engine::error::ConfigError;
 
 /// The command line's choices.
 pub struct Options {

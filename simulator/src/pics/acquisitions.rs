@@ -15,8 +15,8 @@
 
 use std::path::Path;
 
-use crate::error::ConfigError;
-use crate::sun_position::{format_utc, parse_time};
+use engine::error::ConfigError;
+use engine::sources::sun_position::{format_utc, parse_time};
 
 /// One acquisition.
 #[derive(Clone, Debug, PartialEq)]

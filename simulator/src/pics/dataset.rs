@@ -17,7 +17,7 @@ use std::path::Path;
 
 use super::PicsRow;
 use crate::error::OutputError;
-use crate::sun_position::{parse_time, unix_seconds};
+use engine::sources::sun_position::{parse_time, unix_seconds};
 
 /// A data column: name, units, long name, accessor.
 type Column = (
@@ -99,7 +99,7 @@ pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(
         source,
     };
     {
-        let _session = crate::netcdf_session();
+        let _session = engine::netcdf_session();
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         fill(&mut f, site_path, rows, &times).map_err(|e| {
             let _ = std::fs::remove_file(&tmp);

@@ -40,9 +40,9 @@ mod dataset;
 pub use acquisitions::{parse_acquisitions, read_acquisitions, Acquisition};
 pub use dataset::{fill as fill_netcdf, times as acquisition_times, write_netcdf};
 
-use crate::config::Experiment;
-use crate::error::ConfigError;
 use crate::products::{band_rows, rows};
+use engine::config::Experiment;
+use engine::error::ConfigError;
 
 /// The simulated result of one acquisition.
 #[derive(Clone, Debug)]
@@ -135,7 +135,8 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
         }
         Some((sza, saa)) => {
             // The user's Sun angles; the Earth–Sun distance still comes from SPA at the time.
-            let p = crate::sun_position::sun_position(&acq.time_utc, lat, lon, elev, None)?;
+            let p =
+                engine::sources::sun_position::sun_position(&acq.time_utc, lat, lon, elev, None)?;
             ill.insert("zenith".into(), toml::Value::Float(sza));
             ill.insert("azimuth".into(), toml::Value::Float(saa));
             ill.insert("distance_au".into(), toml::Value::Float(p.distance_au));
@@ -317,7 +318,7 @@ pub fn run_site(
 ) -> Result<Option<Vec<PicsRow>>, ConfigError> {
     let mut out = Vec::with_capacity(acquisitions.len());
     // Keeps a 3D site's scene alive, so that every acquisition reuses it (built once).
-    let mut _scene: Option<std::sync::Arc<crate::scene::Scene>> = None;
+    let mut _scene: Option<std::sync::Arc<engine::scene::Scene>> = None;
     for (k, acq) in acquisitions.iter().enumerate() {
         let exp = acquisition_experiment(site, site_path, acq, k)?;
         if _scene.is_none() {

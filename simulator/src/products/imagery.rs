@@ -26,10 +26,10 @@
 use std::path::{Path, PathBuf};
 
 use super::image::{write_geotiff, write_quicklook_png, ImageBand};
-use crate::accum::MeasureResult;
-use crate::config::resolve::Experiment;
 use crate::error::OutputError;
-use crate::measure::MeasureKind;
+use engine::accum::MeasureResult;
+use engine::config::resolve::Experiment;
+use engine::measure::MeasureKind;
 
 /// Per-wavelength pixel values, `[wavelength][pixel]`.
 pub type Image = Vec<Vec<f64>>;
@@ -152,8 +152,8 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
             p.radiance[iw][c] = t * to_rad;
             p.radiance_stderr[iw][c] = e * to_rad;
             if let (Some(st), true) = (p.stokes.as_mut(), r.acc.is_polarized()) {
-                st.q[iw][c] = r.acc.mean_stderr(c, crate::integrator::Q).0;
-                st.u[iw][c] = r.acc.mean_stderr(c, crate::integrator::U).0;
+                st.q[iw][c] = r.acc.mean_stderr(c, engine::integrator::Q).0;
+                st.u[iw][c] = r.acc.mean_stderr(c, engine::integrator::U).0;
                 let (d, de) = super::dolp(&r.acc, c);
                 st.dolp[iw][c] = d;
                 st.dolp_stderr[iw][c] = de;
@@ -163,7 +163,7 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
             let wl = exp.wavelengths[iw];
             for c in 0..width * height {
                 let (l, se) = (p.radiance[iw][c], p.radiance_stderr[iw][c]);
-                let (t, st) = crate::planck::brightness_temperature_stderr(wl, l, se);
+                let (t, st) = engine::sources::planck::brightness_temperature_stderr(wl, l, se);
                 bt[iw][c] = t;
                 bt_se[iw][c] = st;
             }

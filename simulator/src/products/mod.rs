@@ -29,10 +29,10 @@ pub mod staging;
 
 use std::path::Path;
 
-use crate::accum::MeasureResult;
-use crate::config::resolve::Experiment;
 use crate::error::OutputError;
-use crate::measure::{FluxDirection, MeasureKind};
+use engine::accum::MeasureResult;
+use engine::config::resolve::Experiment;
+use engine::measure::{FluxDirection, MeasureKind};
 
 /// One output row: one measure, wavelength and direction.
 #[derive(Clone, Debug)]
@@ -68,8 +68,8 @@ pub struct Row {
 
 /// Degree of linear polarization and its standard error (delta method with the estimated
 /// covariances of the means of I, Q, U).
-pub(crate) fn dolp(acc: &crate::integrator::Accum, c: usize) -> (f64, f64) {
-    use crate::integrator::{Q, TOTAL, U};
+pub(crate) fn dolp(acc: &engine::integrator::Accum, c: usize) -> (f64, f64) {
+    use engine::integrator::{Q, TOTAL, U};
     let (i, ei) = acc.mean_stderr(c, TOTAL);
     let (q, eq) = acc.mean_stderr(c, Q);
     let (u, eu) = acc.mean_stderr(c, U);
@@ -111,13 +111,13 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
         let opt = &exp.optics[r.wavelength];
         let direct_at = |z: f64| {
             let sun = if sun_up {
-                crate::direct_flux::direct_transmittance(opt, exp.sun_dir, z)
+                engine::measure::direct_flux::direct_transmittance(opt, exp.sun_dir, z)
             } else {
                 0.0
             };
             // The Moon's beam beside the Sun's, in the Sun's units (E_moon·μ_moon/(E0·μ)).
             let moon = exp.moon.as_ref().map_or(0.0, |m| {
-                crate::direct_flux::direct_transmittance(opt, m.dir, z)
+                engine::measure::direct_flux::direct_transmittance(opt, m.dir, z)
                     * exp.moon_ratio(r.wavelength)
                     * m.dir.z.max(0.0)
                     / mu_s
@@ -164,7 +164,7 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 n_samples: r.acc.n[c],
             };
             if r.acc.is_polarized() && !m.is_flux() {
-                use crate::integrator::{Q, U, V};
+                use engine::integrator::{Q, U, V};
                 row.brf_q = Some(r.acc.mean_stderr(c, Q));
                 row.brf_u = Some(r.acc.mean_stderr(c, U));
                 row.brf_v = Some(r.acc.mean_stderr(c, V));
@@ -204,7 +204,7 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 }
                 if exp.emission {
                     row.brightness_temperature =
-                        Some(crate::planck::brightness_temperature_stderr(
+                        Some(engine::sources::planck::brightness_temperature_stderr(
                             row.wavelength_nm,
                             t * to_rad,
                             te * to_rad,
@@ -317,7 +317,7 @@ pub fn band_rows(exp: &Experiment, rows: &[Row]) -> Vec<BandRow> {
             let radiance = combine(&|r| r.radiance, false);
             let brightness_temperature = radiance
                 .filter(|_| exp.emission && !m.is_flux())
-                .map(|(l, e)| crate::planck::brightness_temperature_stderr(wl_eff, l, e));
+                .map(|(l, e)| engine::sources::planck::brightness_temperature_stderr(wl_eff, l, e));
             out.push(BandRow {
                 measure: m.id.clone(),
                 kind: m.type_name(),

@@ -16,9 +16,9 @@ use serde::{Deserialize, Serialize};
 
 use super::units::Unit;
 use super::{MeasureResult, Method};
-use crate::config::resolve::Experiment;
 use crate::error::OutputError;
-use crate::integrator::Accum;
+use engine::config::resolve::Experiment;
+use engine::integrator::Accum;
 
 #[derive(Serialize, Deserialize)]
 struct Stored {

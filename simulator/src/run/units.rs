@@ -21,7 +21,7 @@
 use std::ops::Range;
 
 use super::{method_for, wavelength_groups, MeasureResult, Method};
-use crate::config::resolve::Experiment;
+use engine::config::resolve::Experiment;
 
 /// One work unit.
 #[derive(Clone, Debug, PartialEq)]
@@ -131,9 +131,9 @@ pub fn assemble(
         return None;
     }
     let mut acc = if first.acc.ncomp == 6 {
-        crate::accum::Accum::new_polarized(cells)
+        engine::accum::Accum::new_polarized(cells)
     } else {
-        crate::accum::Accum::new(cells)
+        engine::accum::Accum::new(cells)
     };
     for (r, p) in &parts {
         for (local, cell) in r.clone().enumerate() {

@@ -72,8 +72,8 @@ pub fn single_scattering(
     raa: f64,
 ) -> f64 {
     let (mu0, mu) = (sza.to_radians().cos(), vza.to_radians().cos());
-    let sun = simulator::frame::direction_from_angles(sza.to_radians(), 0.0);
-    let view = simulator::frame::direction_from_angles(vza.to_radians(), raa.to_radians());
+    let sun = engine::frame::direction_from_angles(sza.to_radians(), 0.0);
+    let view = engine::frame::direction_from_angles(vza.to_radians(), raa.to_radians());
     // Incident propagation direction −sun, scattered along view.
     let c = -sun.dot(view);
     let phase = 0.75 * (1.0 + c * c);

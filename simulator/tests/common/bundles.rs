@@ -368,10 +368,10 @@ pub fn write_random_leaves(
     z: [f64; 2],
     r: f64,
 ) {
-    let mut rng = simulator::rng::Stream::new(seed, [0, 0, 0, 0]);
+    let mut rng = engine::rng::Stream::new(seed, [0, 0, 0, 0]);
     let mut leaves = String::from("# x y z nx ny nz r\n");
     for _ in 0..n {
-        let nv = simulator::frame::direction_from_angles(
+        let nv = engine::frame::direction_from_angles(
             (rng.next_f64() * 2.0 - 1.0).acos(),
             std::f64::consts::TAU * rng.next_f64(),
         );

@@ -6,7 +6,7 @@ pub mod bundles;
 
 use std::path::{Path, PathBuf};
 
-use simulator::config::Experiment;
+use engine::config::Experiment;
 use simulator::products::{rows, Row};
 
 pub fn data_dir() -> PathBuf {

@@ -26,8 +26,8 @@ mod table;
 use std::path::Path;
 
 use super::{tmp_path, Row};
-use crate::config::resolve::Experiment;
 use crate::error::OutputError;
+use engine::config::resolve::Experiment;
 
 /// Write `rows` and the band-weighted `band` rows (`products::band_rows`; empty without a band).
 pub fn write(
@@ -44,7 +44,7 @@ pub fn write(
         source,
     };
     {
-        let _session = crate::netcdf_session();
+        let _session = engine::netcdf_session();
         let mut f = netcdf::create(&tmp).map_err(nc)?;
         fill(&mut f, exp, rows, band, images).map_err(|e| {
             let _ = std::fs::remove_file(&tmp);

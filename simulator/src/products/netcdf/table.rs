@@ -33,9 +33,9 @@
 
 use std::collections::HashMap;
 
-use crate::config::resolve::Experiment;
-use crate::measure::Measure;
 use crate::products::{BandRow, Row};
+use engine::config::resolve::Experiment;
+use engine::measure::Measure;
 
 /// The `direction` layout: the non-image measures and the offset of each one's first entry.
 struct Layout<'a> {
@@ -275,7 +275,7 @@ fn write_measures(f: &mut netcdf::FileMut, lay: &Layout) -> Result<(), netcdf::E
         .measures
         .iter()
         .map(|m| match m.kind {
-            crate::measure::MeasureKind::DistantFlux { altitude, .. } => altitude,
+            engine::measure::MeasureKind::DistantFlux { altitude, .. } => altitude,
             _ => f64::NAN,
         })
         .collect();
@@ -288,7 +288,7 @@ fn write_measures(f: &mut netcdf::FileMut, lay: &Layout) -> Result<(), netcdf::E
             .measures
             .iter()
             .map(|m| match m.kind {
-                crate::measure::MeasureKind::DistantFlux { direction, .. } => direction.name(),
+                engine::measure::MeasureKind::DistantFlux { direction, .. } => direction.name(),
                 _ => "",
             })
             .collect();

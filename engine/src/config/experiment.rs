@@ -1,0 +1,81 @@
+//! The runtime experiment: every part of the experiment file resolved into validated types
+//! (`resolve.rs` builds it; the memory estimate, the blocks and the products read it).
+
+use std::path::PathBuf;
+use std::sync::Arc;
+
+use glam::DVec3;
+
+use crate::integrator::settings::IntegratorSettings;
+use crate::measure::Measure;
+use crate::optics::OpticalState;
+use crate::scene::Scene;
+use crate::spectral::Band;
+
+/// A validated experiment.
+#[derive(Clone, Debug)]
+pub struct Experiment {
+    pub wavelengths: Vec<f64>,
+    /// The sensor band the wavelengths sample, if `spectral.srf` was given.
+    pub band: Option<Band>,
+    /// One per wavelength.
+    pub optics: Vec<OpticalState>,
+    /// Solar zenith and azimuth, radians.
+    pub sun_zenith: f64,
+    pub sun_azimuth: f64,
+    /// Unit vector from the target towards the Sun.
+    pub sun_dir: DVec3,
+    /// The solar angles as given, degrees (azimuth normalised to [0, 360)).
+    pub sun_zenith_deg: f64,
+    pub sun_azimuth_deg: f64,
+    /// Earth–Sun distance (AU) when the Sun comes from `illumination.time` (or `date`).
+    pub sun_distance_au: Option<f64>,
+    pub measures: Vec<Measure>,
+    pub integrator: IntegratorSettings,
+    pub seed: u64,
+    /// Stokes-vector transport.
+    pub polarized: bool,
+    /// Spherical-shell geometry: the planet radius, m (None: plane-parallel).
+    pub planet_radius: Option<f64>,
+    /// The 3D scene, when the experiment renders one (shared: it can be large).
+    pub scene: Option<Arc<Scene>>,
+    /// Thermal emission (`emission = true`): radiances then carry brightness temperatures.
+    pub emission: bool,
+    /// Whether a Sun shines (`illumination.type = "none"`: false, no BRF).
+    pub sun_shines: bool,
+    /// The Moon shining beside the Sun (`illumination.moon = true`): every sample then adds a
+    /// Moon-lit walk to the Sun-lit one (`blocks/walks.rs`), and the products' radiances and fluxes are
+    /// the sum; BRFs stay in units of the Sun's irradiance.
+    pub moon: Option<crate::sources::illumination::Moonlight>,
+    /// The experiment file's text (written into the products for provenance).
+    pub source_text: String,
+    pub source_path: PathBuf,
+}
+
+impl Experiment {
+    /// Whether the Sun is above the target's horizon (SZA below 90° by more than 0.2″). The
+    /// target is the origin of the local frame: a large bent scene near the terminator has the
+    /// Sun up or down by this one vertical, not by each pixel's.
+    pub fn sun_up(&self) -> bool {
+        self.sun_shines && self.sun_dir.z > 1e-6
+    }
+
+    /// With the Moon beside the Sun: E_moon/E_sun at wavelength `iw`, the factor that brings a
+    /// Moon-lit path's score into the units of the Sun's (1 without a Moon, unused).
+    pub fn moon_ratio(&self, iw: usize) -> f64 {
+        match &self.moon {
+            Some(m) => m.irradiance[iw] / self.optics[iw].irradiance,
+            None => 1.0,
+        }
+    }
+
+    /// The cosine that normalises samples and BRFs: cos SZA when the Sun is above the target's
+    /// horizon, else 1 (twilight in spherical shells: radiance only, no BRF).
+    pub fn mu_norm(&self) -> f64 {
+        if self.sun_up() {
+            self.sun_dir.z
+        } else {
+            1.0
+        }
+    }
+}

@@ -1,0 +1,644 @@
+//! Validation of an [`ExperimentConfig`] into runtime types that cannot hold an invalid state:
+//! ranges checked, files loaded, units converted (km → m, degrees → radians).
+//!
+//! This file holds the orchestration only: the order in which the parts are resolved, what
+//! each part needs from the others, and the assembly of the [`Experiment`]. Each part is
+//! resolved beside its models (see the table in `config/mod.rs`). It also holds the plumbing of
+//! parse errors: every error names the experiment file and the key path (e.g.
+//! `atmosphere.layers[1].tau_sca`), and serde's messages are completed with the key path of the
+//! offending key or value when serde loses it.
+
+use std::path::Path;
+use std::sync::Arc;
+
+pub use super::experiment::Experiment;
+use super::*;
+use crate::absorption::config::ckd_bins;
+use crate::atmosphere::config::AtmosphereLayers;
+use crate::atmosphere::spherical::SphericalShell;
+use crate::atmosphere::PlaneParallel;
+use crate::bsdf::{Bsdf, Lambertian};
+use crate::error::{ConfigCtx, ConfigError};
+pub use crate::integrator::settings::IntegratorKind;
+use crate::integrator::settings::RunShape;
+use crate::measure::config::{relax_targets_for_band, round_to_g_point_cycles, MeasureContext};
+use crate::measure::MeasureKind;
+use crate::optics::OpticalState;
+use crate::scene::Scene;
+pub use crate::spectral::Band;
+
+impl Experiment {
+    /// Read and resolve an experiment file; relative paths inside are taken from its folder.
+    pub fn load(path: &Path) -> Result<Experiment, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::from_str(&text, path)
+    }
+
+    /// [`Experiment::load`] with every measure's `spp` replaced by `spp` when given (the
+    /// `simulate run --spp N` override for quick runs: `target_rel_stderr` still applies, and
+    /// CKD rounding to whole g-point cycles happens after the override).
+    pub fn load_with_spp(path: &Path, spp: Option<u64>) -> Result<Experiment, ConfigError> {
+        let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
+        Self::parse_with_spp(&text, path, spp)
+    }
+
+    /// Parse and resolve experiment text; `path` names it in errors and anchors relative paths.
+    pub fn from_str(text: &str, path: &Path) -> Result<Experiment, ConfigError> {
+        Self::parse_with_spp(text, path, None)
+    }
+
+    /// [`Experiment::from_str`] with every measure's `spp` replaced by `spp` when given (see
+    /// [`Experiment::load_with_spp`]).
+    pub fn parse_with_spp(
+        text: &str,
+        path: &Path,
+        spp: Option<u64>,
+    ) -> Result<Experiment, ConfigError> {
+        use super::diagnostics::{cut_lines, line_of, quote, split_toml_message};
+        let parse_err = |message: String| ConfigError::Parse {
+            path: path.to_path_buf(),
+            message: cut_lines(&message),
+        };
+        let de = toml::Deserializer::parse(text).map_err(|e| parse_err(e.to_string()))?;
+        let mut cfg: ExperimentConfig = serde_path_to_error::deserialize(de).map_err(|e| {
+            let key = e.path().to_string();
+            let inner = e.into_inner().to_string().trim_end().to_string();
+            let found = locate_offender(text, &inner);
+            let (toml_line, core) = split_toml_message(&inner);
+            let core = plain_closed_choice(&core);
+            // serde's path, or the offender's when serde stopped at its table.
+            let key = match found.as_slice() {
+                [one] => one.clone(),
+                _ if key == "." => String::new(),
+                _ => key,
+            };
+            let hint = if found.len() > 1 {
+                format!(" (offending keys: `{}`)", found.join("`, `"))
+            } else {
+                String::new()
+            };
+            let line = (!key.is_empty())
+                .then(|| line_of(text, &key))
+                .flatten()
+                .or(toml_line);
+            let at = match (key.is_empty(), line) {
+                (false, Some(n)) => format!("at key `{key}` (line {n}): "),
+                (false, None) => format!("at key `{key}`: "),
+                (true, Some(n)) => format!("line {n}: "),
+                (true, None) => String::new(),
+            };
+            let core = match core.strip_prefix("missing field `") {
+                Some(rest) => format!("missing required key `{rest}"),
+                None => core,
+            };
+            let quoted = line
+                .and_then(|n| quote(text, n))
+                .map(|q| format!("\n{q}"))
+                .unwrap_or_default();
+            parse_err(format!("{at}{core}{hint}{quoted}"))
+        })?;
+        if let Some(n) = spp {
+            cfg.measures.iter_mut().for_each(|m| m.set_spp(n));
+        }
+        let mut exp = resolve(cfg, text, path)?;
+        // The products' provenance and the checkpoints' hash must see the override.
+        if let Some(n) = spp {
+            exp.source_text
+                .push_str(&format!("\n# overridden on the command line: --spp {n}\n"));
+        }
+        Ok(exp)
+    }
+}
+
+/// serde's messages about a closed choice (a `type` tag or a string value such as
+/// `integrator.spectral_walk`) in the words of the resolvers' own messages: "unknown variant
+/// `x`, expected `a` or `b`" becomes `"x" is unknown (known: "a", "b")`, and the TOML reader's
+/// "wanted string or table" (a number or list given) says that a string is expected. Other
+/// messages are returned unchanged.
+fn plain_closed_choice(message: &str) -> String {
+    const PREFIX: &str = "unknown variant `";
+    let message = message.replace("wanted string or table", "invalid type: expected a string");
+    let Some(i) = message.find(PREFIX) else {
+        return message;
+    };
+    let rest = &message[i + PREFIX.len()..];
+    let Some(end) = rest.find('`') else {
+        return message;
+    };
+    let value = &rest[..end];
+    // The line ends after the value (a value may itself hold a line break).
+    let line_end = rest[end..].find('\n').map_or(rest.len(), |k| end + k);
+    let expected = &rest[end + 1..line_end];
+    // The allowed values are the back-quoted words of the rest of the line.
+    let known: Vec<String> = expected
+        .split('`')
+        .skip(1)
+        .step_by(2)
+        .map(|v| format!("\"{v}\""))
+        .collect();
+    let plain = if known.is_empty() {
+        format!("\"{value}\" is unknown")
+    } else {
+        format!("\"{value}\" is unknown (known: {})", known.join(", "))
+    };
+    format!("{}{plain}{}", &message[..i], &rest[line_end..])
+}
+
+/// serde loses the key path inside tagged tables (e.g. `atmosphere.phase`); find the full
+/// path(s) of the offending key or value named in `message` by walking the TOML tree.
+fn locate_offender(text: &str, message: &str) -> Vec<String> {
+    let quoted = |prefix: &str| -> Option<String> {
+        let i = message.find(prefix)? + prefix.len();
+        let rest = &message[i..];
+        let end = rest.find('`')?;
+        Some(rest[..end].to_string())
+    };
+    let string_value = || -> Option<String> {
+        let i = message.find("invalid type: string \"")? + "invalid type: string \"".len();
+        let rest = &message[i..];
+        Some(rest[..rest.find('"')?].to_string())
+    };
+    let number_value = || -> Option<String> {
+        let i = message.find("invalid type: ")?;
+        let rest = &message[i..];
+        let a = rest.find('`')? + 1;
+        let b = a + rest[a..].find('`')?;
+        Some(rest[a..b].to_string())
+    };
+    let (needle, is_key) = if let Some(k) = quoted("unknown field `") {
+        (k, true)
+    } else if let Some(v) = quoted("unknown variant `").or_else(string_value) {
+        (v, false)
+    } else if let Some(v) = number_value() {
+        (v, false)
+    } else {
+        return Vec::new();
+    };
+    let Ok(root) = text.parse::<toml::Table>() else {
+        return Vec::new();
+    };
+    let mut found = Vec::new();
+    fn walk(v: &toml::Value, path: String, needle: &str, is_key: bool, found: &mut Vec<String>) {
+        match v {
+            toml::Value::Table(t) => {
+                for (k, x) in t {
+                    let p = if path.is_empty() {
+                        k.clone()
+                    } else {
+                        format!("{path}.{k}")
+                    };
+                    let hit = if is_key {
+                        k == needle
+                    } else {
+                        match x {
+                            toml::Value::String(s) => s == needle,
+                            toml::Value::Integer(i) => i.to_string() == needle,
+                            toml::Value::Float(f) => {
+                                f.to_string() == needle || format!("{f:?}") == needle
+                            }
+                            _ => false,
+                        }
+                    };
+                    if hit {
+                        found.push(p.clone());
+                    }
+                    walk(x, p, needle, is_key, found);
+                }
+            }
+            toml::Value::Array(a) => {
+                for (i, x) in a.iter().enumerate() {
+                    walk(x, format!("{path}[{i}]"), needle, is_key, found);
+                }
+            }
+            _ => {}
+        }
+    }
+    walk(
+        &toml::Value::Table(root),
+        String::new(),
+        &needle,
+        is_key,
+        &mut found,
+    );
+    found
+}
+
+/// Validate a parsed experiment. `text` and `path` are kept for provenance and messages.
+///
+/// The parts are resolved in this order (the first error found is reported): spectral, geometry,
+/// atmosphere, surface, illumination, scene, measures, integrator, then the checks that need
+/// several parts.
+pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experiment, ConfigError> {
+    let base = path.parent().map(Path::to_path_buf).unwrap_or_default();
+    let ctx = ConfigCtx {
+        path,
+        base: &base,
+        nw: 0,
+    };
+    let ckd = cfg.mode == Mode::Ckd;
+    let absorption_data = cfg.atmosphere.as_ref().and_then(|a| a.absorption_data());
+    let (wavelengths, band) = cfg
+        .spectral
+        .resolve(&ctx, cfg.mode, || ckd_bins(&ctx, absorption_data))?;
+    let nw = wavelengths.len();
+    let ctx = ConfigCtx { nw, ..ctx };
+
+    let geometry = cfg.geometry.resolve(&ctx)?;
+    let (ground, toa, planet_radius) = (geometry.ground, geometry.toa, geometry.planet_radius);
+
+    // Atmosphere: per wavelength, a list of layers (and per g-point gas absorption in CKD mode).
+    let atmosphere = match &cfg.atmosphere {
+        None => AtmosphereLayers {
+            layers: vec![Vec::new(); nw],
+            ckd: Vec::new(),
+        },
+        Some(a) => a.resolve(&ctx, &geometry, &wavelengths, cfg.mode, &cfg.spectral)?,
+    };
+
+    // Surface, per wavelength.
+    let surfaces: Vec<Bsdf> = match (&cfg.surface, &cfg.scene) {
+        (Some(_), Some(_)) => {
+            return Err(ctx.err(
+                "surface",
+                "is replaced by the scene: give `scene` or `surface`, not both (a bundle's surroundings are `scene.background`)",
+            ))
+        }
+        (None, None) => return Err(ctx.err("surface", "is required (or a 3D `scene`)")),
+        (None, Some(_)) => vec![Bsdf::Lambertian(Lambertian::new(0.0).expect("valid")); nw],
+        (Some(s), None) => s.resolve(&ctx, "surface", &wavelengths)?,
+    };
+
+    let sun = cfg
+        .illumination
+        .resolve(&ctx, &wavelengths, planet_radius.is_some())?;
+    let thermal = super::thermal::resolve(&cfg, &ctx, &geometry, &wavelengths, &sun)?;
+
+    // Scene.
+    let scene: Option<Arc<Scene>> = match &cfg.scene {
+        None => None,
+        Some(sc) => {
+            // Plane-parallel layers refuse a Sun below the horizon already; in spherical shells a
+            // scene may lie in twilight (the shells' sunlit air lights it; radiances only).
+            if sun.dir.z <= 1e-6 && planet_radius.is_none() {
+                return Err(ctx.err(
+                    "illumination.zenith",
+                    "the Sun must be above the horizon to render a 3D scene in plane-parallel layers (use geometry.type = \"spherical_shell\" for twilight)",
+                ));
+            }
+            // Under a spherical shell the scene is bent onto the planet (scene::curvature).
+            let bend = planet_radius.map(|radius| crate::scene::curvature::Curvature { radius });
+            let built =
+                scene::build_scene_shared(sc, &base, bend).map_err(|(k, m)| ctx.err(k, m))?;
+            // (Bent scenes hold bent heights: their lowest point sags below its altitude.)
+            if cfg.atmosphere.is_some()
+                && built.curvature.is_none()
+                && built.z_range[0] < ground - 1e-6
+            {
+                tracing::warn!(
+                    "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
+                    built.z_range[0],
+                    ground
+                );
+            }
+            Some(built)
+        }
+    };
+
+    if let (Some(_), Some(sc)) = (&thermal, &scene) {
+        let missing: Vec<&str> = sc
+            .materials
+            .iter()
+            .enumerate()
+            .filter(|(id, _)| sc.temperature(*id as u16).is_none())
+            .map(|(_, (name, _))| name.as_str())
+            .collect();
+        if !missing.is_empty() {
+            return Err(ctx.err(
+                "scene.temperatures",
+                format!(
+                    "thermal emission (`emission = true`) needs a temperature (K) for every material of the scene (the bundle's `temperature`, or `[scene.temperatures]`); missing: {}",
+                    missing.join(", ")
+                ),
+            ));
+        }
+    }
+
+    // Measures.
+    if cfg.measures.is_empty() {
+        return Err(ctx.err("measures", "at least one measure is required"));
+    }
+    let frame = scene.as_deref().map(scene::frame);
+    let at = MeasureContext {
+        ground,
+        toa,
+        scene: frame.as_ref(),
+    };
+    let mut measures = Vec::with_capacity(cfg.measures.len());
+    for (im, m) in cfg.measures.iter().enumerate() {
+        let m = m.resolve(&ctx, im, &measures, &at)?;
+        measures.push(m);
+    }
+
+    let mut integrator = IntegratorSettings::from_config(
+        &ctx,
+        &cfg.integrator,
+        RunShape {
+            ckd,
+            polarized: cfg.polarized,
+            spherical: planet_radius.is_some(),
+            scene: scene.is_some(),
+            radiancemeter: measures.iter().position(|m| {
+                matches!(
+                    m.kind,
+                    MeasureKind::Radiancemeter { .. } | MeasureKind::Hdrf { .. }
+                )
+            }),
+            moon: sun.moon.is_some(),
+        },
+    )?;
+
+    if let Some(t) = &thermal {
+        t.check_integrator(&ctx, &mut integrator, &measures)?;
+    }
+    if sun.moon.is_some() && cfg.emission {
+        return Err(ctx.err(
+            "illumination.moon",
+            "the Moon beside the Sun is built for reflected light, not with thermal emission (`emission = true`): drop one or the other",
+        ));
+    }
+    if sun.moon.is_some() {
+        use crate::integrator::settings::IntegratorKind;
+        // The Moon's walk joins each sample of the Sun's in the backward estimator (`blocks/walks.rs`).
+        match integrator.kind {
+            IntegratorKind::Forward => {
+                return Err(ctx.err(
+                    "illumination.moon",
+                    "the Moon beside the Sun needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")",
+                ))
+            }
+            IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
+            IntegratorKind::Backward => {}
+        }
+    }
+    // `integrator.above_scene = "pooled"` (`integrator/above_scene.rs`) is built for ortho
+    // images walked over wavelength groups, lit by the Sun alone.
+    if integrator.above_scene == crate::integrator::settings::AboveScene::Pooled {
+        let why = if scene.is_none() {
+            Some("needs a 3D scene (`[scene]`)")
+        } else if integrator.spectral_alis.is_none() {
+            Some("is built for walks over wavelength groups: add `integrator.spectral_walk = \"alis\"`")
+        } else if sun.moon.is_some() {
+            Some("is not built for the Moon beside the Sun (`illumination.moon`)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(ctx.err(
+                "integrator.above_scene",
+                format!("\"pooled\" {why}; or leave it at \"auto\""),
+            ));
+        }
+    }
+    // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
+    if let (Some(sc), Some(_)) = (&scene, integrator.spectral_alis) {
+        if let Some((name, solver)) = sc
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, (name, _))| (name, sc.solver(i as u16)))
+            .find(|(_, s)| *s != bundle::SolverSpec::default())
+        {
+            return Err(ctx.err(
+                format!("scene.solvers.{name}"),
+                format!("the `{}` solver is not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): drop one or the other", solver.type_name()),
+            ));
+        }
+    }
+    if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver()) {
+        solver
+            .validate()
+            .map_err(|(k, m)| ctx.err(format!("surface.solver.{k}"), m))?;
+        if !solver.is_default() {
+            use crate::integrator::settings::IntegratorKind;
+            // The solvers act in the backward estimator (`integrator/solver.rs`).
+            match integrator.kind {
+                IntegratorKind::Forward => {
+                    return Err(ctx.err(
+                        "surface.solver",
+                        format!("the `{}` solver needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")", solver.type_name()),
+                    ))
+                }
+                IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
+                IntegratorKind::Backward => {}
+            }
+            if matches!(solver, bundle::SolverSpec::Mirror { .. })
+                && (cfg.polarized || planet_radius.is_some())
+            {
+                return Err(ctx.err(
+                    "surface.solver",
+                    "a `mirror` ground is built for scalar plane-parallel runs (its reflected sunbeam lights the layers through a mirror-image Sun; polarized and spherical-shell runs lack it)",
+                ));
+            }
+            if integrator.alis || integrator.spectral_alis.is_some() {
+                return Err(ctx.err(
+                    "surface.solver",
+                    format!("the `{}` solver is not built into ALIS walks: drop `integrator.ckd_walk = \"alis\"` or `integrator.spectral_walk = \"alis\"`", solver.type_name()),
+                ));
+            }
+        }
+        integrator.surface_solver = solver;
+    }
+    if ckd && atmosphere.ckd.is_empty() {
+        return Err(ctx.err(
+            "atmosphere",
+            "mode = \"ckd\" needs a `molecular` atmosphere with `absorption_data`",
+        ));
+    }
+    let ckd_tau = atmosphere.ckd;
+    let optics = atmosphere
+        .layers
+        .into_iter()
+        .zip(surfaces)
+        .enumerate()
+        .map(|(iw, (layers, surface))| {
+            let scene_models = match &scene {
+                Some(sc) => sc
+                    .models_at(wavelengths[iw])
+                    .map_err(|m| ctx.err("scene", m))?,
+                None => Vec::new(),
+            };
+            // A scene's emission at this wavelength, its Planck radiances times `scale`.
+            let scene_emission = |scale: f64| match (&thermal, &scene) {
+                (Some(t), Some(sc)) => Some(crate::scene::emission::SceneEmission::new(
+                    sc,
+                    &scene_models,
+                    wavelengths[iw],
+                    t.k(iw) * scale,
+                )),
+                _ => None,
+            };
+            let g_states: Vec<(f64, OpticalState)> = match ckd_tau.get(iw) {
+                None => Vec::new(),
+                Some(gs) => gs
+                    .iter()
+                    .map(|gp| {
+                        let mut l = layers.clone();
+                        for (layer, t) in l.iter_mut().zip(&gp.tau) {
+                            layer.tau_abs += t;
+                        }
+                        let mut atmosphere = PlaneParallel::new(l, ground, toa);
+                        let scale0 = gp
+                            .planck_scale
+                            .as_ref()
+                            .and_then(|s| s.first().copied())
+                            .unwrap_or(1.0);
+                        let surface_emission = match &thermal {
+                            None => None,
+                            Some(t) => {
+                                let Some(scale) = gp.planck_scale.as_deref() else {
+                                    return Err(ctx.err(
+                                        "atmosphere.absorption_data",
+                                        "thermal emission (`emission = true`) in mode = \"ckd\" needs a longwave k-distribution with Planck fractions per g-point (RRTMGP's `rrtmgp-gas-lw-g256.nc`)",
+                                    ));
+                                };
+                                t.apply(iw, &mut atmosphere, &surface, Some(scale))
+                            }
+                        };
+                        let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
+                        Ok((
+                            gp.weight,
+                            OpticalState {
+                                wavelength: wavelengths[iw],
+                                atmosphere,
+                                shell,
+                                surface: surface.clone(),
+                                surface_emission,
+                                scene_models: Vec::new(),
+                                scene_emission: scene_emission(scale0),
+                                irradiance: sun.irradiance[iw],
+                                g_states: Vec::new(),
+                            },
+                        ))
+                    })
+                    .collect::<Result<Vec<_>, ConfigError>>()?,
+            };
+            let mut atmosphere = PlaneParallel::new(layers, ground, toa);
+            // In CKD mode the g-points carry the sources (above); the bin's own atmosphere
+            // (no gas absorption: the ALIS reference) gets none.
+            let surface_emission = match &thermal {
+                Some(t) if g_states.is_empty() => t.apply(iw, &mut atmosphere, &surface, None),
+                _ => None,
+            };
+            let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
+            let scene_emission = if g_states.is_empty() {
+                scene_emission(1.0)
+            } else {
+                None
+            };
+            let mut g_states = g_states;
+            for (_, g) in &mut g_states {
+                g.scene_models = scene_models.clone();
+            }
+            Ok(OpticalState {
+                wavelength: wavelengths[iw],
+                atmosphere,
+                shell,
+                surface,
+                surface_emission,
+                scene_models,
+                scene_emission,
+                irradiance: sun.irradiance[iw],
+                g_states,
+            })
+        })
+        .collect::<Result<Vec<_>, ConfigError>>()?;
+
+    let atmospheres: Vec<&PlaneParallel> = optics.iter().map(|o| &o.atmosphere).collect();
+    crate::integrator::backward_alis::check_spectral_groups(
+        &integrator,
+        &ctx,
+        &wavelengths,
+        &atmospheres,
+        scene.is_some(),
+    )?;
+    if let Some(b) = &band {
+        relax_targets_for_band(&mut measures, &b.weights, &sun.irradiance);
+    }
+    // CKD: blocks of samples cycle through the g-points, so every measure's sample count is a
+    // whole number of cycles (rounded up).
+    if let Some(ng) = optics.first().map(|o: &OpticalState| o.g_states.len()) {
+        integrator.check_g_points(&ctx, ng)?;
+        if ng > 1 && !integrator.alis {
+            round_to_g_point_cycles(&mut measures, ng);
+            // Each replicate then holds whole g-point cycles (`IntegratorSettings::replicates`).
+            integrator.replicates = true;
+        }
+    }
+    let exp = Experiment {
+        wavelengths,
+        band,
+        optics,
+        sun_zenith: sun.zenith_deg.to_radians(),
+        sun_azimuth: sun.azimuth_deg.to_radians(),
+        sun_dir: sun.dir,
+        sun_zenith_deg: sun.zenith_deg,
+        sun_azimuth_deg: sun.azimuth_deg,
+        sun_distance_au: sun.distance_au,
+        measures,
+        integrator,
+        seed: cfg.seed,
+        polarized: cfg.polarized,
+        emission: cfg.emission,
+        sun_shines: sun.shines,
+        moon: sun.moon.clone(),
+        planet_radius,
+        scene,
+        source_text: text.to_string(),
+        source_path: path.to_path_buf(),
+    };
+    super::memory::check(&exp, super::memory::total_memory())?;
+    Ok(exp)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::plain_closed_choice;
+
+    /// serde's words for closed choices become the resolvers' (the value, the allowed values).
+    #[test]
+    fn closed_choice_in_plain_words() {
+        assert_eq!(
+            plain_closed_choice("unknown variant `grouped`, expected `independent` or `alis`"),
+            "\"grouped\" is unknown (known: \"independent\", \"alis\")"
+        );
+        assert_eq!(
+            plain_closed_choice(
+                "TOML parse error at line 4, column 1\n  |\n4 | x\n  | ^\nunknown variant `mie`, expected one of `rayleigh`, `hg`, `isotropic`\n"
+            ),
+            "TOML parse error at line 4, column 1\n  |\n4 | x\n  | ^\n\"mie\" is unknown (known: \"rayleigh\", \"hg\", \"isotropic\")\n"
+        );
+        assert_eq!(
+            plain_closed_choice("unknown variant `x y`, expected `r x y z nx ny nz`"),
+            "\"x y\" is unknown (known: \"r x y z nx ny nz\")"
+        );
+        assert_eq!(
+            plain_closed_choice("missing field `g`"),
+            "missing field `g`"
+        );
+        assert_eq!(
+            plain_closed_choice("wanted string or table"),
+            "invalid type: expected a string"
+        );
+        // A value holding a line break (found by proptest_config: it used to panic).
+        assert_eq!(
+            plain_closed_choice("unknown variant `a\nb`, expected `hplane` or `directions`\nx"),
+            "\"a\nb\" is unknown (known: \"hplane\", \"directions\")\nx"
+        );
+    }
+}

@@ -1,0 +1,444 @@
+//! Settings of the transport core and the `[integrator]` table they come from: its raw serde
+//! type and [`IntegratorSettings::from_config`], which checks it against the rest of the run
+//! (keys and meanings in `docs/experiment.md`).
+
+use serde::Deserialize;
+
+use crate::atmosphere::PlaneParallel;
+use crate::error::{ConfigCtx, ConfigError};
+
+/// The most channels (g-points or wavelengths) one walk carries (`backward_alis.rs`).
+pub const MAX_CHANNELS: usize = 64;
+
+/// The most wavelengths one walk through a 3D scene carries (`integrator.alis_group`,
+/// `scene_alis.rs`).
+pub const SCENE_CHANNELS: usize = 8;
+
+/// Which walk serves the measures (`integrator.type`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorKind {
+    /// Forward for `mdistant` and `distant_flux`, backward for `radiancemeter`.
+    #[default]
+    Auto,
+    /// Photons from the Sun with local estimates towards every direction (1D distant measures).
+    Forward,
+    /// Paths from the sensor with next-event estimation towards the Sun.
+    Backward,
+}
+
+#[derive(Clone, Debug)]
+pub struct IntegratorSettings {
+    pub kind: IntegratorKind,
+    /// Maximum scattering order counted (u32::MAX: unlimited).
+    pub max_depth: u32,
+    pub rr_depth: u32,
+    /// Score the expected local estimate along each flight (true) or at sampled collisions.
+    pub expected_local_estimate: bool,
+    /// CKD runs: one backward walk for all g-points of a bin (`integrator/backward_alis.rs`).
+    pub alis: bool,
+    /// Monochromatic runs with `spectral_walk = "alis"`: the wavelengths per group (one backward
+    /// walk serves a group, `integrator/backward_alis.rs`); None: independent walks.
+    pub spectral_alis: Option<usize>,
+    /// Samples before the first precision check (None: 4 blocks).
+    pub first_check_spp: Option<u64>,
+    /// DDIS mixture weight ε at peaked phase functions (`integrator/peak_sampling.rs`); 0: off.
+    pub detector_sampling: f64,
+    /// `integrator.sampler`: the first [`crate::rng::QMC_DIMS`] numbers of each sample from an
+    /// Owen-scrambled Sobol sequence (`rng.rs`) instead of Philox alone.
+    pub sampler: Sampler,
+    /// The 1D surface's radiometry solver (`[surface] solver`, `solver.rs`); scene materials
+    /// carry theirs in the scene.
+    pub surface_solver: super::solver::SolverSpec,
+    /// Keep replicate sums (sample s in replicate s mod 16) and take the standard error from
+    /// their scatter: with the Sobol sampler, and in CKD runs that cycle through g-points in
+    /// blocks (a replicate then holds whole cycles, so its mean is a stratified estimate of the
+    /// bin and the scatter excludes the spread between g-points, which the i.i.d. formula
+    /// would count).
+    pub replicates: bool,
+    /// `integrator.forced_flights`: the first this many flights of a backward path are split
+    /// into a forced collision and the uncollided branch (`backward.rs`); 0: off.
+    pub forced_flights: u32,
+    /// `integrator.above_scene`: how ortho images of a scene estimate the light that the
+    /// atmosphere above the scene sends before a path first goes below the scene's top
+    /// (`integrator/above_scene.rs`).
+    pub above_scene: AboveScene,
+    /// `integrator.first_order_splits`: each backward sample's first-order (single-scattering)
+    /// scores are the mean over this many independent first-order walks, its own included
+    /// (`blocks/walks.rs` `backward_block`); 1: off.
+    pub first_order_splits: u32,
+}
+
+/// `integrator.above_scene` (`integrator/above_scene.rs`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum AboveScene {
+    /// Pooled where it applies (ortho images of at least
+    /// [`above_scene::MIN_PIXELS`](super::above_scene::MIN_PIXELS) pixels walked over
+    /// wavelength groups), walked elsewhere.
+    #[default]
+    Auto,
+    /// Every pixel's own walks (each sample scores it).
+    Walked,
+    /// One estimate shared by every pixel of the image.
+    Pooled,
+}
+
+/// `integrator.sampler`: where each sample's random numbers come from.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Sampler {
+    /// Philox4x32 streams (independent samples).
+    #[default]
+    Random,
+    /// Owen-scrambled Sobol points per cell for the first dimensions, Philox beyond.
+    Sobol,
+}
+
+/// Default `integrator.detector_sampling`.
+pub const DETECTOR_SAMPLING: f64 = 0.1;
+
+/// Default `integrator.forced_flights`.
+pub const FORCED_FLIGHTS: u32 = 1;
+
+/// `integrator.local_estimate`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LocalEstimate {
+    /// Expected local estimates integrated along flights.
+    #[default]
+    Expected,
+    /// The classic estimate at sampled collisions.
+    Collision,
+}
+
+/// `integrator.ckd_walk`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum CkdWalk {
+    /// Blocks of samples cycle through the g-points.
+    #[default]
+    Cycle,
+    /// One backward walk carries every g-point of a bin.
+    Alis,
+}
+
+/// `integrator.spectral_walk`.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum SpectralWalk {
+    /// Every wavelength has its own walks.
+    #[default]
+    Independent,
+    /// One backward walk carries a group of neighbouring wavelengths.
+    Alis,
+}
+
+/// The `[integrator]` table.
+#[derive(Clone, Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IntegratorConfig {
+    #[serde(default, rename = "type")]
+    pub kind: IntegratorKind,
+    /// Maximum scattering order (1 = single scattering); default unlimited.
+    #[serde(default)]
+    pub max_depth: Option<u32>,
+    /// Scattering order from which Russian roulette may end paths (default 5).
+    #[serde(default)]
+    pub rr_depth: Option<u32>,
+    #[serde(default)]
+    pub local_estimate: LocalEstimate,
+    /// `mode = "ckd"` only.
+    #[serde(default)]
+    pub ckd_walk: CkdWalk,
+    /// `mode = "mono"` only.
+    #[serde(default)]
+    pub spectral_walk: SpectralWalk,
+    /// `spectral_walk = "alis"`: wavelengths per group (1–64, default 32).
+    #[serde(default)]
+    pub alis_group: Option<usize>,
+    /// Samples per direction before the first check of `target_rel_stderr` (default 8192).
+    #[serde(default)]
+    pub first_check_spp: Option<u64>,
+    /// Detector-directional importance sampling at peaked phase functions: the mixture weight
+    /// ε in [0, 0.5] (default 0.1; 0 turns it off).
+    #[serde(default)]
+    pub detector_sampling: Option<f64>,
+    /// "random" (default) or "sobol" (quasi-random first dimensions, `rng.rs`).
+    #[serde(default)]
+    pub sampler: Sampler,
+    /// Ortho images of scenes: "auto" (default), "walked" or "pooled" (`above_scene.rs`).
+    #[serde(default)]
+    pub above_scene: AboveScene,
+    /// Backward walks: split the first N flights of each path into a forced collision and the
+    /// uncollided branch (0–4, default [`FORCED_FLIGHTS`]).
+    #[serde(default)]
+    pub forced_flights: Option<u32>,
+    /// Backward walks: first-order walks per sample (1–16, default 1 = off).
+    #[serde(default)]
+    pub first_order_splits: Option<u32>,
+}
+
+/// Most first-order walks per sample (`integrator.first_order_splits`).
+pub const MAX_FIRST_ORDER_SPLITS: u32 = 16;
+
+/// What of the rest of the run the integrator settings are checked against.
+#[derive(Clone, Copy, Debug)]
+pub struct RunShape {
+    /// `mode = "ckd"`.
+    pub ckd: bool,
+    pub polarized: bool,
+    /// A spherical-shell atmosphere.
+    pub spherical: bool,
+    /// A 3D scene.
+    pub scene: bool,
+    /// The index of the first measure only the backward estimator computes (a radiancemeter or
+    /// an HDRF), if any.
+    pub radiancemeter: Option<usize>,
+    /// The Moon shines beside the Sun.
+    pub moon: bool,
+}
+
+impl IntegratorSettings {
+    /// The settings of `cfg` for a run of shape `run`; errors name `integrator.…` (or the
+    /// measure a forward walk cannot serve).
+    pub fn from_config(
+        ctx: &ConfigCtx,
+        cfg: &IntegratorConfig,
+        run: RunShape,
+    ) -> Result<Self, ConfigError> {
+        let kind = cfg.kind;
+        if run.spherical && kind == IntegratorKind::Forward {
+            return Err(ctx.err(
+                "integrator.type",
+                "spherical-shell atmospheres use the backward walk (\"auto\" or \"backward\")",
+            ));
+        }
+        if kind == IntegratorKind::Forward {
+            if let Some(im) = run.radiancemeter {
+                return Err(ctx.err(format!("measures[{im}]"), "radiancemeters and hdrf measures need the backward integrator (`integrator.type = \"backward\"` or \"auto\")"));
+            }
+        }
+        if run.scene && kind == IntegratorKind::Forward {
+            return Err(ctx.err(
+                "integrator.type",
+                "3D scenes use the backward walk (\"auto\" or \"backward\")",
+            ));
+        }
+        let max_depth = match cfg.max_depth {
+            Some(0) => return Err(ctx.err("integrator.max_depth", "must be at least 1")),
+            Some(d) => d,
+            None => u32::MAX,
+        };
+        let alis = match cfg.ckd_walk {
+            CkdWalk::Cycle => false,
+            CkdWalk::Alis => {
+                let key = "integrator.ckd_walk";
+                if !run.ckd {
+                    return Err(ctx.err(
+                        key,
+                        "is used only with mode = \"ckd\" (monochromatic runs: integrator.spectral_walk = \"alis\")",
+                    ));
+                }
+                if run.polarized || run.spherical || run.scene {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is implemented for scalar plane-parallel 1D runs only",
+                    ));
+                }
+                if kind == IntegratorKind::Forward {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is a backward walk (integrator.type \"auto\" or \"backward\")",
+                    ));
+                }
+                true
+            }
+        };
+        let spectral_alis = match cfg.spectral_walk {
+            SpectralWalk::Independent => None,
+            SpectralWalk::Alis => {
+                let key = "integrator.spectral_walk";
+                if run.ckd {
+                    return Err(ctx.err(
+                        key,
+                        "is used only with mode = \"mono\" (CKD bins: integrator.ckd_walk = \"alis\")",
+                    ));
+                }
+                if run.polarized {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is scalar only (polarized = true is not supported)",
+                    ));
+                }
+                if run.spherical {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is plane-parallel only (not for spherical-shell geometry)",
+                    ));
+                }
+                if kind == IntegratorKind::Forward {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" is a backward walk (integrator.type \"auto\" or \"backward\", not \"forward\")",
+                    ));
+                }
+                // A walk through a 3D scene carries fewer wavelengths (`scene_alis.rs`).
+                let most = if run.scene {
+                    SCENE_CHANNELS
+                } else {
+                    MAX_CHANNELS
+                };
+                Some(match cfg.alis_group {
+                    None => most.min(32),
+                    Some(n) if run.scene && n > most => {
+                        return Err(ctx.err(
+                            "integrator.alis_group",
+                            format!("{n} wavelengths per group: a walk through a 3D scene carries at most {most}"),
+                        ))
+                    }
+                    Some(n) if (1..=most).contains(&n) => n,
+                    Some(n) => {
+                        return Err(ctx.err(
+                            "integrator.alis_group",
+                            format!("{n} wavelengths per group: must lie in 1 … 64"),
+                        ))
+                    }
+                })
+            }
+        };
+        if spectral_alis.is_none() && cfg.alis_group.is_some() {
+            return Err(ctx.err(
+                "integrator.alis_group",
+                "is used only with integrator.spectral_walk = \"alis\"",
+            ));
+        }
+        let detector_sampling = match cfg.detector_sampling {
+            None => DETECTOR_SAMPLING,
+            Some(e) if (0.0..=0.5).contains(&e) => e,
+            Some(e) => {
+                return Err(ctx.err(
+                    "integrator.detector_sampling",
+                    format!("{e} must lie in 0 … 0.5 (the share of scatterings drawn towards the detector directions; 0 turns it off)"),
+                ))
+            }
+        };
+        let forced_flights = match cfg.forced_flights {
+            None => FORCED_FLIGHTS,
+            Some(n) if n <= 4 => n,
+            Some(n) => {
+                return Err(ctx.err(
+                    "integrator.forced_flights",
+                    format!("{n} must lie in 0 … 4 (a path splits into up to 2^N branches)"),
+                ))
+            }
+        };
+        let first_order_splits = match cfg.first_order_splits {
+            None => 1,
+            Some(n) if (1..=MAX_FIRST_ORDER_SPLITS).contains(&n) => n,
+            Some(n) => {
+                return Err(ctx.err(
+                    "integrator.first_order_splits",
+                    format!("{n} must lie in 1 … {MAX_FIRST_ORDER_SPLITS} (first-order walks per sample; 1 turns splitting off)"),
+                ))
+            }
+        };
+        if first_order_splits > 1 {
+            let key = "integrator.first_order_splits";
+            if kind == IntegratorKind::Forward {
+                return Err(ctx.err(
+                    key,
+                    "splits the first order of backward walks (integrator.type \"auto\" or \"backward\", not \"forward\")",
+                ));
+            }
+            if run.polarized {
+                return Err(ctx.err(
+                    key,
+                    "is scalar only: a polarized path's Q, U and V are not split by scattering order (polarized = true)",
+                ));
+            }
+            // Which measures walk backward (as `blocks::method_for` decides): with "auto", a 1D
+            // plane-parallel run of distant measures walks forward and would ignore the key.
+            let backward = kind == IntegratorKind::Backward
+                || run.scene
+                || run.spherical
+                || run.moon
+                || alis
+                || spectral_alis.is_some()
+                || run.radiancemeter.is_some();
+            if !backward {
+                return Err(ctx.err(
+                    key,
+                    "no measure of this run is walked backward (1D distant measures walk forward with integrator.type = \"auto\"): set integrator.type = \"backward\" or leave the key out",
+                ));
+            }
+        }
+        Ok(IntegratorSettings {
+            first_order_splits,
+            above_scene: cfg.above_scene,
+            forced_flights,
+            replicates: cfg.sampler == Sampler::Sobol,
+            surface_solver: Default::default(),
+            sampler: cfg.sampler,
+            detector_sampling,
+            spectral_alis,
+            kind,
+            max_depth,
+            rr_depth: cfg.rr_depth.unwrap_or(5),
+            expected_local_estimate: cfg.local_estimate == LocalEstimate::Expected,
+            alis,
+            first_check_spp: match cfg.first_check_spp {
+                Some(n) if n < 64 => {
+                    return Err(ctx.err(
+                        "integrator.first_check_spp",
+                        format!(
+                            "{n} is too few samples to estimate a standard error (at least 64)"
+                        ),
+                    ))
+                }
+                other => other,
+            },
+        })
+    }
+
+    /// The member of a spectral ALIS group (its wavelengths' atmospheres `atms`, ascending in
+    /// wavelength) whose scattering and phase functions the group's reference takes: the
+    /// central one in 1D runs (groups of neighbouring wavelengths, `backward_alis.rs`); in 3D
+    /// scenes (`scene_alis.rs`), whose groups span the visible, the one with the largest
+    /// scattering optical thickness, so that the other wavelengths' path factors shrink at
+    /// collisions instead of growing (measured on the README render: the 440 nm error of a
+    /// 440/550/660 nm group was 2.55 % with the 550 nm reference and 2.11 % with the 440 nm
+    /// one, as independent walks give; BENCHMARKS.md).
+    pub fn reference_member(atms: &[&PlaneParallel], scene: bool) -> usize {
+        if !scene {
+            return atms.len() / 2;
+        }
+        let scattering = |a: &PlaneParallel| -> f64 {
+            let t: Vec<(f64, f64)> = a.boundaries().collect();
+            (0..t.len() - 1)
+                .map(|i| a.albedo(i) * (t[i + 1].1 - t[i].1))
+                .sum()
+        };
+        let mut best = 0;
+        let mut most = f64::NEG_INFINITY;
+        for (i, a) in atms.iter().enumerate() {
+            let s = scattering(a);
+            if s > most {
+                best = i;
+                most = s;
+            }
+        }
+        best
+    }
+
+    /// CKD: the ALIS walk carries at most 64 g-points per bin (`ng` in this run's data).
+    pub fn check_g_points(&self, ctx: &ConfigCtx, ng: usize) -> Result<(), ConfigError> {
+        if ng > 64 && self.alis {
+            return Err(ctx.err(
+                "integrator.ckd_walk",
+                format!("\"alis\" handles at most 64 g-points per bin (this file has {ng})"),
+            ));
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,264 @@
+//! Spectral bookkeeping: the `[spectral]` table and `mode` of the experiment file (raw serde
+//! types and their resolution into the run's wavelengths and sensor band), per-wavelength values
+//! of the other tables ([`SpectralValue`]), and which wavelengths one walk serves together
+//! (spectral ALIS groups), shared by the resolver and the run driver; solar spectra
+//! (`solar.rs`) and sensors' spectral response functions (`srf.rs`).
+
+pub mod solar;
+pub mod srf;
+
+use serde::Deserialize;
+
+use crate::error::{ConfigCtx, ConfigError};
+use crate::spectral::srf::Srf;
+
+/// `mode`: how wavelengths are simulated.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Mode {
+    /// Monochromatic.
+    #[default]
+    Mono,
+    /// Correlated-k: each wavelength stands for the CKD bin of the absorption data holding it.
+    Ckd,
+}
+
+/// Shortest wavelength a run accepts, nm (the far ultraviolet).
+pub const MIN_WAVELENGTH_NM: f64 = 100.0;
+/// Longest wavelength a run accepts, nm (1 mm, the end of the longwave k-distributions).
+pub const MAX_WAVELENGTH_NM: f64 = 1.0e6;
+
+/// A per-wavelength quantity: one number for every wavelength, or one per wavelength.
+#[derive(Clone, Debug)]
+pub enum SpectralValue {
+    Scalar(f64),
+    List(Vec<f64>),
+}
+
+/// A number or a list of numbers; anything else is "invalid type: string "abc", expected a
+/// number or a list of numbers (one per wavelength)", which names the value (an untagged enum
+/// would only say that no variant matched, and the key could not be found).
+impl<'de> Deserialize<'de> for SpectralValue {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        struct V;
+        impl<'de> serde::de::Visitor<'de> for V {
+            type Value = SpectralValue;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a number or a list of numbers (one per wavelength)")
+            }
+            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<SpectralValue, E> {
+                Ok(SpectralValue::Scalar(v))
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<SpectralValue, E> {
+                Ok(SpectralValue::Scalar(v as f64))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<SpectralValue, E> {
+                Ok(SpectralValue::Scalar(v as f64))
+            }
+            fn visit_seq<A: serde::de::SeqAccess<'de>>(
+                self,
+                mut seq: A,
+            ) -> Result<SpectralValue, A::Error> {
+                let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 16));
+                while let Some(x) = seq.next_element::<f64>()? {
+                    out.push(x);
+                }
+                Ok(SpectralValue::List(out))
+            }
+        }
+        d.deserialize_any(V)
+    }
+}
+
+impl SpectralValue {
+    /// One number per run wavelength (`ctx.nw`), each finite and within `[lo, hi]`; errors name
+    /// `key` (and the list index).
+    pub fn expand(
+        &self,
+        ctx: &ConfigCtx,
+        key: &str,
+        lo: f64,
+        hi: f64,
+    ) -> Result<Vec<f64>, ConfigError> {
+        let vals = match self {
+            SpectralValue::Scalar(x) => vec![*x; ctx.nw],
+            SpectralValue::List(l) => {
+                if l.len() != ctx.nw {
+                    return Err(ctx.err(
+                        key,
+                        format!(
+                            "has {} values but there are {} wavelengths",
+                            l.len(),
+                            ctx.nw
+                        ),
+                    ));
+                }
+                l.clone()
+            }
+        };
+        for (i, x) in vals.iter().enumerate() {
+            if !x.is_finite() || *x < lo || *x > hi {
+                let at = if matches!(self, SpectralValue::List(_)) {
+                    format!("[{i}]")
+                } else {
+                    String::new()
+                };
+                return Err(ctx.err(
+                    format!("{key}{at}"),
+                    format!("{x} must lie in [{lo}, {hi}]"),
+                ));
+            }
+        }
+        Ok(vals)
+    }
+}
+
+/// The `[spectral]` table.
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpectralConfig {
+    /// nm.
+    #[serde(default)]
+    pub wavelengths: Option<Vec<f64>>,
+    /// A sensor band (embedded SRF name or CSV file): sample it and add band-weighted outputs.
+    #[serde(default)]
+    pub srf: Option<String>,
+    /// nm: spacing of the wavelengths sampling an SRF (default 5).
+    #[serde(default)]
+    pub wavelength_step: Option<f64>,
+    /// `mode = "ckd"`: use only this g-point (index from 0) with weight 1 (validation).
+    #[serde(default)]
+    pub g_point: Option<usize>,
+    /// `mode = "ckd"` with an axsdb database: number of Gauss–Legendre g-points per bin.
+    #[serde(default)]
+    pub g_points: Option<usize>,
+}
+
+/// A sensor band sampled by the run's wavelengths.
+#[derive(Clone, Debug)]
+pub struct Band {
+    pub name: String,
+    /// Weights, one per wavelength: trapezoid `S(λ_k)·Δλ_k` in mono mode, `∫_bin S dλ` in CKD mode.
+    pub weights: Vec<f64>,
+}
+
+impl SpectralConfig {
+    /// The run's wavelengths (nm) and the sensor band they sample. In CKD mode a sensor band is
+    /// sampled by the bins of the absorption data, which `ckd_bins` reads when it is needed
+    /// (`None`: bins too wide to sample a band, e.g. RRTMGP's; the band is then sampled every
+    /// `wavelength_step` nm). `ctx.nw` is not used.
+    pub fn resolve(
+        &self,
+        ctx: &ConfigCtx,
+        mode: Mode,
+        ckd_bins: impl FnOnce() -> Result<Option<Vec<(f64, f64)>>, ConfigError>,
+    ) -> Result<(Vec<f64>, Option<Band>), ConfigError> {
+        let ckd = mode == Mode::Ckd;
+        if self.g_point.is_some() && !ckd {
+            return Err(ctx.err("spectral.g_point", "is used only with mode = \"ckd\""));
+        }
+        if self.g_points.is_some() && !ckd {
+            return Err(ctx.err("spectral.g_points", "is used only with mode = \"ckd\""));
+        }
+        let (wavelengths, band) = match (&self.wavelengths, &self.srf) {
+            (Some(w), None) => {
+                if self.wavelength_step.is_some() {
+                    return Err(ctx.err("spectral.wavelength_step", "is used only with `srf`"));
+                }
+                (w.clone(), None)
+            }
+            (None, Some(name)) => {
+                let srf = match Srf::builtin(name).map_err(|m| ctx.err("spectral.srf", m))? {
+                    Some(s) => s,
+                    None => {
+                        let fpath = ctx.file(name);
+                        let text = std::fs::read_to_string(&fpath).map_err(|e| {
+                            ctx.err("spectral.srf", format!("\"{name}\" is neither an embedded SRF (e.g. \"sentinel_2a-msi-4\") nor a readable file ({}: {e})", fpath.display()))
+                        })?;
+                        Srf::from_csv(name, &text).map_err(|m| {
+                            ctx.err("spectral.srf", format!("{}: {m}", fpath.display()))
+                        })?
+                    }
+                };
+                let bins = if ckd { ckd_bins()? } else { None };
+                if let Some(bins) = bins {
+                    if self.wavelength_step.is_some() {
+                        return Err(ctx.err(
+                            "spectral.wavelength_step",
+                            "is not used in mode = \"ckd\": the absorption data's bins sample the band",
+                        ));
+                    }
+                    let weights = srf.bin_weights(&bins);
+                    let (mut w, mut wt) = (Vec::new(), Vec::new());
+                    for (&(lo, hi), &x) in bins.iter().zip(&weights) {
+                        if x > 0.0 {
+                            w.push(0.5 * (lo + hi));
+                            wt.push(x);
+                        }
+                    }
+                    if w.is_empty() {
+                        return Err(ctx.err(
+                            "spectral.srf",
+                            format!("band \"{name}\" overlaps no bin of the absorption data"),
+                        ));
+                    }
+                    (
+                        w,
+                        Some(Band {
+                            name: name.clone(),
+                            weights: wt,
+                        }),
+                    )
+                } else {
+                    let step = self.wavelength_step.unwrap_or(5.0);
+                    if !(step > 0.0 && step.is_finite()) {
+                        return Err(ctx.err(
+                            "spectral.wavelength_step",
+                            format!("{step} nm must be positive"),
+                        ));
+                    }
+                    let (w, weights) = srf.grid(step).map_err(|m| ctx.err("spectral.srf", m))?;
+                    (
+                        w,
+                        Some(Band {
+                            name: name.clone(),
+                            weights,
+                        }),
+                    )
+                }
+            }
+            (Some(_), Some(_)) => {
+                return Err(ctx.err("spectral", "give either `wavelengths` or `srf`, not both"))
+            }
+            (None, None) => {
+                return Err(ctx.err("spectral", "give `wavelengths` (nm) or a sensor band `srf`"))
+            }
+        };
+        if wavelengths.is_empty() {
+            return Err(ctx.err("spectral.wavelengths", "must list at least one wavelength"));
+        }
+        for (i, w) in wavelengths.iter().enumerate() {
+            if !w.is_finite() || !(MIN_WAVELENGTH_NM..=MAX_WAVELENGTH_NM).contains(w) {
+                return Err(ctx.err(
+                    format!("spectral.wavelengths[{i}]"),
+                    format!(
+                        "{w} nm is outside [{MIN_WAVELENGTH_NM}, {MAX_WAVELENGTH_NM}] nm (ultraviolet to far infrared; wavelengths are in nm)"
+                    ),
+                ));
+            }
+        }
+        Ok((wavelengths, band))
+    }
+}
+
+/// The wavelength groups of a wavelength list and group size (None: one wavelength each).
+pub fn wavelength_groups_of(wavelengths: &[f64], group: Option<usize>) -> Vec<Vec<usize>> {
+    match group {
+        None => (0..wavelengths.len()).map(|iw| vec![iw]).collect(),
+        Some(n) => {
+            let mut order: Vec<usize> = (0..wavelengths.len()).collect();
+            order.sort_by(|&a, &b| wavelengths[a].total_cmp(&wavelengths[b]).then(a.cmp(&b)));
+            order.chunks(n.max(1)).map(|c| c.to_vec()).collect()
+        }
+    }
+}
