@@ -717,7 +717,7 @@ fn resolve_layered(
         }
     }
     // The layers must tile [ground, toa].
-    spans.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
     let mut z = geometry.ground;
     for &(b, t, il) in &spans {
         if (b - z).abs() > 1e-6 {

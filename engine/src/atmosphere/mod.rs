@@ -166,7 +166,7 @@ impl PlaneParallel {
     /// Build from layers given in any order; they must tile [ground, toa] without gaps or
     /// overlaps (checked by the config resolver, which names the offending layer).
     pub fn new(mut layers: Vec<LayerOptics>, ground: f64, toa: f64) -> Self {
-        layers.sort_by(|a, b| b.top.partial_cmp(&a.top).unwrap());
+        layers.sort_by(|a, b| b.top.total_cmp(&a.top));
         let mut z = vec![toa];
         let mut tau = vec![0.0];
         let mut albedo = Vec::new();

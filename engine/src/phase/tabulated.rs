@@ -85,7 +85,7 @@ impl Tabulated {
                 ));
             }
         }
-        pairs.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+        pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
         pairs.dedup_by(|a, b| a.0 == b.0);
         if pairs[0].0 > 1e-9 || pairs[pairs.len() - 1].0 < 180.0 - 1e-9 {
             return Err(format!(
@@ -123,7 +123,7 @@ impl Tabulated {
     ) -> Result<Self, String> {
         let mut t = Self::from_table(theta_deg, p11)?;
         let mut raw: Vec<(f64, f64)> = theta_deg.iter().copied().zip(p11.iter().copied()).collect();
-        raw.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+        raw.sort_by(|a, b| a.0.total_cmp(&b.0));
         // The normalisation factor applied to P11, recovered at the forward peak node.
         let scale = t.p[t.p.len() - 1] / raw[0].1.max(1e-300);
         let mut out: [Vec<f64>; 5] = Default::default();
@@ -141,7 +141,7 @@ impl Tabulated {
                     k + 2
                 ));
             }
-            pairs.sort_by(|a, b| a.0.partial_cmp(&b.0).unwrap());
+            pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
             out[k] =
                 t.mu.iter()
                     .map(|&m| interp_sorted(&pairs, m.clamp(-1.0, 1.0).acos().to_degrees()) * scale)
@@ -202,7 +202,7 @@ impl Tabulated {
     /// Linear mixture `(1−t)·a + t·b` of two normalised tables, on the union of their grids.
     pub fn mix(a: &Tabulated, b: &Tabulated, t: f64) -> Tabulated {
         let mut mu: Vec<f64> = a.mu.iter().chain(b.mu.iter()).copied().collect();
-        mu.sort_by(|x, y| x.partial_cmp(y).unwrap());
+        mu.sort_by(|x, y| x.total_cmp(y));
         mu.dedup();
         let p: Vec<f64> = mu
             .iter()
@@ -387,11 +387,17 @@ impl Tabulated {
             }
         };
         let wl_nm: Vec<f64> = wl_um.iter().map(|w| w * 1e3).collect();
+        if let Some(il) = wl_nm.iter().position(|w| !w.is_finite()) {
+            return Err(content(format!(
+                "`wavelen` at index {il} is {}, not a finite wavelength",
+                wl_um[il]
+            )));
+        }
         if let Some(i) = wl_nm.iter().position(|&w| (w - wavelength_nm).abs() < 1e-3) {
             return table_at(i);
         }
         let mut order: Vec<usize> = (0..nlam).collect();
-        order.sort_by(|&a, &b| wl_nm[a].partial_cmp(&wl_nm[b]).unwrap());
+        order.sort_by(|&a, &b| wl_nm[a].total_cmp(&wl_nm[b]));
         for w in order.windows(2) {
             let (a, b) = (w[0], w[1]);
             if wl_nm[a] <= wavelength_nm && wavelength_nm <= wl_nm[b] {
