@@ -3,7 +3,7 @@
 //! files and experiment files) and **the one table of allowed parameter ranges**,
 //! [`BRDF_PARAM_RANGES`], with [`BrdfSpec::validate`].
 //!
-//! The simulator's surface models (`simulator/src/bsdf/*.rs`) check their constructor arguments
+//! The simulator's surface models (`engine/src/bsdf/*.rs`) check their constructor arguments
 //! against this same table, so a material that passes [`BrdfSpec::validate`] builds at every
 //! wavelength, and scenegen and landcover cannot accept what `simulate` refuses.
 //!
@@ -128,7 +128,7 @@ const fn row(
 }
 
 /// Allowed values of every BRDF parameter, at every wavelength. The single source of truth:
-/// the simulator's surface models (`simulator/src/bsdf/`), land-cover schemes, region files and
+/// the simulator's surface models (`engine/src/bsdf/`), land-cover schemes, region files and
 /// the bundle reader and writer all check against it. The model files' `//!` headers say why
 /// each range is what it is.
 pub const BRDF_PARAM_RANGES: &[ParamRange] = &[

@@ -19,15 +19,10 @@
 pub const BUILD_ID: &str = env!("SIMULATOR_BUILD_ID");
 
 pub mod bench;
-pub mod bench_polarized;
-pub mod bench_scene;
 pub mod cluster;
 pub mod error;
 pub mod heavy_tail;
-pub mod input_digest;
-pub mod output_lock;
 pub mod pics;
-pub mod pics_catalogue;
 pub mod preview;
 pub mod products;
 pub mod run;

@@ -405,6 +405,7 @@ fn run_task(
 }
 
 pub mod checkpoint;
+pub mod input_digest;
 pub mod units;
 
 /// [`run`] with checkpoints in `dir`: completed tasks are loaded instead of recomputed, and

@@ -1,5 +1,5 @@
 //! The above-scene pool of ortho images (`integrator.above_scene`,
-//! `simulator/src/integrator/above_scene.rs`): every pixel sample scores what its walk sends
+//! `engine/src/integrator/above_scene.rs`): every pixel sample scores what its walk sends
 //! from its first entry below the scene's top on, plus a shared estimate of what comes before.
 //!
 //! * `pooled_image_equals_walked_image`: a sloped bundle terrain under the molecular atmosphere

@@ -353,7 +353,7 @@ fn second_run_into_a_busy_folder_is_refused() {
     let out = tmpdir("busy");
     let exp = example_at(&out, 2000);
     let run = || run_quiet(&exp, &out);
-    let held = simulator::output_lock::lock(&out).unwrap();
+    let held = simulator::products::output_lock::lock(&out).unwrap();
     let o = run();
     let stderr = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{stderr}");

@@ -1,5 +1,5 @@
 //! Spectral ALIS in monochromatic runs (`integrator.spectral_walk = "alis"`,
-//! `simulator/src/integrator/backward_alis.rs`): one backward walk per sample carries a group of
+//! `engine/src/integrator/backward_alis.rs`): one backward walk per sample carries a group of
 //! neighbouring wavelengths, each with its own absorption, scattering, phase function and
 //! surface. Every test compares the grouped walk with independent per-wavelength backward walks
 //! (`integrator.type = "backward"`, other seeds) at every wavelength and view direction.

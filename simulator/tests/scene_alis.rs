@@ -1,5 +1,5 @@
 //! Spectral walks through 3D scenes (`integrator.spectral_walk = "alis"` with a scene,
-//! `simulator/src/integrator/scene_alis.rs`): one backward walk per sample carries the
+//! `engine/src/integrator/scene_alis.rs`): one backward walk per sample carries the
 //! wavelengths of a group through the scene, each with its own Rayleigh scattering, materials and
 //! solar transmittance. Every statistical test compares the grouped walk with independent
 //! per-wavelength scene walks (other seeds) at every wavelength, view direction and part

@@ -30,7 +30,7 @@ HERE = Path(__file__).resolve().parent
 REPO = HERE.parent.parent
 OUT_DIR = REPO / "simulator" / "tests" / "data" / "disort"
 
-# CODATA 2018 (exact): the same constants as simulator/src/planck.rs.
+# CODATA 2018 (exact): the same constants as engine/src/sources/planck.rs.
 H, C, KB = 6.62607015e-34, 299792458.0, 1.380649e-23
 WL_NM = 10000.0
 NU = 1e7 / WL_NM  # cm^-1

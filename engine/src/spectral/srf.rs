@@ -4,7 +4,7 @@
 //! (`sentinel_2a-msi-4`, bands 1–12 and 8a), Terra/Aqua MODIS (`terra-modis-1` … 36,
 //! `aqua-modis-1` … 16), Landsat-8 OLI (`landsat_8-oli-4` or `landsat_8-oli-Red`; bands 1–9 =
 //! CoastalAerosol, Blue, Green, Red, NIR, SWIR1, SWIR2, Pan, Cirrus) — or a CSV file with columns
-//! `wavelength_nm,response`. Provenance: `simulator/data/srf/PROVENANCE.md`.
+//! `wavelength_nm,response`. Provenance: `engine/data/srf/PROVENANCE.md`.
 //!
 //! In monochromatic mode the band is sampled on a regular grid of `spectral.wavelength_step` nm
 //! spanning the response's support (where it is > 0), and band quantities are trapezoid-rule

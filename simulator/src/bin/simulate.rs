@@ -366,7 +366,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             // One run per output folder (shards share theirs by design).
             let sharded = shard.is_some();
             let _lock = match shard {
-                None => Some(simulator::output_lock::lock(&output)?),
+                None => Some(simulator::products::output_lock::lock(&output)?),
                 Some(_) => None,
             };
             let t0 = Instant::now();
@@ -509,7 +509,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             threads,
         } => {
             set_threads(threads)?;
-            simulator::bench_scene::run(&bundle, pixel, target, rays)
+            simulator::bench::scene::run(&bundle, pixel, target, rays)
         }
         Command::BenchPolarized {
             walks,
@@ -519,7 +519,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             threads,
         } => {
             set_threads(threads)?;
-            simulator::bench_polarized::run(walks, seeds, &method, &taus)
+            simulator::bench::polarized::run(walks, seeds, &method, &taus)
         }
         Command::Bench {
             target,
@@ -609,7 +609,7 @@ fn merge_command(plan_dir: &std::path::Path) -> anyhow::Result<()> {
         )
     })?;
     let exp = Experiment::load_with_spp(&plan.experiment, plan.spp)?;
-    let _lock = simulator::output_lock::lock(&out)?;
+    let _lock = simulator::products::output_lock::lock(&out)?;
     let now = simulator::run::checkpoint::experiment_hash(&exp);
     if now != plan.experiment_hash {
         anyhow::bail!(

@@ -5,7 +5,7 @@
 //!
 //! ```toml
 //! name = "libya4"
-//! catalogue = "libya4"    # optional: coordinates (etc.) from the site catalogue (`pics_catalogue`)
+//! catalogue = "libya4"    # optional: coordinates (etc.) from the site catalogue (`catalogue.rs`)
 //! latitude = 28.55        # deg N
 //! longitude = 23.39       # deg E
 //! elevation = 118.0       # m
@@ -35,6 +35,7 @@
 use std::path::Path;
 
 mod acquisitions;
+pub mod catalogue;
 mod dataset;
 
 pub use acquisitions::{parse_acquisitions, read_acquisitions, Acquisition};
@@ -175,7 +176,7 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
 }
 
 /// A site file's `catalogue = "KEY"`: the catalogued site's name, coordinates (and elevation and
-/// surface when catalogued, `pics_catalogue`), with the file's own keys on top.
+/// surface when catalogued, `catalogue.rs`), with the file's own keys on top.
 pub fn with_catalogue(mut site: toml::Table) -> Result<toml::Table, String> {
     let Some(v) = site.remove("catalogue") else {
         return Ok(site);
@@ -183,8 +184,8 @@ pub fn with_catalogue(mut site: toml::Table) -> Result<toml::Table, String> {
     let key = v
         .as_str()
         .ok_or("`catalogue` must be a site key such as \"libya4\"")?;
-    let entry = crate::pics_catalogue::find(key)?;
-    Ok(crate::pics_catalogue::site_table(&entry, &site))
+    let entry = crate::pics::catalogue::find(key)?;
+    Ok(crate::pics::catalogue::site_table(&entry, &site))
 }
 
 /// Read a site file (`catalogue` resolved); a catalogue key given instead of a file is told how
@@ -194,7 +195,7 @@ pub fn load_site(site_path: &Path) -> Result<toml::Table, ConfigError> {
         Ok(t) => t,
         Err(source) => {
             // A catalogue key instead of a file: say how to use it.
-            if let Ok(entry) = crate::pics_catalogue::find(&site_path.display().to_string()) {
+            if let Ok(entry) = crate::pics::catalogue::find(&site_path.display().to_string()) {
                 return Err(ConfigError::Invalid {
                     path: site_path.into(),
                     key: "site".into(),

@@ -25,6 +25,7 @@ pub mod csv;
 pub mod image;
 pub mod imagery;
 pub mod netcdf;
+pub mod output_lock;
 pub mod staging;
 
 use std::path::Path;

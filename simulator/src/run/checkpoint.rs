@@ -34,10 +34,10 @@ struct Stored {
 }
 
 /// FNV-1a 64 of the experiment text, the simulator's build ([`crate::BUILD_ID`]: version and
-/// source digest) and the digest of every input file the experiment names ([`crate::input_digest`]): identifies the run a checkpoint
+/// source digest) and the digest of every input file the experiment names ([`crate::run::input_digest`]): identifies the run a checkpoint
 /// belongs to. Computed once per run (it reads the inputs).
 pub fn experiment_hash(exp: &Experiment) -> String {
-    let inputs = crate::input_digest::digest(&exp.source_text, &exp.source_path);
+    let inputs = crate::run::input_digest::digest(&exp.source_text, &exp.source_path);
     hash_of(&exp.source_text, crate::BUILD_ID, &inputs)
 }
 

@@ -10,7 +10,7 @@
 //! Names are matched forgivingly: case, spaces, hyphens and underscores are ignored, so
 //! `libya4`, `Libya-4`, `LIBYA_4` and `libya 4` all find the same site.
 
-const CATALOGUE: &str = include_str!("../data/pics/sites.toml");
+const CATALOGUE: &str = include_str!("../../data/pics/sites.toml");
 
 /// One catalogue site.
 #[derive(Clone, Debug, PartialEq)]
