@@ -34,7 +34,8 @@ pub fn load_experiment(
     Ok(Experiment { exp: Arc::new(exp) })
 }
 
-/// Write the command line's products of a run into `output` (staged, all or nothing).
+/// Write the command line's products of a run into `output` (`simulator::products::write_all`:
+/// staged, all or nothing), creating the folder first.
 fn write_products(
     output: &Path,
     exp: &Exp,
@@ -46,16 +47,9 @@ fn write_products(
         path: output.to_path_buf(),
         source,
     })?;
-    let mut stage = products::staging::Staging::new(output)?;
-    products::csv::write(&stage.path("results.csv"), rows)?;
-    products::netcdf::write(&stage.path("results.nc"), exp, rows, band, images)?;
-    for img in images {
-        products::imagery::write_files(stage.dir(), exp, img)?;
-    }
-    if !band.is_empty() {
-        products::csv::write_band(&stage.path("results_band.csv"), band)?;
-    }
-    stage.commit()
+    products::write_all(output, exp, rows, band, images)
+        .map(|w| w.files)
+        .map_err(|e| e.error)
 }
 
 #[pymethods]

@@ -43,10 +43,18 @@ pub fn method_for(exp: &Experiment, m: &Measure) -> Method {
     if exp.integrator.alis || exp.integrator.spectral_alis.is_some() {
         return Method::Backward;
     }
+    // Every kind is named, so a new measure kind is a compile error here until its estimator
+    // is chosen.
     match (exp.integrator.kind, &m.kind) {
         (_, MeasureKind::Radiancemeter { .. } | MeasureKind::Hdrf { .. }) => Method::Backward,
         (IntegratorKind::Backward, _) => Method::Backward,
-        _ => Method::Forward,
+        (
+            IntegratorKind::Auto | IntegratorKind::Forward,
+            MeasureKind::Distant { .. }
+            | MeasureKind::Ortho(_)
+            | MeasureKind::Perspective(_)
+            | MeasureKind::DistantFlux { .. },
+        ) => Method::Forward,
     }
 }
 

@@ -46,7 +46,9 @@ fn size_key(k: usize, kind: &MeasureKind) -> String {
         MeasureKind::Perspective(_) => format!("measures[{k}].width"),
         MeasureKind::Distant { .. } => format!("measures[{k}].directions"),
         MeasureKind::Hdrf { .. } => format!("measures[{k}].zeniths"),
-        _ => format!("measures[{k}]"),
+        MeasureKind::Radiancemeter { .. } | MeasureKind::DistantFlux { .. } => {
+            format!("measures[{k}]")
+        }
     }
 }
 

@@ -4,7 +4,7 @@
 //! failure (an output that cannot be written, an internal error).
 //!
 //! Logging (stderr): INFO by default; `-q` warnings and errors only (and no progress bar), `-v`
-//! debug, `-vv` trace; `RUST_LOG` (e.g. `RUST_LOG=simulator=debug`) overrides all three.
+//! debug, `-vv` trace; `RUST_LOG` (e.g. `RUST_LOG=engine=debug,simulator=debug`: the engine's and the application's logs) overrides all three.
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -652,25 +652,14 @@ fn write_products(
     let images = products::imagery::image_products(exp, results);
     // Every product goes to a staging folder and is moved in only when all are
     // written: a failure (a full disk) leaves the previous products as they were.
-    let mut stage = products::staging::Staging::new(output)?;
-    let mut looks = Vec::new();
-    let written = (|| -> Result<(), simulator::error::OutputError> {
-        products::csv::write(&stage.path("results.csv"), &rows)?;
-        products::netcdf::write(&stage.path("results.nc"), exp, &rows, &band, &images)?;
-        for img in &images {
-            looks.push(products::imagery::write_files(stage.dir(), exp, img)?.1);
-        }
-        if !band.is_empty() {
-            products::csv::write_band(&stage.path("results_band.csv"), &band)?;
-        }
-        Ok(())
-    })();
-    if let Err(e) = written {
-        return Err(explain_write_error(e, output));
-    }
-    let csv = stage.final_path("results.csv");
-    let nc = stage.final_path("results.nc");
-    let committed = stage.commit()?;
+    let written =
+        products::write_all(output, exp, &rows, &band, &images).map_err(|e| match e.step {
+            products::WriteStep::Write => explain_write_error(e.error, output),
+            products::WriteStep::Stage | products::WriteStep::Commit => anyhow::Error::new(e.error),
+        })?;
+    let csv = output.join("results.csv");
+    let nc = output.join("results.nc");
+    let (committed, looks) = (written.files, written.quicklooks);
     for (img, what) in images.iter().zip(&looks) {
         for f in committed.iter().filter(|f| {
             f.file_name().is_some_and(|n| {

@@ -35,6 +35,61 @@ use engine::accum::MeasureResult;
 use engine::config::resolve::Experiment;
 use engine::measure::{FluxDirection, MeasureKind};
 
+/// The step of [`write_all`] that failed: before anything was written (the staging folder),
+/// while writing into the staging folder (the previous products are untouched), or while
+/// moving the products in.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum WriteStep {
+    Stage,
+    Write,
+    Commit,
+}
+
+/// A failure of [`write_all`] and the step it happened in.
+#[derive(Debug, thiserror::Error)]
+#[error("{error}")]
+pub struct WriteError {
+    pub step: WriteStep,
+    pub error: OutputError,
+}
+
+/// What [`write_all`] wrote: every product's final path, and per image (in the order of the
+/// images given) the description of its quicklook.
+pub struct Written {
+    pub files: Vec<std::path::PathBuf>,
+    pub quicklooks: Vec<String>,
+}
+
+/// Write every product of a run into `output`, the one writer the command line and the Python
+/// package call: `results.csv`, `results.nc`, each image's GeoTIFFs and PNG quicklook, and
+/// `results_band.csv` for band runs. Staged (`staging.rs`): all appear together or none, and a
+/// failure before the commit leaves the previous products as they were.
+pub fn write_all(
+    output: &Path,
+    exp: &Experiment,
+    rows: &[Row],
+    band: &[BandRow],
+    images: &[imagery::ImageProduct],
+) -> Result<Written, WriteError> {
+    let at = |step| move |error| WriteError { step, error };
+    let mut stage = staging::Staging::new(output).map_err(at(WriteStep::Stage))?;
+    let mut quicklooks = Vec::new();
+    (|| -> Result<(), OutputError> {
+        csv::write(&stage.path("results.csv"), rows)?;
+        netcdf::write(&stage.path("results.nc"), exp, rows, band, images)?;
+        for img in images {
+            quicklooks.push(imagery::write_files(stage.dir(), exp, img)?.1);
+        }
+        if !band.is_empty() {
+            csv::write_band(&stage.path("results_band.csv"), band)?;
+        }
+        Ok(())
+    })()
+    .map_err(at(WriteStep::Write))?;
+    let files = stage.commit().map_err(at(WriteStep::Commit))?;
+    Ok(Written { files, quicklooks })
+}
+
 /// One output row: one measure, wavelength and direction.
 #[derive(Clone, Debug)]
 pub struct Row {
