@@ -56,7 +56,8 @@ pub fn render(exp: &Experiment) -> Result<Vec<Preview>, String> {
         .wavelengths
         .iter()
         .map(|&w| scene.models_at(w))
-        .collect::<Result<_, _>>()?;
+        .collect::<Result<_, _>>()
+        .map_err(|e| e.to_string())?;
     let sun = exp.sun_dir;
     let light = if sun.z > 1e-6 {
         sun

@@ -5,6 +5,7 @@
 
 use serde::Deserialize;
 
+use super::error::BrdfError;
 use super::tabulated::BrdfTable;
 use super::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, RtlsHotspot, Tabulated};
 use crate::error::{ConfigCtx, ConfigError};
@@ -157,7 +158,7 @@ impl SurfaceConfig {
     ) -> Result<Vec<Bsdf>, ConfigError> {
         let spectral =
             |name: &str, v: &SpectralValue| v.expand(ctx, &format!("{key}.{name}"), ANY.0, ANY.1);
-        let model = |m: String| ctx.err(key, m);
+        let model = |m: BrdfError| ctx.err(key, m.to_string());
         let nw = ctx.nw;
         Ok(match self {
             SurfaceConfig::Lambertian { reflectance, .. } => {
@@ -167,7 +168,7 @@ impl SurfaceConfig {
                     .into_iter()
                     .map(|v| {
                         Ok(Bsdf::Lambertian(
-                            Lambertian::new(v).map_err(|m| ctx.err(&name, m))?,
+                            Lambertian::new(v).map_err(|m| ctx.err(&name, m.to_string()))?,
                         ))
                     })
                     .collect::<Result<_, ConfigError>>()?
@@ -245,7 +246,7 @@ impl SurfaceConfig {
                 file, symmetrize, ..
             } => {
                 let table = BrdfTable::load(&ctx.file(file))
-                    .map_err(|m| ctx.err(format!("{key}.file"), m))?;
+                    .map_err(|m| ctx.err(format!("{key}.file"), m.to_string()))?;
                 wavelengths
                     .iter()
                     .map(|&w| Bsdf::Tabulated(Tabulated::new(table.clone(), w, *symmetrize)))

@@ -66,6 +66,7 @@
 use glam::DVec3;
 use std::f64::consts::{FRAC_1_PI, PI};
 
+use super::error::{check_param, BrdfError};
 use super::TableSampler;
 
 #[derive(Clone, Debug)]
@@ -93,14 +94,21 @@ pub struct Hapke {
 
 /// Checks against the shared range table (`bundle::BRDF_PARAM_RANGES`, the ranges above); the
 /// message names the parameter by its key in experiment files and bundles (`theta`, `B_0`).
-fn check(key: &str, v: f64) -> Result<(), String> {
-    bundle::check_param("hapke", key, key, v)
+fn check(key: &'static str, v: f64) -> Result<(), BrdfError> {
+    check_param("hapke", key, key, v)
 }
 
 impl Hapke {
     /// Hapke model from single-scattering albedo `w`, phase-function parameters `b`, `c`, mean
     /// slope `theta_deg` (degrees), SHOE amplitude `b_0` and width `h` (see the module header).
-    pub fn new(w: f64, b: f64, c: f64, theta_deg: f64, b_0: f64, h: f64) -> Result<Self, String> {
+    pub fn new(
+        w: f64,
+        b: f64,
+        c: f64,
+        theta_deg: f64,
+        b_0: f64,
+        h: f64,
+    ) -> Result<Self, BrdfError> {
         check("w", w)?;
         check("b", b)?;
         check("c", c)?;
@@ -448,15 +456,15 @@ mod tests {
             Hapke::new(a[0], a[1], a[2], a[3], a[4], a[5])
         };
         for &(k, v, name) in &cases {
-            let e = build(k, v).unwrap_err();
+            let e = build(k, v).unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
         for (k, name) in ["w", "b", "c", "theta", "B_0", "h"].iter().enumerate() {
-            let e = build(k, f64::NAN).unwrap_err();
+            let e = build(k, f64::NAN).unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
         assert_eq!(
-            build(3, 95.0).unwrap_err(),
+            build(3, 95.0).unwrap_err().to_string(),
             "`theta` = 95 deg must lie in [0, 90)"
         );
         assert!(Hapke::new(0.0, 0.0, 0.0, 0.0, 0.0, 0.0).is_ok());

@@ -10,15 +10,17 @@
 
 use glam::DVec3;
 
+use super::error::{check_param, BrdfError};
+
 #[derive(Clone, Debug)]
 pub struct Lambertian {
     pub reflectance: f64,
 }
 
 impl Lambertian {
-    pub fn new(reflectance: f64) -> Result<Self, String> {
+    pub fn new(reflectance: f64) -> Result<Self, BrdfError> {
         // Range from the shared table (`bundle::BRDF_PARAM_RANGES`).
-        bundle::check_param("lambertian", "reflectance", "reflectance", reflectance)?;
+        check_param("lambertian", "reflectance", "reflectance", reflectance)?;
         Ok(Self { reflectance })
     }
 

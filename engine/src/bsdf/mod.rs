@@ -35,6 +35,7 @@
 
 pub mod config;
 pub mod emissivity;
+pub mod error;
 pub mod hapke;
 pub mod lambertian;
 pub mod ocean;
@@ -48,6 +49,7 @@ use glam::DVec3;
 
 pub use config::SurfaceConfig;
 pub use emissivity::SurfaceEmission;
+pub use error::BrdfError;
 pub use hapke::Hapke;
 pub use lambertian::Lambertian;
 pub use ocean::Ocean;

@@ -41,6 +41,7 @@
 
 use glam::DVec3;
 
+use super::error::{check_param, BrdfError};
 use crate::stokes::PhaseMatrix;
 
 #[derive(Clone, Debug)]
@@ -73,10 +74,10 @@ pub fn erfc(x: f64) -> f64 {
 }
 
 impl Ocean {
-    pub fn new(wind_speed: f64, refractive_index: f64, shadowing: bool) -> Result<Self, String> {
+    pub fn new(wind_speed: f64, refractive_index: f64, shadowing: bool) -> Result<Self, BrdfError> {
         // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`, as above).
-        bundle::check_param("ocean", "wind_speed", "wind_speed", wind_speed)?;
-        bundle::check_param(
+        check_param("ocean", "wind_speed", "wind_speed", wind_speed)?;
+        check_param(
             "ocean",
             "refractive_index",
             "refractive_index",

@@ -45,6 +45,7 @@
 
 use glam::DVec3;
 
+use super::error::{check_param, BrdfError};
 use super::TableSampler;
 
 #[derive(Clone, Debug)]
@@ -66,14 +67,14 @@ pub struct Rpv {
 
 /// Checks that `v` is a number in `[lo, hi]` (open ends where `open_*`), naming the parameter.
 /// Checks against the shared range table (`bundle::BRDF_PARAM_RANGES`, the ranges above).
-fn check(name: &str, v: f64) -> Result<(), String> {
-    bundle::check_param("rpv", name, name, v)
+fn check(name: &'static str, v: f64) -> Result<(), BrdfError> {
+    check_param("rpv", name, name, v)
 }
 
 impl Rpv {
     /// RPV with amplitude `rho_0`, exponent `k`, HG asymmetry `g` and hot-spot parameter `rho_c`
     /// (all dimensionless; see the module header for ranges).
-    pub fn new(rho_0: f64, k: f64, g: f64, rho_c: f64) -> Result<Self, String> {
+    pub fn new(rho_0: f64, k: f64, g: f64, rho_c: f64) -> Result<Self, BrdfError> {
         check("rho_0", rho_0)?;
         check("k", k)?;
         check("g", g)?;
@@ -272,11 +273,11 @@ mod tests {
             (0.2, 1.0, 0.0, f64::INFINITY, "rho_c"),
         ];
         for &(a, b, c, d, name) in &bad {
-            let e = Rpv::new(a, b, c, d).unwrap_err();
+            let e = Rpv::new(a, b, c, d).unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
         assert_eq!(
-            Rpv::new(0.2, 3.0, 0.0, 0.5).unwrap_err(),
+            Rpv::new(0.2, 3.0, 0.0, 0.5).unwrap_err().to_string(),
             "`k` = 3 must lie in [0, 2]"
         );
         assert!(Rpv::new(0.0, 0.0, -0.999, 0.0).is_ok());

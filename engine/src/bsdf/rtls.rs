@@ -50,6 +50,7 @@
 use glam::DVec3;
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_2, FRAC_PI_4};
 
+use super::error::{check_param, BrdfError};
 use super::TableSampler;
 
 /// Crown relative height `h/b` of the Li-Sparse kernel (MODIS value).
@@ -69,10 +70,10 @@ pub struct Rtls {
 impl Rtls {
     /// RTLS model from its three kernel weights (dimensionless BRF weights: f_iso in [0, 2],
     /// f_vol and f_geo in [−1, 1]).
-    pub fn new(f_iso: f64, f_vol: f64, f_geo: f64) -> Result<Self, String> {
+    pub fn new(f_iso: f64, f_vol: f64, f_geo: f64) -> Result<Self, BrdfError> {
         // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`, as above).
         for (name, v) in [("f_iso", f_iso), ("f_vol", f_vol), ("f_geo", f_geo)] {
-            bundle::check_param("rtls", name, name, v)?;
+            check_param("rtls", name, name, v)?;
         }
         let mut m = Self {
             f_iso,
@@ -281,11 +282,11 @@ mod tests {
             (0.2, 0.1, f64::NAN, "f_geo"),
             (0.2, 0.1, f64::INFINITY, "f_geo"),
         ] {
-            let e = Rtls::new(i, v, g).unwrap_err();
+            let e = Rtls::new(i, v, g).unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
         assert_eq!(
-            Rtls::new(0.2, 0.1, 2.0).unwrap_err(),
+            Rtls::new(0.2, 0.1, 2.0).unwrap_err().to_string(),
             "`f_geo` = 2 must lie in [-1, 1]"
         );
         assert!(Rtls::new(0.0, 0.0, 0.0).is_ok() && Rtls::new(1.0, 1.0, 1.0).is_ok());

@@ -49,6 +49,7 @@
 use glam::DVec3;
 use std::f64::consts::{FRAC_1_PI, FRAC_PI_4};
 
+use super::error::{check_param, BrdfError};
 use super::{Rtls, TableSampler};
 
 /// ξ0 of Maignan et al. (2004), degrees.
@@ -83,12 +84,19 @@ pub struct RtlsHotspot {
 impl RtlsHotspot {
     /// RTLS-H from its kernel weights and ξ0 in degrees (ranges in the module header; NaN
     /// fails).
-    pub fn new(f_iso: f64, f_vol: f64, f_geo: f64, xi0_deg: f64) -> Result<Self, String> {
+    pub fn new(f_iso: f64, f_vol: f64, f_geo: f64, xi0_deg: f64) -> Result<Self, BrdfError> {
         // The weights' ranges are RTLS's, from the shared table; xi0's is XI0_RANGE.
         for (name, v) in [("f_iso", f_iso), ("f_vol", f_vol), ("f_geo", f_geo)] {
-            bundle::check_param("rtls", name, name, v)?;
+            check_param("rtls", name, name, v)?;
         }
-        XI0_RANGE.check("xi0", xi0_deg)?;
+        XI0_RANGE
+            .check("xi0", xi0_deg)
+            .map_err(|message| BrdfError::Param {
+                model: "rtls_hotspot",
+                param: "xi0",
+                value: xi0_deg,
+                message,
+            })?;
         let mut m = Self {
             f_iso,
             f_vol,
@@ -355,11 +363,13 @@ mod tests {
             (0.2, 0.1, 0.0, 91.0, "xi0"),
             (0.2, 0.1, 0.0, f64::NAN, "xi0"),
         ] {
-            let e = RtlsHotspot::new(i, v, g, x).unwrap_err();
+            let e = RtlsHotspot::new(i, v, g, x).unwrap_err().to_string();
             assert!(e.contains(&format!("`{name}`")), "{e}");
         }
         assert_eq!(
-            RtlsHotspot::new(0.2, 0.1, 0.0, 0.0).unwrap_err(),
+            RtlsHotspot::new(0.2, 0.1, 0.0, 0.0)
+                .unwrap_err()
+                .to_string(),
             "`xi0` = 0 deg must lie in (0, 90]"
         );
         assert!(RtlsHotspot::new(0.0, 0.0, 0.0, 90.0).is_ok());

@@ -46,6 +46,7 @@ use std::sync::{Arc, Mutex, Weak};
 
 use glam::DVec3;
 
+use super::error::BrdfError;
 use super::TableSampler;
 
 /// The largest reciprocity error of a table, and where (degrees, nm).
@@ -93,7 +94,7 @@ fn locate(grid: &[f64], x: f64) -> (usize, usize, f64) {
 impl BrdfTable {
     /// The table of `path`, from the cache or read (and logged, with its reciprocity error).
     /// Errors name the file and the variable.
-    pub fn load(path: &Path) -> Result<Arc<BrdfTable>, String> {
+    pub fn load(path: &Path) -> Result<Arc<BrdfTable>, BrdfError> {
         let mut cache = CACHE.lock().unwrap_or_else(|e| e.into_inner());
         cache.retain(|(_, w)| w.strong_count() > 0);
         if let Some(t) = cache
@@ -109,15 +110,20 @@ impl BrdfTable {
         Ok(t)
     }
 
-    fn read(path: &Path) -> Result<BrdfTable, String> {
-        let p = path.display().to_string();
+    fn read(path: &Path) -> Result<BrdfTable, BrdfError> {
+        let p = || path.to_path_buf();
         let _session = crate::netcdf_session();
-        crate::util::nc_complete::check(path).map_err(|e| format!("BRDF table {p}: {e}"))?;
-        let file = netcdf::open(path).map_err(|e| format!("cannot read BRDF table {p}: {e}"))?;
-        let get = |name: &str, what: &str, unit_ok: &dyn Fn(&str) -> bool| {
+        crate::util::nc_complete::check(path)
+            .map_err(|message| BrdfError::Truncated { path: p(), message })?;
+        let file = netcdf::open(path).map_err(|source| BrdfError::Open { path: p(), source })?;
+        let get = |name: &'static str, what: &'static str, unit_ok: &dyn Fn(&str) -> bool| {
             let v = file
                 .variable(name)
-                .ok_or_else(|| format!("BRDF table {p}: missing variable `{name}` ({what})"))?;
+                .ok_or_else(|| BrdfError::MissingVariable {
+                    path: p(),
+                    variable: name,
+                    what,
+                })?;
             // Look the attribute up by listing (asking HDF5 for an absent one prints errors).
             if let Some(u) = v
                 .attributes()
@@ -126,26 +132,38 @@ impl BrdfTable {
                 .and_then(|a| String::try_from(a).ok())
             {
                 if !unit_ok(u.trim()) {
-                    return Err(format!(
-                        "BRDF table {p}: variable `{name}` has units \"{u}\" ({what})"
-                    ));
+                    return Err(BrdfError::Units {
+                        path: p(),
+                        variable: name,
+                        units: u,
+                        what,
+                    });
                 }
             }
             let dims: Vec<(String, usize)> =
                 v.dimensions().iter().map(|d| (d.name(), d.len())).collect();
             let values = v
                 .get_values::<f64, _>(..)
-                .map_err(|e| format!("BRDF table {p}: cannot read variable `{name}`: {e}"))?;
+                .map_err(|source| BrdfError::ReadVariable {
+                    path: p(),
+                    variable: name,
+                    source,
+                })?;
             Ok((dims, values))
         };
         let deg = |u: &str| matches!(u, "degree" | "degrees" | "deg" | "degree_zenith");
-        let axis = |name: &str, what: &str| -> Result<Vec<f64>, String> {
-            let (dims, v) = get(name, what, &deg)?;
+        let one_dimension = |name: &'static str, dims: &[(String, usize)]| {
             if dims.len() != 1 || dims[0].0 != name {
-                return Err(format!(
-                    "BRDF table {p}: variable `{name}` must have the one dimension `{name}`"
-                ));
+                return Err(BrdfError::AxisDimensions {
+                    path: p(),
+                    variable: name,
+                });
             }
+            Ok(())
+        };
+        let axis = |name: &'static str, what: &'static str| -> Result<Vec<f64>, BrdfError> {
+            let (dims, v) = get(name, what, &deg)?;
+            one_dimension(name, &dims)?;
             Ok(v)
         };
         let theta_i = axis(
@@ -160,24 +178,16 @@ impl BrdfTable {
         let (wdims, wavelengths) = get("wavelength", "nm", &|u| {
             matches!(u, "nm" | "nanometer" | "nanometers")
         })?;
-        if wdims.len() != 1 || wdims[0].0 != "wavelength" {
-            return Err(format!(
-                "BRDF table {p}: variable `wavelength` must have the one dimension `wavelength`"
-            ));
-        }
+        one_dimension("wavelength", &wdims)?;
         let (bdims, values) = get("brdf", "BRDF, sr-1", &|u| {
             matches!(u, "sr-1" | "sr^-1" | "1/sr" | "sr**-1")
         })?;
         let want = ["wavelength", "theta_i", "theta_r", "dphi"];
         if bdims.len() != 4 || bdims.iter().zip(want).any(|((n, _), w)| n != w) {
-            return Err(format!(
-                "BRDF table {p}: variable `brdf` must have the dimensions (wavelength, theta_i, theta_r, dphi), not ({})",
-                bdims
-                    .iter()
-                    .map(|(n, _)| n.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ));
+            return Err(BrdfError::BrdfDimensions {
+                path: p(),
+                found: bdims.into_iter().map(|(n, _)| n).collect(),
+            });
         }
         Self::new(path, wavelengths, theta_i, theta_r, dphi, values)
     }
@@ -191,8 +201,8 @@ impl BrdfTable {
         theta_r: Vec<f64>,
         dphi: Vec<f64>,
         values: Vec<f64>,
-    ) -> Result<BrdfTable, String> {
-        let p = path.display();
+    ) -> Result<BrdfTable, BrdfError> {
+        let p = || path.to_path_buf();
         for (name, g, lo, hi) in [
             ("wavelength", &wavelengths, f64::MIN_POSITIVE, f64::INFINITY),
             ("theta_i", &theta_i, 0.0, 90.0),
@@ -200,35 +210,49 @@ impl BrdfTable {
             ("dphi", &dphi, 0.0, 180.0),
         ] {
             if g.is_empty() {
-                return Err(format!("BRDF table {p}: variable `{name}` is empty"));
+                return Err(BrdfError::EmptyAxis {
+                    path: p(),
+                    variable: name,
+                });
             }
             if let Some(x) = g.iter().find(|x| !(**x >= lo && **x <= hi)) {
-                return Err(format!(
-                    "BRDF table {p}: variable `{name}` has the value {x} outside [{lo}, {hi}]"
-                ));
+                return Err(BrdfError::AxisRange {
+                    path: p(),
+                    variable: name,
+                    value: *x,
+                    lo,
+                    hi,
+                });
             }
             if let Some(w) = g.windows(2).find(|w| w[1] <= w[0]) {
-                return Err(format!(
-                    "BRDF table {p}: variable `{name}` must increase strictly ({} then {})",
-                    w[0], w[1]
-                ));
+                return Err(BrdfError::NotIncreasing {
+                    path: p(),
+                    variable: name,
+                    previous: w[0],
+                    next: w[1],
+                });
             }
         }
         let (nw, ni, nr, np) = (wavelengths.len(), theta_i.len(), theta_r.len(), dphi.len());
         if values.len() != nw * ni * nr * np {
-            return Err(format!(
-                "BRDF table {p}: variable `brdf` has {} values, expected {nw}×{ni}×{nr}×{np}",
-                values.len()
-            ));
+            return Err(BrdfError::ValueCount {
+                path: p(),
+                found: values.len(),
+                shape: [nw, ni, nr, np],
+            });
         }
         if let Some(k) = values.iter().position(|v| !(v.is_finite() && *v >= 0.0)) {
             let (w, rest) = (k / (ni * nr * np), k % (ni * nr * np));
             let (i, rest) = (rest / (nr * np), rest % (nr * np));
             let (r, q) = (rest / np, rest % np);
-            return Err(format!(
-                "BRDF table {p}: variable `brdf` is {} at wavelength {} nm, theta_i {}°, theta_r {}°, dphi {}° (values must be finite and ≥ 0)",
-                values[k], wavelengths[w], theta_i[i], theta_r[r], dphi[q]
-            ));
+            return Err(BrdfError::BadValue {
+                path: p(),
+                value: values[k],
+                wavelength_nm: wavelengths[w],
+                theta_i: theta_i[i],
+                theta_r: theta_r[r],
+                dphi: dphi[q],
+            });
         }
         let mut t = BrdfTable {
             path: path.to_path_buf(),
@@ -608,7 +632,7 @@ pub(crate) mod tests {
         for (name, write, want) in cases {
             let path = tmp(name);
             write(&path);
-            let e = BrdfTable::load(&path).unwrap_err();
+            let e = BrdfTable::load(&path).unwrap_err().to_string();
             assert!(
                 e.contains(&path.display().to_string()) && e.contains(want),
                 "{name}: {e}"
@@ -627,7 +651,7 @@ pub(crate) mod tests {
             let mut v = nc.variable_mut("theta_i").unwrap();
             v.put_values(&[0.0, 1.0], ..).unwrap();
         }
-        let e = BrdfTable::load(&path).unwrap_err();
+        let e = BrdfTable::load(&path).unwrap_err().to_string();
         assert!(e.contains("`theta_i` has units \"rad\""), "{e}");
         let path2 = tmp("missing2.nc");
         {
@@ -639,10 +663,11 @@ pub(crate) mod tests {
             let mut v = nc.variable_mut("theta_i").unwrap();
             v.put_values(&[0.0, 10.0], ..).unwrap();
         }
-        let e = BrdfTable::load(&path2).unwrap_err();
+        let e = BrdfTable::load(&path2).unwrap_err().to_string();
         assert!(e.contains("missing variable `theta_r`"), "{e}");
         assert!(BrdfTable::load(&tmp("absent.nc"))
             .unwrap_err()
+            .to_string()
             .contains("cannot read BRDF table"));
         let _ = std::fs::remove_file(&path);
         let _ = std::fs::remove_file(&path2);

@@ -470,7 +470,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             let scene_models = match &scene {
                 Some(sc) => sc
                     .models_at(wavelengths[iw])
-                    .map_err(|m| ctx.err("scene", m))?,
+                    .map_err(|m| ctx.err("scene", m.to_string()))?,
                 None => Vec::new(),
             };
             // A scene's emission at this wavelength, its Planck radiances times `scale`.

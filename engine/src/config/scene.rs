@@ -194,7 +194,7 @@ fn check_spec(key: &str, spec: &BrdfSpec) -> Result<(), SceneErr> {
     // Validate at a few wavelengths: spectra are checked for shape, models for ranges.
     for w in [400.0, 550.0, 700.0, 1000.0, 2000.0] {
         crate::scene::material::SurfaceModel::from_spec(spec, w)
-            .map_err(|m| (key.to_string(), m))?;
+            .map_err(|m| (key.to_string(), m.to_string()))?;
     }
     Ok(())
 }
@@ -300,7 +300,10 @@ pub fn build_scene(
                 .collect();
             let dir = base.join(path);
             let mut scene =
-                build::from_bundle(&dir, &bg, &overrides, &reqs, bend).map_err(|m| {
+                build::from_bundle(&dir, &bg, &overrides, &reqs, bend).map_err(|e| {
+                    // The key by the message, as before the error was typed (a bundle whose
+                    // path holds "texture " is reported at `scene.textures`).
+                    let m = e.to_string();
                     let key = if m.starts_with("texture")
                         || m.contains("two textures")
                         || m.contains("texture ")
@@ -314,14 +317,16 @@ pub fn build_scene(
             for (name, spec) in solvers {
                 scene
                     .set_solver(name, *spec)
-                    .map_err(|m| (format!("scene.solvers.{name}"), m))?;
+                    .map_err(|m| (format!("scene.solvers.{name}"), m.to_string()))?;
             }
             for (name, &t) in temperatures {
                 let key = format!("scene.temperatures.{name}");
                 if !(t > 0.0 && t <= 10_000.0) {
                     return Err((key, format!("{t} K must lie in (0, 10000] K")));
                 }
-                scene.set_temperature(name, t).map_err(|m| (key, m))?;
+                scene
+                    .set_temperature(name, t)
+                    .map_err(|m| (key, m.to_string()))?;
             }
             if let Some(file) = land_surface_temperature {
                 let key = "scene.land_surface_temperature".to_string();
@@ -331,7 +336,7 @@ pub fn build_scene(
                 };
                 let map =
                     crate::scene::texture::TemperatureMap::read(&base.join(file), &wkt, origin)
-                        .map_err(|m| (key, m))?;
+                        .map_err(|m| (key, m.to_string()))?;
                 scene.memory_bytes += map.memory_bytes();
                 scene.lst = Some(map);
             }
@@ -374,7 +379,7 @@ pub fn build_scene(
             for (i, t) in cone_trees.iter().enumerate() {
                 let key = format!("scene.cone_trees[{i}]");
                 let positions: Vec<DVec3> = build::read_table(&base.join(&t.positions), 3)
-                    .map_err(|m| (format!("{key}.positions"), m))?
+                    .map_err(|m| (format!("{key}.positions"), m.to_string()))?
                     .into_iter()
                     .map(|r| DVec3::new(r[0], r[1], r[2]))
                     .collect();
@@ -440,7 +445,7 @@ pub fn build_scene(
                 let positions = match &o.positions {
                     None => Vec::new(),
                     Some(p) => build::read_table(&base.join(p), 3)
-                        .map_err(|m| (format!("{key}.positions"), m))?
+                        .map_err(|m| (format!("{key}.positions"), m.to_string()))?
                         .into_iter()
                         .map(|r| DVec3::new(r[0], r[1], r[2]))
                         .collect(),
@@ -491,11 +496,11 @@ pub fn build_scene(
                 }
             };
             let mut scene = build::canopy(&clouds, &trees, ground.as_ref(), pad, *periodic_m)
-                .map_err(|m| ("scene.objects".to_string(), m))?;
+                .map_err(|m| ("scene.objects".to_string(), m.to_string()))?;
             for (name, spec) in solvers {
                 scene
                     .set_solver(name, *spec)
-                    .map_err(|m| (format!("scene.solvers.{name}"), m))?;
+                    .map_err(|m| (format!("scene.solvers.{name}"), m.to_string()))?;
             }
             Ok(scene)
         }

@@ -58,10 +58,11 @@ impl PhaseResolver {
         Ok(match p {
             PhaseConfig::Rayleigh { depolarization } => PhaseFunction::Rayleigh(
                 Rayleigh::new(*depolarization)
-                    .map_err(|m| ctx.err(format!("{key}.depolarization"), m))?,
+                    .map_err(|m| ctx.err(format!("{key}.depolarization"), m.to_string()))?,
             ),
             PhaseConfig::Hg { g } => PhaseFunction::Hg(
-                HenyeyGreenstein::new(*g).map_err(|m| ctx.err(format!("{key}.g"), m))?,
+                HenyeyGreenstein::new(*g)
+                    .map_err(|m| ctx.err(format!("{key}.g"), m.to_string()))?,
             ),
             PhaseConfig::Isotropic {} => PhaseFunction::Hg(HenyeyGreenstein { g: 0.0 }),
             PhaseConfig::Tabulated {

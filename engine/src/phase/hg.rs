@@ -7,15 +7,22 @@
 //! `P(Θ) = (1 − g²) / (1 + g² − 2g cos Θ)^{3/2}` (Henyey & Greenstein 1941), mean 1 over 4π;
 //! its Legendre moments are `χ_l = g^l`. Sampled by the standard closed-form inversion.
 
+use super::error::PhaseError;
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct HenyeyGreenstein {
     pub g: f64,
 }
 
 impl HenyeyGreenstein {
-    pub fn new(g: f64) -> Result<Self, String> {
+    pub fn new(g: f64) -> Result<Self, PhaseError> {
         if !(g > -1.0 && g < 1.0) {
-            return Err(format!("`g` = {g} must lie in (-1, 1)"));
+            return Err(PhaseError::OutOfRange {
+                model: "hg",
+                param: "g",
+                value: g,
+                range: "(-1, 1)",
+            });
         }
         Ok(Self { g })
     }

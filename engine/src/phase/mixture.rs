@@ -21,6 +21,7 @@
 //! itself when only one is left, so a layer without particles keeps its plain Rayleigh phase
 //! function (bit-identical results).
 
+use super::error::PhaseError;
 use super::PhaseFunction;
 use std::sync::Arc;
 
@@ -36,18 +37,19 @@ pub struct Mixture {
 impl Mixture {
     /// A mixture of `(weight, phase)` pairs; weights are finite, ≥ 0, and not all zero (they
     /// need not sum to 1). Zero-weight components are dropped.
-    pub fn new(components: Vec<(f64, PhaseFunction)>) -> Result<Self, String> {
+    pub fn new(components: Vec<(f64, PhaseFunction)>) -> Result<Self, PhaseError> {
         let mut total = 0.0;
         for (i, (w, _)) in components.iter().enumerate() {
             if !w.is_finite() || *w < 0.0 {
-                return Err(format!(
-                    "mixture weight {i} is {w}; it must be finite and ≥ 0"
-                ));
+                return Err(PhaseError::MixtureWeight {
+                    index: i,
+                    weight: *w,
+                });
             }
             total += w;
         }
         if total <= 0.0 {
-            return Err("mixture weights are all zero".into());
+            return Err(PhaseError::MixtureZero);
         }
         let (mut weights, mut cum, mut parts) = (Vec::new(), Vec::new(), Vec::new());
         let mut acc = 0.0;
@@ -69,7 +71,7 @@ impl Mixture {
 
     /// The phase function of a mixture: the component itself when only one has a positive
     /// weight, else a `PhaseFunction::Mixture`.
-    pub fn build(components: Vec<(f64, PhaseFunction)>) -> Result<PhaseFunction, String> {
+    pub fn build(components: Vec<(f64, PhaseFunction)>) -> Result<PhaseFunction, PhaseError> {
         let mut m = Self::new(components)?;
         if m.parts.len() == 1 {
             return Ok(m.parts.pop().expect("one component"));

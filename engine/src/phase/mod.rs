@@ -16,12 +16,14 @@
 //! arm in [`PhaseResolver::resolve`] (`config.rs`).
 
 pub mod config;
+pub mod error;
 pub mod hg;
 pub mod mixture;
 pub mod rayleigh;
 pub mod tabulated;
 
 pub use config::{PhaseConfig, PhaseResolver};
+pub use error::PhaseError;
 pub use hg::HenyeyGreenstein;
 pub use mixture::Mixture;
 pub use rayleigh::Rayleigh;

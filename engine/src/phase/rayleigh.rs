@@ -9,6 +9,8 @@
 //! Sampling inverts the cubic CDF in closed form (Cardano; one real root since the CDF is
 //! strictly increasing).
 
+use super::error::PhaseError;
+
 #[derive(Clone, Debug, PartialEq)]
 pub struct Rayleigh {
     pub depolarization: f64,
@@ -18,11 +20,14 @@ pub struct Rayleigh {
 }
 
 impl Rayleigh {
-    pub fn new(depolarization: f64) -> Result<Self, String> {
+    pub fn new(depolarization: f64) -> Result<Self, PhaseError> {
         if !(0.0..0.5).contains(&depolarization) {
-            return Err(format!(
-                "`depolarization` = {depolarization} must lie in [0, 0.5)"
-            ));
+            return Err(PhaseError::OutOfRange {
+                model: "rayleigh",
+                param: "depolarization",
+                value: depolarization,
+                range: "[0, 0.5)",
+            });
         }
         let gamma = depolarization / (2.0 - depolarization);
         let c = 3.0 / (4.0 * (1.0 + 2.0 * gamma));

@@ -21,7 +21,9 @@
 //! CDF and `sample_cos` all use that one function, so sampling is exact for what is evaluated.
 //! Between two tabulated wavelengths the two (normalised) tables are mixed linearly in wavelength.
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use super::error::PhaseError;
 
 /// Subdivisions of each file interval (linear in Θ) before the piecewise-linear-in-μ form.
 const REFINE: usize = 16;
@@ -56,19 +58,114 @@ fn interp_sorted(pairs: &[(f64, f64)], x: f64) -> f64 {
     }
 }
 
+/// What went wrong reading a libRadtran phase-function file; each variant names the file.
 #[derive(Debug, thiserror::Error)]
 pub enum PhaseTableError {
-    #[error("cannot read phase-function file {path}: {source}")]
-    Netcdf { path: String, source: netcdf::Error },
-    #[error("phase-function file {path}: {msg}")]
-    Content { path: String, msg: String },
+    /// netCDF cannot open the file or read one of its variables.
+    #[error("cannot read phase-function file {}: {source}", path.display())]
+    Netcdf {
+        path: PathBuf,
+        source: netcdf::Error,
+    },
+    /// A file that stops before the end its netCDF header declares (`message` says how).
+    #[error("phase-function file {}: {message}", path.display())]
+    Truncated { path: PathBuf, message: String },
+    /// A variable of the libRadtran layout is absent.
+    #[error(
+        "phase-function file {}: has no variable `{variable}` (not a libRadtran Mie file?)",
+        path.display()
+    )]
+    MissingVariable {
+        path: PathBuf,
+        variable: &'static str,
+    },
+    /// `theta` with `found` dimensions instead of 4.
+    #[error(
+        "phase-function file {}: `theta` has {found} dimensions, expected 4",
+        path.display()
+    )]
+    ThetaDimensions { path: PathBuf, found: usize },
+    /// A `size_index` beyond the file's `sizes` entries.
+    #[error(
+        "phase-function file {}: `size_index` = {size_index} but the file has {sizes} size entries",
+        path.display()
+    )]
+    SizeIndex {
+        path: PathBuf,
+        size_index: usize,
+        sizes: usize,
+    },
+    /// `wavelen` with `wavelen` values where `theta` has `theta` wavelengths.
+    #[error(
+        "phase-function file {}: `wavelen` and `theta` disagree on the wavelength count",
+        path.display()
+    )]
+    WavelengthCount {
+        path: PathBuf,
+        wavelen: usize,
+        theta: usize,
+    },
+    /// An `ntheta` of P11 below 2 or above the file's angle dimension.
+    #[error(
+        "phase-function file {}: ntheta = {ntheta} out of range at wavelength index {wavelength_index}",
+        path.display()
+    )]
+    Ntheta {
+        path: PathBuf,
+        ntheta: usize,
+        wavelength_index: usize,
+    },
+    /// An `ntheta` of phase-matrix element `element` (from 1) out of range.
+    #[error(
+        "phase-function file {}: ntheta = {ntheta} out of range for element {element} at wavelength index {wavelength_index}",
+        path.display()
+    )]
+    ElementNtheta {
+        path: PathBuf,
+        ntheta: usize,
+        element: usize,
+        wavelength_index: usize,
+    },
+    /// A table of the file that is not a phase function, at its wavelength.
+    #[error(
+        "phase-function file {}: wavelength {wavelength_nm} nm: {source}",
+        path.display()
+    )]
+    Table {
+        path: PathBuf,
+        wavelength_nm: f64,
+        source: PhaseError,
+    },
+    /// A `wavelen` value (µm) that is not finite, at `index`.
+    #[error(
+        "phase-function file {}: `wavelen` at index {index} is {value_um}, not a finite wavelength",
+        path.display()
+    )]
+    WavelengthNotFinite {
+        path: PathBuf,
+        index: usize,
+        value_um: f64,
+    },
+    /// A run wavelength outside the file's (`tabulated_nm`, in the file's order).
+    #[error(
+        "phase-function file {}: wavelength {wavelength_nm} nm is outside the tabulated range {tabulated_nm:?} nm; set the phase's `wavelength` key to use one table for every wavelength",
+        path.display()
+    )]
+    WavelengthOutside {
+        path: PathBuf,
+        wavelength_nm: f64,
+        tabulated_nm: Vec<f64>,
+    },
 }
 
 impl Tabulated {
     /// Build from scattering angles (degrees, any order) and phase values (any positive scale).
-    pub fn from_table(theta_deg: &[f64], values: &[f64]) -> Result<Self, String> {
+    pub fn from_table(theta_deg: &[f64], values: &[f64]) -> Result<Self, PhaseError> {
         if theta_deg.len() != values.len() || theta_deg.len() < 2 {
-            return Err("need at least two (theta, phase) pairs of equal length".into());
+            return Err(PhaseError::TooFewPairs {
+                angles: theta_deg.len(),
+                values: values.len(),
+            });
         }
         let mut pairs: Vec<(f64, f64)> = theta_deg
             .iter()
@@ -77,22 +174,19 @@ impl Tabulated {
             .collect();
         for &(t, v) in &pairs {
             if !t.is_finite() || !(0.0..=180.0).contains(&t) {
-                return Err(format!("scattering angle {t} outside [0, 180] degrees"));
+                return Err(PhaseError::Angle { theta: t });
             }
             if !v.is_finite() || v < 0.0 {
-                return Err(format!(
-                    "phase value {v} at {t} degrees is negative or not finite"
-                ));
+                return Err(PhaseError::Value { theta: t, value: v });
             }
         }
         pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
         pairs.dedup_by(|a, b| a.0 == b.0);
         if pairs[0].0 > 1e-9 || pairs[pairs.len() - 1].0 < 180.0 - 1e-9 {
-            return Err(format!(
-                "the table must span 0 to 180 degrees (it spans {} to {})",
-                pairs[0].0,
-                pairs[pairs.len() - 1].0
-            ));
+            return Err(PhaseError::Span {
+                first: pairs[0].0,
+                last: pairs[pairs.len() - 1].0,
+            });
         }
         // Refine linearly in Θ, then order by ascending μ (Θ descending).
         let mut mu = Vec::with_capacity(pairs.len() * REFINE);
@@ -120,7 +214,7 @@ impl Tabulated {
         theta_deg: &[f64],
         p11: &[f64],
         elems: [(&[f64], &[f64]); 5],
-    ) -> Result<Self, String> {
+    ) -> Result<Self, PhaseError> {
         let mut t = Self::from_table(theta_deg, p11)?;
         let mut raw: Vec<(f64, f64)> = theta_deg.iter().copied().zip(p11.iter().copied()).collect();
         raw.sort_by(|a, b| a.0.total_cmp(&b.0));
@@ -129,17 +223,11 @@ impl Tabulated {
         let mut out: [Vec<f64>; 5] = Default::default();
         for (k, (th, val)) in elems.iter().enumerate() {
             if th.len() != val.len() || th.len() < 2 {
-                return Err(format!(
-                    "phase-matrix element {} needs at least two (theta, value) pairs",
-                    k + 2
-                ));
+                return Err(PhaseError::ElementTooFewPairs { element: k + 2 });
             }
             let mut pairs: Vec<(f64, f64)> = th.iter().copied().zip(val.iter().copied()).collect();
             if pairs.iter().any(|p| !p.0.is_finite() || !p.1.is_finite()) {
-                return Err(format!(
-                    "phase-matrix element {} has non-finite values",
-                    k + 2
-                ));
+                return Err(PhaseError::ElementNotFinite { element: k + 2 });
             }
             pairs.sort_by(|a, b| a.0.total_cmp(&b.0));
             out[k] =
@@ -178,14 +266,14 @@ impl Tabulated {
         }
     }
 
-    fn from_mu(mu: Vec<f64>, mut p: Vec<f64>) -> Result<Self, String> {
+    fn from_mu(mu: Vec<f64>, mut p: Vec<f64>) -> Result<Self, PhaseError> {
         let mut cdf = vec![0.0; mu.len()];
         for i in 1..mu.len() {
             cdf[i] = cdf[i - 1] + 0.5 * (p[i] + p[i - 1]) * (mu[i] - mu[i - 1]);
         }
         let total = cdf[mu.len() - 1];
         if total.is_nan() || total <= 0.0 {
-            return Err("phase function integrates to zero".into());
+            return Err(PhaseError::ZeroIntegral);
         }
         // ∫P dμ must be 2 (mean 1 over the sphere).
         let scale = 2.0 / total;
@@ -298,68 +386,74 @@ impl Tabulated {
         wavelength_nm: f64,
         size_index: usize,
     ) -> Result<Tabulated, PhaseTableError> {
-        let ps = path.display().to_string();
-        let nc_err = |source| PhaseTableError::Netcdf {
-            path: ps.clone(),
-            source,
-        };
-        let content = |msg: String| PhaseTableError::Content {
-            path: ps.clone(),
-            msg,
-        };
+        let p = || path.to_path_buf();
+        let nc_err = |source| PhaseTableError::Netcdf { path: p(), source };
         let _session = crate::netcdf_session();
-        crate::util::nc_complete::check(path).map_err(content)?;
+        crate::util::nc_complete::check(path)
+            .map_err(|message| PhaseTableError::Truncated { path: p(), message })?;
         let file = netcdf::open(path).map_err(nc_err)?;
-        let var = |name: &str| {
-            file.variable(name).ok_or_else(|| {
-                content(format!(
-                    "has no variable `{name}` (not a libRadtran Mie file?)"
-                ))
-            })
+        let var = |name: &'static str| {
+            file.variable(name)
+                .ok_or_else(|| PhaseTableError::MissingVariable {
+                    path: p(),
+                    variable: name,
+                })
         };
         let wl_um: Vec<f64> = var("wavelen")?.get_values::<f64, _>(..).map_err(nc_err)?;
         let theta_v = var("theta")?;
         let dims: Vec<usize> = theta_v.dimensions().iter().map(|d| d.len()).collect();
         if dims.len() != 4 {
-            return Err(content(format!(
-                "`theta` has {} dimensions, expected 4",
-                dims.len()
-            )));
+            return Err(PhaseTableError::ThetaDimensions {
+                path: p(),
+                found: dims.len(),
+            });
         }
         let (nlam, n2, nphamat, nthmax) = (dims[0], dims[1], dims[2], dims[3]);
         if size_index >= n2 {
-            return Err(content(format!(
-                "`size_index` = {size_index} but the file has {n2} size entries"
-            )));
+            return Err(PhaseTableError::SizeIndex {
+                path: p(),
+                size_index,
+                sizes: n2,
+            });
         }
         let theta: Vec<f64> = theta_v.get_values::<f64, _>(..).map_err(nc_err)?;
         let phase: Vec<f64> = var("phase")?.get_values::<f64, _>(..).map_err(nc_err)?;
         let ntheta: Vec<i32> = var("ntheta")?.get_values::<i32, _>(..).map_err(nc_err)?;
         if wl_um.len() != nlam {
-            return Err(content(
-                "`wavelen` and `theta` disagree on the wavelength count".into(),
-            ));
+            return Err(PhaseTableError::WavelengthCount {
+                path: p(),
+                wavelen: wl_um.len(),
+                theta: nlam,
+            });
         }
         let table_at = |il: usize| -> Result<Tabulated, PhaseTableError> {
             let nt = ntheta[(il * n2 + size_index) * nphamat] as usize;
             if nt < 2 || nt > nthmax {
-                return Err(content(format!(
-                    "ntheta = {nt} out of range at wavelength index {il}"
-                )));
+                return Err(PhaseTableError::Ntheta {
+                    path: p(),
+                    ntheta: nt,
+                    wavelength_index: il,
+                });
             }
             let off = ((il * n2 + size_index) * nphamat) * nthmax;
             let elem = |k: usize| -> Result<(&[f64], &[f64]), PhaseTableError> {
                 let n = ntheta[(il * n2 + size_index) * nphamat + k] as usize;
                 if n < 2 || n > nthmax {
-                    return Err(content(format!(
-                        "ntheta = {n} out of range for element {} at wavelength index {il}",
-                        k + 1
-                    )));
+                    return Err(PhaseTableError::ElementNtheta {
+                        path: p(),
+                        ntheta: n,
+                        element: k + 1,
+                        wavelength_index: il,
+                    });
                 }
                 let o = off + k * nthmax;
                 Ok((&theta[o..o + n], &phase[o..o + n]))
             };
-            let wl_err = |m: String| content(format!("wavelength {} nm: {m}", wl_um[il] * 1e3));
+            let wl_err = |source| PhaseTableError::Table {
+                path: p(),
+                wavelength_nm: wl_um[il] * 1e3,
+                source,
+            };
             // Element order (libRadtran / MOPSMAP): 4 elements for spheres P11, P12, P33, P34
             // (P22 = P11, P44 = P33); 6 elements P11, P12, P33, P34, P22, P44.
             match nphamat {
@@ -388,10 +482,11 @@ impl Tabulated {
         };
         let wl_nm: Vec<f64> = wl_um.iter().map(|w| w * 1e3).collect();
         if let Some(il) = wl_nm.iter().position(|w| !w.is_finite()) {
-            return Err(content(format!(
-                "`wavelen` at index {il} is {}, not a finite wavelength",
-                wl_um[il]
-            )));
+            return Err(PhaseTableError::WavelengthNotFinite {
+                path: p(),
+                index: il,
+                value_um: wl_um[il],
+            });
         }
         if let Some(i) = wl_nm.iter().position(|&w| (w - wavelength_nm).abs() < 1e-3) {
             return table_at(i);
@@ -405,11 +500,11 @@ impl Tabulated {
                 return Ok(Tabulated::mix(&table_at(a)?, &table_at(b)?, t));
             }
         }
-        Err(content(format!(
-            "wavelength {wavelength_nm} nm is outside the tabulated range {:?} nm; set the phase's \
-             `wavelength` key to use one table for every wavelength",
-            wl_nm
-        )))
+        Err(PhaseTableError::WavelengthOutside {
+            path: p(),
+            wavelength_nm,
+            tabulated_nm: wl_nm,
+        })
     }
 }
 

@@ -15,6 +15,7 @@ use std::time::Instant;
 use glam::{DVec3, Mat3};
 
 use super::curvature::Curvature;
+use super::error::SceneError;
 use super::instances::{Disc, InstanceBvh, InstanceTransform, TemplateGeometry};
 use super::world::{Georef, GroundPlane, MaterialRaster, Scene};
 use super::TerrainBvh;
@@ -47,10 +48,10 @@ pub fn from_bundle(
     overrides: &[(String, BrdfSpec)],
     textures: &[TextureRequest],
     bend: Option<Curvature>,
-) -> Result<Scene, String> {
+) -> Result<Scene, SceneError> {
     let _returned = super::LargeBlocksReturned::new();
     let t0 = Instant::now();
-    let mut bundle = Bundle::open(dir).map_err(|e| e.to_string())?;
+    let mut bundle = Bundle::open(dir)?;
     // The buffers are moved out of the bundle (and freed) as soon as their acceleration
     // structures hold them, so the peak memory holds one copy of each.
     let m = &bundle.manifest;
@@ -87,8 +88,10 @@ pub fn from_bundle(
         .enumerate()
         .all(|(pos, x)| x.index as usize == pos);
     for (name, spec) in overrides {
-        spec.validate()
-            .map_err(|e| format!("material `{name}` (override): {e}"))?;
+        spec.validate().map_err(|source| SceneError::Override {
+            name: name.clone(),
+            source,
+        })?;
         let id = super::world::material_id(&materials, name)?;
         materials[id].1 = spec.clone();
     }
@@ -96,21 +99,21 @@ pub fn from_bundle(
     let mut texture_of: Vec<Option<usize>> = vec![None; materials.len()];
     for r in textures {
         let Some(id) = materials.iter().position(|(n, _)| *n == r.material) else {
-            return Err(format!(
-                "texture {}: material `{}` is not in the bundle",
-                r.file.display(),
-                r.material
-            ));
+            return Err(SceneError::TextureMaterial {
+                file: r.file.clone(),
+                material: r.material.clone(),
+            });
         };
         if !matches!(materials[id].1, BrdfSpec::Lambertian { .. }) {
-            return Err(format!(
-                "texture {}: material `{}` is not Lambertian (only Lambertian materials take reflectance textures)",
-                r.file.display(),
-                r.material
-            ));
+            return Err(SceneError::TextureNotLambertian {
+                file: r.file.clone(),
+                material: r.material.clone(),
+            });
         }
         if texture_of[id].is_some() {
-            return Err(format!("material `{}` has two textures", r.material));
+            return Err(SceneError::TwoTextures {
+                material: r.material.clone(),
+            });
         }
         texture_of[id] = Some(tex.len());
         tex.push(super::texture::Texture::read(
@@ -149,7 +152,11 @@ pub fn from_bundle(
     };
     if raster.width == 0 || raster.height == 0 || raster.data.len() != raster.width * raster.height
     {
-        return Err("the material raster is empty".into());
+        return Err(SceneError::EmptyMaterialRaster {
+            width: raster.width,
+            height: raster.height,
+            pixels: raster.data.len(),
+        });
     }
     let templates: Vec<TemplateGeometry> = std::mem::take(&mut bundle.templates)
         .iter()
@@ -197,7 +204,7 @@ pub fn from_bundle(
             let material = match brdf {
                 Some(spec) => {
                     spec.validate()
-                        .map_err(|e| format!("background material: {e}"))?;
+                        .map_err(|source| SceneError::Background { source })?;
                     materials.push(("background".into(), (**spec).clone()));
                     (materials.len() - 1) as u16
                 }
@@ -229,7 +236,8 @@ pub fn from_bundle(
     // `Bundle::open` has checked that the polygon's WKT reads.
     let area_mask = match &m.area {
         Some(a) => Some(std::sync::Arc::new(super::area_mask::AreaMask::new(
-            &a.polygons()?,
+            &a.polygons()
+                .map_err(|message| SceneError::Area { message })?,
             [origin.x, origin.y],
         ))),
         None => None,
@@ -310,9 +318,11 @@ pub struct CanopyGround {
 
 /// Read whitespace-separated numbers, `columns` per line; `#` starts a comment. Errors name the
 /// file and line.
-pub fn read_table(path: &Path, columns: usize) -> Result<Vec<Vec<f64>>, String> {
-    let text = std::fs::read_to_string(path)
-        .map_err(|e| format!("cannot read {}: {e}", path.display()))?;
+pub fn read_table(path: &Path, columns: usize) -> Result<Vec<Vec<f64>>, SceneError> {
+    let text = std::fs::read_to_string(path).map_err(|source| SceneError::TableRead {
+        path: path.to_path_buf(),
+        source,
+    })?;
     let mut rows = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();
@@ -323,24 +333,32 @@ pub fn read_table(path: &Path, columns: usize) -> Result<Vec<Vec<f64>>, String> 
         match vals {
             Ok(v) if v.len() == columns && v.iter().all(|x| x.is_finite()) => rows.push(v),
             Ok(v) => {
-                return Err(format!(
-                    "{}:{}: expected {columns} finite numbers, found {} values",
-                    path.display(),
-                    i + 1,
-                    v.len()
-                ))
+                return Err(SceneError::TableColumns {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    columns,
+                    found: v.len(),
+                })
             }
-            Err(e) => return Err(format!("{}:{}: {e}", path.display(), i + 1)),
+            Err(source) => {
+                return Err(SceneError::TableNumber {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    source,
+                })
+            }
         }
     }
     if rows.is_empty() {
-        return Err(format!("{}: no data rows", path.display()));
+        return Err(SceneError::TableEmpty {
+            path: path.to_path_buf(),
+        });
     }
     Ok(rows)
 }
 
 /// Read a leaf file into discs.
-pub fn read_leaves(path: &Path, columns: LeafColumns) -> Result<Vec<Disc>, String> {
+pub fn read_leaves(path: &Path, columns: LeafColumns) -> Result<Vec<Disc>, SceneError> {
     let rows = read_table(path, 7)?;
     rows.iter()
         .enumerate()
@@ -351,11 +369,11 @@ pub fn read_leaves(path: &Path, columns: LeafColumns) -> Result<Vec<Disc>, Strin
             };
             let nv = DVec3::from_array(n);
             if rad <= 0.0 || nv.length() < 1e-6 {
-                return Err(format!(
-                    "{}: leaf {}: radius {rad} must be > 0 and the normal non-zero",
-                    path.display(),
-                    i + 1
-                ));
+                return Err(SceneError::Leaf {
+                    path: path.to_path_buf(),
+                    leaf: i + 1,
+                    radius: rad,
+                });
             }
             let nv = nv.normalize();
             Ok(Disc {
@@ -480,13 +498,13 @@ pub fn canopy(
     ground: Option<&CanopyGround>,
     padding: Option<([f64; 2], u32)>,
     periodic: Option<[f64; 4]>,
-) -> Result<Scene, String> {
+) -> Result<Scene, SceneError> {
     let t0 = Instant::now();
     let mut templates = Vec::new();
     let mut instances = Vec::new();
     let mut materials: Vec<(String, BrdfSpec)> = Vec::new();
     let offsets: Vec<DVec3> = match (padding, periodic) {
-        (Some(_), Some(_)) => return Err("padding and a periodic cell exclude each other".into()),
+        (Some(_), Some(_)) => return Err(SceneError::PaddingAndPeriodic),
         (None, Some(c)) => {
             let (w, h) = (c[2] - c[0], c[3] - c[1]);
             let mut v = Vec::new();

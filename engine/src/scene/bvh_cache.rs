@@ -33,6 +33,8 @@ use obvhs::aabb::Aabb;
 use obvhs::cwbvh::node::CwBvhNode;
 use obvhs::cwbvh::CwBvh;
 
+use super::error::SceneError;
+
 /// Trees over fewer boxes build in about 0.1 s or less: not cached.
 pub(crate) const MIN_PRIMITIVES: usize = 50_000;
 /// Cache files kept (least recently used removed first), and the most bytes they may hold
@@ -214,8 +216,11 @@ fn parse(bytes: &[u8], key: &[u8; 16]) -> Option<Cached> {
 
 /// Store `c` under `key` in `dir` (atomically), then keep only the [`KEEP`] most recently
 /// used files. Errors are returned for the caller to log; they never stop a run.
-pub(crate) fn store(dir: &Path, key: &[u8; 16], c: &View) -> Result<(), String> {
-    std::fs::create_dir_all(dir).map_err(|e| format!("{}: {e}", dir.display()))?;
+pub(crate) fn store(dir: &Path, key: &[u8; 16], c: &View) -> Result<(), SceneError> {
+    std::fs::create_dir_all(dir).map_err(|source| SceneError::Cache {
+        path: dir.to_path_buf(),
+        source,
+    })?;
     let node_bytes: &[u8] = bytemuck::cast_slice(c.nodes);
     let mut body = Vec::with_capacity(node_bytes.len() + 4 * (c.first.len() + c.second.len()));
     body.extend_from_slice(node_bytes);
@@ -252,7 +257,7 @@ pub(crate) fn store(dir: &Path, key: &[u8; 16], c: &View) -> Result<(), String> 
     let written = std::fs::write(&tmp, &out).and_then(|()| std::fs::rename(&tmp, &path));
     if let Err(e) = written {
         let _ = std::fs::remove_file(&tmp);
-        return Err(format!("{}: {e}", path.display()));
+        return Err(SceneError::Cache { path, source: e });
     }
     prune(dir);
     Ok(())

@@ -89,6 +89,7 @@ use obvhs::cwbvh::CwBvh;
 use obvhs::ray::{Ray, RayHit};
 use obvhs::BvhBuildParams;
 
+use super::error::SceneError;
 use super::sah::SahParams;
 use std::path::PathBuf;
 
@@ -569,7 +570,7 @@ fn to_pairs(nodes: &[Bvh2Node]) -> Tree {
 /// of 7 entries per binary node) to about a third; the boxes are freed before it. A tree deeper
 /// than obvhs' traversal stack allows ([`super::CWBVH_MAX_DEPTH`], only pathological inputs)
 /// is rebuilt with median splits.
-fn build_tlas(aabbs: Vec<Aabb>, cache_dir: Option<PathBuf>) -> Result<Tlas, String> {
+fn build_tlas(aabbs: Vec<Aabb>, cache_dir: Option<PathBuf>) -> Result<Tlas, SceneError> {
     use super::bvh_cache::{self, Kind};
     let n = aabbs.len();
     // A tree built before from exactly these boxes by this build (`bvh_cache.rs`); its
@@ -623,7 +624,7 @@ fn build_tlas(aabbs: Vec<Aabb>, cache_dir: Option<PathBuf>) -> Result<Tlas, Stri
 }
 
 /// [`build_tlas`] without the cache.
-fn build_tlas_uncached(mut aabbs: Vec<Aabb>) -> Result<Tlas, String> {
+fn build_tlas_uncached(mut aabbs: Vec<Aabb>) -> Result<Tlas, SceneError> {
     let n = aabbs.len();
     let params = |balanced| SahParams {
         max_leaf: TLAS_MAX_LEAF,
@@ -663,11 +664,11 @@ fn build_tlas_uncached(mut aabbs: Vec<Aabb>) -> Result<Tlas, String> {
         tlas.depth
     );
     if tlas.depth > super::CWBVH_MAX_DEPTH {
-        return Err(format!(
-            "the top-level BVH over {n} instances has {} levels, more than the {} that obvhs' traversal handles",
-            tlas.depth,
-            super::CWBVH_MAX_DEPTH
-        ));
+        return Err(SceneError::TlasTooDeep {
+            instances: n,
+            depth: tlas.depth,
+            max: super::CWBVH_MAX_DEPTH,
+        });
     }
     Ok(tlas)
 }
@@ -991,12 +992,16 @@ impl InstanceBvh {
         templates: Vec<TemplateGeometry>,
         instances: Vec<(u32, InstanceTransform)>,
         render_origin: DVec3,
-    ) -> Result<Self, String> {
+    ) -> Result<Self, SceneError> {
         if !render_origin.is_finite() {
-            return Err(format!("render origin {render_origin} is not finite"));
+            return Err(SceneError::RenderOrigin {
+                origin: render_origin,
+            });
         }
         if instances.len() > u32::MAX as usize {
-            return Err(format!("{} instances: more than 2³² − 1", instances.len()));
+            return Err(SceneError::TooManyInstances {
+                count: instances.len(),
+            });
         }
         let mut blas = Vec::with_capacity(templates.len());
         for (k, t) in templates.into_iter().enumerate() {
@@ -1021,31 +1026,30 @@ impl InstanceBvh {
                 instances.shrink_to_fit();
             }
             let Some(b) = blas.get(tid as usize) else {
-                return Err(format!(
-                    "instance {i}: template {tid} out of range ({} templates)",
-                    blas.len()
-                ));
+                return Err(SceneError::TemplateOutOfRange {
+                    instance: i,
+                    template: tid,
+                    templates: blas.len(),
+                });
             };
             if !tr.translation.is_finite() {
-                return Err(format!(
-                    "instance {i}: translation {} is not finite",
-                    tr.translation
-                ));
+                return Err(SceneError::Translation {
+                    instance: i,
+                    translation: tr.translation,
+                });
             }
             let l = tr.linear.as_dmat3();
             let det = l.determinant();
             let scale = l.to_cols_array().iter().fold(0.0f64, |m, x| m.max(x.abs()));
             if !det.is_finite() || det.abs() <= 1e-12 * scale.powi(3) || scale == 0.0 {
-                return Err(format!(
-                    "instance {i}: linear part {:?} is singular or not finite",
-                    tr.linear.to_cols_array()
-                ));
+                return Err(SceneError::SingularLinear {
+                    instance: i,
+                    linear: tr.linear.to_cols_array(),
+                });
             }
             let linv = l.inverse().as_mat3();
             if !linv.is_finite() {
-                return Err(format!(
-                    "instance {i}: linear part cannot be inverted in f32"
-                ));
+                return Err(SceneError::NotInvertible { instance: i });
             }
             if b.cut().is_empty() {
                 continue; // no geometry: nothing to hit
@@ -1127,7 +1131,7 @@ impl InstanceBvh {
         })
     }
 
-    fn build_template(k: usize, t: TemplateGeometry) -> Result<TemplateBlas, String> {
+    fn build_template(k: usize, t: TemplateGeometry) -> Result<TemplateBlas, SceneError> {
         match t {
             TemplateGeometry::Triangles {
                 positions,
@@ -1135,27 +1139,36 @@ impl InstanceBvh {
                 materials,
             } => {
                 if materials.len() != indices.len() {
-                    return Err(format!(
-                        "template {k}: {} materials for {} triangles",
-                        materials.len(),
-                        indices.len()
-                    ));
+                    return Err(SceneError::MaterialCount {
+                        template: k,
+                        materials: materials.len(),
+                        primitives: indices.len(),
+                        kind: "triangles",
+                    });
                 }
                 if indices.len() > u32::MAX as usize {
-                    return Err(format!("template {k}: too many triangles"));
+                    return Err(SceneError::TooManyPrimitives {
+                        template: k,
+                        kind: "triangles",
+                    });
                 }
                 let mut tris = Vec::with_capacity(indices.len());
                 for (j, ix) in indices.iter().enumerate() {
                     let mut v = [Vec3::ZERO; 3];
                     for (m, &i) in ix.iter().enumerate() {
                         let Some(p) = positions.get(i as usize) else {
-                            return Err(format!(
-                                "template {k}: triangle {j} has vertex index {i} out of range ({} positions)",
-                                positions.len()
-                            ));
+                            return Err(SceneError::VertexIndex {
+                                template: k,
+                                triangle: j,
+                                vertex: i,
+                                positions: positions.len(),
+                            });
                         };
                         if !finite3(*p) {
-                            return Err(format!("template {k}: vertex {i} is not finite"));
+                            return Err(SceneError::Vertex {
+                                template: k,
+                                vertex: i,
+                            });
                         }
                         v[m] = Vec3::from_array(*p);
                     }
@@ -1169,26 +1182,35 @@ impl InstanceBvh {
             }
             TemplateGeometry::Discs { discs, materials } => {
                 if materials.len() != discs.len() {
-                    return Err(format!(
-                        "template {k}: {} materials for {} discs",
-                        materials.len(),
-                        discs.len()
-                    ));
+                    return Err(SceneError::MaterialCount {
+                        template: k,
+                        materials: materials.len(),
+                        primitives: discs.len(),
+                        kind: "discs",
+                    });
                 }
                 if discs.len() > u32::MAX as usize {
-                    return Err(format!("template {k}: too many discs"));
+                    return Err(SceneError::TooManyPrimitives {
+                        template: k,
+                        kind: "discs",
+                    });
                 }
                 let mut prims = Vec::with_capacity(discs.len());
                 for (j, d) in discs.iter().enumerate() {
                     let n = Vec3::from_array(d.normal).as_dvec3();
                     let len = n.length();
                     if !(finite3(d.centre) && len > 0.0 && len.is_finite()) {
-                        return Err(format!(
-                            "template {k}: disc {j} has a non-finite centre or a zero/non-finite normal"
-                        ));
+                        return Err(SceneError::DiscGeometry {
+                            template: k,
+                            disc: j,
+                        });
                     }
                     if !(d.radius >= 0.0 && d.radius.is_finite()) {
-                        return Err(format!("template {k}: disc {j} has radius {}", d.radius));
+                        return Err(SceneError::DiscRadius {
+                            template: k,
+                            disc: j,
+                            radius: d.radius,
+                        });
                     }
                     prims.push(DiscPrim {
                         c: Vec3::from_array(d.centre),

@@ -27,8 +27,9 @@
 
 use glam::DVec3;
 
+use crate::bsdf::error::check_param;
 use crate::bsdf::tabulated::BrdfTable;
-use crate::bsdf::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, Tabulated};
+use crate::bsdf::{BrdfError, Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, Tabulated};
 use crate::frame::{basis_around, sample_cosine_hemisphere};
 use bundle::BrdfSpec;
 
@@ -60,7 +61,7 @@ impl SurfaceModel {
     /// Build the model of `spec` at `wavelength_nm`; the error says which parameter is wrong.
     /// The ranges are those of `bundle::BRDF_PARAM_RANGES` (checked by the models'
     /// constructors), so a spec that passes `BrdfSpec::validate` builds at every wavelength.
-    pub fn from_spec(spec: &BrdfSpec, wavelength_nm: f64) -> Result<Self, String> {
+    pub fn from_spec(spec: &BrdfSpec, wavelength_nm: f64) -> Result<Self, BrdfError> {
         let at = |s: &bundle::Spectrum| s.at(wavelength_nm);
         Ok(match spec {
             BrdfSpec::Lambertian { reflectance } => {
@@ -72,13 +73,15 @@ impl SurfaceModel {
             } => {
                 let (r, t) = (at(reflectance), at(transmittance));
                 // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`).
-                bundle::check_param("bi_lambertian", "reflectance", "reflectance", r)?;
-                bundle::check_param("bi_lambertian", "transmittance", "transmittance", t)?;
+                check_param("bi_lambertian", "reflectance", "reflectance", r)?;
+                check_param("bi_lambertian", "transmittance", "transmittance", t)?;
                 if r + t > bundle::BI_LAMBERTIAN_MAX_SUM {
-                    return Err(format!(
-                        "bi_lambertian: the sum `reflectance` + `transmittance` = {r} + {t} at {wavelength_nm} nm must not exceed {}",
-                        bundle::BI_LAMBERTIAN_MAX_SUM
-                    ));
+                    return Err(BrdfError::LeafSum {
+                        reflectance: r,
+                        transmittance: t,
+                        wavelength_nm,
+                        max: bundle::BI_LAMBERTIAN_MAX_SUM,
+                    });
                 }
                 SurfaceModel::Leaf {
                     reflectance: r,
@@ -382,6 +385,7 @@ mod tests {
         };
         assert!(SurfaceModel::from_spec(&bad, 550.0)
             .unwrap_err()
+            .to_string()
             .contains("sum"));
         // Opaque surfaces see nothing from behind.
         let lam = SurfaceModel::from_spec(

@@ -8,6 +8,7 @@ pub mod build;
 pub(crate) mod bvh_cache;
 pub mod curvature;
 pub mod emission;
+pub mod error;
 pub mod instances;
 #[cfg(test)]
 mod interleave;
@@ -18,6 +19,7 @@ pub mod terrain;
 pub mod texture;
 pub mod world;
 
+pub use error::SceneError;
 pub use terrain::{TerrainBvh, TerrainHit};
 pub use world::{Scene, SurfaceHit};
 

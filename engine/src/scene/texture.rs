@@ -16,6 +16,8 @@ use std::path::Path;
 
 use gdal::Dataset;
 
+use super::error::SceneError;
+
 /// A north-up georeferenced raster in the bundle's CRS, moved into the scene's local frame:
 /// what reflectance textures and land-surface-temperature maps (`emission.rs`) share.
 #[derive(Clone, Debug)]
@@ -32,49 +34,77 @@ impl GeoRaster {
     /// Read every band of `path` (`what` names it in errors); `wkt` is the bundle's CRS,
     /// `origin` its local-frame origin (working-CRS coordinates). Nodata pixels become NaN
     /// (their count is logged).
-    pub fn read(path: &Path, what: &str, wkt: &str, origin: [f64; 2]) -> Result<GeoRaster, String> {
+    pub fn read(
+        path: &Path,
+        what: &'static str,
+        wkt: &str,
+        origin: [f64; 2],
+    ) -> Result<GeoRaster, SceneError> {
         let name = path.display();
+        let p = || path.to_path_buf();
         if !path.is_file() {
-            return Err(format!("{what} {name}: file not found"));
+            return Err(SceneError::RasterNotFound { what, path: p() });
         }
-        let ds = Dataset::open(path)
-            .map_err(|e| format!("{what} {name}: GDAL cannot open it as a raster ({e})"))?;
+        let ds = Dataset::open(path).map_err(|source| SceneError::RasterOpen {
+            what,
+            path: p(),
+            source,
+        })?;
         let (width, height) = ds.raster_size();
         let nb = ds.raster_count();
         if nb == 0 || width == 0 || height == 0 {
-            return Err(format!("{what} {name} has no pixels"));
+            return Err(SceneError::RasterEmpty { what, path: p() });
         }
         let gt = ds
             .geo_transform()
-            .map_err(|e| format!("{what} {name} has no geotransform: {e}"))?;
+            .map_err(|source| SceneError::RasterGeotransform {
+                what,
+                path: p(),
+                source,
+            })?;
         if gt[2] != 0.0 || gt[4] != 0.0 || gt[1] <= 0.0 || gt[5] >= 0.0 {
-            return Err(format!(
-                "{what} {name} must be north-up (geotransform {gt:?} is rotated or flipped)"
-            ));
+            return Err(SceneError::RasterRotated {
+                what,
+                path: p(),
+                geotransform: gt,
+            });
         }
-        let srs = ds
-            .spatial_ref()
-            .map_err(|e| format!("{what} {name} has no CRS: {e}"))?;
+        let srs = ds.spatial_ref().map_err(|source| SceneError::RasterNoCrs {
+            what,
+            path: p(),
+            source,
+        })?;
         if !wkt.is_empty() {
             let bundle = gdal::spatial_ref::SpatialRef::from_wkt(wkt)
-                .map_err(|e| format!("the bundle's CRS cannot be parsed: {e}"))?;
+                .map_err(|source| SceneError::BundleCrs { source })?;
             if srs != bundle {
-                return Err(format!(
-                    "{what} {name} is not in the bundle's CRS (reproject it, e.g. with gdalwarp -t_srs, to: {})",
-                    bundle.to_proj4().unwrap_or_else(|_| "the bundle's WKT".into())
-                ));
+                return Err(SceneError::RasterCrs {
+                    what,
+                    path: p(),
+                    target: bundle
+                        .to_proj4()
+                        .unwrap_or_else(|_| "the bundle's WKT".into()),
+                });
             }
         }
         let mut bands = Vec::with_capacity(nb);
         let mut nodata_count = 0usize;
         for b in 1..=nb {
-            let band = ds
-                .rasterband(b)
-                .map_err(|e| format!("{what} {name} band {b}: {e}"))?;
+            let band = ds.rasterband(b).map_err(|source| SceneError::RasterBand {
+                what,
+                path: p(),
+                band: b,
+                source,
+            })?;
             let nodata = band.no_data_value();
             let buf = band
                 .read_band_as::<f64>()
-                .map_err(|e| format!("cannot read {what} {name} band {b}: {e}"))?;
+                .map_err(|source| SceneError::RasterRead {
+                    what,
+                    path: p(),
+                    band: b,
+                    source,
+                })?;
             let mut v = Vec::with_capacity(width * height);
             for &x in buf.data() {
                 if nodata.is_some_and(|nd| x == nd || (nd.is_nan() && x.is_nan())) || x.is_nan() {
@@ -130,28 +160,31 @@ impl Texture {
         wavelengths: &[f64],
         wkt: &str,
         origin: [f64; 2],
-    ) -> Result<Texture, String> {
-        let name = path.display();
+    ) -> Result<Texture, SceneError> {
         let raster = GeoRaster::read(path, "texture", wkt, origin)?;
         let nb = raster.bands.len();
         if wavelengths.len() != nb {
-            return Err(format!(
-                "texture {name} has {nb} band(s) but `wavelengths_nm` lists {}",
-                wavelengths.len()
-            ));
+            return Err(SceneError::TextureBands {
+                path: path.to_path_buf(),
+                bands: nb,
+                wavelengths: wavelengths.len(),
+            });
         }
         if wavelengths.windows(2).any(|w| w[1] <= w[0]) {
-            return Err(format!("texture {name}: `wavelengths_nm` must increase"));
+            return Err(SceneError::TextureWavelengths {
+                path: path.to_path_buf(),
+            });
         }
         for (b, band) in raster.bands.iter().enumerate() {
             for (k, &x) in band.iter().enumerate() {
                 if !x.is_nan() && !(0.0..=1.0).contains(&x) {
-                    return Err(format!(
-                        "texture {name}: pixel (row {}, column {}) of band {} is {x}, not a reflectance in [0, 1]",
-                        k / raster.width,
-                        k % raster.width,
-                        b + 1
-                    ));
+                    return Err(SceneError::TexturePixel {
+                        path: path.to_path_buf(),
+                        row: k / raster.width,
+                        column: k % raster.width,
+                        band: b + 1,
+                        value: x,
+                    });
                 }
             }
         }
@@ -197,22 +230,22 @@ pub struct TemperatureMap {
 impl TemperatureMap {
     /// Read `path` (`wkt`: the bundle's CRS, `origin`: its local-frame origin); errors name the
     /// file and, for a bad value, the pixel.
-    pub fn read(path: &Path, wkt: &str, origin: [f64; 2]) -> Result<Self, String> {
+    pub fn read(path: &Path, wkt: &str, origin: [f64; 2]) -> Result<Self, SceneError> {
         let raster = GeoRaster::read(path, "land-surface temperature", wkt, origin)?;
-        let name = path.display();
         if raster.bands.len() != 1 {
-            return Err(format!(
-                "land-surface temperature {name} has {} bands; it needs one (K)",
-                raster.bands.len()
-            ));
+            return Err(SceneError::TemperatureBands {
+                path: path.to_path_buf(),
+                bands: raster.bands.len(),
+            });
         }
         for (k, &v) in raster.bands[0].iter().enumerate() {
             if !(v.is_nan() || (v > 0.0 && v <= 10_000.0)) {
-                return Err(format!(
-                    "land-surface temperature {name}: pixel (row {}, column {}) is {v}, not a temperature in (0, 10000] K",
-                    k / raster.width,
-                    k % raster.width
-                ));
+                return Err(SceneError::TemperaturePixel {
+                    path: path.to_path_buf(),
+                    row: k / raster.width,
+                    column: k % raster.width,
+                    value: v,
+                });
             }
         }
         Ok(TemperatureMap { raster })

@@ -23,6 +23,7 @@
 use glam::DVec3;
 
 use super::curvature::Curvature;
+use super::error::SceneError;
 use super::instances::{InstanceBvh, InstanceHit};
 use super::material::SurfaceModel;
 use super::sun_clearance::SunClearance;
@@ -169,19 +170,13 @@ pub struct MirrorPoint {
 pub const MAX_MIRROR_PLANES: usize = 16;
 
 /// The id of the material named `name` in a scene's table, or an error listing the table.
-pub fn material_id(materials: &[(String, BrdfSpec)], name: &str) -> Result<usize, String> {
+pub fn material_id(materials: &[(String, BrdfSpec)], name: &str) -> Result<usize, SceneError> {
     materials
         .iter()
         .position(|(n, _)| n == name)
-        .ok_or_else(|| {
-            format!(
-                "material `{name}` is not in the bundle (its materials: {})",
-                materials
-                    .iter()
-                    .map(|(n, _)| n.as_str())
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            )
+        .ok_or_else(|| SceneError::UnknownMaterial {
+            name: name.to_string(),
+            known: materials.iter().map(|(n, _)| n.clone()).collect(),
         })
 }
 
@@ -570,7 +565,7 @@ impl Scene {
 
     /// Give the material named `name` the solver `spec` (an error names the scene's materials
     /// when there is no such material).
-    pub fn set_solver(&mut self, name: &str, spec: bundle::SolverSpec) -> Result<(), String> {
+    pub fn set_solver(&mut self, name: &str, spec: bundle::SolverSpec) -> Result<(), SceneError> {
         let id = material_id(&self.materials, name)?;
         let mut table = std::mem::take(&mut self.solvers);
         table.resize(self.materials.len(), bundle::SolverSpec::default());
@@ -694,7 +689,7 @@ impl Scene {
 
     /// Give the material named `name` the temperature `t` (K; an error names the scene's
     /// materials when there is no such material).
-    pub fn set_temperature(&mut self, name: &str, t: f64) -> Result<(), String> {
+    pub fn set_temperature(&mut self, name: &str, t: f64) -> Result<(), SceneError> {
         let id = material_id(&self.materials, name)?;
         self.temperatures.resize(self.materials.len(), None);
         self.temperatures[id] = Some(t);
@@ -722,12 +717,16 @@ impl Scene {
     }
 
     /// The material models at one wavelength, indexed by material id.
-    pub fn models_at(&self, wavelength_nm: f64) -> Result<Vec<SurfaceModel>, String> {
+    pub fn models_at(&self, wavelength_nm: f64) -> Result<Vec<SurfaceModel>, SceneError> {
         self.materials
             .iter()
             .map(|(name, spec)| {
-                SurfaceModel::from_spec(spec, wavelength_nm)
-                    .map_err(|e| format!("material `{name}`: {e}"))
+                SurfaceModel::from_spec(spec, wavelength_nm).map_err(|source| {
+                    SceneError::Material {
+                        name: name.clone(),
+                        source,
+                    }
+                })
             })
             .collect()
     }
