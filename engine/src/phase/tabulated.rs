@@ -308,7 +308,7 @@ impl Tabulated {
             msg,
         };
         let _session = crate::netcdf_session();
-        crate::util::nc_complete::check(path).map_err(content)?;
+        crate::util::nc_complete::check(path).map_err(|e| content(e.to_string()))?;
         let file = netcdf::open(path).map_err(nc_err)?;
         let var = |name: &str| {
             file.variable(name).ok_or_else(|| {
