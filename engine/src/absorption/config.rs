@@ -385,9 +385,9 @@ pub fn resolve_cross_sections(
     for (i, t) in tables.iter().enumerate() {
         let key = format!("atmosphere.cross_sections[{i}]");
         let xs = CrossSection::read(&ctx.file(&t.file), t.column, t.units.to_m2())
-            .map_err(|m| ctx.err(format!("{key}.file"), m))?;
+            .map_err(|e| ctx.err(format!("{key}.file"), e.to_string()))?;
         let cols = layer_columns(at.gas, &t.species, grid)
-            .map_err(|m| ctx.err(format!("{key}.species"), m))?;
+            .map_err(|e| ctx.err(format!("{key}.species"), e.to_string()))?;
         let mut zeroed = Vec::new();
         for (iw, &wl) in wavelengths.iter().enumerate() {
             let Some(sigma) = xs.at(wl) else {

@@ -22,9 +22,60 @@
 //! cross-section of the Zawada et al. (2021, AMT 14, 3953) limb benchmark,
 //! `shared/data/spherical_limb_zawada2021/inputs/xsection_rayleigh_ozone.txt` (column 3).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::{integrate_piecewise_linear, AtmosphereProfile};
+
+/// Why a cross-section table or a species' layer columns are refused; the table's errors name
+/// the file and the 1-based line.
+#[derive(Debug, thiserror::Error)]
+pub enum CrossSectionError {
+    #[error("column {column}: σ must be in column 2 or later (column 1 is the wavelength)")]
+    Column { column: usize },
+    #[error("{}: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("{}:{line}: no column {column} ({columns} columns)", path.display())]
+    NoColumn {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        columns: usize,
+    },
+    #[error("{}:{line}: column {column}: `{value}` is not a number", path.display())]
+    NotANumber {
+        path: PathBuf,
+        line: usize,
+        column: usize,
+        value: String,
+    },
+    #[error("{}:{line}: negative cross-section {value}", path.display())]
+    Negative {
+        path: PathBuf,
+        line: usize,
+        value: f64,
+    },
+    #[error("{}:{line}: wavelength {wavelength_nm} nm does not increase", path.display())]
+    NotIncreasing {
+        path: PathBuf,
+        line: usize,
+        wavelength_nm: f64,
+    },
+    #[error("{}: needs at least two rows", path.display())]
+    TooFewRows { path: PathBuf },
+    #[error(
+        "the profile {profile} has no species `{species}` (it has: {})",
+        .available.join(", ")
+    )]
+    NoSpecies {
+        /// The profile's path (or embedded name).
+        profile: String,
+        species: String,
+        available: Vec<String>,
+    },
+}
 
 /// σ(λ) of one species.
 #[derive(Clone, Debug)]
@@ -39,14 +90,15 @@ pub struct CrossSection {
 impl CrossSection {
     /// Read column `column` (1-based; column 1 is the wavelength) of the table at `path`;
     /// `to_m2` converts its unit to m².
-    pub fn read(path: &Path, column: usize, to_m2: f64) -> Result<Self, String> {
+    pub fn read(path: &Path, column: usize, to_m2: f64) -> Result<Self, CrossSectionError> {
         let name = path.display().to_string();
         if column < 2 {
-            return Err(format!(
-                "column {column}: σ must be in column 2 or later (column 1 is the wavelength)"
-            ));
+            return Err(CrossSectionError::Column { column });
         }
-        let text = std::fs::read_to_string(path).map_err(|e| format!("{name}: {e}"))?;
+        let text = std::fs::read_to_string(path).map_err(|source| CrossSectionError::Read {
+            path: path.to_path_buf(),
+            source,
+        })?;
         let (mut wl, mut sigma) = (Vec::new(), Vec::new());
         for (i, line) in text.lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
@@ -57,30 +109,45 @@ impl CrossSection {
                 .split(|c: char| c.is_whitespace() || c == ',')
                 .filter(|s| !s.is_empty())
                 .collect();
-            let num = |k: usize| -> Result<f64, String> {
-                let s = cols.get(k - 1).ok_or_else(|| {
-                    format!("{name}:{}: no column {k} ({} columns)", i + 1, cols.len())
+            let num = |k: usize| -> Result<f64, CrossSectionError> {
+                let s = cols.get(k - 1).ok_or_else(|| CrossSectionError::NoColumn {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    column: k,
+                    columns: cols.len(),
                 })?;
                 s.parse::<f64>()
                     .ok()
                     .filter(|v| v.is_finite())
-                    .ok_or_else(|| format!("{name}:{}: column {k}: `{s}` is not a number", i + 1))
+                    .ok_or_else(|| CrossSectionError::NotANumber {
+                        path: path.to_path_buf(),
+                        line: i + 1,
+                        column: k,
+                        value: s.to_string(),
+                    })
             };
             let (w, s) = (num(1)?, num(column)?);
             if s < 0.0 {
-                return Err(format!("{name}:{}: negative cross-section {s}", i + 1));
+                return Err(CrossSectionError::Negative {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    value: s,
+                });
             }
             if wl.last().is_some_and(|&last| w <= last) {
-                return Err(format!(
-                    "{name}:{}: wavelength {w} nm does not increase",
-                    i + 1
-                ));
+                return Err(CrossSectionError::NotIncreasing {
+                    path: path.to_path_buf(),
+                    line: i + 1,
+                    wavelength_nm: w,
+                });
             }
             wl.push(w);
             sigma.push(s * to_m2);
         }
         if wl.len() < 2 {
-            return Err(format!("{name}: needs at least two rows"));
+            return Err(CrossSectionError::TooFewRows {
+                path: path.to_path_buf(),
+            });
         }
         Ok(Self {
             path: name,
@@ -107,18 +174,14 @@ pub fn layer_columns(
     prof: &AtmosphereProfile,
     species: &str,
     grid: &[(f64, f64)],
-) -> Result<Vec<f64>, String> {
-    let x = prof.mole_fraction(species).ok_or_else(|| {
-        format!(
-            "the profile {} has no species `{species}` (it has: {})",
-            prof.path,
-            prof.mole_fractions
-                .iter()
-                .map(|(n, _)| n.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        )
-    })?;
+) -> Result<Vec<f64>, CrossSectionError> {
+    let x = prof
+        .mole_fraction(species)
+        .ok_or_else(|| CrossSectionError::NoSpecies {
+            profile: prof.path.clone(),
+            species: species.to_string(),
+            available: prof.mole_fractions.iter().map(|(n, _)| n.clone()).collect(),
+        })?;
     let nx: Vec<f64> = prof
         .air_number_density()
         .iter()
@@ -135,7 +198,7 @@ pub fn layer_columns(
 mod tests {
     use super::*;
 
-    fn table(text: &str) -> Result<CrossSection, String> {
+    fn table(text: &str) -> Result<CrossSection, CrossSectionError> {
         let dir = std::env::temp_dir().join(format!("xs-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
         let p = dir.join(format!("t{}.txt", text.len()));
@@ -150,11 +213,11 @@ mod tests {
         assert!((t.at(550.0).unwrap() - 3e-25).abs() < 1e-40);
         assert!((t.at(700.0).unwrap()).abs() < 1e-40);
         assert!(t.at(499.0).is_none() && t.at(f64::NAN).is_none());
-        let e = table("500 1 2e-21\n490 1 3e-21\n").unwrap_err();
+        let e = table("500 1 2e-21\n490 1 3e-21\n").unwrap_err().to_string();
         assert!(e.contains(":2:") && e.contains("does not increase"), "{e}");
-        let e = table("500 1 x\n600 1 1\n").unwrap_err();
+        let e = table("500 1 x\n600 1 1\n").unwrap_err().to_string();
         assert!(e.contains(":1:") && e.contains("column 3"), "{e}");
-        let e = table("500 1\n600 1 1\n").unwrap_err();
+        let e = table("500 1\n600 1 1\n").unwrap_err().to_string();
         assert!(e.contains("no column 3"), "{e}");
     }
 
@@ -175,6 +238,7 @@ mod tests {
         assert!((330.0..360.0).contains(&du), "{du} DU");
         assert!(layer_columns(&th.gas, "XX", &grid)
             .unwrap_err()
+            .to_string()
             .contains("no species `XX`"));
     }
 }

@@ -13,7 +13,23 @@
 
 use super::axsdb::{AxsDatabase, BoundsPolicy, SpectralPoint, ThermoState};
 use super::profile::{integrate_piecewise_linear, AtmosphereProfile};
-use super::Result;
+use super::{AbsorptionError, Result};
+
+/// An absorption coefficient that could not be evaluated at one of the altitudes of a layer
+/// grid: the altitude, its interpolated state, and the database's error.
+#[derive(Debug, thiserror::Error)]
+#[error(
+    "at {:.3} km (p = {:.4e} Pa, T = {:.2} K): {source}",
+    .altitude_m / 1e3,
+    .pressure_pa,
+    .temperature_k
+)]
+pub struct LayerError {
+    pub altitude_m: f64,
+    pub pressure_pa: f64,
+    pub temperature_k: f64,
+    pub source: AbsorptionError,
+}
 
 /// The altitudes and states at which k is evaluated for a layer grid.
 #[derive(Clone, Debug)]
@@ -87,7 +103,7 @@ impl GasColumns {
     pub fn layer_tau_with(
         &self,
         mut k: impl FnMut(&ThermoState<'_>) -> Result<f64>,
-    ) -> std::result::Result<Vec<f64>, String> {
+    ) -> std::result::Result<Vec<f64>, LayerError> {
         let mut ks = Vec::with_capacity(self.z.len());
         for j in 0..self.z.len() {
             let mf: Vec<(&str, f64)> = self
@@ -101,13 +117,11 @@ impl GasColumns {
                 temperature_k: self.t[j],
                 mole_fractions: &mf,
             };
-            let v = k(&state).map_err(|e| {
-                format!(
-                    "at {:.3} km (p = {:.4e} Pa, T = {:.2} K): {e}",
-                    self.z[j] / 1e3,
-                    self.p[j],
-                    self.t[j]
-                )
+            let v = k(&state).map_err(|source| LayerError {
+                altitude_m: self.z[j],
+                pressure_pa: self.p[j],
+                temperature_k: self.t[j],
+                source,
             })?;
             ks.push(v.max(0.0));
         }
@@ -124,7 +138,7 @@ impl GasColumns {
         db: &AxsDatabase,
         at: SpectralPoint,
         bounds: BoundsPolicy,
-    ) -> std::result::Result<Vec<f64>, String> {
+    ) -> std::result::Result<Vec<f64>, LayerError> {
         self.layer_tau_with(|s| db.absorption_coefficient(s, at, bounds))
     }
 }
@@ -187,7 +201,8 @@ mod tests {
                     Ok(1.0)
                 }
             })
-            .unwrap_err();
+            .unwrap_err()
+            .to_string();
         assert!(e.starts_with("at 10.000 km"), "{e}");
     }
 }

@@ -149,10 +149,10 @@ pub(crate) fn read_f64(var: &netcdf::Variable<'_>, path: &str) -> Result<Vec<f64
 
 /// Open a netCDF file.
 pub(crate) fn open_nc(path: &std::path::Path) -> Result<netcdf::File> {
-    crate::util::nc_complete::check(path).map_err(|message| AbsorptionError::Format {
+    crate::util::nc_complete::check(path).map_err(|e| AbsorptionError::Format {
         path: path.display().to_string(),
         variable: "(file)".into(),
-        message,
+        message: e.to_string(),
     })?;
     netcdf::open(path).map_err(|source| AbsorptionError::Netcdf {
         path: path.display().to_string(),

@@ -29,6 +29,15 @@ use super::{
     read_f64, read_scaled, units_of, AbsorptionError, Result,
 };
 
+/// Altitudes that are not strictly monotonic ([`AtmosphereProfile::make_ascending`]): `level`
+/// (0-based, after putting the levels in ascending order) does not lie above the one below.
+#[derive(Debug, thiserror::Error)]
+#[error("altitudes are not strictly monotonic")]
+pub struct AltitudeOrderError {
+    pub level: usize,
+    pub altitude_m: f64,
+}
+
 /// A profile on levels, ascending in altitude.
 #[derive(Clone, Debug)]
 pub struct AtmosphereProfile {
@@ -155,18 +164,17 @@ impl AtmosphereProfile {
             number_density_m3: n,
             mole_fractions: x,
         };
-        prof.make_ascending()
-            .map_err(|message| AbsorptionError::Format {
-                path: prof.path.clone(),
-                variable: "z".into(),
-                message,
-            })?;
+        prof.make_ascending().map_err(|e| AbsorptionError::Format {
+            path: prof.path.clone(),
+            variable: "z".into(),
+            message: e.to_string(),
+        })?;
         Ok(prof)
     }
 
     /// Put the levels in ascending altitude (reversing every per-level array of a descending
     /// profile); an error if the altitudes are then not strictly increasing.
-    pub fn make_ascending(&mut self) -> std::result::Result<(), String> {
+    pub fn make_ascending(&mut self) -> std::result::Result<(), AltitudeOrderError> {
         if self.altitude_m.len() >= 2 && self.altitude_m[0] > self.altitude_m[1] {
             self.altitude_m.reverse();
             self.pressure_pa.reverse();
@@ -178,8 +186,11 @@ impl AtmosphereProfile {
                 v.reverse();
             }
         }
-        if self.altitude_m.windows(2).any(|w| w[1] <= w[0]) {
-            return Err("altitudes are not strictly monotonic".into());
+        if let Some(i) = self.altitude_m.windows(2).position(|w| w[1] <= w[0]) {
+            return Err(AltitudeOrderError {
+                level: i + 1,
+                altitude_m: self.altitude_m[i + 1],
+            });
         }
         Ok(())
     }

@@ -379,7 +379,7 @@ impl AtmosphereConfig {
                 // boundaries of every computational layer: the source is linear in optical
                 // depth inside each (the DISORT convention at computational levels).
                 let thermo = super::thermo::load(profile, ctx.base)
-                    .map_err(|m| ctx.err("atmosphere.profile", m))?;
+                    .map_err(|e| ctx.err("atmosphere.profile", e.to_string()))?;
                 let gas = &thermo.gas;
                 let t_at = |z: f64| -> f64 {
                     let zs = &gas.altitude_m;
@@ -499,7 +499,7 @@ impl AtmosphereConfig {
                 cross_sections,
             } => {
                 let mut thermo = super::thermo::load(profile, ctx.base)
-                    .map_err(|m| ctx.err("atmosphere.profile", m))?;
+                    .map_err(|e| ctx.err("atmosphere.profile", e.to_string()))?;
                 super::thermo::rescale(&mut thermo, rescale).map_err(|(k, m)| ctx.err(k, m))?;
                 let bounds = absorption_bounds.policy();
                 let prof = thermo.rayleigh.clone();

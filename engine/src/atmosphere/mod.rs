@@ -21,7 +21,77 @@ pub mod particles;
 pub mod spherical;
 pub mod thermo;
 
+use std::path::PathBuf;
+
+use crate::absorption::AbsorptionError;
 use crate::phase::PhaseFunction;
+
+/// Why a thermophysical profile (`atmosphere.profile`: embedded AFGL table, joseki netCDF or
+/// user CSV; `molecular.rs`, `thermo.rs`) cannot be loaded.
+#[derive(Debug, thiserror::Error)]
+pub enum ProfileError {
+    /// Not one of the embedded profiles (`Profile::builtin`); `known` lists them.
+    #[error("unknown profile \"{name}\" (known: {})", .known.join(", "))]
+    UnknownBuiltin {
+        name: String,
+        known: Vec<&'static str>,
+    },
+    /// Neither an embedded name nor a `.nc` or `.csv` file (`thermo::load`).
+    #[error(
+        "unknown profile \"{spec}\" (known: {}; or a joseki netCDF `.nc` or a `.csv` table)",
+        .known.join(", ")
+    )]
+    UnknownSpec {
+        spec: String,
+        known: Vec<&'static str>,
+    },
+    /// An embedded AFGL table without its species tables.
+    #[error("unknown profile \"{name}\"")]
+    UnknownEmbedded { name: String },
+    /// An AFGL-style table (`Profile::from_csv`) without a header line.
+    #[error("empty profile")]
+    Empty { name: String },
+    #[error("no column `{column}`")]
+    NoColumn { name: String, column: String },
+    /// `row` counts the header as row 1; `column` is 1-based.
+    #[error("row {row}: bad number in column {column}")]
+    BadNumber {
+        name: String,
+        row: usize,
+        column: usize,
+    },
+    #[error("altitudes must increase and number densities be positive")]
+    NotIncreasing { name: String },
+    /// An embedded table that does not parse (the table's own message).
+    #[error("{source}")]
+    EmbeddedTable {
+        name: String,
+        source: thermo::TableError,
+    },
+    #[error("embedded {name}: no column {column}")]
+    EmbeddedColumn { name: String, column: String },
+    #[error("embedded {name}: tables 1 and 2a have different levels")]
+    EmbeddedLevels { name: String },
+    /// A joseki / Eradiate netCDF profile.
+    #[error(transparent)]
+    Netcdf(AbsorptionError),
+    #[error("{}: cannot read: {source}", path.display())]
+    Read {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// A user CSV table that is refused.
+    #[error("{}: {source}", path.display())]
+    UserTable {
+        path: PathBuf,
+        source: thermo::TableError,
+    },
+    /// `path`: the profile's path as it records it.
+    #[error(
+        "{path}: the air number density must be positive at every level (a level has p = 0 or n = 0)"
+    )]
+    NonPositiveDensity { path: String },
+}
 
 /// One homogeneous layer's optics at one wavelength.
 #[derive(Clone, Debug)]

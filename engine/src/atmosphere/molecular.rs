@@ -19,6 +19,8 @@
 //! Peck & Reeder (1972) J. Opt. Soc. Am. 62:958; Bodhaine et al. (1999) J. Atmos. Ocean. Tech.
 //! 16:1854.
 
+use super::ProfileError;
+
 /// The six AFGL 1986 profiles: (config name, CSV text).
 pub const PROFILES: [(&str, &str); 6] = [
     (
@@ -101,20 +103,22 @@ pub struct Profile {
 
 impl Profile {
     /// One of the embedded profiles, by config name.
-    pub fn builtin(name: &str) -> Result<Profile, String> {
+    pub fn builtin(name: &str) -> Result<Profile, ProfileError> {
         let (_, text) = PROFILES.iter().find(|(n, _)| *n == name).ok_or_else(|| {
-            let known: Vec<&str> = PROFILES.iter().map(|p| p.0).collect();
-            format!("unknown profile \"{name}\" (known: {})", known.join(", "))
+            ProfileError::UnknownBuiltin {
+                name: name.to_string(),
+                known: PROFILES.iter().map(|p| p.0).collect(),
+            }
         })?;
         Self::from_csv(name, text)
     }
 
     /// Parse AFGL-style CSV with columns `z` (km) and `n` (cm⁻³) among others.
-    pub fn from_csv(name: &str, text: &str) -> Result<Profile, String> {
+    pub fn from_csv(name: &str, text: &str) -> Result<Profile, ProfileError> {
         let mut lines = text.lines().filter(|l| !l.trim().is_empty());
         let header: Vec<&str> = lines
             .next()
-            .ok_or("empty profile")?
+            .ok_or_else(|| ProfileError::Empty { name: name.into() })?
             .split(',')
             .map(str::trim)
             .collect();
@@ -122,18 +126,23 @@ impl Profile {
             header
                 .iter()
                 .position(|h| h.eq_ignore_ascii_case(c))
-                .ok_or(format!("no column `{c}`"))
+                .ok_or_else(|| ProfileError::NoColumn {
+                    name: name.into(),
+                    column: c.into(),
+                })
         };
         let (iz, in_) = (col("z")?, col("n")?);
         let (mut z, mut n) = (Vec::new(), Vec::new());
         for (k, l) in lines.enumerate() {
             let f: Vec<&str> = l.split(',').collect();
-            let parse = |i: usize| -> Result<f64, String> {
-                f.get(i).and_then(|v| v.trim().parse().ok()).ok_or(format!(
-                    "row {}: bad number in column {}",
-                    k + 2,
-                    i + 1
-                ))
+            let parse = |i: usize| -> Result<f64, ProfileError> {
+                f.get(i).and_then(|v| v.trim().parse().ok()).ok_or_else(|| {
+                    ProfileError::BadNumber {
+                        name: name.into(),
+                        row: k + 2,
+                        column: i + 1,
+                    }
+                })
             };
             z.push(parse(iz)? * 1e3);
             n.push(parse(in_)? * 1e6);
@@ -142,7 +151,7 @@ impl Profile {
             || z.windows(2).any(|w| w[1] <= w[0])
             || n.iter().any(|v| v.is_nan() || *v <= 0.0)
         {
-            return Err("altitudes must increase and number densities be positive".into());
+            return Err(ProfileError::NotIncreasing { name: name.into() });
         }
         Ok(Profile {
             name: name.into(),
@@ -260,6 +269,7 @@ mod tests {
         assert!((r - 0.0284).abs() < 1e-4, "{r}");
         assert!(Profile::builtin("nope")
             .unwrap_err()
+            .to_string()
             .contains("afgl_1986-us_standard"));
     }
 }

@@ -293,9 +293,9 @@ impl ParticleDataset {
     pub fn load(path: &Path, size_index: usize) -> Result<Self, DatasetError> {
         let ps = path.display().to_string();
         let _session = crate::netcdf_session();
-        crate::util::nc_complete::check(path).map_err(|msg| DatasetError::Content {
+        crate::util::nc_complete::check(path).map_err(|e| DatasetError::Content {
             path: ps.clone(),
-            msg,
+            msg: e.to_string(),
         })?;
         let file = netcdf::open(path).map_err(|source| DatasetError::Netcdf {
             path: ps.clone(),
@@ -909,7 +909,7 @@ mod tests {
     /// phase function of `Tabulated::load_libradtran`, and errors naming file and variable.
     #[test]
     fn libradtran_waso() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fixtures/waso.mie.cdf");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../simulator/tests/data/fixtures/waso.mie.cdf");
         let d = ParticleDataset::load(&path, 0).unwrap();
         assert_eq!(d.format, "libRadtran");
         println!(

@@ -43,7 +43,65 @@ use std::path::Path;
 use serde::Deserialize;
 
 use super::molecular::{Profile, PROFILES};
+use super::ProfileError;
+use crate::absorption::profile::AltitudeOrderError;
 use crate::absorption::AtmosphereProfile;
+
+/// What is wrong in a CSV profile table (a user table, or an embedded AFGL one). Lines are
+/// 1-based lines of the text; rows are 1-based data rows.
+#[derive(Debug, thiserror::Error)]
+pub enum TableError {
+    #[error("no header line")]
+    NoHeader,
+    #[error("line {line}: {fields} fields for {columns} columns")]
+    FieldCount {
+        line: usize,
+        fields: usize,
+        columns: usize,
+    },
+    #[error("line {line}: column `{column}`: `{value}` is not a number")]
+    NotANumber {
+        line: usize,
+        column: String,
+        value: String,
+    },
+    #[error("line {line}: column `{column}`: {value} is not finite")]
+    NotFinite {
+        line: usize,
+        column: String,
+        value: f64,
+    },
+    /// `header`: the table's header, comma-separated.
+    #[error("needs a column `{column}` (header: {header})")]
+    MissingColumn { column: String, header: String },
+    #[error("give `p_pa` or `p_hpa`, not both")]
+    BothPressures,
+    #[error("needs a column `p_pa` (or `p_hpa`)")]
+    NoPressure,
+    #[error("species {species} is given twice")]
+    DuplicateSpecies { species: String },
+    #[error(
+        "unknown column `{column}` (expected z_km, p_pa or p_hpa, t_k, n_m3, x_<species> or <species>_ppmv)"
+    )]
+    UnknownColumn { column: String },
+    #[error("needs at least two levels")]
+    TooFewLevels,
+    #[error("column `{column}` is negative at row {row}")]
+    Negative { column: String, row: usize },
+    #[error("column `z_km`: {source}")]
+    Altitudes { source: AltitudeOrderError },
+}
+
+/// A column amount of `atmosphere.rescale` (`"300 DU"`) that does not parse.
+#[derive(Debug, thiserror::Error)]
+pub enum AmountError {
+    #[error("\"{value}\" has no unit (write e.g. \"300 DU\", or a plain number for a factor)")]
+    NoUnit { value: String },
+    #[error("\"{value}\": `{number}` is not a number")]
+    NotANumber { value: String, number: String },
+    #[error("\"{value}\": {amount} must be finite and non-negative")]
+    Negative { value: String, amount: f64 },
+}
 
 /// Table 2a of AFGL 1986 (species common to the six profiles); CO2 and O2 are taken from it.
 const TABLE_2A: &str = include_str!("../../data/afgl_1986/table_2a.csv");
@@ -71,7 +129,7 @@ pub enum RescaleValue {
 }
 
 /// Load the profile named by `spec` (embedded name, or a `.nc`/`.csv` path relative to `base`).
-pub fn load(spec: &str, base: &Path) -> Result<Thermo, String> {
+pub fn load(spec: &str, base: &Path) -> Result<Thermo, ProfileError> {
     if PROFILES.iter().any(|(n, _)| *n == spec) {
         let rayleigh = Profile::builtin(spec)?;
         let gas = builtin_gas(spec)?;
@@ -84,25 +142,29 @@ pub fn load(spec: &str, base: &Path) -> Result<Thermo, String> {
     let lower = spec.to_ascii_lowercase();
     let path = base.join(spec);
     let gas = if lower.ends_with(".nc") {
-        AtmosphereProfile::open(&path).map_err(|e| e.to_string())?
+        AtmosphereProfile::open(&path).map_err(ProfileError::Netcdf)?
     } else if lower.ends_with(".csv") {
-        let text = std::fs::read_to_string(&path)
-            .map_err(|e| format!("{}: cannot read: {e}", path.display()))?;
-        from_user_csv(&path.display().to_string(), &text)
-            .map_err(|m| format!("{}: {m}", path.display()))?
+        let text = std::fs::read_to_string(&path).map_err(|source| ProfileError::Read {
+            path: path.clone(),
+            source,
+        })?;
+        from_user_csv(&path.display().to_string(), &text).map_err(|source| {
+            ProfileError::UserTable {
+                path: path.clone(),
+                source,
+            }
+        })?
     } else {
-        let known: Vec<&str> = PROFILES.iter().map(|p| p.0).collect();
-        return Err(format!(
-            "unknown profile \"{spec}\" (known: {}; or a joseki netCDF `.nc` or a `.csv` table)",
-            known.join(", ")
-        ));
+        return Err(ProfileError::UnknownSpec {
+            spec: spec.to_string(),
+            known: PROFILES.iter().map(|p| p.0).collect(),
+        });
     };
     let n = gas.air_number_density();
     if n.iter().any(|v| *v <= 0.0) {
-        return Err(format!(
-            "{}: the air number density must be positive at every level (a level has p = 0 or n = 0)",
-            gas.path
-        ));
+        return Err(ProfileError::NonPositiveDensity {
+            path: gas.path.clone(),
+        });
     }
     let rayleigh = Profile {
         name: spec.to_string(),
@@ -117,22 +179,26 @@ pub fn load(spec: &str, base: &Path) -> Result<Thermo, String> {
 }
 
 /// The embedded AFGL profile `name` with its species (ppmv → mole fractions, mb → Pa).
-fn builtin_gas(name: &str) -> Result<AtmosphereProfile, String> {
+fn builtin_gas(name: &str) -> Result<AtmosphereProfile, ProfileError> {
     let (_, text) = PROFILES
         .iter()
         .find(|(n, _)| *n == name)
-        .ok_or_else(|| format!("unknown profile \"{name}\""))?;
-    let t1 = parse_csv(text)?;
-    let t2 = parse_csv(TABLE_2A)?;
-    let col = |t: &Csv, c: &str| -> Result<Vec<f64>, String> {
-        t.column(c)
-            .ok_or_else(|| format!("embedded {name}: no column {c}"))
+        .ok_or_else(|| ProfileError::UnknownEmbedded { name: name.into() })?;
+    let embedded = |source| ProfileError::EmbeddedTable {
+        name: name.into(),
+        source,
+    };
+    let t1 = parse_csv(text).map_err(embedded)?;
+    let t2 = parse_csv(TABLE_2A).map_err(embedded)?;
+    let col = |t: &Csv, c: &str| -> Result<Vec<f64>, ProfileError> {
+        t.column(c).ok_or_else(|| ProfileError::EmbeddedColumn {
+            name: name.into(),
+            column: c.into(),
+        })
     };
     let z: Vec<f64> = col(&t1, "z")?.iter().map(|v| v * 1e3).collect();
     if col(&t2, "z")? != col(&t1, "z")? {
-        return Err(format!(
-            "embedded {name}: tables 1 and 2a have different levels"
-        ));
+        return Err(ProfileError::EmbeddedLevels { name: name.into() });
     }
     let mut x = Vec::new();
     for sp in ["H2O", "O3", "N2O", "CO", "CH4"] {
@@ -172,39 +238,36 @@ impl Csv {
     }
 }
 
-fn parse_csv(text: &str) -> Result<Csv, String> {
+fn parse_csv(text: &str) -> Result<Csv, TableError> {
     let mut lines = text
         .lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty() && !l.trim_start().starts_with('#'));
-    let (_, head) = lines.next().ok_or("no header line")?;
+    let (_, head) = lines.next().ok_or(TableError::NoHeader)?;
     let header: Vec<String> = head.split(',').map(|h| h.trim().to_string()).collect();
     let mut rows = Vec::new();
     for (k, l) in lines {
         let f: Vec<&str> = l.split(',').map(str::trim).collect();
         if f.len() != header.len() {
-            return Err(format!(
-                "line {}: {} fields for {} columns",
-                k + 1,
-                f.len(),
-                header.len()
-            ));
+            return Err(TableError::FieldCount {
+                line: k + 1,
+                fields: f.len(),
+                columns: header.len(),
+            });
         }
         let mut row = Vec::with_capacity(f.len());
         for (c, v) in f.iter().enumerate() {
-            let x: f64 = v.parse().map_err(|_| {
-                format!(
-                    "line {}: column `{}`: `{v}` is not a number",
-                    k + 1,
-                    header[c]
-                )
+            let x: f64 = v.parse().map_err(|_| TableError::NotANumber {
+                line: k + 1,
+                column: header[c].clone(),
+                value: v.to_string(),
             })?;
             if !x.is_finite() {
-                return Err(format!(
-                    "line {}: column `{}`: {x} is not finite",
-                    k + 1,
-                    header[c]
-                ));
+                return Err(TableError::NotFinite {
+                    line: k + 1,
+                    column: header[c].clone(),
+                    value: x,
+                });
             }
             row.push(x);
         }
@@ -214,18 +277,20 @@ fn parse_csv(text: &str) -> Result<Csv, String> {
 }
 
 /// A user table (format in the module header).
-pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, String> {
+pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, TableError> {
     let t = parse_csv(text)?;
     let need = |c: &str| {
-        t.column(c)
-            .ok_or_else(|| format!("needs a column `{c}` (header: {})", t.header.join(",")))
+        t.column(c).ok_or_else(|| TableError::MissingColumn {
+            column: c.into(),
+            header: t.header.join(","),
+        })
     };
     let z: Vec<f64> = need("z_km")?.iter().map(|v| v * 1e3).collect();
     let p: Vec<f64> = match (t.column("p_pa"), t.column("p_hpa")) {
         (Some(p), None) => p,
         (None, Some(p)) => p.iter().map(|v| v * 100.0).collect(),
-        (Some(_), Some(_)) => return Err("give `p_pa` or `p_hpa`, not both".into()),
-        (None, None) => return Err("needs a column `p_pa` (or `p_hpa`)".into()),
+        (Some(_), Some(_)) => return Err(TableError::BothPressures),
+        (None, None) => return Err(TableError::NoPressure),
     };
     let tk = need("t_k")?;
     let n = t.column("n_m3");
@@ -238,7 +303,7 @@ pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, String
         };
         if let Some((sp, f)) = sp {
             if x.iter().any(|(s, _): &(String, Vec<f64>)| *s == sp) {
-                return Err(format!("species {sp} is given twice"));
+                return Err(TableError::DuplicateSpecies { species: sp });
             }
             let v = t.column(h).unwrap();
             x.push((sp, v.iter().map(|v| v * f).collect()));
@@ -246,17 +311,18 @@ pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, String
             .iter()
             .any(|k| h.eq_ignore_ascii_case(k))
         {
-            return Err(format!(
-                "unknown column `{h}` (expected z_km, p_pa or p_hpa, t_k, n_m3, x_<species> or <species>_ppmv)"
-            ));
+            return Err(TableError::UnknownColumn { column: h.clone() });
         }
     }
     if z.len() < 2 {
-        return Err("needs at least two levels".into());
+        return Err(TableError::TooFewLevels);
     }
-    let named = |name: &str, v: &[f64]| -> Result<(), String> {
+    let named = |name: &str, v: &[f64]| -> Result<(), TableError> {
         match v.iter().position(|x| *x < 0.0) {
-            Some(i) => Err(format!("column `{name}` is negative at row {}", i + 1)),
+            Some(i) => Err(TableError::Negative {
+                column: name.into(),
+                row: i + 1,
+            }),
             None => Ok(()),
         }
     };
@@ -277,7 +343,7 @@ pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, String
         mole_fractions: x,
     };
     prof.make_ascending()
-        .map_err(|m| format!("column `z_km`: {m}"))?;
+        .map_err(|source| TableError::Altitudes { source })?;
     Ok(prof)
 }
 
@@ -335,7 +401,7 @@ pub fn rescale(
                 *f
             }
             RescaleValue::Amount(s) => {
-                let (v, unit) = parse_amount(s).map_err(|m| (key.clone(), m))?;
+                let (v, unit) = parse_amount(s).map_err(|e| (key.clone(), e.to_string()))?;
                 let target = match unit.as_str() {
                     "du" => Target::Column(v * DOBSON_UNIT),
                     "molec/cm^2" | "molecules/cm^2" => Target::Column(v * 1e4),
@@ -407,21 +473,22 @@ enum Target {
 }
 
 /// "300 DU" → (300, "du"); units lower-cased with spaces removed.
-fn parse_amount(s: &str) -> Result<(f64, String), String> {
+fn parse_amount(s: &str) -> Result<(f64, String), AmountError> {
     let t = s.trim();
     let split = t
         .find(|c: char| c.is_ascii_alphabetic() && c != 'e' && c != 'E')
         .or_else(|| t.find(' '))
-        .ok_or_else(|| {
-            format!("\"{s}\" has no unit (write e.g. \"300 DU\", or a plain number for a factor)")
-        })?;
+        .ok_or_else(|| AmountError::NoUnit { value: s.into() })?;
     let (num, unit) = t.split_at(split);
-    let v: f64 = num
-        .trim()
-        .parse()
-        .map_err(|_| format!("\"{s}\": `{}` is not a number", num.trim()))?;
+    let v: f64 = num.trim().parse().map_err(|_| AmountError::NotANumber {
+        value: s.into(),
+        number: num.trim().into(),
+    })?;
     if !(v.is_finite() && v >= 0.0) {
-        return Err(format!("\"{s}\": {v} must be finite and non-negative"));
+        return Err(AmountError::Negative {
+            value: s.into(),
+            amount: v,
+        });
     }
     let unit: String = unit
         .chars()
@@ -512,7 +579,7 @@ mod tests {
             ("z_km,p_pa,t_k\n0,1,1\n0,1,1\n", "strictly monotonic"),
             ("z_km,p_pa,t_k\n0,-1,1\n1,1,1\n", "negative"),
         ] {
-            let e = from_user_csv("t.csv", bad).unwrap_err();
+            let e = from_user_csv("t.csv", bad).unwrap_err().to_string();
             assert!(e.contains(want), "{e}");
         }
     }

@@ -29,9 +29,13 @@ pub enum BrdfError {
         wavelength_nm: f64,
         max: f64,
     },
-    /// A BRDF table that stops before the end its netCDF header declares (`message` says how).
-    #[error("BRDF table {}: {message}", path.display())]
-    Truncated { path: PathBuf, message: String },
+    /// A BRDF table that stops before the end its netCDF header declares, or whose classic
+    /// header is damaged (`source` says how).
+    #[error("BRDF table {}: {source}", path.display())]
+    Truncated {
+        path: PathBuf,
+        source: crate::util::nc_complete::NcError,
+    },
     /// A BRDF table that netCDF cannot open.
     #[error("cannot read BRDF table {}: {source}", path.display())]
     Open {

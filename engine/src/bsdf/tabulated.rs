@@ -114,7 +114,7 @@ impl BrdfTable {
         let p = || path.to_path_buf();
         let _session = crate::netcdf_session();
         crate::util::nc_complete::check(path)
-            .map_err(|message| BrdfError::Truncated { path: p(), message })?;
+            .map_err(|source| BrdfError::Truncated { path: p(), source })?;
         let file = netcdf::open(path).map_err(|source| BrdfError::Open { path: p(), source })?;
         let get = |name: &'static str, what: &'static str, unit_ok: &dyn Fn(&str) -> bool| {
             let v = file

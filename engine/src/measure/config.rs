@@ -317,7 +317,8 @@ impl MeasureConfig {
                     view_directions(ctx, &key, *construct, *azimuth, zeniths, azimuths)?;
                 let area = match (scene, target_m, target_height_m) {
                     (Some(sc), r, h) => Some(
-                        masked_area(sc, *r, *h).map_err(|m| ctx.err(format!("{key}.target_m"), m))?,
+                        masked_area(sc, *r, *h)
+                            .map_err(|e| ctx.err(format!("{key}.target_m"), e.to_string()))?,
                     ),
                     (None, None, None) => None,
                     (None, _, _) => {
@@ -616,13 +617,34 @@ fn distant_directions(
 /// A (sub-key, message) error of a scene measure; the caller prefixes the measure's key.
 type SubErr = (String, String);
 
+/// Why the target area of a distant measure (`target_m`, an ortho measure's `window_m`) is
+/// refused; the caller names the key.
+#[derive(Debug, thiserror::Error)]
+pub enum AreaError {
+    #[error("must be [xmin, ymin, xmax, ymax] with min < max")]
+    BadRect { rect: [f64; 4] },
+    #[error("target height {height} is not finite")]
+    Height { height: f64 },
+    /// `share`: the fraction of the rectangle inside the bundle's area polygon.
+    #[error(
+        "only {:.3} % of the target area lies inside the bundle's area polygon (manifest [area]); at least {} % must",
+        100.0 * .share,
+        100.0 * MIN_SHARE_INSIDE
+    )]
+    OutsideMask { share: f64 },
+}
+
 /// The target area of a distant measure (default: the scene's extent at its top).
-fn area(scene: &SceneFrame, rect: Option<[f64; 4]>, height: Option<f64>) -> Result<Area, String> {
+fn area(
+    scene: &SceneFrame,
+    rect: Option<[f64; 4]>,
+    height: Option<f64>,
+) -> Result<Area, AreaError> {
     let rect = match rect {
         None => scene.extent,
         Some(r) => {
             if !(r.iter().all(|v| v.is_finite()) && r[0] < r[2] && r[1] < r[3]) {
-                return Err("must be [xmin, ymin, xmax, ymax] with min < max".into());
+                return Err(AreaError::BadRect { rect: r });
             }
             let (a, b) = scene.to_local(r[0], r[1]);
             let (c, d) = scene.to_local(r[2], r[3]);
@@ -631,7 +653,7 @@ fn area(scene: &SceneFrame, rect: Option<[f64; 4]>, height: Option<f64>) -> Resu
     };
     let height = height.unwrap_or(scene.top);
     if !height.is_finite() {
-        return Err(format!("target height {height} is not finite"));
+        return Err(AreaError::Height { height });
     }
     Ok(Area {
         rect,
@@ -646,16 +668,12 @@ fn masked_area(
     scene: &SceneFrame,
     rect: Option<[f64; 4]>,
     height: Option<f64>,
-) -> Result<Area, String> {
+) -> Result<Area, AreaError> {
     let mut a = area(scene, rect, height)?;
     if let Some(m) = &scene.mask {
         let share = m.share_inside(a.rect);
         if share < MIN_SHARE_INSIDE {
-            return Err(format!(
-                "only {:.3} % of the target area lies inside the bundle's area polygon (manifest [area]); at least {} % must",
-                100.0 * share,
-                100.0 * MIN_SHARE_INSIDE
-            ));
+            return Err(AreaError::OutsideMask { share });
         }
         a.mask = Some(m.clone());
     }
@@ -685,7 +703,7 @@ fn ortho_grid(
     if !azimuth.is_finite() {
         return Err(("azimuth".into(), format!("{azimuth} is not finite")));
     }
-    let a = area(scene, window, None).map_err(|m| ("window_m".into(), m))?;
+    let a = area(scene, window, None).map_err(|e| ("window_m".into(), e.to_string()))?;
     let r = a.rect;
     let width = ((r[2] - r[0]) / pixel).ceil().max(1.0) as usize;
     let height = ((r[3] - r[1]) / pixel).ceil().max(1.0) as usize;

@@ -67,9 +67,13 @@ pub enum PhaseTableError {
         path: PathBuf,
         source: netcdf::Error,
     },
-    /// A file that stops before the end its netCDF header declares (`message` says how).
-    #[error("phase-function file {}: {message}", path.display())]
-    Truncated { path: PathBuf, message: String },
+    /// A file that stops before the end its netCDF header declares, or whose classic header is
+    /// damaged (`source` says how).
+    #[error("phase-function file {}: {source}", path.display())]
+    Truncated {
+        path: PathBuf,
+        source: crate::util::nc_complete::NcError,
+    },
     /// A variable of the libRadtran layout is absent.
     #[error(
         "phase-function file {}: has no variable `{variable}` (not a libRadtran Mie file?)",
@@ -390,7 +394,7 @@ impl Tabulated {
         let nc_err = |source| PhaseTableError::Netcdf { path: p(), source };
         let _session = crate::netcdf_session();
         crate::util::nc_complete::check(path)
-            .map_err(|message| PhaseTableError::Truncated { path: p(), message })?;
+            .map_err(|source| PhaseTableError::Truncated { path: p(), source })?;
         let file = netcdf::open(path).map_err(nc_err)?;
         let var = |name: &'static str| {
             file.variable(name)
@@ -567,7 +571,7 @@ mod tests {
     #[test]
     fn reads_libradtran_file() {
         // Fixture copied from shared/data/iprt_phase_a/inputs/waso.mie.cdf (see PROVENANCE.md).
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/fixtures/waso.mie.cdf");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../simulator/tests/data/fixtures/waso.mie.cdf");
         let t = Tabulated::load_libradtran(&path, 350.0, 0).unwrap();
         let p = PhaseFunction::Tabulated(Arc::new(t.clone()));
         assert!((mean_over_sphere(&p) - 1.0).abs() < 1e-6);

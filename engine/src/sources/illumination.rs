@@ -203,7 +203,7 @@ impl IlluminationConfig {
                     elevation.unwrap_or(0.0),
                     None,
                 )
-                .map_err(|m| ctx.err("illumination.time", m))?;
+                .map_err(|e| ctx.err("illumination.time", e.to_string()))?;
                 tracing::debug!(
                     "Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU",
                     p.zenith,
@@ -273,7 +273,7 @@ impl IlluminationConfig {
             distance_au = Some(d);
         }
         if let Some(d) = date {
-            let doy = day_of_year(d).map_err(|m| ctx.err("illumination.date", m))?;
+            let doy = day_of_year(d).map_err(|e| ctx.err("illumination.date", e.to_string()))?;
             sun_distance_factor = Some(earth_sun_factor(doy));
             distance_au = Some(1.0 / earth_sun_factor(doy).sqrt());
         }
@@ -355,7 +355,7 @@ fn irradiance_at(
                             ctx.err(key, format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
                         })?;
                     Spectrum::from_csv(name, &text)
-                        .map_err(|m| ctx.err(key, format!("{}: {m}", fpath.display())))?
+                        .map_err(|e| ctx.err(key, format!("{}: {e}", fpath.display())))?
                 }
             };
             wavelengths
@@ -396,7 +396,7 @@ fn moon_at(
     let lon = ctx.finite("illumination.longitude", lon)?;
     let elevation = ctx.finite("illumination.elevation", elevation)?;
     let p = crate::sources::moon::moon_position(time, lat, lon, elevation)
-        .map_err(|m| ctx.err("illumination.time", m))?;
+        .map_err(|e| ctx.err("illumination.time", e.to_string()))?;
     tracing::info!(
         "Moon at {time}: zenith {:.4}°, azimuth {:.4}°, phase angle {:.2}°, distance {:.0} km",
         p.zenith,
@@ -414,10 +414,11 @@ fn moon_at(
     let irradiance = match given {
         Some(v) => irradiance_at(ctx, &format!("illumination.{given_key}"), v, wavelengths)?,
         None => {
-            let ratio = crate::sources::moon::irradiance_ratio(&p).map_err(|m| {
+            let ratio = crate::sources::moon::irradiance_ratio(&p).map_err(|e| {
                 ctx.err(
                     key,
-                    m.replace("give `irradiance`", &format!("give `{given_key}`")),
+                    e.to_string()
+                        .replace("give `irradiance`", &format!("give `{given_key}`")),
                 )
             })?;
             solar_1au()?.into_iter().map(|e| e * ratio).collect()
@@ -477,15 +478,14 @@ fn resolve_moon(
 mod tests {
     use super::*;
 
-    fn sun(text: &str) -> Result<Sun, String> {
-        let cfg: IlluminationConfig = toml::from_str(text).map_err(|e| e.to_string())?;
+    fn sun(text: &str) -> Result<Sun, ConfigError> {
+        let cfg: IlluminationConfig = toml::from_str(text).unwrap();
         let ctx = ConfigCtx {
             path: std::path::Path::new("exp.toml"),
             base: std::path::Path::new("."),
             nw: 1,
         };
         cfg.resolve(&ctx, &[550.0], false)
-            .map_err(|e| e.to_string())
     }
 
     /// `distance_au` scales E0 by 1/r² with given angles (a PICS acquisition with its own Sun
@@ -502,7 +502,7 @@ mod tests {
             "type = \"directional\"\nzenith = 30.0\ndistance_au = 1.0\ndate = \"2026-01-01\"\n",
             "type = \"directional\"\ntime = \"2026-01-01T12:00:00Z\"\nlatitude = 0.0\nlongitude = 0.0\ndistance_au = 1.0\n",
         ] {
-            let e = sun(bad).unwrap_err();
+            let e = sun(bad).unwrap_err().to_string();
             assert!(e.contains("exp.toml") && e.contains("distance_au"), "{e}");
         }
     }

@@ -36,6 +36,8 @@
 use chrono::{DateTime, Datelike, Utc};
 use glam::DVec3;
 
+use super::EphemerisError;
+
 /// Mean Earth–Moon distance, km (the distance of the magnitude law).
 pub const MEAN_DISTANCE_KM: f64 = 384_400.0;
 /// The Sun's apparent V magnitude at 1 AU.
@@ -156,18 +158,18 @@ pub fn moon_position(
     lat: f64,
     lon: f64,
     elevation: f64,
-) -> Result<MoonPosition, String> {
+) -> Result<MoonPosition, EphemerisError> {
     let t = crate::sources::sun_position::parse_time(time)?;
     if !(-90.0..=90.0).contains(&lat) {
-        return Err(format!("latitude {lat} must lie in [-90, 90]"));
+        return Err(EphemerisError::MoonLatitude { latitude: lat });
     }
     if !(-180.0..=360.0).contains(&lon) {
-        return Err(format!("longitude {lon} must lie in [-180, 360]"));
+        return Err(EphemerisError::MoonLongitude { longitude: lon });
     }
     if !(1900..=2100).contains(&t.year()) {
-        return Err(format!(
-            "{time}: the lunar series and ΔT are used between 1900 and 2100"
-        ));
+        return Err(EphemerisError::OutsideLunarSeries {
+            time: time.to_string(),
+        });
     }
     let jd = julian_day(&t);
     let jde = jd + delta_t(&t) / 86_400.0;
@@ -186,13 +188,10 @@ pub fn moon_position(
 
 /// The lunar irradiance as a fraction of the solar irradiance at 1 AU (the grey magnitude
 /// law of the module documentation). Err for phase angles beyond [`MAX_PHASE_ANGLE`].
-pub fn irradiance_ratio(p: &MoonPosition) -> Result<f64, String> {
+pub fn irradiance_ratio(p: &MoonPosition) -> Result<f64, EphemerisError> {
     let a = p.phase_angle;
     if a > MAX_PHASE_ANGLE {
-        return Err(format!(
-            "the Moon's phase angle is {a:.1}° (a {:.0} % lit crescent); the lunar magnitude law holds up to {MAX_PHASE_ANGLE}°: give `irradiance` (a lunar spectrum)",
-            100.0 * (1.0 + a.to_radians().cos()) / 2.0
-        ));
+        return Err(EphemerisError::PhaseAngle { phase_angle: a });
     }
     let m = -12.73 + 0.026 * a + 4e-9 * a.powi(4);
     Ok(
@@ -308,7 +307,10 @@ mod tests {
             phase_angle: 160.0,
             ..full
         };
-        assert!(irradiance_ratio(&thin).unwrap_err().contains("irradiance"));
+        assert!(irradiance_ratio(&thin)
+            .unwrap_err()
+            .to_string()
+            .contains("irradiance"));
     }
 
     /// Phase angle: Meeus example 48.a (1992 April 12, 0h TD: i = 69.0756°, k = 0.6786), and

@@ -16,6 +16,8 @@ use chrono::{DateTime, Datelike, SecondsFormat, Timelike, Utc};
 use solar_positioning::time::JulianDate;
 use solar_positioning::{Location, SolarPositions};
 
+use super::EphemerisError;
+
 #[derive(Clone, Copy, Debug)]
 pub struct SunPosition {
     /// Topocentric zenith angle, degrees (0–180).
@@ -29,14 +31,12 @@ pub struct SunPosition {
 /// Parse an RFC 3339 time (`2026-06-15T09:45:00Z`, `2026-06-15T11:45:00.5+02:00`; a space or
 /// a lower-case `t` may separate date and time) into UTC. The offset is required: a time without
 /// one is ambiguous.
-pub fn parse_time(t: &str) -> Result<DateTime<Utc>, String> {
+pub fn parse_time(t: &str) -> Result<DateTime<Utc>, EphemerisError> {
     DateTime::parse_from_rfc3339(t.trim())
         .map(|d| d.with_timezone(&Utc))
-        .map_err(|e| {
-            format!(
-                "\"{t}\" is not an RFC 3339 time such as 2026-06-15T09:45:00Z or \
-                 2026-06-15T11:45:00+02:00 ({e})"
-            )
+        .map_err(|source| EphemerisError::BadTime {
+            value: t.to_string(),
+            source,
         })
 }
 
@@ -51,7 +51,7 @@ pub fn unix_seconds(t: &DateTime<Utc>) -> f64 {
 }
 
 /// (y, m, d, h, mi, s) of an RFC 3339 time, in UTC.
-fn parse_utc(t: &str) -> Result<(i32, u32, u32, u32, u32, f64), String> {
+fn parse_utc(t: &str) -> Result<(i32, u32, u32, u32, u32, f64), EphemerisError> {
     let u = parse_time(t)?;
     // A leap second is held by chrono as nanoseconds ≥ 1e9 of second 59.
     let s = f64::from(u.second()) + f64::from(u.nanosecond()) * 1e-9;
@@ -65,23 +65,31 @@ pub fn sun_position(
     longitude: f64,
     elevation: f64,
     delta_t: Option<f64>,
-) -> Result<SunPosition, String> {
+) -> Result<SunPosition, EphemerisError> {
     let (y, mo, d, h, mi, s) = parse_utc(time)?;
     if !(-90.0..=90.0).contains(&latitude) || !(-180.0..=180.0).contains(&longitude) {
-        return Err(format!(
-            "latitude {latitude} / longitude {longitude} out of range"
-        ));
+        return Err(EphemerisError::PlaceOutOfRange {
+            latitude,
+            longitude,
+        });
     }
+    let spa_time = |source| EphemerisError::SpaTime {
+        time: time.to_string(),
+        source,
+    };
     let dt = match delta_t {
         Some(v) => v,
-        None => solar_positioning::delta_t::estimate(y as f64 + (mo as f64 - 0.5) / 12.0)
-            .map_err(|e| e.to_string())?,
+        None => solar_positioning::delta_t::estimate(y as f64 + (mo as f64 - 0.5) / 12.0).map_err(
+            |source| EphemerisError::DeltaT {
+                time: time.to_string(),
+                source,
+            },
+        )?,
     };
-    let jd =
-        JulianDate::from_utc(y, mo, d, h, mi, s, dt).map_err(|e| format!("\"{time}\": {e}"))?;
+    let jd = JulianDate::from_utc(y, mo, d, h, mi, s, dt).map_err(spa_time)?;
     let prepared = SolarPositions::new()
         .for_time_from_julian(jd)
-        .map_err(|e| format!("\"{time}\": {e}"))?;
+        .map_err(spa_time)?;
     let p = prepared
         .at(
             Location {
@@ -91,10 +99,17 @@ pub fn sun_position(
             elevation,
             None,
         )
-        .map_err(|e| e.to_string())?;
+        .map_err(|source| EphemerisError::SpaPlace {
+            latitude,
+            longitude,
+            elevation,
+            source,
+        })?;
     let r = prepared
         .earth_radius_vector()
-        .ok_or("the SPA model gives no Earth–Sun distance")?;
+        .ok_or_else(|| EphemerisError::NoSunDistance {
+            time: time.to_string(),
+        })?;
     Ok(SunPosition {
         zenith: p.zenith_angle(),
         azimuth: p.azimuth(),

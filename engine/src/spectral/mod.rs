@@ -12,6 +12,34 @@ use serde::Deserialize;
 use crate::error::{ConfigCtx, ConfigError};
 use crate::spectral::srf::Srf;
 
+/// Why a spectrum (solar irradiance, `solar.rs`), a spectral response function (`srf.rs`) or a
+/// date for the Earth–Sun distance is refused. `name` is the spectrum's name or file as given.
+#[derive(Debug, thiserror::Error)]
+pub enum SpectrumError {
+    /// `line` is 1-based.
+    #[error("line {line}: expected `wavelength_nm,value` (two numbers, the value non-negative)")]
+    Row { name: String, line: usize },
+    #[error("need at least two rows with increasing wavelengths")]
+    TooFewRows { name: String },
+    #[error("\"{value}\" is not a date of the form YYYY-MM-DD")]
+    BadDate { value: String },
+    /// A number of an embedded SRF table that does not parse.
+    #[error("{source}")]
+    EmbeddedNumber {
+        family: String,
+        value: String,
+        source: std::num::ParseFloatError,
+    },
+    #[error("{family} has no band \"{band}\" (bands: {})", .bands.join(", "))]
+    NoBand {
+        family: String,
+        band: String,
+        bands: Vec<String>,
+    },
+    #[error("the response is zero everywhere")]
+    ZeroResponse { name: String },
+}
+
 /// `mode`: how wavelengths are simulated.
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
 #[serde(rename_all = "snake_case")]
@@ -168,15 +196,17 @@ impl SpectralConfig {
                 (w.clone(), None)
             }
             (None, Some(name)) => {
-                let srf = match Srf::builtin(name).map_err(|m| ctx.err("spectral.srf", m))? {
+                let srf = match Srf::builtin(name)
+                    .map_err(|e| ctx.err("spectral.srf", e.to_string()))?
+                {
                     Some(s) => s,
                     None => {
                         let fpath = ctx.file(name);
                         let text = std::fs::read_to_string(&fpath).map_err(|e| {
                             ctx.err("spectral.srf", format!("\"{name}\" is neither an embedded SRF (e.g. \"sentinel_2a-msi-4\") nor a readable file ({}: {e})", fpath.display()))
                         })?;
-                        Srf::from_csv(name, &text).map_err(|m| {
-                            ctx.err("spectral.srf", format!("{}: {m}", fpath.display()))
+                        Srf::from_csv(name, &text).map_err(|e| {
+                            ctx.err("spectral.srf", format!("{}: {e}", fpath.display()))
                         })?
                     }
                 };
@@ -217,7 +247,9 @@ impl SpectralConfig {
                             format!("{step} nm must be positive"),
                         ));
                     }
-                    let (w, weights) = srf.grid(step).map_err(|m| ctx.err("spectral.srf", m))?;
+                    let (w, weights) = srf
+                        .grid(step)
+                        .map_err(|e| ctx.err("spectral.srf", e.to_string()))?;
                     (
                         w,
                         Some(Band {

@@ -14,6 +14,8 @@
 //! `(r0/r)² = 1.000110 + 0.034221 cos Γ + 0.001280 sin Γ + 0.000719 cos 2Γ + 0.000077 sin 2Γ`,
 //! `Γ = 2π (day_of_year − 1)/365`.
 
+use super::SpectrumError;
+
 /// A tabulated spectrum (nm, W m⁻² nm⁻¹), increasing wavelengths.
 #[derive(Clone, Debug)]
 pub struct Spectrum {
@@ -43,7 +45,7 @@ impl Spectrum {
     }
 
     /// Parse a two-column CSV (`#` comment lines, a header line, then `wavelength_nm,value`).
-    pub fn from_csv(name: &str, text: &str) -> Result<Spectrum, String> {
+    pub fn from_csv(name: &str, text: &str) -> Result<Spectrum, SpectrumError> {
         let (mut w, mut v) = (Vec::new(), Vec::new());
         let mut header_allowed = true;
         for (i, line) in text.lines().enumerate() {
@@ -66,15 +68,15 @@ impl Spectrum {
                     v.push(y);
                 }
                 _ => {
-                    return Err(format!(
-                    "line {}: expected `wavelength_nm,value` (two numbers, the value non-negative)",
-                    i + 1
-                ))
+                    return Err(SpectrumError::Row {
+                        name: name.into(),
+                        line: i + 1,
+                    })
                 }
             }
         }
         if w.len() < 2 || w.windows(2).any(|p| p[1] <= p[0]) {
-            return Err("need at least two rows with increasing wavelengths".into());
+            return Err(SpectrumError::TooFewRows { name: name.into() });
         }
         Ok(Spectrum {
             name: name.into(),
@@ -97,8 +99,10 @@ impl Spectrum {
 }
 
 /// Day of year (1–366) of a `YYYY-MM-DD` date.
-pub fn day_of_year(date: &str) -> Result<u32, String> {
-    let bad = || format!("\"{date}\" is not a date of the form YYYY-MM-DD");
+pub fn day_of_year(date: &str) -> Result<u32, SpectrumError> {
+    let bad = || SpectrumError::BadDate {
+        value: date.to_string(),
+    };
     let p: Vec<&str> = date.split('-').collect();
     if p.len() != 3 || p[0].len() != 4 || p[1].len() != 2 || p[2].len() != 2 {
         return Err(bad());

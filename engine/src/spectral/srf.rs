@@ -13,6 +13,8 @@
 //! irradiance `E0_b = Σ w_k E0_k / Σ w_k`). Wavelengths are independent runs, so the standard
 //! errors combine in quadrature.
 
+use super::SpectrumError;
+
 const FAMILIES: [(&str, &str); 5] = [
     (
         "sentinel_2a-msi",
@@ -55,7 +57,7 @@ pub struct Srf {
 
 impl Srf {
     /// An embedded SRF by name; `Err` lists what exists when the name is unknown.
-    pub fn builtin(name: &str) -> Result<Option<Srf>, String> {
+    pub fn builtin(name: &str) -> Result<Option<Srf>, SpectrumError> {
         let Some((family, text)) = FAMILIES
             .iter()
             .find(|(f, _)| name.starts_with(&format!("{f}-")))
@@ -81,15 +83,24 @@ impl Srf {
                 bands.push(f[0]);
             }
             if f[0].eq_ignore_ascii_case(&band) {
-                w.push(f[1].parse::<f64>().map_err(|e| e.to_string())?);
-                r.push(f[2].parse::<f64>().map_err(|e| e.to_string())?);
+                let number = |v: &str| {
+                    v.parse::<f64>()
+                        .map_err(|source| SpectrumError::EmbeddedNumber {
+                            family: family.to_string(),
+                            value: v.to_string(),
+                            source,
+                        })
+                };
+                w.push(number(f[1])?);
+                r.push(number(f[2])?);
             }
         }
         if w.is_empty() {
-            return Err(format!(
-                "{family} has no band \"{band}\" (bands: {})",
-                bands.join(", ")
-            ));
+            return Err(SpectrumError::NoBand {
+                family: family.to_string(),
+                band,
+                bands: bands.iter().map(|b| b.to_string()).collect(),
+            });
         }
         Ok(Some(Srf {
             name: name.into(),
@@ -99,7 +110,7 @@ impl Srf {
     }
 
     /// Parse a `wavelength_nm,response` CSV (a header line is skipped).
-    pub fn from_csv(name: &str, text: &str) -> Result<Srf, String> {
+    pub fn from_csv(name: &str, text: &str) -> Result<Srf, SpectrumError> {
         let s = crate::spectral::solar::Spectrum::from_csv(name, text)?;
         Ok(Srf {
             name: name.into(),
@@ -142,12 +153,12 @@ impl Srf {
     }
 
     /// The sampling grid over the support (step `step` nm) and its trapezoid weights.
-    pub fn grid(&self, step: f64) -> Result<(Vec<f64>, Vec<f64>), String> {
-        let first = self
-            .response
-            .iter()
-            .position(|&r| r > 0.0)
-            .ok_or("the response is zero everywhere")?;
+    pub fn grid(&self, step: f64) -> Result<(Vec<f64>, Vec<f64>), SpectrumError> {
+        let first = self.response.iter().position(|&r| r > 0.0).ok_or_else(|| {
+            SpectrumError::ZeroResponse {
+                name: self.name.clone(),
+            }
+        })?;
         let last = self.response.iter().rposition(|&r| r > 0.0).unwrap();
         // The support includes the zero just outside the first and last positive samples.
         let lo = self.wavelength[first.saturating_sub(1)];
@@ -204,7 +215,7 @@ mod tests {
         let a = Srf::builtin("landsat_8-oli-4").unwrap().unwrap();
         let b = Srf::builtin("landsat_8-oli-Red").unwrap().unwrap();
         assert_eq!(a.wavelength, b.wavelength);
-        let e = Srf::builtin("sentinel_2a-msi-13").unwrap_err();
+        let e = Srf::builtin("sentinel_2a-msi-13").unwrap_err().to_string();
         assert!(e.contains("8a"), "{e}");
         assert!(Srf::builtin("my_file.csv").unwrap().is_none());
     }

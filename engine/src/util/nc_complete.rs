@@ -9,7 +9,7 @@
 //! netCDF-4 (HDF5) files are left to HDF5, which reports truncation itself.
 
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 const NC_DIMENSION: u32 = 0x0A;
 const NC_VARIABLE: u32 = 0x0B;
@@ -17,17 +17,72 @@ const NC_ATTRIBUTE: u32 = 0x0C;
 /// Headers larger than this are not classic netCDF headers we can believe.
 const MAX_HEADER: u64 = 64 << 20;
 
+/// Why a classic netCDF file is refused. The messages do not name the file (`path` is kept for
+/// callers that need it): the readers prefix it with their own wording.
+#[derive(Debug, thiserror::Error)]
+pub enum NcError {
+    /// The file's length or header bytes could not be read.
+    #[error("cannot read it: {source}")]
+    Unreadable {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    /// The header does not parse.
+    #[error("damaged classic netCDF header ({source})")]
+    Header { path: PathBuf, source: HeaderError },
+    /// The file is shorter than its header declares.
+    #[error(
+        "truncated: its header declares {needed} bytes (variable `{variable}` ends there), the file has {length}; copy it again"
+    )]
+    Truncated {
+        path: PathBuf,
+        needed: u64,
+        length: u64,
+        /// The variable that ends last.
+        variable: String,
+    },
+}
+
+/// What is wrong in a classic netCDF header; byte offsets count from the start of the file.
+#[derive(Debug, thiserror::Error)]
+pub enum HeaderError {
+    #[error("the header ends early at byte {at}")]
+    EndsEarly { at: usize },
+    #[error("unexpected tag {tag:#x} at byte {at}")]
+    UnexpectedTag { tag: u32, at: usize },
+    #[error("unknown type {ty}")]
+    UnknownType { ty: u32 },
+    #[error("an attribute size overflows")]
+    AttributeSizeOverflow,
+    /// The padded size of an attribute overflows.
+    #[error("overflow")]
+    PaddingOverflow,
+    #[error("an attribute is too large")]
+    AttributeTooLarge,
+    #[error("variable `{variable}` names dimension {id} of {count}")]
+    NoSuchDimension {
+        variable: String,
+        id: usize,
+        count: usize,
+    },
+    #[error("a variable size overflows")]
+    VariableSizeOverflow,
+    #[error("variable `{variable}` ends beyond 2^64 bytes")]
+    EndsBeyond { variable: String },
+}
+
 /// Checks that `path`, if it is a classic-format netCDF file, holds every byte its header
 /// declares. `Ok` for netCDF-4/HDF5 and other files (their readers check them).
-pub fn check(path: &Path) -> Result<(), String> {
+pub fn check(path: &Path) -> Result<(), NcError> {
     // A file that cannot be opened is left to the netCDF reader, which names the cause.
     let Ok(mut f) = std::fs::File::open(path) else {
         return Ok(());
     };
-    let len = f
-        .metadata()
-        .map_err(|e| format!("cannot read it: {e}"))?
-        .len();
+    let unreadable = |source| NcError::Unreadable {
+        path: path.to_path_buf(),
+        source,
+    };
+    let len = f.metadata().map_err(unreadable)?.len();
     let mut magic = [0u8; 4];
     if f.read_exact(&mut magic).is_err() || &magic[..3] != b"CDF" {
         return Ok(());
@@ -44,22 +99,30 @@ pub fn check(path: &Path) -> Result<(), String> {
         (&mut f)
             .take(want - have)
             .read_to_end(&mut head)
-            .map_err(|e| format!("cannot read it: {e}"))?;
+            .map_err(unreadable)?;
         match required_length(&head, version) {
             Ok(n) => break n,
-            Err(e)
-                if e.contains("ends early") && head.len() as u64 == want && want < MAX_HEADER =>
+            Err(HeaderError::EndsEarly { .. })
+                if head.len() as u64 == want && want < MAX_HEADER =>
             {
                 want *= 4;
             }
-            Err(e) => return Err(format!("damaged classic netCDF header ({e})")),
+            Err(source) => {
+                return Err(NcError::Header {
+                    path: path.to_path_buf(),
+                    source,
+                })
+            }
         }
     };
     if let Some((need, var)) = need {
         if len < need {
-            return Err(format!(
-                "truncated: its header declares {need} bytes (variable `{var}` ends there), the file has {len}; copy it again"
-            ));
+            return Err(NcError::Truncated {
+                path: path.to_path_buf(),
+                needed: need,
+                length: len,
+                variable: var,
+            });
         }
     }
     Ok(())
@@ -74,46 +137,49 @@ struct Header<'a> {
 }
 
 impl Header<'_> {
-    fn bytes(&mut self, n: usize) -> Result<&[u8], String> {
+    fn bytes(&mut self, n: usize) -> Result<&[u8], HeaderError> {
         let end = self
             .at
             .checked_add(n)
             .filter(|&e| e <= self.b.len())
-            .ok_or_else(|| format!("the header ends early at byte {}", self.at + 4))?;
+            .ok_or(HeaderError::EndsEarly { at: self.at + 4 })?;
         let s = &self.b[self.at..end];
         self.at = end;
         Ok(s)
     }
-    fn u32(&mut self) -> Result<u32, String> {
+    fn u32(&mut self) -> Result<u32, HeaderError> {
         Ok(u32::from_be_bytes(self.bytes(4)?.try_into().unwrap()))
     }
-    fn u64(&mut self) -> Result<u64, String> {
+    fn u64(&mut self) -> Result<u64, HeaderError> {
         Ok(u64::from_be_bytes(self.bytes(8)?.try_into().unwrap()))
     }
     /// NON_NEG: 4 bytes, 8 in CDF-5.
-    fn count(&mut self) -> Result<u64, String> {
+    fn count(&mut self) -> Result<u64, HeaderError> {
         if self.wide {
             self.u64()
         } else {
             self.u32().map(u64::from)
         }
     }
-    fn name(&mut self) -> Result<String, String> {
+    fn name(&mut self) -> Result<String, HeaderError> {
         let n = self.count()? as usize;
         let s = String::from_utf8_lossy(self.bytes(n)?).into_owned();
         self.bytes((4 - n % 4) % 4)?;
         Ok(s)
     }
     /// A tag and its element count (ABSENT is a zero tag and zero count).
-    fn list(&mut self, tag: u32) -> Result<u64, String> {
+    fn list(&mut self, tag: u32) -> Result<u64, HeaderError> {
         let t = self.u32()?;
         let n = self.count()?;
         if t != tag && !(t == 0 && n == 0) {
-            return Err(format!("unexpected tag {t:#x} at byte {}", self.at));
+            return Err(HeaderError::UnexpectedTag {
+                tag: t,
+                at: self.at,
+            });
         }
         Ok(n)
     }
-    fn attributes(&mut self) -> Result<(), String> {
+    fn attributes(&mut self) -> Result<(), HeaderError> {
         let n = self.list(NC_ATTRIBUTE)?;
         for _ in 0..n {
             self.name()?;
@@ -121,27 +187,29 @@ impl Header<'_> {
             let count = self.count()?;
             let size = count
                 .checked_mul(type_size(ty)?)
-                .ok_or("an attribute size overflows")?;
-            let padded = size.checked_add((4 - size % 4) % 4).ok_or("overflow")?;
-            self.bytes(usize::try_from(padded).map_err(|_| "an attribute is too large")?)?;
+                .ok_or(HeaderError::AttributeSizeOverflow)?;
+            let padded = size
+                .checked_add((4 - size % 4) % 4)
+                .ok_or(HeaderError::PaddingOverflow)?;
+            self.bytes(usize::try_from(padded).map_err(|_| HeaderError::AttributeTooLarge)?)?;
         }
         Ok(())
     }
 }
 
-fn type_size(ty: u32) -> Result<u64, String> {
+fn type_size(ty: u32) -> Result<u64, HeaderError> {
     Ok(match ty {
         1 | 2 | 7 => 1,
         3 | 8 => 2,
         4 | 5 | 9 => 4,
         6 | 10 | 11 => 8,
-        t => return Err(format!("unknown type {t}")),
+        t => return Err(HeaderError::UnknownType { ty: t }),
     })
 }
 
 /// The length the file must have and the variable that ends last, or `None` if no variable
 /// holds data (or the record count is "streaming", unknown).
-fn required_length(b: &[u8], version: u8) -> Result<Option<(u64, String)>, String> {
+fn required_length(b: &[u8], version: u8) -> Result<Option<(u64, String)>, HeaderError> {
     let mut h = Header {
         b,
         at: 0,
@@ -174,8 +242,10 @@ fn required_length(b: &[u8], version: u8) -> Result<Option<(u64, String)>, Strin
         let mut shape = Vec::new();
         for _ in 0..rank {
             let id = h.count()? as usize;
-            shape.push(*dims.get(id).ok_or_else(|| {
-                format!("variable `{name}` names dimension {id} of {}", dims.len())
+            shape.push(*dims.get(id).ok_or_else(|| HeaderError::NoSuchDimension {
+                variable: name.clone(),
+                id,
+                count: dims.len(),
             })?);
         }
         h.attributes()?;
@@ -191,7 +261,9 @@ fn required_length(b: &[u8], version: u8) -> Result<Option<(u64, String)>, Strin
         // not trustworthy beyond 4 GiB.
         let mut size = type_size(ty)?;
         for &d in shape.iter().skip(record as usize) {
-            size = size.checked_mul(d).ok_or("a variable size overflows")?;
+            size = size
+                .checked_mul(d)
+                .ok_or(HeaderError::VariableSizeOverflow)?;
         }
         vars.push(Var {
             name,
@@ -220,7 +292,9 @@ fn required_length(b: &[u8], version: u8) -> Result<Option<(u64, String)>, Strin
         } else {
             v.begin.checked_add(v.size)
         }
-        .ok_or_else(|| format!("variable `{}` ends beyond 2^64 bytes", v.name))?;
+        .ok_or_else(|| HeaderError::EndsBeyond {
+            variable: v.name.clone(),
+        })?;
         if need.as_ref().is_none_or(|(n, _)| end > *n) {
             need = Some((end, v.name.clone()));
         }
@@ -275,12 +349,12 @@ mod tests {
         let bytes = std::fs::read(small).unwrap();
         let cut = std::env::temp_dir().join(format!("nc-cut-{}.nc", std::process::id()));
         std::fs::write(&cut, &bytes[..bytes.len() - 1]).unwrap();
-        let e = check(&cut).unwrap_err();
+        let e = check(&cut).unwrap_err().to_string();
         assert!(e.contains("truncated"), "{e}");
         std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
         assert!(check(&cut).is_err());
         std::fs::write(&cut, &bytes[..10]).unwrap();
-        assert!(check(&cut).unwrap_err().contains("header"));
+        assert!(check(&cut).unwrap_err().to_string().contains("header"));
         std::fs::remove_file(&cut).unwrap();
     }
 }

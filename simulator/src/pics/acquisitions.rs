@@ -37,7 +37,7 @@ impl Acquisition {
     /// An acquisition with the Sun computed from `time` (RFC 3339, any offset).
     pub fn new(time: &str, vza: f64, vaa: f64, srf: &str) -> Result<Self, String> {
         Ok(Acquisition {
-            time_utc: format_utc(&parse_time(time)?),
+            time_utc: format_utc(&parse_time(time).map_err(|e| e.to_string())?),
             vza,
             vaa,
             srf: srf.to_string(),
@@ -158,7 +158,8 @@ pub fn parse_acquisitions(text: &str, path: &Path) -> Result<Vec<Acquisition>, C
         let required = |c: &str, v: Option<f64>| {
             v.ok_or_else(|| err(line, Some(c), "is empty (required)".into()))
         };
-        let time = parse_time(cell("time_utc")).map_err(|m| err(line, Some("time_utc"), m))?;
+        let time =
+            parse_time(cell("time_utc")).map_err(|e| err(line, Some("time_utc"), e.to_string()))?;
         let srf = cell("srf");
         if srf.is_empty() {
             return Err(err(line, Some("srf"), "is empty (required)".into()));

@@ -18,6 +18,7 @@ use std::path::Path;
 use super::PicsRow;
 use crate::error::OutputError;
 use engine::sources::sun_position::{parse_time, unix_seconds};
+use engine::sources::EphemerisError;
 
 /// A data column: name, units, long name, accessor.
 type Column = (
@@ -80,7 +81,7 @@ const COLUMNS: [Column; 10] = [
 ];
 
 /// The acquisition times of `rows`, seconds since 1970-01-01 UTC.
-pub fn times(rows: &[PicsRow]) -> Result<Vec<f64>, String> {
+pub fn times(rows: &[PicsRow]) -> Result<Vec<f64>, EphemerisError> {
     rows.iter()
         .map(|r| parse_time(&r.acquisition.time_utc).map(|t| unix_seconds(&t)))
         .collect()
@@ -88,9 +89,9 @@ pub fn times(rows: &[PicsRow]) -> Result<Vec<f64>, String> {
 
 /// Write `pics.nc` at `path`; `site_path` is recorded as an attribute.
 pub fn write_netcdf(path: &Path, site_path: &Path, rows: &[PicsRow]) -> Result<(), OutputError> {
-    let times = times(rows).map_err(|m| OutputError::Io {
+    let times = times(rows).map_err(|e| OutputError::Io {
         path: path.to_path_buf(),
-        source: std::io::Error::new(std::io::ErrorKind::InvalidData, m),
+        source: std::io::Error::new(std::io::ErrorKind::InvalidData, e),
     })?;
     let tmp = crate::products::tmp_path(path);
     let _ = std::fs::remove_file(&tmp);

@@ -137,7 +137,8 @@ pub fn experiment_text(site: &toml::Table, acq: &Acquisition, seed: u64) -> Resu
         Some((sza, saa)) => {
             // The user's Sun angles; the Earth–Sun distance still comes from SPA at the time.
             let p =
-                engine::sources::sun_position::sun_position(&acq.time_utc, lat, lon, elev, None)?;
+                engine::sources::sun_position::sun_position(&acq.time_utc, lat, lon, elev, None)
+                    .map_err(|e| e.to_string())?;
             ill.insert("zenith".into(), toml::Value::Float(sza));
             ill.insert("azimuth".into(), toml::Value::Float(saa));
             ill.insert("distance_au".into(), toml::Value::Float(p.distance_au));
