@@ -49,7 +49,7 @@ fn write_products(
     })?;
     products::write_all(output, exp, rows, band, images)
         .map(|w| w.files)
-        .map_err(|e| e.error)
+        .map_err(|e| *e.error)
 }
 
 #[pymethods]

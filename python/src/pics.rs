@@ -71,7 +71,7 @@ pub fn pics_sweep<'py>(
             pics::acquisition_times(&rows).map_err(|m| engine::error::ConfigError::Invalid {
                 path: site_path.clone(),
                 key: "acquisitions.time_utc".into(),
-                message: m,
+                message: m.to_string(),
             })?;
         Ok(Some(crate::dataset::in_memory(|f| {
             pics::fill_netcdf(f, &site_path, &rows, &times)

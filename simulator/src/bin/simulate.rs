@@ -654,8 +654,10 @@ fn write_products(
     // written: a failure (a full disk) leaves the previous products as they were.
     let written =
         products::write_all(output, exp, &rows, &band, &images).map_err(|e| match e.step {
-            products::WriteStep::Write => explain_write_error(e.error, output),
-            products::WriteStep::Stage | products::WriteStep::Commit => anyhow::Error::new(e.error),
+            products::WriteStep::Write => explain_write_error(*e.error, output),
+            products::WriteStep::Stage | products::WriteStep::Commit => {
+                anyhow::Error::new(*e.error)
+            }
         })?;
     let csv = output.join("results.csv");
     let nc = output.join("results.nc");

@@ -45,12 +45,13 @@ pub enum WriteStep {
     Commit,
 }
 
-/// A failure of [`write_all`] and the step it happened in.
+/// A failure of [`write_all`] and the step it happened in (the error boxed: GDAL's and netCDF's
+/// errors make `OutputError` large).
 #[derive(Debug, thiserror::Error)]
 #[error("{error}")]
 pub struct WriteError {
     pub step: WriteStep,
-    pub error: OutputError,
+    pub error: Box<OutputError>,
 }
 
 /// What [`write_all`] wrote: every product's final path, and per image (in the order of the
@@ -71,7 +72,12 @@ pub fn write_all(
     band: &[BandRow],
     images: &[imagery::ImageProduct],
 ) -> Result<Written, WriteError> {
-    let at = |step| move |error| WriteError { step, error };
+    let at = |step| {
+        move |error| WriteError {
+            step,
+            error: Box::new(error),
+        }
+    };
     let mut stage = staging::Staging::new(output).map_err(at(WriteStep::Stage))?;
     let mut quicklooks = Vec::new();
     (|| -> Result<(), OutputError> {
