@@ -909,7 +909,8 @@ mod tests {
     /// phase function of `Tabulated::load_libradtran`, and errors naming file and variable.
     #[test]
     fn libradtran_waso() {
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../simulator/tests/data/fixtures/waso.mie.cdf");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../simulator/tests/data/fixtures/waso.mie.cdf");
         let d = ParticleDataset::load(&path, 0).unwrap();
         assert_eq!(d.format, "libRadtran");
         println!(

@@ -571,7 +571,8 @@ mod tests {
     #[test]
     fn reads_libradtran_file() {
         // Fixture copied from shared/data/iprt_phase_a/inputs/waso.mie.cdf (see PROVENANCE.md).
-        let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../simulator/tests/data/fixtures/waso.mie.cdf");
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../simulator/tests/data/fixtures/waso.mie.cdf");
         let t = Tabulated::load_libradtran(&path, 350.0, 0).unwrap();
         let p = PhaseFunction::Tabulated(Arc::new(t.clone()));
         assert!((mean_over_sphere(&p) - 1.0).abs() < 1e-6);
