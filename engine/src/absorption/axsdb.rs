@@ -458,29 +458,71 @@ pub struct AbsorptionTable {
     negatives_zeroed: usize,
 }
 
-impl AbsorptionTable {
-    /// Load one axsdb netCDF file (both kinds).
-    pub fn open(path: &Path) -> Result<AbsorptionTable> {
-        Self::open_with(path, Arc::new(Mutex::new(HashSet::new())))
-    }
+/// The axes of a file's `sigma_a`, read from its dimensions and coordinates.
+struct Axes {
+    kind: DatabaseKind,
+    species: Vec<Axis>,
+    fixed_species: Vec<(String, f64)>,
+    p: Axis,
+    t: Axis,
+    w: Axis,
+    w_units: WUnits,
+    g: Option<Axis>,
+}
 
-    fn open_with(path: &Path, warned: Arc<Mutex<HashSet<String>>>) -> Result<AbsorptionTable> {
-        let _session = crate::netcdf_session();
-        let ps = path.display().to_string();
-        let file = open_nc(path)?;
-        let fmt = |variable: &str, message: String| AbsorptionError::Format {
-            path: ps.clone(),
+/// The CKD quadrature error table: the `ng` values and, per file `w` index, the error at each.
+type ErrorTable = (Vec<usize>, Vec<Vec<f64>>);
+
+/// An open database file with the readers of its variables (errors name the file).
+struct TableFile<'f> {
+    file: &'f netcdf::File,
+    ps: &'f str,
+}
+
+impl TableFile<'_> {
+    /// A format error naming the file and `variable`.
+    fn fmt(&self, variable: &str, message: String) -> AbsorptionError {
+        AbsorptionError::Format {
+            path: self.ps.to_string(),
             variable: variable.to_string(),
             message,
-        };
-        let sig = variable(&file, &ps, "sigma_a")?;
+        }
+    }
+
+    /// The values of a coordinate variable.
+    fn coord(&self, name: &str) -> Result<Vec<f64>> {
+        read_f64(&variable(self.file, self.ps, name)?, self.ps)
+    }
+
+    /// The `units` attribute of a variable (required).
+    fn units(&self, name: &str) -> Result<String> {
+        units_of(&variable(self.file, self.ps, name)?).ok_or_else(|| AbsorptionError::Missing {
+            path: self.ps.to_string(),
+            what: "attribute",
+            name: format!("{name}:units"),
+        })
+    }
+
+    /// A units error: `name` has units `u`, `expected` others.
+    fn wrong_units(&self, name: &str, u: String, expected: &'static str) -> AbsorptionError {
+        AbsorptionError::Units {
+            path: self.ps.to_string(),
+            variable: name.to_string(),
+            units: u,
+            expected,
+        }
+    }
+
+    /// The axes of `sigma_a` (species, p, T, spectral, g) from its dimensions, in SI units.
+    fn axes(&self, sig: &netcdf::Variable<'_>) -> Result<Axes> {
+        let ps = self.ps;
         let dims: Vec<(String, usize)> = sig
             .dimensions()
             .iter()
             .map(|d| (d.name(), d.len()))
             .collect();
         if dims.len() > MAX_AXES {
-            return Err(fmt(
+            return Err(self.fmt(
                 "sigma_a",
                 format!("{} dimensions, at most {MAX_AXES} supported", dims.len()),
             ));
@@ -489,77 +531,62 @@ impl AbsorptionTable {
         for i in (0..dims.len().saturating_sub(1)).rev() {
             strides[i] = strides[i + 1] * dims[i + 1].1;
         }
-        let coord =
-            |name: &str| -> Result<Vec<f64>> { read_f64(&variable(&file, &ps, name)?, &ps) };
-        let units = |name: &str| -> Result<String> {
-            units_of(&variable(&file, &ps, name)?).ok_or_else(|| AbsorptionError::Missing {
-                path: ps.clone(),
-                what: "attribute",
-                name: format!("{name}:units"),
-            })
-        };
-        let wrong_units = |name: &str, u: String, expected: &'static str| AbsorptionError::Units {
-            path: ps.clone(),
-            variable: name.to_string(),
-            units: u,
-            expected,
-        };
 
         let (mut species, mut fixed_species) = (Vec::new(), Vec::new());
         let (mut p, mut t, mut w, mut g) = (None, None, None, None);
         let mut w_units = WUnits::Wavelength(1.0);
         for (k, (name, len)) in dims.iter().enumerate() {
-            let values = coord(name)?;
+            let values = self.coord(name)?;
             if values.len() != *len {
-                return Err(fmt(
+                return Err(self.fmt(
                     name,
                     format!("{} values for a dimension of {len}", values.len()),
                 ));
             }
             match name.as_str() {
                 "p" => {
-                    let u = units("p")?;
-                    let f =
-                        pascal_factor(&u).ok_or_else(|| wrong_units("p", u, "a pressure (Pa)"))?;
+                    let u = self.units("p")?;
+                    let f = pascal_factor(&u)
+                        .ok_or_else(|| self.wrong_units("p", u, "a pressure (Pa)"))?;
                     p = Some(Axis::new(
-                        &ps,
+                        ps,
                         "p",
                         values.iter().map(|v| v * f).collect(),
                         strides[k],
                     )?);
                 }
                 "t" => {
-                    let u = units("t")?;
+                    let u = self.units("t")?;
                     if !is_kelvin(&u) {
-                        return Err(wrong_units("t", u, "K"));
+                        return Err(self.wrong_units("t", u, "K"));
                     }
-                    t = Some(Axis::new(&ps, "t", values, strides[k])?);
+                    t = Some(Axis::new(ps, "t", values, strides[k])?);
                 }
                 "w" => {
-                    let u = units("w")?;
+                    let u = self.units("w")?;
                     w_units = WUnits::parse(&u).ok_or_else(|| {
-                        wrong_units("w", u, "a wavelength (nm) or wavenumber (cm^-1)")
+                        self.wrong_units("w", u, "a wavelength (nm) or wavenumber (cm^-1)")
                     })?;
-                    w = Some(Axis::new(&ps, "w", values, strides[k])?);
+                    w = Some(Axis::new(ps, "w", values, strides[k])?);
                 }
                 "g" => {
-                    g = Some(Axis::new(&ps, "g", values, strides[k])?);
+                    g = Some(Axis::new(ps, "g", values, strides[k])?);
                 }
                 x if x.starts_with("x_") => {
-                    if let Ok(u) = units(x) {
+                    if let Ok(u) = self.units(x) {
                         if !is_dimensionless(&u) {
-                            return Err(wrong_units(x, u, "a dimensionless mole fraction"));
+                            return Err(self.wrong_units(x, u, "a dimensionless mole fraction"));
                         }
                     }
                     let sp = x["x_".len()..].to_string();
                     if values.len() == 1 {
                         fixed_species.push((sp, values[0]));
                     } else {
-                        species.push(Axis::new(&ps, x, values, strides[k])?);
+                        species.push(Axis::new(ps, x, values, strides[k])?);
                     }
                 }
                 other => {
-                    return Err(fmt(
+                    return Err(self.fmt(
                         "sigma_a",
                         format!("unknown dimension `{other}` (expected x_*, p, t, w, g)"),
                     ))
@@ -568,7 +595,7 @@ impl AbsorptionTable {
         }
         let need = |a: Option<Axis>, name: &str| {
             a.ok_or_else(|| AbsorptionError::Missing {
-                path: ps.clone(),
+                path: ps.to_string(),
                 what: "dimension of sigma_a",
                 name: name.to_string(),
             })
@@ -576,7 +603,7 @@ impl AbsorptionTable {
         let (p, t, w) = (need(p, "p")?, need(t, "t")?, need(w, "w")?);
         for a in [&p, &t] {
             if a.nodes.len() < 2 {
-                return Err(fmt(&a.name, "needs at least 2 nodes to interpolate".into()));
+                return Err(self.fmt(&a.name, "needs at least 2 nodes to interpolate".into()));
             }
         }
         let kind = if g.is_some() {
@@ -584,22 +611,36 @@ impl AbsorptionTable {
         } else {
             DatabaseKind::Mono
         };
+        Ok(Axes {
+            kind,
+            species,
+            fixed_species,
+            p,
+            t,
+            w,
+            w_units,
+            g,
+        })
+    }
 
-        // The data, in m⁻¹.
-        let u = units_of(&sig).ok_or_else(|| AbsorptionError::Missing {
-            path: ps.clone(),
+    /// The `sigma_a` data in m⁻¹ (negative values set to 0, with a warning) and how many were
+    /// negative.
+    fn sigma_a(&self, sig: &netcdf::Variable<'_>) -> Result<(Vec<f64>, usize)> {
+        let ps = self.ps;
+        let u = units_of(sig).ok_or_else(|| AbsorptionError::Missing {
+            path: ps.to_string(),
             what: "attribute",
             name: "sigma_a:units".into(),
         })?;
         let factor = per_metre_factor(&u).ok_or_else(|| {
-            wrong_units("sigma_a", u, "an absorption coefficient (km^-1 or m^-1)")
+            self.wrong_units("sigma_a", u, "an absorption coefficient (km^-1 or m^-1)")
         })?;
-        let mut data = read_f64(&sig, &ps)?;
+        let mut data = read_f64(sig, ps)?;
         let (mut negatives, mut most_negative) = (0usize, 0.0f64);
         for (index, v) in data.iter_mut().enumerate() {
             if !v.is_finite() {
                 return Err(AbsorptionError::BadValue {
-                    path: ps.clone(),
+                    path: ps.to_string(),
                     variable: "sigma_a".into(),
                     value: *v,
                     index,
@@ -618,84 +659,119 @@ impl AbsorptionTable {
                  file's units) set to 0"
             );
         }
+        Ok((data, negatives))
+    }
+
+    /// The CKD bin bounds [nm] per `w` index (`wbounds`, in its own units or those of `w`).
+    fn wbounds(&self, nw: usize, w_units: WUnits) -> Result<Vec<(f64, f64)>> {
+        let wb = variable(self.file, self.ps, "wbounds")?;
+        let wb_dims: Vec<String> = wb.dimensions().iter().map(|d| d.name()).collect();
+        let vals = read_f64(&wb, self.ps)?;
+        if vals.len() != 2 * nw {
+            return Err(self.fmt(
+                "wbounds",
+                format!("{} values, expected 2 × {nw}", vals.len()),
+            ));
+        }
+        let wbu = units_of(&wb)
+            .map(|u| WUnits::parse(&u))
+            .unwrap_or(Some(w_units));
+        let wbu = wbu.ok_or_else(|| self.fmt("wbounds", "unknown units".into()))?;
+        let w_first = wb_dims.first().map(|d| d == "w").unwrap_or(false);
+        let mut wbounds_nm = Vec::new();
+        for j in 0..nw {
+            let (a, b) = if w_first {
+                (vals[2 * j], vals[2 * j + 1])
+            } else {
+                (vals[j], vals[nw + j])
+            };
+            let (a, b) = (wbu.file_to_nm(a), wbu.file_to_nm(b));
+            if !a.is_finite() || !b.is_finite() {
+                return Err(self.fmt("wbounds", format!("non-finite bound at w index {j}")));
+            }
+            wbounds_nm.push((a.min(b), a.max(b)));
+        }
+        Ok(wbounds_nm)
+    }
+
+    /// The CKD quadrature error table (`ng` values and `error(w, ng)` per `w` index), when the
+    /// file has one.
+    fn error_table(&self, nw: usize) -> Result<Option<ErrorTable>> {
+        let (Some(ev), Some(ngv)) = (self.file.variable("error"), self.file.variable("ng")) else {
+            return Ok(None);
+        };
+        let ng: Vec<usize> = ngv
+            .get_values::<i64, _>(..)
+            .map_err(|source| AbsorptionError::Netcdf {
+                path: self.ps.to_string(),
+                variable: "ng".into(),
+                source,
+            })?
+            .into_iter()
+            .map(|v| v.max(0) as usize)
+            .collect();
+        let e_dims: Vec<String> = ev.dimensions().iter().map(|d| d.name()).collect();
+        let e = read_f64(&ev, self.ps)?;
+        if e.len() != nw * ng.len() {
+            return Err(self.fmt(
+                "error",
+                format!("{} values, expected {nw} × {}", e.len(), ng.len()),
+            ));
+        }
+        let w_first = e_dims.first().map(|d| d == "w").unwrap_or(true);
+        let per_w = (0..nw)
+            .map(|j| {
+                (0..ng.len())
+                    .map(|k| {
+                        if w_first {
+                            e[j * ng.len() + k]
+                        } else {
+                            e[k * nw + j]
+                        }
+                    })
+                    .collect()
+            })
+            .collect();
+        Ok(Some((ng, per_w)))
+    }
+}
+
+impl AbsorptionTable {
+    /// Load one axsdb netCDF file (both kinds).
+    pub fn open(path: &Path) -> Result<AbsorptionTable> {
+        Self::open_with(path, Arc::new(Mutex::new(HashSet::new())))
+    }
+
+    fn open_with(path: &Path, warned: Arc<Mutex<HashSet<String>>>) -> Result<AbsorptionTable> {
+        let _session = crate::netcdf_session();
+        let ps = path.display().to_string();
+        let file = open_nc(path)?;
+        let r = TableFile {
+            file: &file,
+            ps: &ps,
+        };
+        let sig = variable(&file, &ps, "sigma_a")?;
+        let axes = r.axes(&sig)?;
+        let (data, negatives) = r.sigma_a(&sig)?;
 
         // CKD extras: bin bounds and the quadrature error table.
-        let nw = w.nodes.len();
+        let nw = axes.w.nodes.len();
         let mut wbounds_nm = Vec::new();
         let mut error = None;
-        if kind == DatabaseKind::Ckd {
-            let wb = variable(&file, &ps, "wbounds")?;
-            let wb_dims: Vec<String> = wb.dimensions().iter().map(|d| d.name()).collect();
-            let vals = read_f64(&wb, &ps)?;
-            if vals.len() != 2 * nw {
-                return Err(fmt(
-                    "wbounds",
-                    format!("{} values, expected 2 × {nw}", vals.len()),
-                ));
-            }
-            let wbu = units_of(&wb)
-                .map(|u| WUnits::parse(&u))
-                .unwrap_or(Some(w_units));
-            let wbu = wbu.ok_or_else(|| fmt("wbounds", "unknown units".into()))?;
-            let w_first = wb_dims.first().map(|d| d == "w").unwrap_or(false);
-            for j in 0..nw {
-                let (a, b) = if w_first {
-                    (vals[2 * j], vals[2 * j + 1])
-                } else {
-                    (vals[j], vals[nw + j])
-                };
-                let (a, b) = (wbu.file_to_nm(a), wbu.file_to_nm(b));
-                if !a.is_finite() || !b.is_finite() {
-                    return Err(fmt("wbounds", format!("non-finite bound at w index {j}")));
-                }
-                wbounds_nm.push((a.min(b), a.max(b)));
-            }
-            if let (Some(ev), Some(ngv)) = (file.variable("error"), file.variable("ng")) {
-                let ng: Vec<usize> = ngv
-                    .get_values::<i64, _>(..)
-                    .map_err(|source| AbsorptionError::Netcdf {
-                        path: ps.clone(),
-                        variable: "ng".into(),
-                        source,
-                    })?
-                    .into_iter()
-                    .map(|v| v.max(0) as usize)
-                    .collect();
-                let e_dims: Vec<String> = ev.dimensions().iter().map(|d| d.name()).collect();
-                let e = read_f64(&ev, &ps)?;
-                if e.len() != nw * ng.len() {
-                    return Err(fmt(
-                        "error",
-                        format!("{} values, expected {nw} × {}", e.len(), ng.len()),
-                    ));
-                }
-                let w_first = e_dims.first().map(|d| d == "w").unwrap_or(true);
-                let per_w = (0..nw)
-                    .map(|j| {
-                        (0..ng.len())
-                            .map(|k| {
-                                if w_first {
-                                    e[j * ng.len() + k]
-                                } else {
-                                    e[k * nw + j]
-                                }
-                            })
-                            .collect()
-                    })
-                    .collect();
-                error = Some((ng, per_w));
-            }
+        if axes.kind == DatabaseKind::Ckd {
+            wbounds_nm = r.wbounds(nw, axes.w_units)?;
+            error = r.error_table(nw)?;
         }
         Ok(AbsorptionTable {
             path: ps,
-            kind,
-            species,
-            fixed_species,
-            p,
-            t,
-            w,
-            w_units,
-            g,
+            kind: axes.kind,
+            species: axes.species,
+            fixed_species: axes.fixed_species,
+            p: axes.p,
+            t: axes.t,
+            w: axes.w,
+            w_units: axes.w_units,
+            g: axes.g,
             data,
             wbounds_nm,
             error,

@@ -224,126 +224,175 @@ struct SubLayer {
     col: Vec<f64>,
 }
 
-impl Rrtmgp {
-    /// Read the k-distribution file (errors name the file and the variable).
-    pub fn open(path: &Path) -> Result<Rrtmgp> {
-        let _session = crate::netcdf_session();
-        let ps = path.display().to_string();
-        let file = open_nc(path)?;
-        let fmt = |variable: &str, message: String| AbsorptionError::Format {
-            path: ps.clone(),
+/// The reference grids read from the file (pressure, temperature, tropopause).
+struct Grids {
+    ln_p_ref0: f64,
+    d_ln_p: f64,
+    npres: usize,
+    press_ref_trop: f64,
+    itrop: usize,
+    temp_ref: Vec<f64>,
+    d_temp: f64,
+}
+
+/// The bands read from the file.
+struct Bands {
+    /// Length of the `bnd` dimension.
+    nbnd: usize,
+    /// Band limits [cm⁻¹].
+    wavenumber: Vec<(f64, f64)>,
+    /// File g-points [start, end) of each band.
+    gpts: Vec<Range<usize>>,
+    /// Number of g-points.
+    ngpt: usize,
+}
+
+/// The solar source per g-point (shortwave) and the Planck fractions (longwave), if present.
+type Sources = (Option<Vec<f64>>, Option<Vec<f64>>);
+
+/// The table sizes later variables are checked against.
+struct Shape {
+    ntemp: usize,
+    npres: usize,
+    neta: usize,
+    ngpt: usize,
+}
+
+/// An open k-distribution file with checked readers of its variables.
+struct Reader<'f> {
+    file: &'f netcdf::File,
+    ps: &'f str,
+}
+
+impl<'f> Reader<'f> {
+    /// A format error naming the file and `variable`.
+    fn fmt(&self, variable: &str, message: String) -> AbsorptionError {
+        AbsorptionError::Format {
+            path: self.ps.to_string(),
             variable: variable.to_string(),
             message,
-        };
-        // Dimensions of a variable, checked by name.
-        let dims_of = |name: &str, expected: &[&str]| -> Result<Vec<usize>> {
-            let v = variable(&file, &ps, name)?;
-            let names: Vec<String> = v.dimensions().iter().map(|d| d.name()).collect();
-            if names != expected {
-                return Err(fmt(
-                    name,
-                    format!("dimensions {names:?}, expected {expected:?}"),
-                ));
-            }
-            Ok(v.dimensions().iter().map(|d| d.len()).collect())
-        };
-        // Values, checked finite (and non-negative when `nonneg`).
-        let values = |name: &str, nonneg: bool| -> Result<Vec<f64>> {
-            let v = read_f64(&variable(&file, &ps, name)?, &ps)?;
-            if let Some((index, &value)) = v
-                .iter()
-                .enumerate()
-                .find(|(_, x)| !x.is_finite() || (nonneg && **x < 0.0))
-            {
-                return Err(AbsorptionError::BadValue {
-                    path: ps.clone(),
-                    variable: name.to_string(),
-                    value,
-                    index,
-                });
-            }
-            Ok(v)
-        };
-        let ints = |name: &str| -> Result<Vec<i64>> {
-            let v = values(name, false)?;
-            v.iter()
-                .map(|&x| {
-                    if x.fract() == 0.0 {
-                        Ok(x as i64)
-                    } else {
-                        Err(fmt(name, format!("{x} is not an integer")))
-                    }
-                })
-                .collect()
-        };
-        let strings = |name: &str| -> Result<Vec<String>> {
-            let v = variable(&file, &ps, name)?;
-            let d: Vec<usize> = v.dimensions().iter().map(|d| d.len()).collect();
-            if d.len() != 2 {
-                return Err(fmt(name, format!("{} dimensions, expected 2", d.len())));
-            }
-            let raw = v
-                .get_raw_values(..)
-                .map_err(|source| AbsorptionError::Netcdf {
-                    path: ps.clone(),
-                    variable: name.to_string(),
-                    source,
-                })?;
-            Ok(raw
-                .chunks(d[1].max(1))
-                .map(|c| {
-                    String::from_utf8_lossy(c)
-                        .trim_matches(|ch: char| ch == '\0' || ch.is_whitespace())
-                        .to_ascii_lowercase()
-                })
-                .collect())
-        };
-        let scalar = |name: &str| -> Result<f64> {
-            let v = values(name, false)?;
-            v.first()
-                .copied()
-                .ok_or_else(|| fmt(name, "no value".into()))
-        };
+        }
+    }
 
-        // Gases.
-        let gas_names = strings("gas_names")?;
-        let ngas = gas_names.len();
-        let gas_index = |var: &str, name: &str| -> Result<usize> {
-            gas_names
-                .iter()
-                .position(|g| g == name)
-                .map(|i| i + 1)
-                .ok_or_else(|| fmt(var, format!("gas `{name}` is not in `gas_names`")))
-        };
-        let idx_h2o = gas_index("gas_names", "h2o")?;
-        let idx_o2 = gas_index("gas_names", "o2")?;
-        let idx_n2 = gas_index("gas_names", "n2")?;
+    /// Dimensions of a variable, checked by name.
+    fn dims_of(&self, name: &str, expected: &[&str]) -> Result<Vec<usize>> {
+        let v = variable(self.file, self.ps, name)?;
+        let names: Vec<String> = v.dimensions().iter().map(|d| d.name()).collect();
+        if names != expected {
+            return Err(self.fmt(name, format!("dimensions {names:?}, expected {expected:?}")));
+        }
+        Ok(v.dimensions().iter().map(|d| d.len()).collect())
+    }
 
-        // Bands.
-        let d = dims_of("bnd_limits_wavenumber", &["bnd", "pair"])?;
+    /// Values, checked finite (and non-negative when `nonneg`).
+    fn values(&self, name: &str, nonneg: bool) -> Result<Vec<f64>> {
+        let v = read_f64(&variable(self.file, self.ps, name)?, self.ps)?;
+        if let Some((index, &value)) = v
+            .iter()
+            .enumerate()
+            .find(|(_, x)| !x.is_finite() || (nonneg && **x < 0.0))
+        {
+            return Err(AbsorptionError::BadValue {
+                path: self.ps.to_string(),
+                variable: name.to_string(),
+                value,
+                index,
+            });
+        }
+        Ok(v)
+    }
+
+    /// Values checked to be whole numbers.
+    fn ints(&self, name: &str) -> Result<Vec<i64>> {
+        let v = self.values(name, false)?;
+        v.iter()
+            .map(|&x| {
+                if x.fract() == 0.0 {
+                    Ok(x as i64)
+                } else {
+                    Err(self.fmt(name, format!("{x} is not an integer")))
+                }
+            })
+            .collect()
+    }
+
+    /// A 2-D character variable as trimmed, lower-case strings.
+    fn strings(&self, name: &str) -> Result<Vec<String>> {
+        let v = variable(self.file, self.ps, name)?;
+        let d: Vec<usize> = v.dimensions().iter().map(|d| d.len()).collect();
+        if d.len() != 2 {
+            return Err(self.fmt(name, format!("{} dimensions, expected 2", d.len())));
+        }
+        let raw = v
+            .get_raw_values(..)
+            .map_err(|source| AbsorptionError::Netcdf {
+                path: self.ps.to_string(),
+                variable: name.to_string(),
+                source,
+            })?;
+        Ok(raw
+            .chunks(d[1].max(1))
+            .map(|c| {
+                String::from_utf8_lossy(c)
+                    .trim_matches(|ch: char| ch == '\0' || ch.is_whitespace())
+                    .to_ascii_lowercase()
+            })
+            .collect())
+    }
+
+    /// The first value of a variable.
+    fn scalar(&self, name: &str) -> Result<f64> {
+        let v = self.values(name, false)?;
+        v.first()
+            .copied()
+            .ok_or_else(|| self.fmt(name, "no value".into()))
+    }
+
+    /// The `col` index (1-based) of gas `name` in `gas_names`; errors name `var`.
+    fn gas_index(&self, gas_names: &[String], var: &str, name: &str) -> Result<usize> {
+        gas_names
+            .iter()
+            .position(|g| g == name)
+            .map(|i| i + 1)
+            .ok_or_else(|| self.fmt(var, format!("gas `{name}` is not in `gas_names`")))
+    }
+
+    /// The gas names and the indices of H₂O, O₂ and N₂.
+    fn gases(&self) -> Result<(Vec<String>, usize, usize, usize)> {
+        let gas_names = self.strings("gas_names")?;
+        let idx_h2o = self.gas_index(&gas_names, "gas_names", "h2o")?;
+        let idx_o2 = self.gas_index(&gas_names, "gas_names", "o2")?;
+        let idx_n2 = self.gas_index(&gas_names, "gas_names", "n2")?;
+        Ok((gas_names, idx_h2o, idx_o2, idx_n2))
+    }
+
+    /// The band limits, the g-point range of each band and the number of g-points.
+    fn bands(&self) -> Result<Bands> {
+        let d = self.dims_of("bnd_limits_wavenumber", &["bnd", "pair"])?;
         let nbnd = d[0];
-        let wn = values("bnd_limits_wavenumber", true)?;
+        let wn = self.values("bnd_limits_wavenumber", true)?;
         let band_wavenumber: Vec<(f64, f64)> = wn.chunks(2).map(|c| (c[0], c[1])).collect();
         if band_wavenumber.iter().any(|&(a, b)| !(a > 0.0 && b > a))
             || band_wavenumber.windows(2).any(|w| w[1].0 < w[0].1)
         {
-            return Err(fmt(
+            return Err(self.fmt(
                 "bnd_limits_wavenumber",
                 "bands must be positive, increasing and not overlap".into(),
             ));
         }
-        dims_of("bnd_limits_gpt", &["bnd", "pair"])?;
-        let bg = ints("bnd_limits_gpt")?;
-        let ngpt = file
+        self.dims_of("bnd_limits_gpt", &["bnd", "pair"])?;
+        let bg = self.ints("bnd_limits_gpt")?;
+        let ngpt = self
+            .file
             .dimension("gpt")
             .map(|d| d.len())
-            .ok_or_else(|| fmt("gpt", "the file has no `gpt` dimension".into()))?;
+            .ok_or_else(|| self.fmt("gpt", "the file has no `gpt` dimension".into()))?;
         let mut band_gpts = Vec::with_capacity(nbnd);
         let mut next = 0;
         for c in bg.chunks(2) {
             let (a, b) = (c[0] - 1, c[1]);
             if a != next as i64 || b <= a || b > ngpt as i64 {
-                return Err(fmt(
+                return Err(self.fmt(
                     "bnd_limits_gpt",
                     format!(
                         "band g-points {}–{} are not contiguous in 1–{ngpt}",
@@ -355,17 +404,25 @@ impl Rrtmgp {
             next = b as usize;
         }
         if next != ngpt {
-            return Err(fmt(
+            return Err(self.fmt(
                 "bnd_limits_gpt",
                 format!("the bands cover {next} of {ngpt} g-points"),
             ));
         }
+        Ok(Bands {
+            nbnd,
+            wavenumber: band_wavenumber,
+            gpts: band_gpts,
+            ngpt,
+        })
+    }
 
-        // Key species → flavors.
-        dims_of("key_species", &["bnd", "atmos_layer", "pair"])?;
-        let ks = ints("key_species")?;
+    /// The key-species pair (flavor) of each band, lower and upper atmosphere.
+    fn flavors(&self, nbnd: usize, ngas: usize) -> Result<Vec<[[usize; 2]; 2]>> {
+        self.dims_of("key_species", &["bnd", "atmos_layer", "pair"])?;
+        let ks = self.ints("key_species")?;
         if ks.len() != nbnd * 4 {
-            return Err(fmt(
+            return Err(self.fmt(
                 "key_species",
                 format!("{} values for {nbnd} bands", ks.len()),
             ));
@@ -377,10 +434,9 @@ impl Rrtmgp {
                 for (k, fk) in fp.iter_mut().enumerate() {
                     let v = ks[b * 4 + part * 2 + k];
                     if v < 0 || v as usize > ngas {
-                        return Err(fmt(
-                            "key_species",
-                            format!("{v} is not a gas index 0–{ngas}"),
-                        ));
+                        return Err(
+                            self.fmt("key_species", format!("{v} is not a gas index 0–{ngas}"))
+                        );
                     }
                     *fk = v as usize;
                 }
@@ -391,12 +447,15 @@ impl Rrtmgp {
             }
             flavor.push(f);
         }
+        Ok(flavor)
+    }
 
-        // Reference grids.
-        let press_ref = values("press_ref", true)?;
+    /// The reference pressure and temperature grids and the tropopause node.
+    fn grids(&self) -> Result<Grids> {
+        let press_ref = self.values("press_ref", true)?;
         let npres = press_ref.len();
         if npres < 2 || press_ref.iter().any(|&p| p <= 0.0) {
-            return Err(fmt("press_ref", "needs ≥ 2 positive pressures".into()));
+            return Err(self.fmt("press_ref", "needs ≥ 2 positive pressures".into()));
         }
         let ln_p_ref0 = press_ref[0].ln();
         let d_ln_p = (press_ref[npres - 1].ln() - ln_p_ref0) / (npres - 1) as f64;
@@ -406,51 +465,62 @@ impl Rrtmgp {
                 .all(|(i, &x)| (f(x) - f(v[0]) - step * i as f64).abs() <= 1e-6 * step.abs())
         };
         if d_ln_p >= 0.0 || !uniform(&press_ref, &|x| x.ln(), d_ln_p) {
-            return Err(fmt(
+            return Err(self.fmt(
                 "press_ref",
                 "must decrease with a uniform step in ln p (RRTMGP's grid)".into(),
             ));
         }
-        let temp_ref = values("temp_ref", true)?;
+        let temp_ref = self.values("temp_ref", true)?;
         let ntemp = temp_ref.len();
         if ntemp < 2 {
-            return Err(fmt("temp_ref", "needs ≥ 2 temperatures".into()));
+            return Err(self.fmt("temp_ref", "needs ≥ 2 temperatures".into()));
         }
         let d_temp = (temp_ref[ntemp - 1] - temp_ref[0]) / (ntemp - 1) as f64;
         if d_temp <= 0.0 || !uniform(&temp_ref, &|x| x, d_temp) {
-            return Err(fmt(
+            return Err(self.fmt(
                 "temp_ref",
                 "must increase with a uniform step (RRTMGP's grid)".into(),
             ));
         }
-        let press_ref_trop = scalar("press_ref_trop")?;
+        let press_ref_trop = self.scalar("press_ref_trop")?;
         let itrop = press_ref
             .iter()
             .position(|&p| (p / press_ref_trop - 1.0).abs() < 1e-9)
             .filter(|&i| i > 0 && i < npres - 1)
             .ok_or_else(|| {
-                fmt(
+                self.fmt(
                     "press_ref_trop",
                     format!("{press_ref_trop} Pa is not an interior node of `press_ref`"),
                 )
             })?;
+        Ok(Grids {
+            ln_p_ref0,
+            d_ln_p,
+            npres,
+            press_ref_trop,
+            itrop,
+            temp_ref,
+            d_temp,
+        })
+    }
 
-        // vmr_ref.
-        let d = dims_of("vmr_ref", &["temperature", "absorber_ext", "atmos_layer"])?;
+    /// The reference mole ratios, checked positive for every second key species.
+    fn vmr_ref(&self, flavor: &[[[usize; 2]; 2]], ntemp: usize, ngas: usize) -> Result<Vec<f64>> {
+        let d = self.dims_of("vmr_ref", &["temperature", "absorber_ext", "atmos_layer"])?;
         if d != [ntemp, ngas + 1, 2] {
-            return Err(fmt(
+            return Err(self.fmt(
                 "vmr_ref",
                 format!("shape {d:?}, expected [{ntemp}, {}, 2]", ngas + 1),
             ));
         }
-        let vmr_ref = values("vmr_ref", true)?;
-        for f in &flavor {
+        let vmr_ref = self.values("vmr_ref", true)?;
+        for f in flavor {
             for fp in f {
                 for t in 0..ntemp {
                     for part in 0..2 {
                         let v = vmr_ref[(t * (ngas + 1) + fp[1]) * 2 + part];
                         if v <= 0.0 {
-                            return Err(fmt(
+                            return Err(self.fmt(
                                 "vmr_ref",
                                 format!("key species {} has the reference ratio {v}", fp[1]),
                             ));
@@ -459,14 +529,17 @@ impl Rrtmgp {
                 }
             }
         }
+        Ok(vmr_ref)
+    }
 
-        // kmajor.
-        let d = dims_of(
+    /// The number of η nodes and the major-absorber table `kmajor`.
+    fn kmajor(&self, ntemp: usize, npres: usize, ngpt: usize) -> Result<(usize, Vec<f64>)> {
+        let d = self.dims_of(
             "kmajor",
             &["temperature", "pressure_interp", "mixing_fraction", "gpt"],
         )?;
         if d[0] != ntemp || d[1] != npres + 1 || d[3] != ngpt || d[2] < 2 {
-            return Err(fmt(
+            return Err(self.fmt(
                 "kmajor",
                 format!(
                     "shape {d:?}, expected [{ntemp}, {}, neta ≥ 2, {ngpt}]",
@@ -475,117 +548,160 @@ impl Rrtmgp {
             ));
         }
         let neta = d[2];
-        let kmajor = values("kmajor", true)?;
+        let kmajor = self.values("kmajor", true)?;
+        Ok((neta, kmajor))
+    }
 
-        // Minor absorbers.
-        let gas_minor = strings("gas_minor")?;
-        let identifier_minor = strings("identifier_minor")?;
-        let mut minor = Vec::with_capacity(2);
-        for part in ["lower", "upper"] {
-            let kname = format!("kminor_{part}");
-            let d = dims_of(
+    /// The minor-absorber intervals and tables of the lower and upper atmosphere.
+    fn minor_sets(
+        &self,
+        gas_names: &[String],
+        band_gpts: &[Range<usize>],
+        shape: &Shape,
+    ) -> Result<[MinorSet; 2]> {
+        let gas_minor = self.strings("gas_minor")?;
+        let identifier_minor = self.strings("identifier_minor")?;
+        let lower = self.minor_set(
+            "lower",
+            gas_names,
+            &gas_minor,
+            &identifier_minor,
+            band_gpts,
+            shape,
+        )?;
+        let upper = self.minor_set(
+            "upper",
+            gas_names,
+            &gas_minor,
+            &identifier_minor,
+            band_gpts,
+            shape,
+        )?;
+        Ok([lower, upper])
+    }
+
+    /// The minor-absorber intervals and table of one part (`lower` or `upper`).
+    fn minor_set(
+        &self,
+        part: &str,
+        gas_names: &[String],
+        gas_minor: &[String],
+        identifier_minor: &[String],
+        band_gpts: &[Range<usize>],
+        shape: &Shape,
+    ) -> Result<MinorSet> {
+        let &Shape {
+            ntemp, neta, ngpt, ..
+        } = shape;
+        let kname = format!("kminor_{part}");
+        let d = self.dims_of(
+            &kname,
+            &[
+                "temperature",
+                "mixing_fraction",
+                &format!("contributors_{part}"),
+            ],
+        )?;
+        if d[0] != ntemp || d[1] != neta {
+            return Err(self.fmt(
                 &kname,
-                &[
-                    "temperature",
-                    "mixing_fraction",
-                    &format!("contributors_{part}"),
-                ],
-            )?;
-            if d[0] != ntemp || d[1] != neta {
-                return Err(fmt(
-                    &kname,
-                    format!("shape {d:?}, expected [{ntemp}, {neta}, _]"),
-                ));
+                format!("shape {d:?}, expected [{ntemp}, {neta}, _]"),
+            ));
+        }
+        let ncontrib = d[2];
+        let k = self.values(&kname, true)?;
+        let names = self.strings(&format!("minor_gases_{part}"))?;
+        let n = names.len();
+        let limits = self.ints(&format!("minor_limits_gpt_{part}"))?;
+        let dens = self.ints(&format!("minor_scales_with_density_{part}"))?;
+        let compl = self.ints(&format!("scale_by_complement_{part}"))?;
+        let scaling = self.strings(&format!("scaling_gas_{part}"))?;
+        let kstart = self.ints(&format!("kminor_start_{part}"))?;
+        if limits.len() != 2 * n
+            || dens.len() != n
+            || compl.len() != n
+            || scaling.len() != n
+            || kstart.len() != n
+        {
+            return Err(self.fmt(
+                &format!("minor_gases_{part}"),
+                "the minor-absorber variables have different lengths".into(),
+            ));
+        }
+        let mut minors = Vec::with_capacity(n);
+        for i in 0..n {
+            let var = format!("minor_gases_{part}");
+            let id = identifier_minor
+                .iter()
+                .position(|s| *s == names[i])
+                .ok_or_else(|| {
+                    self.fmt(&var, format!("`{}` is not in `identifier_minor`", names[i]))
+                })?;
+            let gname = gas_minor
+                .get(id)
+                .ok_or_else(|| self.fmt("gas_minor", format!("has no entry {id}")))?;
+            let gas = self.gas_index(gas_names, "gas_minor", gname)?;
+            let (a, b) = (limits[2 * i] - 1, limits[2 * i + 1]);
+            let lim_var = format!("minor_limits_gpt_{part}");
+            if a < 0 || b <= a || b as usize > ngpt {
+                return Err(self.fmt(&lim_var, format!("bad g-point range {}–{b}", a + 1)));
             }
-            let ncontrib = d[2];
-            let k = values(&kname, true)?;
-            let names = strings(&format!("minor_gases_{part}"))?;
-            let n = names.len();
-            let limits = ints(&format!("minor_limits_gpt_{part}"))?;
-            let dens = ints(&format!("minor_scales_with_density_{part}"))?;
-            let compl = ints(&format!("scale_by_complement_{part}"))?;
-            let scaling = strings(&format!("scaling_gas_{part}"))?;
-            let kstart = ints(&format!("kminor_start_{part}"))?;
-            if limits.len() != 2 * n
-                || dens.len() != n
-                || compl.len() != n
-                || scaling.len() != n
-                || kstart.len() != n
+            let gpts = a as usize..b as usize;
+            if !band_gpts
+                .iter()
+                .any(|r| r.start <= gpts.start && gpts.end <= r.end)
             {
-                return Err(fmt(
-                    &format!("minor_gases_{part}"),
-                    "the minor-absorber variables have different lengths".into(),
+                return Err(self.fmt(
+                    &lim_var,
+                    format!("g-points {}–{b} span several bands", a + 1),
                 ));
             }
-            let mut minors = Vec::with_capacity(n);
-            for i in 0..n {
-                let var = format!("minor_gases_{part}");
-                let id = identifier_minor
-                    .iter()
-                    .position(|s| *s == names[i])
-                    .ok_or_else(|| {
-                        fmt(&var, format!("`{}` is not in `identifier_minor`", names[i]))
-                    })?;
-                let gname = gas_minor
-                    .get(id)
-                    .ok_or_else(|| fmt("gas_minor", format!("has no entry {id}")))?;
-                let gas = gas_index("gas_minor", gname)?;
-                let (a, b) = (limits[2 * i] - 1, limits[2 * i + 1]);
-                let lim_var = format!("minor_limits_gpt_{part}");
-                if a < 0 || b <= a || b as usize > ngpt {
-                    return Err(fmt(&lim_var, format!("bad g-point range {}–{b}", a + 1)));
-                }
-                let gpts = a as usize..b as usize;
-                if !band_gpts
-                    .iter()
-                    .any(|r| r.start <= gpts.start && gpts.end <= r.end)
-                {
-                    return Err(fmt(
-                        &lim_var,
-                        format!("g-points {}–{b} span several bands", a + 1),
-                    ));
-                }
-                let ks0 = kstart[i] - 1;
-                if ks0 < 0 || ks0 as usize + gpts.len() > ncontrib {
-                    return Err(fmt(
-                        &format!("kminor_start_{part}"),
-                        format!("{} + {} g-points exceeds {ncontrib}", kstart[i], gpts.len()),
-                    ));
-                }
-                let scaling_gas = if scaling[i].is_empty() {
-                    None
-                } else {
-                    Some(gas_index(&format!("scaling_gas_{part}"), &scaling[i])?)
-                };
-                minors.push(Minor {
-                    gas,
-                    gpts,
-                    scales_with_density: dens[i] != 0,
-                    scale_by_complement: compl[i] != 0,
-                    scaling_gas,
-                    kstart: ks0 as usize,
-                });
+            let ks0 = kstart[i] - 1;
+            if ks0 < 0 || ks0 as usize + gpts.len() > ncontrib {
+                return Err(self.fmt(
+                    &format!("kminor_start_{part}"),
+                    format!("{} + {} g-points exceeds {ncontrib}", kstart[i], gpts.len()),
+                ));
             }
-            minor.push(MinorSet {
-                minors,
-                k,
-                ncontrib,
+            let scaling_gas = if scaling[i].is_empty() {
+                None
+            } else {
+                Some(self.gas_index(gas_names, &format!("scaling_gas_{part}"), &scaling[i])?)
+            };
+            minors.push(Minor {
+                gas,
+                gpts,
+                scales_with_density: dens[i] != 0,
+                scale_by_complement: compl[i] != 0,
+                scaling_gas,
+                kstart: ks0 as usize,
             });
         }
-        let upper = minor.pop().expect("two parts");
-        let lower = minor.pop().expect("two parts");
+        Ok(MinorSet {
+            minors,
+            k,
+            ncontrib,
+        })
+    }
 
-        // The shortwave file has the solar source, the longwave file the Planck fractions.
-        let solar_quiet = match file.variable("solar_source_quiet") {
+    /// The solar source (shortwave files) and the Planck fractions (longwave files).
+    fn sources(&self, band_gpts: &[Range<usize>], shape: &Shape) -> Result<Sources> {
+        let &Shape {
+            ntemp,
+            npres,
+            neta,
+            ngpt,
+        } = shape;
+        let solar_quiet = match self.file.variable("solar_source_quiet") {
             None => None,
             Some(_) => {
-                if dims_of("solar_source_quiet", &["gpt"])?[0] != ngpt {
-                    return Err(fmt("solar_source_quiet", format!("expected {ngpt} values")));
+                if self.dims_of("solar_source_quiet", &["gpt"])?[0] != ngpt {
+                    return Err(self.fmt("solar_source_quiet", format!("expected {ngpt} values")));
                 }
-                let s = values("solar_source_quiet", true)?;
+                let s = self.values("solar_source_quiet", true)?;
                 for (b, r) in band_gpts.iter().enumerate() {
                     if s[r.clone()].iter().sum::<f64>() <= 0.0 {
-                        return Err(fmt(
+                        return Err(self.fmt(
                             "solar_source_quiet",
                             format!("band {} (file order) has no solar irradiance", b + 1),
                         ));
@@ -594,15 +710,15 @@ impl Rrtmgp {
                 Some(s)
             }
         };
-        let planck_fraction = match file.variable("plank_fraction") {
+        let planck_fraction = match self.file.variable("plank_fraction") {
             None => None,
             Some(_) => {
-                let d = dims_of(
+                let d = self.dims_of(
                     "plank_fraction",
                     &["temperature", "pressure_interp", "mixing_fraction", "gpt"],
                 )?;
                 if d != [ntemp, npres + 1, neta, ngpt] {
-                    return Err(fmt(
+                    return Err(self.fmt(
                         "plank_fraction",
                         format!(
                             "shape {d:?}, expected [{ntemp}, {}, {neta}, {ngpt}] (as `kmajor`)",
@@ -610,15 +726,51 @@ impl Rrtmgp {
                         ),
                     ));
                 }
-                Some(values("plank_fraction", true)?)
+                Some(self.values("plank_fraction", true)?)
             }
         };
         if solar_quiet.is_none() && planck_fraction.is_none() {
-            return Err(fmt(
+            return Err(self.fmt(
                 "solar_source_quiet",
                 "the file has neither a solar source (`solar_source_quiet`, shortwave) nor Planck fractions (`plank_fraction`, longwave)".into(),
             ));
         }
+        Ok((solar_quiet, planck_fraction))
+    }
+}
+
+impl Rrtmgp {
+    /// Read the k-distribution file (errors name the file and the variable).
+    pub fn open(path: &Path) -> Result<Rrtmgp> {
+        let _session = crate::netcdf_session();
+        let ps = path.display().to_string();
+        let file = open_nc(path)?;
+        let r = Reader {
+            file: &file,
+            ps: &ps,
+        };
+
+        let (gas_names, idx_h2o, idx_o2, idx_n2) = r.gases()?;
+        let ngas = gas_names.len();
+        let Bands {
+            nbnd,
+            wavenumber: band_wavenumber,
+            gpts: band_gpts,
+            ngpt,
+        } = r.bands()?;
+        let flavor = r.flavors(nbnd, ngas)?;
+        let grids = r.grids()?;
+        let ntemp = grids.temp_ref.len();
+        let vmr_ref = r.vmr_ref(&flavor, ntemp, ngas)?;
+        let (neta, kmajor) = r.kmajor(ntemp, grids.npres, ngpt)?;
+        let shape = Shape {
+            ntemp,
+            npres: grids.npres,
+            neta,
+            ngpt,
+        };
+        let [lower, upper] = r.minor_sets(&gas_names, &band_gpts, &shape)?;
+        let (solar_quiet, planck_fraction) = r.sources(&band_gpts, &shape)?;
 
         Ok(Rrtmgp {
             path: ps,
@@ -629,13 +781,13 @@ impl Rrtmgp {
             idx_h2o,
             idx_o2,
             idx_n2,
-            ln_p_ref0,
-            d_ln_p,
-            npres,
-            press_ref_trop,
-            itrop,
-            temp_ref,
-            d_temp,
+            ln_p_ref0: grids.ln_p_ref0,
+            d_ln_p: grids.d_ln_p,
+            npres: grids.npres,
+            press_ref_trop: grids.press_ref_trop,
+            itrop: grids.itrop,
+            temp_ref: grids.temp_ref,
+            d_temp: grids.d_temp,
             neta,
             ngpt,
             vmr_ref,

@@ -13,18 +13,19 @@ use std::sync::Arc;
 
 pub use super::experiment::Experiment;
 use super::*;
-use crate::absorption::config::ckd_bins;
+use crate::absorption::config::{ckd_bins, GPoint};
 use crate::atmosphere::config::AtmosphereLayers;
 use crate::atmosphere::spherical::SphericalShell;
-use crate::atmosphere::PlaneParallel;
+use crate::atmosphere::{LayerOptics, PlaneParallel};
 use crate::bsdf::{Bsdf, Lambertian};
 use crate::error::{ConfigCtx, ConfigError};
 pub use crate::integrator::settings::IntegratorKind;
 use crate::integrator::settings::RunShape;
 use crate::measure::config::{relax_targets_for_band, round_to_g_point_cycles, MeasureContext};
-use crate::measure::MeasureKind;
+use crate::measure::{Measure, MeasureKind};
 use crate::optics::OpticalState;
 use crate::scene::Scene;
+use crate::sources::illumination::Sun;
 pub use crate::spectral::Band;
 
 impl Experiment {
@@ -261,89 +262,19 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         Some(a) => a.resolve(&ctx, &geometry, &wavelengths, cfg.mode, &cfg.spectral)?,
     };
 
-    // Surface, per wavelength.
-    let surfaces: Vec<Bsdf> = match (&cfg.surface, &cfg.scene) {
-        (Some(_), Some(_)) => {
-            return Err(ctx.err(
-                "surface",
-                "is replaced by the scene: give `scene` or `surface`, not both (a bundle's surroundings are `scene.background`)",
-            ))
-        }
-        (None, None) => return Err(ctx.err("surface", "is required (or a 3D `scene`)")),
-        (None, Some(_)) => vec![Bsdf::Lambertian(Lambertian::new(0.0).expect("valid")); nw],
-        (Some(s), None) => s.resolve(&ctx, "surface", &wavelengths)?,
-    };
+    let surfaces = resolve_surfaces(&cfg, &ctx, &wavelengths)?;
 
     let sun = cfg
         .illumination
         .resolve(&ctx, &wavelengths, planet_radius.is_some())?;
     let thermal = super::thermal::resolve(&cfg, &ctx, &geometry, &wavelengths, &sun)?;
 
-    // Scene.
-    let scene: Option<Arc<Scene>> = match &cfg.scene {
-        None => None,
-        Some(sc) => {
-            // Plane-parallel layers refuse a Sun below the horizon already; in spherical shells a
-            // scene may lie in twilight (the shells' sunlit air lights it; radiances only).
-            if sun.dir.z <= 1e-6 && planet_radius.is_none() {
-                return Err(ctx.err(
-                    "illumination.zenith",
-                    "the Sun must be above the horizon to render a 3D scene in plane-parallel layers (use geometry.type = \"spherical_shell\" for twilight)",
-                ));
-            }
-            // Under a spherical shell the scene is bent onto the planet (scene::curvature).
-            let bend = planet_radius.map(|radius| crate::scene::curvature::Curvature { radius });
-            let built =
-                scene::build_scene_shared(sc, &base, bend).map_err(|(k, m)| ctx.err(k, m))?;
-            // (Bent scenes hold bent heights: their lowest point sags below its altitude.)
-            if cfg.atmosphere.is_some()
-                && built.curvature.is_none()
-                && built.z_range[0] < ground - 1e-6
-            {
-                tracing::warn!(
-                    "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
-                    built.z_range[0],
-                    ground
-                );
-            }
-            Some(built)
-        }
-    };
-
+    let scene = resolve_scene(&cfg, &ctx, &sun, planet_radius, ground)?;
     if let (Some(_), Some(sc)) = (&thermal, &scene) {
-        let missing: Vec<&str> = sc
-            .materials
-            .iter()
-            .enumerate()
-            .filter(|(id, _)| sc.temperature(*id as u16).is_none())
-            .map(|(_, (name, _))| name.as_str())
-            .collect();
-        if !missing.is_empty() {
-            return Err(ctx.err(
-                "scene.temperatures",
-                format!(
-                    "thermal emission (`emission = true`) needs a temperature (K) for every material of the scene (the bundle's `temperature`, or `[scene.temperatures]`); missing: {}",
-                    missing.join(", ")
-                ),
-            ));
-        }
+        check_scene_temperatures(&ctx, sc)?;
     }
 
-    // Measures.
-    if cfg.measures.is_empty() {
-        return Err(ctx.err("measures", "at least one measure is required"));
-    }
-    let frame = scene.as_deref().map(scene::frame);
-    let at = MeasureContext {
-        ground,
-        toa,
-        scene: frame.as_ref(),
-    };
-    let mut measures = Vec::with_capacity(cfg.measures.len());
-    for (im, m) in cfg.measures.iter().enumerate() {
-        let m = m.resolve(&ctx, im, &measures, &at)?;
-        measures.push(m);
-    }
+    let mut measures = resolve_measures(&cfg, &ctx, ground, toa, scene.as_deref())?;
 
     let mut integrator = IntegratorSettings::from_config(
         &ctx,
@@ -366,198 +297,27 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     if let Some(t) = &thermal {
         t.check_integrator(&ctx, &mut integrator, &measures)?;
     }
-    if sun.moon.is_some() && cfg.emission {
-        return Err(ctx.err(
-            "illumination.moon",
-            "the Moon beside the Sun is built for reflected light, not with thermal emission (`emission = true`): drop one or the other",
-        ));
-    }
-    if sun.moon.is_some() {
-        use crate::integrator::settings::IntegratorKind;
-        // The Moon's walk joins each sample of the Sun's in the backward estimator (`blocks/walks.rs`).
-        match integrator.kind {
-            IntegratorKind::Forward => {
-                return Err(ctx.err(
-                    "illumination.moon",
-                    "the Moon beside the Sun needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")",
-                ))
-            }
-            IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
-            IntegratorKind::Backward => {}
-        }
-    }
-    // `integrator.above_scene = "pooled"` (`integrator/above_scene.rs`) is built for ortho
-    // images walked over wavelength groups, lit by the Sun alone.
-    if integrator.above_scene == crate::integrator::settings::AboveScene::Pooled {
-        let why = if scene.is_none() {
-            Some("needs a 3D scene (`[scene]`)")
-        } else if integrator.spectral_alis.is_none() {
-            Some("is built for walks over wavelength groups: add `integrator.spectral_walk = \"alis\"`")
-        } else if sun.moon.is_some() {
-            Some("is not built for the Moon beside the Sun (`illumination.moon`)")
-        } else {
-            None
-        };
-        if let Some(why) = why {
-            return Err(ctx.err(
-                "integrator.above_scene",
-                format!("\"pooled\" {why}; or leave it at \"auto\""),
-            ));
-        }
-    }
-    // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
-    if let (Some(sc), Some(_)) = (&scene, integrator.spectral_alis) {
-        if let Some((name, solver)) = sc
-            .materials
-            .iter()
-            .enumerate()
-            .map(|(i, (name, _))| (name, sc.solver(i as u16)))
-            .find(|(_, s)| *s != bundle::SolverSpec::default())
-        {
-            return Err(ctx.err(
-                format!("scene.solvers.{name}"),
-                format!("the `{}` solver is not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): drop one or the other", solver.type_name()),
-            ));
-        }
-    }
-    if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver()) {
-        solver
-            .validate()
-            .map_err(|(k, m)| ctx.err(format!("surface.solver.{k}"), m))?;
-        if !solver.is_default() {
-            use crate::integrator::settings::IntegratorKind;
-            // The solvers act in the backward estimator (`integrator/solver.rs`).
-            match integrator.kind {
-                IntegratorKind::Forward => {
-                    return Err(ctx.err(
-                        "surface.solver",
-                        format!("the `{}` solver needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")", solver.type_name()),
-                    ))
-                }
-                IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
-                IntegratorKind::Backward => {}
-            }
-            if matches!(solver, bundle::SolverSpec::Mirror { .. })
-                && (cfg.polarized || planet_radius.is_some())
-            {
-                return Err(ctx.err(
-                    "surface.solver",
-                    "a `mirror` ground is built for scalar plane-parallel runs (its reflected sunbeam lights the layers through a mirror-image Sun; polarized and spherical-shell runs lack it)",
-                ));
-            }
-            if integrator.alis || integrator.spectral_alis.is_some() {
-                return Err(ctx.err(
-                    "surface.solver",
-                    format!("the `{}` solver is not built into ALIS walks: drop `integrator.ckd_walk = \"alis\"` or `integrator.spectral_walk = \"alis\"`", solver.type_name()),
-                ));
-            }
-        }
-        integrator.surface_solver = solver;
-    }
+    check_moon(&cfg, &ctx, &sun, &mut integrator)?;
+    check_above_scene(&ctx, &integrator, scene.as_deref(), &sun)?;
+    check_scene_solvers(&ctx, &integrator, scene.as_deref())?;
+    apply_surface_solver(&cfg, &ctx, planet_radius, &mut integrator)?;
     if ckd && atmosphere.ckd.is_empty() {
         return Err(ctx.err(
             "atmosphere",
             "mode = \"ckd\" needs a `molecular` atmosphere with `absorption_data`",
         ));
     }
-    let ckd_tau = atmosphere.ckd;
-    let optics = atmosphere
-        .layers
-        .into_iter()
-        .zip(surfaces)
-        .enumerate()
-        .map(|(iw, (layers, surface))| {
-            let scene_models = match &scene {
-                Some(sc) => sc
-                    .models_at(wavelengths[iw])
-                    .map_err(|m| ctx.err("scene", m.to_string()))?,
-                None => Vec::new(),
-            };
-            // A scene's emission at this wavelength, its Planck radiances times `scale`.
-            let scene_emission = |scale: f64| match (&thermal, &scene) {
-                (Some(t), Some(sc)) => Some(crate::scene::emission::SceneEmission::new(
-                    sc,
-                    &scene_models,
-                    wavelengths[iw],
-                    t.k(iw) * scale,
-                )),
-                _ => None,
-            };
-            let g_states: Vec<(f64, OpticalState)> = match ckd_tau.get(iw) {
-                None => Vec::new(),
-                Some(gs) => gs
-                    .iter()
-                    .map(|gp| {
-                        let mut l = layers.clone();
-                        for (layer, t) in l.iter_mut().zip(&gp.tau) {
-                            layer.tau_abs += t;
-                        }
-                        let mut atmosphere = PlaneParallel::new(l, ground, toa);
-                        let scale0 = gp
-                            .planck_scale
-                            .as_ref()
-                            .and_then(|s| s.first().copied())
-                            .unwrap_or(1.0);
-                        let surface_emission = match &thermal {
-                            None => None,
-                            Some(t) => {
-                                let Some(scale) = gp.planck_scale.as_deref() else {
-                                    return Err(ctx.err(
-                                        "atmosphere.absorption_data",
-                                        "thermal emission (`emission = true`) in mode = \"ckd\" needs a longwave k-distribution with Planck fractions per g-point (RRTMGP's `rrtmgp-gas-lw-g256.nc`)",
-                                    ));
-                                };
-                                t.apply(iw, &mut atmosphere, &surface, Some(scale))
-                            }
-                        };
-                        let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
-                        Ok((
-                            gp.weight,
-                            OpticalState {
-                                wavelength: wavelengths[iw],
-                                atmosphere,
-                                shell,
-                                surface: surface.clone(),
-                                surface_emission,
-                                scene_models: Vec::new(),
-                                scene_emission: scene_emission(scale0),
-                                irradiance: sun.irradiance[iw],
-                                g_states: Vec::new(),
-                            },
-                        ))
-                    })
-                    .collect::<Result<Vec<_>, ConfigError>>()?,
-            };
-            let mut atmosphere = PlaneParallel::new(layers, ground, toa);
-            // In CKD mode the g-points carry the sources (above); the bin's own atmosphere
-            // (no gas absorption: the ALIS reference) gets none.
-            let surface_emission = match &thermal {
-                Some(t) if g_states.is_empty() => t.apply(iw, &mut atmosphere, &surface, None),
-                _ => None,
-            };
-            let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
-            let scene_emission = if g_states.is_empty() {
-                scene_emission(1.0)
-            } else {
-                None
-            };
-            let mut g_states = g_states;
-            for (_, g) in &mut g_states {
-                g.scene_models = scene_models.clone();
-            }
-            Ok(OpticalState {
-                wavelength: wavelengths[iw],
-                atmosphere,
-                shell,
-                surface,
-                surface_emission,
-                scene_models,
-                scene_emission,
-                irradiance: sun.irradiance[iw],
-                g_states,
-            })
-        })
-        .collect::<Result<Vec<_>, ConfigError>>()?;
+    let inputs = OpticsInputs {
+        ctx: &ctx,
+        wavelengths: &wavelengths,
+        scene: &scene,
+        thermal: &thermal,
+        sun: &sun,
+        ground,
+        toa,
+        planet_radius,
+    };
+    let optics = build_optics(&inputs, atmosphere, surfaces)?;
 
     let atmospheres: Vec<&PlaneParallel> = optics.iter().map(|o| &o.atmosphere).collect();
     crate::integrator::backward_alis::check_spectral_groups(
@@ -604,6 +364,392 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
     super::memory::check(&exp, super::memory::total_memory())?;
     Ok(exp)
+}
+
+/// The surface per wavelength: `[surface]`, or a black placeholder under a 3D scene.
+fn resolve_surfaces(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    wavelengths: &[f64],
+) -> Result<Vec<Bsdf>, ConfigError> {
+    let nw = wavelengths.len();
+    Ok(match (&cfg.surface, &cfg.scene) {
+        (Some(_), Some(_)) => {
+            return Err(ctx.err(
+                "surface",
+                "is replaced by the scene: give `scene` or `surface`, not both (a bundle's surroundings are `scene.background`)",
+            ))
+        }
+        (None, None) => return Err(ctx.err("surface", "is required (or a 3D `scene`)")),
+        (None, Some(_)) => vec![Bsdf::Lambertian(Lambertian::new(0.0).expect("valid")); nw],
+        (Some(s), None) => s.resolve(ctx, "surface", wavelengths)?,
+    })
+}
+
+/// The 3D scene, if any: checked against the Sun's elevation and built (bent onto the planet
+/// under a spherical shell).
+fn resolve_scene(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    sun: &Sun,
+    planet_radius: Option<f64>,
+    ground: f64,
+) -> Result<Option<Arc<Scene>>, ConfigError> {
+    let Some(sc) = &cfg.scene else {
+        return Ok(None);
+    };
+    // Plane-parallel layers refuse a Sun below the horizon already; in spherical shells a
+    // scene may lie in twilight (the shells' sunlit air lights it; radiances only).
+    if sun.dir.z <= 1e-6 && planet_radius.is_none() {
+        return Err(ctx.err(
+            "illumination.zenith",
+            "the Sun must be above the horizon to render a 3D scene in plane-parallel layers (use geometry.type = \"spherical_shell\" for twilight)",
+        ));
+    }
+    // Under a spherical shell the scene is bent onto the planet (scene::curvature).
+    let bend = planet_radius.map(|radius| crate::scene::curvature::Curvature { radius });
+    let built = scene::build_scene_shared(sc, ctx.base, bend).map_err(|(k, m)| ctx.err(k, m))?;
+    // (Bent scenes hold bent heights: their lowest point sags below its altitude.)
+    if cfg.atmosphere.is_some() && built.curvature.is_none() && built.z_range[0] < ground - 1e-6 {
+        tracing::warn!(
+            "the scene's lowest point ({:.1} m) is below the atmosphere's bottom ({:.1} m): no atmosphere below it",
+            built.z_range[0],
+            ground
+        );
+    }
+    Ok(Some(built))
+}
+
+/// The measures, each checked against the atmosphere's levels, the scene and the ones before it.
+fn resolve_measures(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    ground: f64,
+    toa: f64,
+    scene: Option<&Scene>,
+) -> Result<Vec<Measure>, ConfigError> {
+    if cfg.measures.is_empty() {
+        return Err(ctx.err("measures", "at least one measure is required"));
+    }
+    let frame = scene.map(scene::frame);
+    let at = MeasureContext {
+        ground,
+        toa,
+        scene: frame.as_ref(),
+    };
+    let mut measures = Vec::with_capacity(cfg.measures.len());
+    for (im, m) in cfg.measures.iter().enumerate() {
+        let m = m.resolve(ctx, im, &measures, &at)?;
+        measures.push(m);
+    }
+    Ok(measures)
+}
+
+/// With thermal emission, every material of the scene needs a temperature.
+fn check_scene_temperatures(ctx: &ConfigCtx, sc: &Scene) -> Result<(), ConfigError> {
+    let missing: Vec<&str> = sc
+        .materials
+        .iter()
+        .enumerate()
+        .filter(|(id, _)| sc.temperature(*id as u16).is_none())
+        .map(|(_, (name, _))| name.as_str())
+        .collect();
+    if !missing.is_empty() {
+        return Err(ctx.err(
+            "scene.temperatures",
+            format!(
+                "thermal emission (`emission = true`) needs a temperature (K) for every material of the scene (the bundle's `temperature`, or `[scene.temperatures]`); missing: {}",
+                missing.join(", ")
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// The Moon beside the Sun: refused with thermal emission, and run by the backward integrator.
+fn check_moon(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    sun: &Sun,
+    integrator: &mut IntegratorSettings,
+) -> Result<(), ConfigError> {
+    if sun.moon.is_some() && cfg.emission {
+        return Err(ctx.err(
+            "illumination.moon",
+            "the Moon beside the Sun is built for reflected light, not with thermal emission (`emission = true`): drop one or the other",
+        ));
+    }
+    if sun.moon.is_some() {
+        use crate::integrator::settings::IntegratorKind;
+        // The Moon's walk joins each sample of the Sun's in the backward estimator (`blocks/walks.rs`).
+        match integrator.kind {
+            IntegratorKind::Forward => {
+                return Err(ctx.err(
+                    "illumination.moon",
+                    "the Moon beside the Sun needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")",
+                ))
+            }
+            IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
+            IntegratorKind::Backward => {}
+        }
+    }
+    Ok(())
+}
+
+/// `integrator.above_scene = "pooled"` needs a scene, spectral walks and no Moon.
+fn check_above_scene(
+    ctx: &ConfigCtx,
+    integrator: &IntegratorSettings,
+    scene: Option<&Scene>,
+    sun: &Sun,
+) -> Result<(), ConfigError> {
+    // `integrator.above_scene = "pooled"` (`integrator/above_scene.rs`) is built for ortho
+    // images walked over wavelength groups, lit by the Sun alone.
+    if integrator.above_scene == crate::integrator::settings::AboveScene::Pooled {
+        let why = if scene.is_none() {
+            Some("needs a 3D scene (`[scene]`)")
+        } else if integrator.spectral_alis.is_none() {
+            Some("is built for walks over wavelength groups: add `integrator.spectral_walk = \"alis\"`")
+        } else if sun.moon.is_some() {
+            Some("is not built for the Moon beside the Sun (`illumination.moon`)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(ctx.err(
+                "integrator.above_scene",
+                format!("\"pooled\" {why}; or leave it at \"auto\""),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Spectral walks through a scene follow the scene materials' default solver only.
+fn check_scene_solvers(
+    ctx: &ConfigCtx,
+    integrator: &IntegratorSettings,
+    scene: Option<&Scene>,
+) -> Result<(), ConfigError> {
+    // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
+    if let (Some(sc), Some(_)) = (scene, integrator.spectral_alis) {
+        if let Some((name, solver)) = sc
+            .materials
+            .iter()
+            .enumerate()
+            .map(|(i, (name, _))| (name, sc.solver(i as u16)))
+            .find(|(_, s)| *s != bundle::SolverSpec::default())
+        {
+            return Err(ctx.err(
+                format!("scene.solvers.{name}"),
+                format!("the `{}` solver is not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): drop one or the other", solver.type_name()),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Check the surface's solver against the run and hand it to the integrator.
+fn apply_surface_solver(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    planet_radius: Option<f64>,
+    integrator: &mut IntegratorSettings,
+) -> Result<(), ConfigError> {
+    if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver()) {
+        solver
+            .validate()
+            .map_err(|(k, m)| ctx.err(format!("surface.solver.{k}"), m))?;
+        if !solver.is_default() {
+            use crate::integrator::settings::IntegratorKind;
+            // The solvers act in the backward estimator (`integrator/solver.rs`).
+            match integrator.kind {
+                IntegratorKind::Forward => {
+                    return Err(ctx.err(
+                        "surface.solver",
+                        format!("the `{}` solver needs the backward integrator (`integrator.type = \"auto\"` or \"backward\")", solver.type_name()),
+                    ))
+                }
+                IntegratorKind::Auto => integrator.kind = IntegratorKind::Backward,
+                IntegratorKind::Backward => {}
+            }
+            if matches!(solver, bundle::SolverSpec::Mirror { .. })
+                && (cfg.polarized || planet_radius.is_some())
+            {
+                return Err(ctx.err(
+                    "surface.solver",
+                    "a `mirror` ground is built for scalar plane-parallel runs (its reflected sunbeam lights the layers through a mirror-image Sun; polarized and spherical-shell runs lack it)",
+                ));
+            }
+            if integrator.alis || integrator.spectral_alis.is_some() {
+                return Err(ctx.err(
+                    "surface.solver",
+                    format!("the `{}` solver is not built into ALIS walks: drop `integrator.ckd_walk = \"alis\"` or `integrator.spectral_walk = \"alis\"`", solver.type_name()),
+                ));
+            }
+        }
+        integrator.surface_solver = solver;
+    }
+    Ok(())
+}
+
+/// The resolved parts the per-wavelength optical states are built from.
+struct OpticsInputs<'a> {
+    ctx: &'a ConfigCtx<'a>,
+    wavelengths: &'a [f64],
+    scene: &'a Option<Arc<Scene>>,
+    thermal: &'a Option<super::thermal::Thermal>,
+    sun: &'a Sun,
+    ground: f64,
+    toa: f64,
+    planet_radius: Option<f64>,
+}
+
+/// The optical state of every wavelength (with its g-points' states in CKD mode).
+fn build_optics(
+    inputs: &OpticsInputs,
+    atmosphere: AtmosphereLayers,
+    surfaces: Vec<Bsdf>,
+) -> Result<Vec<OpticalState>, ConfigError> {
+    let ckd_tau = atmosphere.ckd;
+    atmosphere
+        .layers
+        .into_iter()
+        .zip(surfaces)
+        .enumerate()
+        .map(|(iw, (layers, surface))| optical_state(inputs, iw, layers, surface, ckd_tau.get(iw)))
+        .collect::<Result<Vec<_>, ConfigError>>()
+}
+
+/// The optical state of wavelength `iw`: its layers, surface, sources and scene models, and
+/// the states of its g-points `gs` (CKD mode).
+fn optical_state(
+    inputs: &OpticsInputs,
+    iw: usize,
+    layers: Vec<LayerOptics>,
+    surface: Bsdf,
+    gs: Option<&Vec<GPoint>>,
+) -> Result<OpticalState, ConfigError> {
+    let &OpticsInputs {
+        ctx,
+        wavelengths,
+        scene,
+        thermal,
+        sun,
+        ground,
+        toa,
+        planet_radius,
+    } = inputs;
+    let scene_models = match &scene {
+        Some(sc) => sc
+            .models_at(wavelengths[iw])
+            .map_err(|m| ctx.err("scene", m.to_string()))?,
+        None => Vec::new(),
+    };
+    // A scene's emission at this wavelength, its Planck radiances times `scale`.
+    let scene_emission = |scale: f64| match (&thermal, &scene) {
+        (Some(t), Some(sc)) => Some(crate::scene::emission::SceneEmission::new(
+            sc,
+            &scene_models,
+            wavelengths[iw],
+            t.k(iw) * scale,
+        )),
+        _ => None,
+    };
+    let g_states: Vec<(f64, OpticalState)> = match gs {
+        None => Vec::new(),
+        Some(gs) => gs
+            .iter()
+            .map(|gp| g_point_state(inputs, iw, &layers, &surface, gp, &scene_emission))
+            .collect::<Result<Vec<_>, ConfigError>>()?,
+    };
+    let mut atmosphere = PlaneParallel::new(layers, ground, toa);
+    // In CKD mode the g-points carry the sources (above); the bin's own atmosphere
+    // (no gas absorption: the ALIS reference) gets none.
+    let surface_emission = match &thermal {
+        Some(t) if g_states.is_empty() => t.apply(iw, &mut atmosphere, &surface, None),
+        _ => None,
+    };
+    let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
+    let scene_emission = if g_states.is_empty() {
+        scene_emission(1.0)
+    } else {
+        None
+    };
+    let mut g_states = g_states;
+    for (_, g) in &mut g_states {
+        g.scene_models = scene_models.clone();
+    }
+    Ok(OpticalState {
+        wavelength: wavelengths[iw],
+        atmosphere,
+        shell,
+        surface,
+        surface_emission,
+        scene_models,
+        scene_emission,
+        irradiance: sun.irradiance[iw],
+        g_states,
+    })
+}
+
+/// The weight and optical state of one g-point `gp` of wavelength `iw` (its gas absorption
+/// added to the layers, its thermal sources scaled by its Planck fractions).
+fn g_point_state(
+    inputs: &OpticsInputs,
+    iw: usize,
+    layers: &[LayerOptics],
+    surface: &Bsdf,
+    gp: &GPoint,
+    scene_emission: &dyn Fn(f64) -> Option<crate::scene::emission::SceneEmission>,
+) -> Result<(f64, OpticalState), ConfigError> {
+    let &OpticsInputs {
+        ctx,
+        wavelengths,
+        thermal,
+        sun,
+        ground,
+        toa,
+        planet_radius,
+        ..
+    } = inputs;
+    let mut l = layers.to_vec();
+    for (layer, t) in l.iter_mut().zip(&gp.tau) {
+        layer.tau_abs += t;
+    }
+    let mut atmosphere = PlaneParallel::new(l, ground, toa);
+    let scale0 = gp
+        .planck_scale
+        .as_ref()
+        .and_then(|s| s.first().copied())
+        .unwrap_or(1.0);
+    let surface_emission = match &thermal {
+        None => None,
+        Some(t) => {
+            let Some(scale) = gp.planck_scale.as_deref() else {
+                return Err(ctx.err(
+                    "atmosphere.absorption_data",
+                    "thermal emission (`emission = true`) in mode = \"ckd\" needs a longwave k-distribution with Planck fractions per g-point (RRTMGP's `rrtmgp-gas-lw-g256.nc`)",
+                ));
+            };
+            t.apply(iw, &mut atmosphere, surface, Some(scale))
+        }
+    };
+    let shell = planet_radius.map(|r| SphericalShell::new(&atmosphere, r));
+    Ok((
+        gp.weight,
+        OpticalState {
+            wavelength: wavelengths[iw],
+            atmosphere,
+            shell,
+            surface: surface.clone(),
+            surface_emission,
+            scene_models: Vec::new(),
+            scene_emission: scene_emission(scale0),
+            irradiance: sun.irradiance[iw],
+            g_states: Vec::new(),
+        },
+    ))
 }
 
 #[cfg(test)]

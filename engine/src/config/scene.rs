@@ -255,35 +255,8 @@ pub fn build_scene(
             temperatures,
             land_surface_temperature,
         } => {
-            for (name, spec) in solvers {
-                spec.validate()
-                    .map_err(|(k, m)| (format!("scene.solvers.{name}.{k}"), m))?;
-            }
-            let bg = match background {
-                None => Background::Flat {
-                    altitude: None,
-                    brdf: None,
-                },
-                Some(BackgroundConfig::None) => Background::None,
-                Some(BackgroundConfig::Flat { altitude_m, brdf }) => {
-                    if let Some(a) = altitude_m {
-                        if !a.is_finite() {
-                            return Err((
-                                "scene.background.altitude_m".into(),
-                                format!("{a} is not a finite number"),
-                            ));
-                        }
-                    }
-                    let brdf = brdf.as_deref().map(|b| here(b, base));
-                    if let Some(b) = &brdf {
-                        check_spec("scene.background.brdf", b)?;
-                    }
-                    Background::Flat {
-                        altitude: *altitude_m,
-                        brdf: brdf.map(Box::new),
-                    }
-                }
-            };
+            validate_solvers(solvers)?;
+            let bg = bundle_background(background.as_ref(), base)?;
             let mut overrides = Vec::new();
             for (name, spec) in materials {
                 let spec = here(spec, base);
@@ -314,31 +287,10 @@ pub fn build_scene(
                     };
                     (key.into(), m)
                 })?;
-            for (name, spec) in solvers {
-                scene
-                    .set_solver(name, *spec)
-                    .map_err(|m| (format!("scene.solvers.{name}"), m.to_string()))?;
-            }
-            for (name, &t) in temperatures {
-                let key = format!("scene.temperatures.{name}");
-                if !(t > 0.0 && t <= 10_000.0) {
-                    return Err((key, format!("{t} K must lie in (0, 10000] K")));
-                }
-                scene
-                    .set_temperature(name, t)
-                    .map_err(|m| (key, m.to_string()))?;
-            }
+            set_solvers(&mut scene, solvers)?;
+            set_temperatures(&mut scene, temperatures)?;
             if let Some(file) = land_surface_temperature {
-                let key = "scene.land_surface_temperature".to_string();
-                let (wkt, origin) = match &scene.georef {
-                    Some(g) => (g.wkt.clone(), [g.origin.x, g.origin.y]),
-                    None => (String::new(), [0.0, 0.0]),
-                };
-                let map =
-                    crate::scene::texture::TemperatureMap::read(&base.join(file), &wkt, origin)
-                        .map_err(|m| (key, m.to_string()))?;
-                scene.memory_bytes += map.memory_bytes();
-                scene.lst = Some(map);
+                set_land_surface_temperature(&mut scene, &base.join(file))?;
             }
             Ok(scene)
         }
@@ -350,10 +302,7 @@ pub fn build_scene(
             periodic_m,
             solvers,
         } => {
-            for (name, spec) in solvers {
-                spec.validate()
-                    .map_err(|(k, m)| (format!("scene.solvers.{name}.{k}"), m))?;
-            }
+            validate_solvers(solvers)?;
             if let Some(c) = periodic_m {
                 if !(c.iter().all(|v| v.is_finite()) && c[0] < c[2] && c[1] < c[3]) {
                     return Err((
@@ -377,111 +326,15 @@ pub fn build_scene(
             }
             let mut trees = Vec::new();
             for (i, t) in cone_trees.iter().enumerate() {
-                let key = format!("scene.cone_trees[{i}]");
-                let positions: Vec<DVec3> = build::read_table(&base.join(&t.positions), 3)
-                    .map_err(|m| (format!("{key}.positions"), m.to_string()))?
-                    .into_iter()
-                    .map(|r| DVec3::new(r[0], r[1], r[2]))
-                    .collect();
-                let pos_ok = |v: f64| v.is_finite() && v > 0.0;
-                for (name, v) in [
-                    ("trunk_radius_m", t.trunk_radius_m),
-                    ("crown_height_m", t.crown_height_m),
-                    ("crown_radius_m", t.crown_radius_m),
-                    ("leaf_radius_m", t.leaf_radius_m),
-                    ("mu", t.mu),
-                    ("nu", t.nu),
-                ] {
-                    if !pos_ok(v) {
-                        return Err((format!("{key}.{name}"), format!("{v} must be > 0")));
-                    }
-                }
-                if t.trunk_m[0].partial_cmp(&t.trunk_m[1]) != Some(std::cmp::Ordering::Less) {
-                    return Err((
-                        format!("{key}.trunk_m"),
-                        "must be [bottom, top] with bottom < top".into(),
-                    ));
-                }
-                if t.leaves == 0 || t.variants == 0 || t.variants > 1024 {
-                    return Err((
-                        format!("{key}.leaves"),
-                        "leaves must be ≥ 1 and variants in 1..=1024".into(),
-                    ));
-                }
-                let trunk_brdf = here(&t.trunk_brdf, base);
-                check_spec(&format!("{key}.trunk_brdf"), &trunk_brdf)?;
-                let leaf_brdf = BrdfSpec::BiLambertian {
-                    reflectance: t.reflectance.clone(),
-                    transmittance: t.transmittance.clone(),
-                };
-                check_spec(&key, &leaf_brdf)?;
-                trees.push(build::ConeTrees {
-                    positions,
-                    trunk_radius: t.trunk_radius_m,
-                    trunk_bottom: t.trunk_m[0],
-                    trunk_top: t.trunk_m[1],
-                    trunk_brdf,
-                    crown_height: t.crown_height_m,
-                    crown_radius: t.crown_radius_m,
-                    leaves: t.leaves,
-                    leaf_radius: t.leaf_radius_m,
-                    mu: t.mu,
-                    nu: t.nu,
-                    leaf_brdf,
-                    variants: t.variants,
-                    seed: t.seed,
-                });
+                trees.push(cone_trees_of(i, t, base)?);
             }
             let mut clouds = Vec::new();
             for (i, o) in objects.iter().enumerate() {
-                let key = format!("scene.objects[{i}]");
-                let leaves = base.join(&o.leaves);
-                let columns = match o.columns {
-                    Some(ColumnsConfig::RadiusFirst) => LeafColumns::RadiusFirst,
-                    Some(ColumnsConfig::RadiusLast) => LeafColumns::RadiusLast,
-                    None if o.leaves.ends_with(".def") => LeafColumns::RadiusFirst,
-                    None => LeafColumns::RadiusLast,
-                };
-                let positions = match &o.positions {
-                    None => Vec::new(),
-                    Some(p) => build::read_table(&base.join(p), 3)
-                        .map_err(|m| (format!("{key}.positions"), m.to_string()))?
-                        .into_iter()
-                        .map(|r| DVec3::new(r[0], r[1], r[2]))
-                        .collect(),
-                };
-                let brdf = BrdfSpec::BiLambertian {
-                    reflectance: o.reflectance.clone(),
-                    transmittance: o.transmittance.clone(),
-                };
-                check_spec(&key, &brdf)?;
-                clouds.push(LeafCloud {
-                    name: o.name.clone().unwrap_or_else(|| format!("leaves{i}")),
-                    leaves,
-                    columns,
-                    positions,
-                    brdf,
-                });
+                clouds.push(leaf_cloud_of(i, o, base)?);
             }
             let ground = match ground {
                 None => None,
-                Some(g) => {
-                    let brdf = here(&g.brdf, base);
-                    check_spec("scene.ground.brdf", &brdf)?;
-                    if let Some(e) = g.extent_m {
-                        if !(e[0] < e[2] && e[1] < e[3]) {
-                            return Err((
-                                "scene.ground.extent_m".into(),
-                                "must be [xmin, ymin, xmax, ymax] with min < max".into(),
-                            ));
-                        }
-                    }
-                    Some(CanopyGround {
-                        altitude: g.altitude_m,
-                        extent: g.extent_m,
-                        brdf,
-                    })
-                }
+                Some(g) => Some(canopy_ground_of(g, base)?),
             };
             let pad = match padding {
                 None => None,
@@ -497,14 +350,204 @@ pub fn build_scene(
             };
             let mut scene = build::canopy(&clouds, &trees, ground.as_ref(), pad, *periodic_m)
                 .map_err(|m| ("scene.objects".to_string(), m.to_string()))?;
-            for (name, spec) in solvers {
-                scene
-                    .set_solver(name, *spec)
-                    .map_err(|m| (format!("scene.solvers.{name}"), m.to_string()))?;
-            }
+            set_solvers(&mut scene, solvers)?;
             Ok(scene)
         }
     }
+}
+
+/// Check the settings of every `[scene.solvers]` entry.
+fn validate_solvers(solvers: &BTreeMap<String, bundle::SolverSpec>) -> Result<(), SceneErr> {
+    for (name, spec) in solvers {
+        spec.validate()
+            .map_err(|(k, m)| (format!("scene.solvers.{name}.{k}"), m))?;
+    }
+    Ok(())
+}
+
+/// Give the scene's materials their `[scene.solvers]`.
+fn set_solvers(
+    scene: &mut Scene,
+    solvers: &BTreeMap<String, bundle::SolverSpec>,
+) -> Result<(), SceneErr> {
+    for (name, spec) in solvers {
+        scene
+            .set_solver(name, *spec)
+            .map_err(|m| (format!("scene.solvers.{name}"), m.to_string()))?;
+    }
+    Ok(())
+}
+
+/// What surrounds a bundle's terrain (`scene.background`), checked.
+fn bundle_background(
+    background: Option<&BackgroundConfig>,
+    base: &Path,
+) -> Result<Background, SceneErr> {
+    Ok(match background {
+        None => Background::Flat {
+            altitude: None,
+            brdf: None,
+        },
+        Some(BackgroundConfig::None) => Background::None,
+        Some(BackgroundConfig::Flat { altitude_m, brdf }) => {
+            if let Some(a) = altitude_m {
+                if !a.is_finite() {
+                    return Err((
+                        "scene.background.altitude_m".into(),
+                        format!("{a} is not a finite number"),
+                    ));
+                }
+            }
+            let brdf = brdf.as_deref().map(|b| here(b, base));
+            if let Some(b) = &brdf {
+                check_spec("scene.background.brdf", b)?;
+            }
+            Background::Flat {
+                altitude: *altitude_m,
+                brdf: brdf.map(Box::new),
+            }
+        }
+    })
+}
+
+/// Give the scene's materials their `[scene.temperatures]` (K), checked.
+fn set_temperatures(
+    scene: &mut Scene,
+    temperatures: &BTreeMap<String, f64>,
+) -> Result<(), SceneErr> {
+    for (name, &t) in temperatures {
+        let key = format!("scene.temperatures.{name}");
+        if !(t > 0.0 && t <= 10_000.0) {
+            return Err((key, format!("{t} K must lie in (0, 10000] K")));
+        }
+        scene
+            .set_temperature(name, t)
+            .map_err(|m| (key, m.to_string()))?;
+    }
+    Ok(())
+}
+
+/// Read the land-surface temperature map `file` into the scene (in the bundle's frame).
+fn set_land_surface_temperature(scene: &mut Scene, file: &Path) -> Result<(), SceneErr> {
+    let key = "scene.land_surface_temperature".to_string();
+    let (wkt, origin) = match &scene.georef {
+        Some(g) => (g.wkt.clone(), [g.origin.x, g.origin.y]),
+        None => (String::new(), [0.0, 0.0]),
+    };
+    let map = crate::scene::texture::TemperatureMap::read(file, &wkt, origin)
+        .map_err(|m| (key, m.to_string()))?;
+    scene.memory_bytes += map.memory_bytes();
+    scene.lst = Some(map);
+    Ok(())
+}
+
+/// The `i`-th `[[scene.cone_trees]]` entry, checked, with its positions read.
+fn cone_trees_of(i: usize, t: &ConeTreesConfig, base: &Path) -> Result<build::ConeTrees, SceneErr> {
+    let key = format!("scene.cone_trees[{i}]");
+    let positions: Vec<DVec3> = build::read_table(&base.join(&t.positions), 3)
+        .map_err(|m| (format!("{key}.positions"), m.to_string()))?
+        .into_iter()
+        .map(|r| DVec3::new(r[0], r[1], r[2]))
+        .collect();
+    let pos_ok = |v: f64| v.is_finite() && v > 0.0;
+    for (name, v) in [
+        ("trunk_radius_m", t.trunk_radius_m),
+        ("crown_height_m", t.crown_height_m),
+        ("crown_radius_m", t.crown_radius_m),
+        ("leaf_radius_m", t.leaf_radius_m),
+        ("mu", t.mu),
+        ("nu", t.nu),
+    ] {
+        if !pos_ok(v) {
+            return Err((format!("{key}.{name}"), format!("{v} must be > 0")));
+        }
+    }
+    if t.trunk_m[0].partial_cmp(&t.trunk_m[1]) != Some(std::cmp::Ordering::Less) {
+        return Err((
+            format!("{key}.trunk_m"),
+            "must be [bottom, top] with bottom < top".into(),
+        ));
+    }
+    if t.leaves == 0 || t.variants == 0 || t.variants > 1024 {
+        return Err((
+            format!("{key}.leaves"),
+            "leaves must be ≥ 1 and variants in 1..=1024".into(),
+        ));
+    }
+    let trunk_brdf = here(&t.trunk_brdf, base);
+    check_spec(&format!("{key}.trunk_brdf"), &trunk_brdf)?;
+    let leaf_brdf = BrdfSpec::BiLambertian {
+        reflectance: t.reflectance.clone(),
+        transmittance: t.transmittance.clone(),
+    };
+    check_spec(&key, &leaf_brdf)?;
+    Ok(build::ConeTrees {
+        positions,
+        trunk_radius: t.trunk_radius_m,
+        trunk_bottom: t.trunk_m[0],
+        trunk_top: t.trunk_m[1],
+        trunk_brdf,
+        crown_height: t.crown_height_m,
+        crown_radius: t.crown_radius_m,
+        leaves: t.leaves,
+        leaf_radius: t.leaf_radius_m,
+        mu: t.mu,
+        nu: t.nu,
+        leaf_brdf,
+        variants: t.variants,
+        seed: t.seed,
+    })
+}
+
+/// The `i`-th `[[scene.objects]]` leaf cloud, checked, with its positions read.
+fn leaf_cloud_of(i: usize, o: &LeafCloudConfig, base: &Path) -> Result<LeafCloud, SceneErr> {
+    let key = format!("scene.objects[{i}]");
+    let leaves = base.join(&o.leaves);
+    let columns = match o.columns {
+        Some(ColumnsConfig::RadiusFirst) => LeafColumns::RadiusFirst,
+        Some(ColumnsConfig::RadiusLast) => LeafColumns::RadiusLast,
+        None if o.leaves.ends_with(".def") => LeafColumns::RadiusFirst,
+        None => LeafColumns::RadiusLast,
+    };
+    let positions = match &o.positions {
+        None => Vec::new(),
+        Some(p) => build::read_table(&base.join(p), 3)
+            .map_err(|m| (format!("{key}.positions"), m.to_string()))?
+            .into_iter()
+            .map(|r| DVec3::new(r[0], r[1], r[2]))
+            .collect(),
+    };
+    let brdf = BrdfSpec::BiLambertian {
+        reflectance: o.reflectance.clone(),
+        transmittance: o.transmittance.clone(),
+    };
+    check_spec(&key, &brdf)?;
+    Ok(LeafCloud {
+        name: o.name.clone().unwrap_or_else(|| format!("leaves{i}")),
+        leaves,
+        columns,
+        positions,
+        brdf,
+    })
+}
+
+/// The canopy's ground (`scene.ground`), checked.
+fn canopy_ground_of(g: &CanopyGroundConfig, base: &Path) -> Result<CanopyGround, SceneErr> {
+    let brdf = here(&g.brdf, base);
+    check_spec("scene.ground.brdf", &brdf)?;
+    if let Some(e) = g.extent_m {
+        if !(e[0] < e[2] && e[1] < e[3]) {
+            return Err((
+                "scene.ground.extent_m".into(),
+                "must be [xmin, ymin, xmax, ymax] with min < max".into(),
+            ));
+        }
+    }
+    Ok(CanopyGround {
+        altitude: g.altitude_m,
+        extent: g.extent_m,
+        brdf,
+    })
 }
 
 /// What the measures need of a built scene (`measure/config.rs`): its extent and top in the

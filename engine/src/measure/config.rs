@@ -245,6 +245,28 @@ impl MeasureConfig {
     ) -> Result<Measure, ConfigError> {
         let key = format!("measures[{index}]");
         let (id, spp, target) = self.common();
+        let (fraction, adaptive) = self.check_sampling(ctx, &key, earlier)?;
+        let kind = self.kind(ctx, &key, at)?;
+        Ok(Measure {
+            id: id.clone(),
+            spp,
+            target_rel_stderr: target,
+            target_fraction: fraction.unwrap_or(0.5),
+            adaptive: adaptive.unwrap_or(true),
+            kind,
+            block_override: None,
+        })
+    }
+
+    /// Check the id, the sample count and the noise target; the images' target fraction and
+    /// adaptive flag (as given).
+    fn check_sampling(
+        &self,
+        ctx: &ConfigCtx,
+        key: &str,
+        earlier: &[Measure],
+    ) -> Result<(Option<f64>, Option<bool>), ConfigError> {
+        let (id, spp, target) = self.common();
         if id.is_empty()
             || !id.chars().all(|c| c.is_ascii_alphanumeric() || c == '_')
             || id.starts_with(|c: char| c.is_ascii_digit())
@@ -302,8 +324,20 @@ impl MeasureConfig {
                 return Err(ctx.err(fkey, "is used only with target_rel_stderr"));
             }
         }
+        Ok((fraction, adaptive))
+    }
+
+    /// What the measure observes (its directions, level, image or area), checked against the
+    /// atmosphere's levels and the scene.
+    fn kind(
+        &self,
+        ctx: &ConfigCtx,
+        key: &str,
+        at: &MeasureContext,
+    ) -> Result<MeasureKind, ConfigError> {
+        let key = key.to_string();
         let scene = at.scene;
-        let kind = match self {
+        Ok(match self {
             MeasureConfig::Mdistant {
                 construct,
                 azimuth,
@@ -400,38 +434,7 @@ impl MeasureConfig {
                 direction,
                 frame_azimuth,
                 ..
-            } => {
-                for i in 0..3 {
-                    ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
-                    ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
-                }
-                let o = DVec3::from_array(*origin) * 1e3;
-                let d = DVec3::from_array(*direction);
-                if d.length() < 1e-12 {
-                    return Err(ctx.err(format!("{key}.direction"), "must not be the zero vector"));
-                }
-                if o.z < at.ground {
-                    return Err(ctx.err(
-                        format!("{key}.origin[2]"),
-                        format!(
-                            "altitude {} km is below the ground ({} km)",
-                            origin[2],
-                            at.ground / 1e3
-                        ),
-                    ));
-                }
-                let frame_azimuth = match frame_azimuth {
-                    Some(a) => ctx
-                        .finite(&format!("{key}.frame_azimuth"), *a)?
-                        .to_radians(),
-                    None => 0.0,
-                };
-                MeasureKind::Radiancemeter {
-                    origin: o,
-                    look: d.normalize(),
-                    frame_azimuth,
-                }
-            }
+            } => radiancemeter(ctx, &key, origin, direction, *frame_azimuth, at)?,
             MeasureConfig::DistantFlux {
                 altitude,
                 direction,
@@ -444,17 +447,48 @@ impl MeasureConfig {
                     direction: direction.unwrap_or(FluxDirection::Up),
                 }
             }
-        };
-        Ok(Measure {
-            id: id.clone(),
-            spp,
-            target_rel_stderr: target,
-            target_fraction: fraction.unwrap_or(0.5),
-            adaptive: adaptive.unwrap_or(true),
-            kind,
-            block_override: None,
         })
     }
+}
+
+/// A radiancemeter at `origin` (km) looking along `direction`, checked finite, non-zero and
+/// above the ground.
+fn radiancemeter(
+    ctx: &ConfigCtx,
+    key: &str,
+    origin: &[f64; 3],
+    direction: &[f64; 3],
+    frame_azimuth: Option<f64>,
+    at: &MeasureContext,
+) -> Result<MeasureKind, ConfigError> {
+    for i in 0..3 {
+        ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
+        ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
+    }
+    let o = DVec3::from_array(*origin) * 1e3;
+    let d = DVec3::from_array(*direction);
+    if d.length() < 1e-12 {
+        return Err(ctx.err(format!("{key}.direction"), "must not be the zero vector"));
+    }
+    if o.z < at.ground {
+        return Err(ctx.err(
+            format!("{key}.origin[2]"),
+            format!(
+                "altitude {} km is below the ground ({} km)",
+                origin[2],
+                at.ground / 1e3
+            ),
+        ));
+    }
+    let frame_azimuth = match frame_azimuth {
+        Some(a) => ctx.finite(&format!("{key}.frame_azimuth"), a)?.to_radians(),
+        None => 0.0,
+    };
+    Ok(MeasureKind::Radiancemeter {
+        origin: o,
+        look: d.normalize(),
+        frame_azimuth,
+    })
 }
 
 /// A level's altitude `a` (m) lies between the ground and the top of the atmosphere.

@@ -33,7 +33,6 @@ pub enum Background {
     },
 }
 
-/// Load a bundle into a scene. `overrides` replace materials by name (each name must exist).
 /// A reflectance texture request: material name, raster file, wavelength of each band.
 #[derive(Clone, Debug)]
 pub struct TextureRequest {
@@ -42,6 +41,11 @@ pub struct TextureRequest {
     pub wavelengths: Vec<f64>,
 }
 
+/// The scene's materials in the manifest's order (with `overrides` applied), the map from the
+/// manifest's material index to the scene's material id, and whether that map is the identity.
+type SceneMaterials = (Vec<(String, BrdfSpec)>, [u8; 256], bool);
+
+/// Load a bundle into a scene. `overrides` replace materials by name (each name must exist).
 pub fn from_bundle(
     dir: &Path,
     background: &Background,
@@ -62,130 +66,24 @@ pub fn from_bundle(
         m.extent.max[0] - origin.x,
         m.extent.max[1] - origin.y,
     ];
-    // The scene's material ids are positions in the manifest's table; the raster and the
-    // template triangles hold the manifest's `index` of each material (any unique 0–254, not
-    // necessarily contiguous). `Bundle::open` has checked that every id used has a material and
-    // that every BRDF is within `bundle::BRDF_PARAM_RANGES`.
-    // Tables of tabulated BRDFs are files in the bundle's folder.
-    let mut materials: Vec<(String, BrdfSpec)> = m
-        .materials
-        .iter()
-        .map(|x| {
-            (
-                x.name.clone(),
-                crate::scene::material::SurfaceModel::with_files_in(&x.brdf, dir),
-            )
-        })
-        .collect();
-    let mut scene_id = [u8::MAX; 256];
-    for (pos, x) in m.materials.iter().enumerate() {
-        scene_id[x.index as usize] = pos as u8; // ≤ 254: at most 255 distinct indices 0–254
-    }
-    scene_id[bundle::NO_MATERIAL as usize] = bundle::NO_MATERIAL;
-    let identity = m
-        .materials
-        .iter()
-        .enumerate()
-        .all(|(pos, x)| x.index as usize == pos);
-    for (name, spec) in overrides {
-        spec.validate().map_err(|source| SceneError::Override {
-            name: name.clone(),
-            source,
-        })?;
-        let id = super::world::material_id(&materials, name)?;
-        materials[id].1 = spec.clone();
-    }
-    let mut tex = Vec::new();
-    let mut texture_of: Vec<Option<usize>> = vec![None; materials.len()];
-    for r in textures {
-        let Some(id) = materials.iter().position(|(n, _)| *n == r.material) else {
-            return Err(SceneError::TextureMaterial {
-                file: r.file.clone(),
-                material: r.material.clone(),
-            });
-        };
-        if !matches!(materials[id].1, BrdfSpec::Lambertian { .. }) {
-            return Err(SceneError::TextureNotLambertian {
-                file: r.file.clone(),
-                material: r.material.clone(),
-            });
-        }
-        if texture_of[id].is_some() {
-            return Err(SceneError::TwoTextures {
-                material: r.material.clone(),
-            });
-        }
-        texture_of[id] = Some(tex.len());
-        tex.push(super::texture::Texture::read(
-            &r.file,
-            id as u16,
-            &r.wavelengths,
-            &m.crs.wkt,
-            [origin.x, origin.y],
-        )?);
-    }
+    let (mut materials, scene_id, identity) = bundle_materials(m, dir, overrides)?;
+    let (tex, texture_of) = read_textures(m, origin, &materials, textures)?;
     let t_load = t0.elapsed().as_secs_f64();
 
     let t1 = Instant::now();
     let terrain = TerrainBvh::new(&bundle, bend);
     drop(std::mem::take(&mut bundle.terrain));
     let render_origin = terrain.render_origin();
-    let gt = m.material_raster.geotransform;
-    let mut data = std::mem::take(&mut bundle.material_raster);
-    if !identity {
-        for v in &mut data {
-            *v = scene_id[*v as usize];
-        }
-    }
-    let raster = MaterialRaster {
-        width: m.material_raster.width as usize,
-        height: m.material_raster.height as usize,
-        geotransform: [
-            gt[0] - origin.x,
-            gt[1],
-            gt[2],
-            gt[3] - origin.y,
-            gt[4],
-            gt[5],
-        ],
-        data,
-    };
-    if raster.width == 0 || raster.height == 0 || raster.data.len() != raster.width * raster.height
-    {
-        return Err(SceneError::EmptyMaterialRaster {
-            width: raster.width,
-            height: raster.height,
-            pixels: raster.data.len(),
-        });
-    }
-    let templates: Vec<TemplateGeometry> = std::mem::take(&mut bundle.templates)
-        .iter()
-        .map(|t| {
-            if identity {
-                TemplateGeometry::from_mesh(t)
-            } else {
-                let mut t = t.clone();
-                for v in &mut t.materials {
-                    *v = scene_id[*v as usize];
-                }
-                TemplateGeometry::from_mesh(&t)
-            }
-        })
-        .collect();
-    let instances: Vec<(u32, InstanceTransform)> =
-        super::map_freeing(std::mem::take(&mut bundle.instances), |inst| {
-            let (k, mut tr) = InstanceTransform::from_bundle(&inst);
-            // Bent scenes: each instance stands at its anchor's altitude above the sphere.
-            if let Some(c) = bend {
-                tr.translation = c.bend(tr.translation);
-            }
-            (k, tr)
-        });
-    let objects = if instances.is_empty() {
-        None
-    } else {
-        Some(InstanceBvh::new(templates, instances, render_origin)?)
-    };
+    let data = std::mem::take(&mut bundle.material_raster);
+    let raster = material_raster(m, origin, data, &scene_id, identity)?;
+    let objects = instance_bvh(
+        std::mem::take(&mut bundle.templates),
+        std::mem::take(&mut bundle.instances),
+        &scene_id,
+        identity,
+        bend,
+        render_origin,
+    )?;
     let t_bvh = t1.elapsed().as_secs_f64();
 
     let mut z_range = m.extent.height_range;
@@ -201,23 +99,7 @@ pub fn from_bundle(
     let ground = match background {
         Background::None => None,
         Background::Flat { altitude, brdf } => {
-            let material = match brdf {
-                Some(spec) => {
-                    spec.validate()
-                        .map_err(|source| SceneError::Background { source })?;
-                    materials.push(("background".into(), (**spec).clone()));
-                    (materials.len() - 1) as u16
-                }
-                None => {
-                    // The most frequent material of the raster (the histogram counts pixels
-                    // per manifest index); the first material if the raster has none.
-                    let h = &m.material_raster.histogram;
-                    (0..h.len().min(255))
-                        .filter(|&i| scene_id[i] != u8::MAX && h[i] > 0)
-                        .max_by_key(|&i| h[i])
-                        .map_or(0, |i| scene_id[i]) as u16
-                }
-            };
+            let material = background_material(m, brdf.as_deref(), &scene_id, &mut materials)?;
             let altitude = altitude.unwrap_or(m.extent.height_range[0]);
             z_range[0] = z_range[0].min(altitude);
             Some(GroundPlane {
@@ -285,6 +167,192 @@ pub fn from_bundle(
         scene.summary()
     );
     Ok(scene)
+}
+
+/// The bundle's materials with `overrides` applied, and the map from manifest index to scene id.
+fn bundle_materials(
+    m: &bundle::Manifest,
+    dir: &Path,
+    overrides: &[(String, BrdfSpec)],
+) -> Result<SceneMaterials, SceneError> {
+    // The scene's material ids are positions in the manifest's table; the raster and the
+    // template triangles hold the manifest's `index` of each material (any unique 0–254, not
+    // necessarily contiguous). `Bundle::open` has checked that every id used has a material and
+    // that every BRDF is within `bundle::BRDF_PARAM_RANGES`.
+    // Tables of tabulated BRDFs are files in the bundle's folder.
+    let mut materials: Vec<(String, BrdfSpec)> = m
+        .materials
+        .iter()
+        .map(|x| {
+            (
+                x.name.clone(),
+                crate::scene::material::SurfaceModel::with_files_in(&x.brdf, dir),
+            )
+        })
+        .collect();
+    let mut scene_id = [u8::MAX; 256];
+    for (pos, x) in m.materials.iter().enumerate() {
+        scene_id[x.index as usize] = pos as u8; // ≤ 254: at most 255 distinct indices 0–254
+    }
+    scene_id[bundle::NO_MATERIAL as usize] = bundle::NO_MATERIAL;
+    let identity = m
+        .materials
+        .iter()
+        .enumerate()
+        .all(|(pos, x)| x.index as usize == pos);
+    for (name, spec) in overrides {
+        spec.validate().map_err(|source| SceneError::Override {
+            name: name.clone(),
+            source,
+        })?;
+        let id = super::world::material_id(&materials, name)?;
+        materials[id].1 = spec.clone();
+    }
+    Ok((materials, scene_id, identity))
+}
+
+/// Read the reflectance textures, and which texture (if any) each material has.
+fn read_textures(
+    m: &bundle::Manifest,
+    origin: DVec3,
+    materials: &[(String, BrdfSpec)],
+    textures: &[TextureRequest],
+) -> Result<(Vec<super::texture::Texture>, Vec<Option<usize>>), SceneError> {
+    let mut tex = Vec::new();
+    let mut texture_of: Vec<Option<usize>> = vec![None; materials.len()];
+    for r in textures {
+        let Some(id) = materials.iter().position(|(n, _)| *n == r.material) else {
+            return Err(SceneError::TextureMaterial {
+                file: r.file.clone(),
+                material: r.material.clone(),
+            });
+        };
+        if !matches!(materials[id].1, BrdfSpec::Lambertian { .. }) {
+            return Err(SceneError::TextureNotLambertian {
+                file: r.file.clone(),
+                material: r.material.clone(),
+            });
+        }
+        if texture_of[id].is_some() {
+            return Err(SceneError::TwoTextures {
+                material: r.material.clone(),
+            });
+        }
+        texture_of[id] = Some(tex.len());
+        tex.push(super::texture::Texture::read(
+            &r.file,
+            id as u16,
+            &r.wavelengths,
+            &m.crs.wkt,
+            [origin.x, origin.y],
+        )?);
+    }
+    Ok((tex, texture_of))
+}
+
+/// The material raster in the scene's frame, its pixels mapped to scene material ids.
+fn material_raster(
+    m: &bundle::Manifest,
+    origin: DVec3,
+    mut data: Vec<u8>,
+    scene_id: &[u8; 256],
+    identity: bool,
+) -> Result<MaterialRaster, SceneError> {
+    let gt = m.material_raster.geotransform;
+    if !identity {
+        for v in &mut data {
+            *v = scene_id[*v as usize];
+        }
+    }
+    let raster = MaterialRaster {
+        width: m.material_raster.width as usize,
+        height: m.material_raster.height as usize,
+        geotransform: [
+            gt[0] - origin.x,
+            gt[1],
+            gt[2],
+            gt[3] - origin.y,
+            gt[4],
+            gt[5],
+        ],
+        data,
+    };
+    if raster.width == 0 || raster.height == 0 || raster.data.len() != raster.width * raster.height
+    {
+        return Err(SceneError::EmptyMaterialRaster {
+            width: raster.width,
+            height: raster.height,
+            pixels: raster.data.len(),
+        });
+    }
+    Ok(raster)
+}
+
+/// The instanced objects' BVH (none without instances); the template meshes are freed once
+/// converted, and bent scenes stand each instance on the sphere.
+fn instance_bvh(
+    templates: Vec<bundle::TemplateMesh>,
+    instances: Vec<bundle::Instance>,
+    scene_id: &[u8; 256],
+    identity: bool,
+    bend: Option<Curvature>,
+    render_origin: DVec3,
+) -> Result<Option<InstanceBvh>, SceneError> {
+    let geometry: Vec<TemplateGeometry> = templates
+        .iter()
+        .map(|t| {
+            if identity {
+                TemplateGeometry::from_mesh(t)
+            } else {
+                let mut t = t.clone();
+                for v in &mut t.materials {
+                    *v = scene_id[*v as usize];
+                }
+                TemplateGeometry::from_mesh(&t)
+            }
+        })
+        .collect();
+    drop(templates);
+    let instances: Vec<(u32, InstanceTransform)> = super::map_freeing(instances, |inst| {
+        let (k, mut tr) = InstanceTransform::from_bundle(&inst);
+        // Bent scenes: each instance stands at its anchor's altitude above the sphere.
+        if let Some(c) = bend {
+            tr.translation = c.bend(tr.translation);
+        }
+        (k, tr)
+    });
+    Ok(if instances.is_empty() {
+        None
+    } else {
+        Some(InstanceBvh::new(geometry, instances, render_origin)?)
+    })
+}
+
+/// The ground plane's material: `brdf` appended as the material `background`, or else the most
+/// frequent material of the raster.
+fn background_material(
+    m: &bundle::Manifest,
+    brdf: Option<&BrdfSpec>,
+    scene_id: &[u8; 256],
+    materials: &mut Vec<(String, BrdfSpec)>,
+) -> Result<u16, SceneError> {
+    Ok(match brdf {
+        Some(spec) => {
+            spec.validate()
+                .map_err(|source| SceneError::Background { source })?;
+            materials.push(("background".into(), spec.clone()));
+            (materials.len() - 1) as u16
+        }
+        None => {
+            // The most frequent material of the raster (the histogram counts pixels
+            // per manifest index); the first material if the raster has none.
+            let h = &m.material_raster.histogram;
+            (0..h.len().min(255))
+                .filter(|&i| scene_id[i] != u8::MAX && h[i] > 0)
+                .max_by_key(|&i| h[i])
+                .map_or(0, |i| scene_id[i]) as u16
+        }
+    })
 }
 
 /// One leaf cloud of a canopy.

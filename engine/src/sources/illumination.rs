@@ -176,107 +176,29 @@ impl IlluminationConfig {
                 moon: None,
             });
         };
-        let mut sun_distance_factor = None;
-        let mut distance_au = None;
-        let (zenith, azimuth) = match (time, zenith) {
-            (Some(t), None) => {
-                if azimuth.is_some() {
-                    return Err(ctx.err(
-                        "illumination.azimuth",
-                        "is computed from `time`; give one or the other",
-                    ));
-                }
-                if date.is_some() {
-                    return Err(ctx.err(
-                        "illumination.date",
-                        "is implied by `time`; give one or the other",
-                    ));
-                }
-                let lat = latitude
-                    .ok_or_else(|| ctx.err("illumination.latitude", "is required with `time`"))?;
-                let lon = longitude
-                    .ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
-                let p = sun_position(
-                    t,
-                    ctx.finite("illumination.latitude", lat)?,
-                    ctx.finite("illumination.longitude", lon)?,
-                    elevation.unwrap_or(0.0),
-                    None,
-                )
-                .map_err(|e| ctx.err("illumination.time", e.to_string()))?;
-                tracing::debug!(
-                    "Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU",
-                    p.zenith,
-                    p.azimuth,
-                    p.distance_au
-                );
-                sun_distance_factor = Some(1.0 / (p.distance_au * p.distance_au));
-                distance_au = Some(p.distance_au);
-                (p.zenith, p.azimuth)
-            }
-            (None, Some(z)) => {
-                if latitude.is_some() || longitude.is_some() || elevation.is_some() {
-                    return Err(ctx.err(
-                        "illumination",
-                        "`latitude`/`longitude`/`elevation` are used only with `time`",
-                    ));
-                }
-                (*z, azimuth.unwrap_or(0.0))
-            }
-            (Some(_), Some(_)) => {
-                return Err(ctx.err(
-                    "illumination.zenith",
-                    "give either `zenith` (and `azimuth`) or `time` with a place, not both",
-                ))
-            }
-            (None, None) => {
-                return Err(ctx.err(
-                    "illumination",
-                    "give `zenith` (and `azimuth`), or `time` with `latitude` and `longitude`",
-                ))
-            }
-        };
-        let zenith = ctx.finite("illumination.zenith", zenith)?;
-        if !spherical && !(0.0..90.0).contains(&zenith) {
-            return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
-        }
-        if !(0.0..=180.0).contains(&zenith) {
-            return Err(ctx.err(
-                "illumination.zenith",
-                format!("{zenith} degrees must lie in [0, 180]"),
-            ));
-        }
-        let azimuth = ctx.finite("illumination.azimuth", azimuth)?;
-        if !(-360.0..=360.0).contains(&azimuth) {
-            return Err(ctx.err(
-                "illumination.azimuth",
-                format!("{azimuth} degrees must lie in [-360, 360]"),
-            ));
-        }
+        let (zenith, azimuth, distance_from_time) = sun_angles(
+            ctx,
+            time,
+            zenith,
+            azimuth,
+            date,
+            Place {
+                latitude: *latitude,
+                longitude: *longitude,
+                elevation: *elevation,
+            },
+        )?;
+        let sun_distance_factor = distance_from_time.map(|d| 1.0 / (d * d));
+        let (zenith, azimuth) = check_sun_angles(ctx, zenith, azimuth, spherical)?;
         let mut irradiance =
             irradiance_at(ctx, "illumination.irradiance", irradiance, wavelengths)?;
-        if let Some(d) = given_distance {
-            if time.is_some() || date.is_some() {
-                return Err(ctx.err(
-                    "illumination.distance_au",
-                    "is implied by `time` or `date`; give one of the three",
-                ));
-            }
-            let d = ctx.finite("illumination.distance_au", *d)?;
-            if !(0.9..=1.1).contains(&d) {
-                return Err(ctx.err(
-                    "illumination.distance_au",
-                    format!("{d} AU must lie in [0.9, 1.1] (the Earth's orbit)"),
-                ));
-            }
-            sun_distance_factor = Some(1.0 / (d * d));
-            distance_au = Some(d);
-        }
-        if let Some(d) = date {
-            let doy = day_of_year(d).map_err(|e| ctx.err("illumination.date", e.to_string()))?;
-            sun_distance_factor = Some(earth_sun_factor(doy));
-            distance_au = Some(1.0 / earth_sun_factor(doy).sqrt());
-        }
+        let (sun_distance_factor, distance_au) = sun_distance(
+            ctx,
+            given_distance,
+            time,
+            date,
+            (sun_distance_factor, distance_from_time),
+        )?;
         let moonlight = match (moon, time) {
             (false, _) => {
                 if moon_irradiance.is_some() {
@@ -334,6 +256,149 @@ impl IlluminationConfig {
             moon: moonlight,
         })
     }
+}
+
+/// The place of a Sun given by `time`: `latitude`, `longitude` and `elevation` as given.
+#[derive(Clone, Copy, Debug)]
+struct Place {
+    latitude: Option<f64>,
+    longitude: Option<f64>,
+    elevation: Option<f64>,
+}
+
+/// The Sun's zenith and azimuth (degrees, not yet range-checked) from `time` and place (NREL
+/// SPA; then also its distance, AU) or as given.
+fn sun_angles(
+    ctx: &ConfigCtx,
+    time: &Option<String>,
+    zenith: &Option<f64>,
+    azimuth: &Option<f64>,
+    date: &Option<String>,
+    place: Place,
+) -> Result<(f64, f64, Option<f64>), ConfigError> {
+    let Place {
+        latitude,
+        longitude,
+        elevation,
+    } = place;
+    Ok(match (time, zenith) {
+        (Some(t), None) => {
+            if azimuth.is_some() {
+                return Err(ctx.err(
+                    "illumination.azimuth",
+                    "is computed from `time`; give one or the other",
+                ));
+            }
+            if date.is_some() {
+                return Err(ctx.err(
+                    "illumination.date",
+                    "is implied by `time`; give one or the other",
+                ));
+            }
+            let lat = latitude
+                .ok_or_else(|| ctx.err("illumination.latitude", "is required with `time`"))?;
+            let lon = longitude
+                .ok_or_else(|| ctx.err("illumination.longitude", "is required with `time`"))?;
+            let p = sun_position(
+                t,
+                ctx.finite("illumination.latitude", lat)?,
+                ctx.finite("illumination.longitude", lon)?,
+                elevation.unwrap_or(0.0),
+                None,
+            )
+            .map_err(|e| ctx.err("illumination.time", e.to_string()))?;
+            tracing::debug!(
+                "Sun at {t}: zenith {:.4}°, azimuth {:.4}°, distance {:.6} AU",
+                p.zenith,
+                p.azimuth,
+                p.distance_au
+            );
+            (p.zenith, p.azimuth, Some(p.distance_au))
+        }
+        (None, Some(z)) => {
+            if latitude.is_some() || longitude.is_some() || elevation.is_some() {
+                return Err(ctx.err(
+                    "illumination",
+                    "`latitude`/`longitude`/`elevation` are used only with `time`",
+                ));
+            }
+            (*z, azimuth.unwrap_or(0.0), None)
+        }
+        (Some(_), Some(_)) => {
+            return Err(ctx.err(
+                "illumination.zenith",
+                "give either `zenith` (and `azimuth`) or `time` with a place, not both",
+            ))
+        }
+        (None, None) => {
+            return Err(ctx.err(
+                "illumination",
+                "give `zenith` (and `azimuth`), or `time` with `latitude` and `longitude`",
+            ))
+        }
+    })
+}
+
+/// Check the Sun's zenith (beyond 90° only in spherical shells) and azimuth, degrees.
+fn check_sun_angles(
+    ctx: &ConfigCtx,
+    zenith: f64,
+    azimuth: f64,
+    spherical: bool,
+) -> Result<(f64, f64), ConfigError> {
+    let zenith = ctx.finite("illumination.zenith", zenith)?;
+    if !spherical && !(0.0..90.0).contains(&zenith) {
+        return Err(ctx.err("illumination.zenith", format!("{zenith} degrees must lie in [0, 90) (a plane-parallel atmosphere has no twilight; use geometry.type = \"spherical_shell\")")));
+    }
+    if !(0.0..=180.0).contains(&zenith) {
+        return Err(ctx.err(
+            "illumination.zenith",
+            format!("{zenith} degrees must lie in [0, 180]"),
+        ));
+    }
+    let azimuth = ctx.finite("illumination.azimuth", azimuth)?;
+    if !(-360.0..=360.0).contains(&azimuth) {
+        return Err(ctx.err(
+            "illumination.azimuth",
+            format!("{azimuth} degrees must lie in [-360, 360]"),
+        ));
+    }
+    Ok((zenith, azimuth))
+}
+
+/// The irradiance factor 1/r² and the Earth–Sun distance r (AU): `from_time`'s, or r as given
+/// (`distance_au`) or implied by `date`.
+fn sun_distance(
+    ctx: &ConfigCtx,
+    given_distance: &Option<f64>,
+    time: &Option<String>,
+    date: &Option<String>,
+    from_time: (Option<f64>, Option<f64>),
+) -> Result<(Option<f64>, Option<f64>), ConfigError> {
+    let (mut sun_distance_factor, mut distance_au) = from_time;
+    if let Some(d) = given_distance {
+        if time.is_some() || date.is_some() {
+            return Err(ctx.err(
+                "illumination.distance_au",
+                "is implied by `time` or `date`; give one of the three",
+            ));
+        }
+        let d = ctx.finite("illumination.distance_au", *d)?;
+        if !(0.9..=1.1).contains(&d) {
+            return Err(ctx.err(
+                "illumination.distance_au",
+                format!("{d} AU must lie in [0.9, 1.1] (the Earth's orbit)"),
+            ));
+        }
+        sun_distance_factor = Some(1.0 / (d * d));
+        distance_au = Some(d);
+    }
+    if let Some(d) = date {
+        let doy = day_of_year(d).map_err(|e| ctx.err("illumination.date", e.to_string()))?;
+        sun_distance_factor = Some(earth_sun_factor(doy));
+        distance_au = Some(1.0 / earth_sun_factor(doy).sqrt());
+    }
+    Ok((sun_distance_factor, distance_au))
 }
 
 /// E0 at each run wavelength from an irradiance value (numbers, a built-in spectrum or a CSV
