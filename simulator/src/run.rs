@@ -196,9 +196,9 @@ fn run_task(
     cancel: &AtomicBool,
 ) -> Vec<MeasureResult> {
     let m = &exp.measures[im];
-    let method = method_for(exp, m);
-    let bs = m.block_size();
     let walks = TaskWalks::new(exp, group, im);
+    let method = walks.method();
+    let bs = m.block_size();
     let iw0 = group[0];
     // Rounds end on whole cycles of g-point blocks in CKD runs.
     let cycle = if exp.integrator.alis {
