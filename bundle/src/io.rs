@@ -898,12 +898,14 @@ pub(crate) fn check_material_table(materials: &[Material], path: &Path) -> Resul
                 ),
             });
         }
-        m.brdf.validate().map_err(|source| BundleError::Brdf {
-            path: path.into(),
-            index: m.index,
-            name: m.name.clone(),
-            source,
-        })?;
+        m.brdf
+            .validate_stored()
+            .map_err(|source| BundleError::Brdf {
+                path: path.into(),
+                index: m.index,
+                name: m.name.clone(),
+                source,
+            })?;
         if let Some(Err((key, message))) = m.solver.as_ref().map(|s| s.validate()) {
             return Err(BundleError::Manifest {
                 path: path.into(),
@@ -1005,7 +1007,7 @@ mod tests {
         }
         std::fs::write(dir.join(MANIFEST_FILE), toml::to_string(&m).unwrap()).unwrap();
     }
-    use crate::{BrdfSpec, Spectrum};
+    use crate::{BiLambertianSpec, BrdfSpec, LambertianSpec, RpvSpec, Spectrum};
 
     pub(super) fn sample() -> Bundle {
         let manifest = Manifest {
@@ -1049,9 +1051,9 @@ mod tests {
                 Material {
                     index: 0,
                     name: "grass".into(),
-                    brdf: BrdfSpec::Lambertian {
+                    brdf: BrdfSpec::Lambertian(LambertianSpec {
                         reflectance: Spectrum::Constant(0.2),
-                    },
+                    }),
                     class_codes: vec![30],
                     source: "test".into(),
                     solver: None,
@@ -1060,13 +1062,13 @@ mod tests {
                 Material {
                     index: 1,
                     name: "leaf".into(),
-                    brdf: BrdfSpec::BiLambertian {
+                    brdf: BrdfSpec::BiLambertian(BiLambertianSpec {
                         reflectance: Spectrum::Table {
                             wavelengths_nm: vec![400.0, 800.0],
                             values: vec![0.05, 0.45],
                         },
                         transmittance: Spectrum::Constant(0.4),
-                    },
+                    }),
                     class_codes: vec![],
                     source: "test".into(),
                     solver: None,
@@ -1355,12 +1357,12 @@ mod tests {
         let mpath = dir.join("manifest.toml");
         let text = std::fs::read_to_string(&mpath).unwrap();
         let mut m: Manifest = toml::from_str(&text).unwrap();
-        m.materials[0].brdf = BrdfSpec::Rpv {
+        m.materials[0].brdf = BrdfSpec::Rpv(RpvSpec {
             rho_0: Spectrum::Constant(0.1),
             k: Spectrum::Constant(5.0),
             g: Spectrum::Constant(0.0),
             rho_c: None,
-        };
+        });
         std::fs::write(&mpath, toml::to_string(&m).unwrap()).unwrap();
         let msg = Bundle::open(&dir).unwrap_err().to_string();
         assert!(

@@ -23,14 +23,16 @@ pub enum ConfigError {
 
 /// What every part resolver of the experiment file (`bsdf/config.rs`, `phase/config.rs`, …)
 /// needs to report an error and to read its inputs: the experiment file (named in errors), the
-/// folder relative paths are taken from, and the number of run wavelengths (a spectral value
-/// expands to one number per wavelength). It lives here, below every model module, so that the
+/// folder relative paths are taken from, and the run wavelengths (a spectral value expands to
+/// one number per wavelength; empty, with `nw` 0, while `[spectral]` itself is resolved). It lives here, below every model module, so that the
 /// models can resolve their own configuration without importing `config` back.
 #[derive(Clone, Copy, Debug)]
 pub struct ConfigCtx<'a> {
     pub path: &'a Path,
     pub base: &'a Path,
     pub nw: usize,
+    /// nm; `nw` of them once `[spectral]` is resolved.
+    pub wavelengths: &'a [f64],
 }
 
 impl ConfigCtx<'_> {

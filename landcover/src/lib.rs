@@ -310,7 +310,7 @@ pub fn validate_rule(r: &PopulationRule) -> Result<(), (String, String)> {
 /// [`BrdfSpec::validate`]); returns (the first offending parameter, a message naming every
 /// violation with its value and allowed range).
 pub fn validate_brdf(b: &BrdfSpec) -> Result<(), (String, String)> {
-    b.validate().map_err(|e| {
+    b.validate_stored().map_err(|e| {
         let param = e.violations.first().map_or("", |v| v.param());
         (param.to_string(), e.to_string())
     })

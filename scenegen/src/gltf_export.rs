@@ -28,15 +28,12 @@ use crate::ScenegenError;
 
 fn material_rgb(b: &BrdfSpec) -> [f64; 3] {
     let s = match b {
-        BrdfSpec::Lambertian { reflectance } | BrdfSpec::BiLambertian { reflectance, .. } => {
-            reflectance
-        }
-        BrdfSpec::Rpv { rho_0, .. } => rho_0,
-        BrdfSpec::Rtls { f_iso, .. } => f_iso,
-        BrdfSpec::Hapke { w, .. } => w,
-        BrdfSpec::Ocean { .. } => return [0.02, 0.05, 0.1],
+        BrdfSpec::Ocean(_) => return [0.02, 0.05, 0.1],
         // A measured table: no colour without reading it; a neutral grey.
-        BrdfSpec::Tabulated { .. } => return [0.2, 0.2, 0.2],
+        _ => match b.reflectance_level() {
+            Some(s) => s,
+            None => return [0.2, 0.2, 0.2],
+        },
     };
     [s.at(650.0), s.at(550.0), s.at(450.0)].map(|v| v.clamp(0.0, 1.0))
 }

@@ -55,7 +55,8 @@ pub fn render(exp: &Experiment) -> Result<Vec<Preview>, String> {
     let models: Vec<Vec<SurfaceModel>> = exp
         .wavelengths
         .iter()
-        .map(|&w| scene.models_at(w).map_err(|e| e.to_string()))
+        .enumerate()
+        .map(|(iw, &w)| scene.models_at(iw, w).map_err(|e| e.to_string()))
         .collect::<Result<_, _>>()?;
     let sun = exp.sun_dir;
     let light = if sun.z > 1e-6 {

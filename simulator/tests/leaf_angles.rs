@@ -18,7 +18,7 @@
 
 use std::path::{Path, PathBuf};
 
-use engine::bundle::{BrdfSpec, Spectrum};
+use engine::bundle::*;
 use engine::scene::build::ConeTrees;
 use glam::DVec3;
 
@@ -71,19 +71,19 @@ fn generated() -> Vec<f64> {
         trunk_radius: 0.15,
         trunk_bottom: -0.1,
         trunk_top: 1.5,
-        trunk_brdf: BrdfSpec::Lambertian {
+        trunk_brdf: BrdfSpec::Lambertian(LambertianSpec {
             reflectance: Spectrum::Constant(0.14),
-        },
+        }),
         crown_height: 12.0,
         crown_radius: 1.8,
         leaves: 50_000,
         leaf_radius: 0.05,
         mu: MU,
         nu: NU,
-        leaf_brdf: BrdfSpec::BiLambertian {
+        leaf_brdf: BrdfSpec::BiLambertian(BiLambertianSpec {
             reflectance: Spectrum::Constant(0.08),
             transmittance: Spectrum::Constant(0.03),
-        },
+        }),
         variants: 4,
         seed: 6,
     };

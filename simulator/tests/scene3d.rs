@@ -4,7 +4,7 @@
 
 mod common;
 
-use bundle::{BrdfSpec, Spectrum};
+use bundle::*;
 use common::bundles::{
     lambertian, tmp, write_plane, write_plane_with_indices, write_random_leaves, PlaneSpec,
 };
@@ -55,12 +55,12 @@ fn distant(id: &str, vza: &[f64], vaa: &[f64], spp: u64, extra: &str) -> String 
 /// BVH, the selector and the tilted-frame BRDF evaluation, the 1D walk does not).
 #[test]
 fn flat_bundle_equals_1d_surface() {
-    let rpv = BrdfSpec::Rpv {
+    let rpv = BrdfSpec::Rpv(RpvSpec {
         rho_0: Spectrum::Constant(0.12),
         k: Spectrum::Constant(0.8),
         g: Spectrum::Constant(-0.2),
         rho_c: None,
-    };
+    });
     let cases = [
         (
             "lambertian",

@@ -22,7 +22,7 @@
 
 mod common;
 
-use bundle::{BrdfSpec, Spectrum};
+use bundle::*;
 use common::bundles::{tmp, write_random_leaves, write_two_material_slope};
 use common::{compare_brf_rows, experiment, run_on_1_and_2_threads, run_rows};
 
@@ -107,7 +107,7 @@ fn canopy_group_equals_independent_walks() {
 }
 
 fn bundle_text(dir: &std::path::Path, spp_area: u64, spp_image: u64) -> String {
-    let rpv = BrdfSpec::Rpv {
+    let rpv = BrdfSpec::Rpv(RpvSpec {
         rho_0: Spectrum::Table {
             wavelengths_nm: vec![440.0, 660.0],
             values: vec![0.04, 0.25],
@@ -118,7 +118,7 @@ fn bundle_text(dir: &std::path::Path, spp_area: u64, spp_image: u64) -> String {
             values: vec![-0.3, 0.1],
         },
         rho_c: None,
-    };
+    });
     let b = write_two_material_slope(dir, rpv, 0.05, -0.03, 4);
     format!(
         "{HEAD}[scene]\ntype = \"bundle\"\npath = \"{}\"\n{}\

@@ -17,7 +17,7 @@ use common::*;
 use std::path::Path;
 
 use engine::bsdf::Rpv;
-use engine::bundle::{BrdfSpec, Spectrum};
+use engine::bundle::*;
 use engine::frame::direction_from_angles;
 
 /// RPV parameters (ρ₀ at 500 and 700 nm; k, Θ, ρ_c).
@@ -116,16 +116,16 @@ fn rpv_table_reproduces_rpv_1d() {
 /// reproduces the same bundle with the RPV material (scene walk, 500 nm).
 #[test]
 fn rpv_table_reproduces_rpv_bundle_material() {
-    let rpv = BrdfSpec::Rpv {
+    let rpv = BrdfSpec::Rpv(RpvSpec {
         rho_0: Spectrum::Constant(RHO_0[0]),
         k: Spectrum::Constant(K_G_RHOC.0),
         g: Spectrum::Constant(K_G_RHOC.1),
         rho_c: Some(Spectrum::Constant(K_G_RHOC.2)),
-    };
-    let tab = BrdfSpec::Tabulated {
+    });
+    let tab = BrdfSpec::Tabulated(TabulatedSpec {
         file: "brdf/rpv.nc".into(),
         symmetrize: false,
-    };
+    });
     let mut rows = Vec::new();
     for (name, spec, seed) in [("rpv", rpv, 5u64), ("tab", tab, 6)] {
         let mut plane = flat_plane(2000.0, 0.0, -1000.0, 0.2);

@@ -18,7 +18,7 @@
 
 mod common;
 
-use bundle::{BrdfSpec, Spectrum};
+use bundle::{BiLambertianSpec, BrdfSpec, RpvSpec, Spectrum};
 use common::bundles::{lambertian, tmp, with_plate, write_plane, PlaneSpec};
 use common::{check_all, experiment, run_rows, Cmp};
 use engine::sources::planck;
@@ -109,10 +109,10 @@ fn isothermal_cavity_radiates_planck() {
             String::new(),
         ),
     );
-    let leaf = BrdfSpec::BiLambertian {
+    let leaf = BrdfSpec::BiLambertian(BiLambertianSpec {
         reflectance: Spectrum::Constant(0.3),
         transmittance: Spectrum::Constant(0.2),
-    };
+    });
     let with_leaf = with_plate(
         &base,
         &dir.join("leaf"),
@@ -123,12 +123,12 @@ fn isothermal_cavity_radiates_planck() {
         leaf,
         None,
     );
-    let rpv = BrdfSpec::Rpv {
+    let rpv = BrdfSpec::Rpv(RpvSpec {
         rho_0: Spectrum::Constant(0.15),
         k: Spectrum::Constant(0.6),
         g: Spectrum::Constant(-0.2),
         rho_c: None,
-    };
+    });
     let b = with_plate(
         &with_leaf,
         &dir.join("both"),

@@ -20,7 +20,7 @@ use crate::absorption::config::{
 };
 use crate::error::{ConfigCtx, ConfigError};
 use crate::phase::{Mixture, PhaseConfig, PhaseFunction, PhaseResolver, Rayleigh};
-use crate::spectral::{Mode, SpectralConfig, SpectralValue};
+use crate::spectral::{Mode, SpectralConfig, Spectrum, SpectrumExt};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -120,9 +120,9 @@ impl GeometryConfig {
 pub enum AtmosphereConfig {
     /// One layer from the ground to TOA.
     Homogeneous {
-        optical_thickness: SpectralValue,
+        optical_thickness: Spectrum,
         #[serde(default = "one")]
-        single_scattering_albedo: SpectralValue,
+        single_scattering_albedo: Spectrum,
         #[serde(default)]
         phase: PhaseConfig,
         /// K: an isothermal layer (thermal emission); or `temperature_bottom` and
@@ -172,8 +172,8 @@ pub enum AtmosphereConfig {
     None {},
 }
 
-fn one() -> SpectralValue {
-    SpectralValue::Scalar(1.0)
+fn one() -> Spectrum {
+    Spectrum::Constant(1.0)
 }
 
 fn yes() -> bool {
@@ -201,15 +201,15 @@ pub struct LayerConfig {
     pub top: f64,
     /// Vertical scattering optical thickness.
     #[serde(default)]
-    pub tau_sca: Option<SpectralValue>,
+    pub tau_sca: Option<Spectrum>,
     /// Vertical absorption optical thickness.
     #[serde(default)]
-    pub tau_abs: Option<SpectralValue>,
+    pub tau_abs: Option<Spectrum>,
     /// Alternative to tau_sca/tau_abs: total optical thickness and single-scattering albedo.
     #[serde(default)]
-    pub optical_thickness: Option<SpectralValue>,
+    pub optical_thickness: Option<Spectrum>,
     #[serde(default)]
-    pub single_scattering_albedo: Option<SpectralValue>,
+    pub single_scattering_albedo: Option<Spectrum>,
     #[serde(default)]
     pub phase: PhaseConfig,
     /// K: an isothermal layer (thermal emission); or `temperature_bottom` and
@@ -670,7 +670,7 @@ fn resolve_layered(
             &l.single_scattering_albedo,
         ) {
             (sca, abs, None, None) if sca.is_some() || abs.is_some() => {
-                let zero = SpectralValue::Scalar(0.0);
+                let zero = Spectrum::Constant(0.0);
                 (
                     sca.as_ref().unwrap_or(&zero).expand(
                         ctx,
@@ -688,7 +688,7 @@ fn resolve_layered(
             }
             (None, None, Some(tau), ssa) => {
                 let tau = tau.expand(ctx, &format!("{key}.optical_thickness"), 0.0, 1e6)?;
-                let ssa = ssa.as_ref().unwrap_or(&SpectralValue::Scalar(1.0)).expand(
+                let ssa = ssa.as_ref().unwrap_or(&Spectrum::Constant(1.0)).expand(
                     ctx,
                     &format!("{key}.single_scattering_albedo"),
                     0.0,

@@ -1,280 +1,259 @@
-//! The `[surface]` table of the experiment file: its raw serde type, one variant per model, and
-//! its resolution into one [`Bsdf`] per run wavelength. Keys and units are documented in
-//! `docs/experiment.md`; each model's constructor checks its parameter ranges (against the
-//! shared table `bundle::BRDF_PARAM_RANGES`).
+//! The `[surface]` table of the experiment file: the 1D ground as `{ brdf, temperature, solver }`
+//! ([`SurfaceConfig`]), and its resolution into one [`Bsdf`] per run wavelength by
+//! [`Bsdf::build`], the same constructors as every material of a 3D scene.
+//!
+//! The BRDF is a `bundle::BrdfSpec`, the one vocabulary of 1D surfaces and bundle materials.
+//! It is written either flat, its keys beside `temperature` and `solver` (every example does
+//! so):
+//!
+//! ```toml
+//! [surface]
+//! type = "rpv"
+//! rho_0 = 0.1
+//! k = 0.8
+//! g = -0.1
+//! temperature = 300.0
+//! ```
+//!
+//! or nested, as a material's: `[surface] brdf = { type = "rpv", … }` with `temperature` and
+//! `solver` beside it. Keys and units are documented in `docs/experiment.md`.
 
 use serde::Deserialize;
 
 use super::error::BrdfError;
-use super::tabulated::BrdfTable;
-use super::{Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, RtlsHotspot, Tabulated};
+use super::Bsdf;
 use crate::error::{ConfigCtx, ConfigError};
-use crate::spectral::SpectralValue;
+use crate::spectral::SpectrumExt;
+use bundle::BrdfSpec;
 
-#[derive(Clone, Debug, Deserialize)]
-#[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
-pub enum SurfaceConfig {
-    Lambertian {
-        reflectance: SpectralValue,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
-    Rpv {
-        rho_0: SpectralValue,
-        k: SpectralValue,
-        g: SpectralValue,
-        #[serde(default)]
-        rho_c: Option<SpectralValue>,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
-    Rtls {
-        f_iso: SpectralValue,
-        f_vol: SpectralValue,
-        f_geo: SpectralValue,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
-    /// RTLS with the Maignan et al. (2004) hot-spot factor (`rtls_hotspot.rs`).
-    RtlsHotspot {
-        f_iso: SpectralValue,
-        f_vol: SpectralValue,
-        f_geo: SpectralValue,
-        /// degrees.
-        #[serde(default = "default_xi0")]
-        xi0: SpectralValue,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
-    Hapke {
-        w: SpectralValue,
-        b: SpectralValue,
-        c: SpectralValue,
-        /// degrees.
-        theta: SpectralValue,
-        #[serde(rename = "B_0")]
-        b_0: SpectralValue,
-        h: SpectralValue,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
-    /// Rough ocean (Cox–Munk, Fresnel, shadowing); polarizing.
-    Ocean {
-        /// m/s.
-        wind_speed: SpectralValue,
-        #[serde(default)]
-        refractive_index: Option<SpectralValue>,
-        #[serde(default = "yes")]
-        shadowing: bool,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
-    /// A measured BRDF from a netCDF table (`tabulated.rs`: layout, interpolation).
-    Tabulated {
-        /// Relative to the experiment file.
-        file: String,
-        #[serde(default)]
-        symmetrize: bool,
-        /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
-        #[serde(default)]
-        temperature: Option<f64>,
-        /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
-        #[serde(default)]
-        solver: Option<bundle::SolverSpec>,
-    },
+/// The experiment's 1D ground.
+#[derive(Clone, Debug, PartialEq)]
+pub struct SurfaceConfig {
+    pub brdf: BrdfSpec,
+    /// K: the surface's temperature, for thermal emission (`emissivity.rs`).
+    pub temperature: Option<f64>,
+    /// The surface's radiometry solver (`integrator/solver.rs`; default `generic`).
+    pub solver: Option<bundle::SolverSpec>,
 }
 
-fn yes() -> bool {
-    true
+/// The keys of `[surface]` that are not the BRDF's.
+const OWN_KEYS: [&str; 2] = ["temperature", "solver"];
+
+/// The flat form (the BRDF's keys beside `temperature` and `solver`) or the nested one
+/// (`brdf = { … }`); an unknown key is reported by the BRDF's own reader, which names it and
+/// the model's keys.
+impl<'de> Deserialize<'de> for SurfaceConfig {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        use serde::de::Error;
+        let mut table = toml::Table::deserialize(d)?;
+        let own = |table: &mut toml::Table, key: &str| table.remove(key);
+        let temperature = match own(&mut table, OWN_KEYS[0]) {
+            Some(v) => Some(f64::deserialize(v).map_err(|e| D::Error::custom(message(&e)))?),
+            None => None,
+        };
+        let solver = match own(&mut table, OWN_KEYS[1]) {
+            Some(v) => Some(
+                bundle::SolverSpec::deserialize(v).map_err(|e| D::Error::custom(message(&e)))?,
+            ),
+            None => None,
+        };
+        let brdf = match table.remove("brdf") {
+            Some(nested) => {
+                if let Some(k) = table.keys().next() {
+                    return Err(D::Error::custom(format!(
+                        "unknown field `{k}`: with a nested `brdf` table, `[surface]` holds only `brdf`, `temperature` and `solver`"
+                    )));
+                }
+                BrdfSpec::deserialize(nested)
+            }
+            None => BrdfSpec::deserialize(toml::Value::Table(table)),
+        }
+        .map_err(|e| D::Error::custom(message(&e)))?;
+        Ok(SurfaceConfig {
+            brdf,
+            temperature,
+            solver,
+        })
+    }
 }
 
-fn default_xi0() -> SpectralValue {
-    SpectralValue::Scalar(super::rtls_hotspot::DEFAULT_XI0_DEG)
+/// A TOML value reader's message, without the location it cannot know (the caller's path
+/// names the table).
+fn message(e: &toml::de::Error) -> String {
+    e.message().trim_end().to_string()
 }
 
 /// Any finite number: the model's constructor checks the range and names the parameter.
 const ANY: (f64, f64) = (-1e6, 1e6);
 
 impl SurfaceConfig {
-    /// `temperature` (K) of any model, if given.
     /// The surface's radiometry solver, if given.
     pub fn solver(&self) -> Option<bundle::SolverSpec> {
-        match self {
-            SurfaceConfig::Lambertian { solver, .. }
-            | SurfaceConfig::Rpv { solver, .. }
-            | SurfaceConfig::Rtls { solver, .. }
-            | SurfaceConfig::RtlsHotspot { solver, .. }
-            | SurfaceConfig::Hapke { solver, .. }
-            | SurfaceConfig::Ocean { solver, .. }
-            | SurfaceConfig::Tabulated { solver, .. } => *solver,
-        }
+        self.solver
     }
 
+    /// `temperature` (K), if given.
     pub fn temperature(&self) -> Option<f64> {
-        match self {
-            SurfaceConfig::Lambertian { temperature, .. }
-            | SurfaceConfig::Rpv { temperature, .. }
-            | SurfaceConfig::Rtls { temperature, .. }
-            | SurfaceConfig::RtlsHotspot { temperature, .. }
-            | SurfaceConfig::Hapke { temperature, .. }
-            | SurfaceConfig::Ocean { temperature, .. }
-            | SurfaceConfig::Tabulated { temperature, .. } => *temperature,
-        }
+        self.temperature
     }
 
     /// One BRDF per run wavelength (`wavelengths`, nm). `key` is the table's key path
     /// (`surface`): a value that is not a finite number, or a list of the wrong length, is
-    /// reported at `key.NAME`; a value out of its model's range at `key`, with the model's
-    /// message naming the parameter; a bad table file at `key.file`, naming file and variable.
+    /// reported at `key.NAME`; a value out of its model's range at `key.NAME` (with `[i]` for a
+    /// list), with the model's message naming the parameter (and the wavelength for a table);
+    /// a bad table file at `key.file`, naming file and variable.
     pub fn resolve(
         &self,
         ctx: &ConfigCtx,
         key: &str,
         wavelengths: &[f64],
     ) -> Result<Vec<Bsdf>, ConfigError> {
-        let spectral =
-            |name: &str, v: &SpectralValue| v.expand(ctx, &format!("{key}.{name}"), ANY.0, ANY.1);
-        let model = |m: BrdfError| ctx.err(key, m.to_string());
-        let nw = ctx.nw;
-        Ok(match self {
-            SurfaceConfig::Lambertian { reflectance, .. } => {
-                let name = format!("{key}.reflectance");
-                reflectance
-                    .expand(ctx, &name, 0.0, 1.0)?
-                    .into_iter()
-                    .map(|v| {
-                        Ok(Bsdf::Lambertian(
-                            Lambertian::new(v).map_err(|m| ctx.err(&name, m.to_string()))?,
-                        ))
-                    })
-                    .collect::<Result<_, ConfigError>>()?
+        for (name, s) in self.brdf.params() {
+            s.expand(ctx, &format!("{key}.{name}"), ANY.0, ANY.1)?;
+        }
+        // A tabulated BRDF's file is relative to the experiment file.
+        let spec = match &self.brdf {
+            BrdfSpec::Tabulated(t) => BrdfSpec::Tabulated(bundle::TabulatedSpec {
+                file: ctx.file(&t.file).to_string_lossy().into_owned(),
+                symmetrize: t.symmetrize,
+            }),
+            other => other.clone(),
+        };
+        let params = self.brdf.params();
+        wavelengths
+            .iter()
+            .enumerate()
+            .map(|(iw, &w)| {
+                Bsdf::build(&spec, iw, w)
+                    .map(super::Built::into_opaque)
+                    .map_err(|e| self.error_at(ctx, key, &params, iw, w, e))
+            })
+            .collect()
+    }
+
+    /// The key and message of a model's error at run wavelength `iw` (`w`, nm).
+    fn error_at(
+        &self,
+        ctx: &ConfigCtx,
+        key: &str,
+        params: &[(&'static str, &bundle::Spectrum)],
+        iw: usize,
+        w: f64,
+        e: BrdfError,
+    ) -> ConfigError {
+        let param = match &e {
+            BrdfError::Param { param, .. } => Some(*param),
+            BrdfError::LeafSum { .. } => Some("transmittance"),
+            _ => None,
+        };
+        let Some(param) = param else {
+            return ctx.err(format!("{key}.file"), e.to_string());
+        };
+        let (at, nm) = match params.iter().find(|(p, _)| *p == param).map(|(_, s)| *s) {
+            Some(bundle::Spectrum::PerWavelength(_)) => (format!("[{iw}]"), String::new()),
+            Some(bundle::Spectrum::Table { .. }) if !matches!(e, BrdfError::LeafSum { .. }) => {
+                (String::new(), format!(" (at {w} nm)"))
             }
-            SurfaceConfig::Rpv {
-                rho_0, k, g, rho_c, ..
-            } => {
-                let r0 = spectral("rho_0", rho_0)?;
-                let kk = spectral("k", k)?;
-                let gg = spectral("g", g)?;
-                let rc = match rho_c {
-                    Some(v) => spectral("rho_c", v)?,
-                    None => r0.clone(),
-                };
-                (0..nw)
-                    .map(|i| {
-                        Ok(Bsdf::Rpv(
-                            Rpv::new(r0[i], kk[i], gg[i], rc[i]).map_err(model)?,
-                        ))
-                    })
-                    .collect::<Result<_, ConfigError>>()?
-            }
-            SurfaceConfig::Rtls {
-                f_iso,
-                f_vol,
-                f_geo,
-                ..
-            } => {
-                let a = spectral("f_iso", f_iso)?;
-                let b = spectral("f_vol", f_vol)?;
-                let c = spectral("f_geo", f_geo)?;
-                (0..nw)
-                    .map(|i| Ok(Bsdf::Rtls(Rtls::new(a[i], b[i], c[i]).map_err(model)?)))
-                    .collect::<Result<_, ConfigError>>()?
-            }
-            SurfaceConfig::RtlsHotspot {
-                f_iso,
-                f_vol,
-                f_geo,
-                xi0,
-                ..
-            } => {
-                let a = spectral("f_iso", f_iso)?;
-                let b = spectral("f_vol", f_vol)?;
-                let c = spectral("f_geo", f_geo)?;
-                let x = spectral("xi0", xi0)?;
-                (0..nw)
-                    .map(|i| {
-                        Ok(Bsdf::RtlsHotspot(
-                            RtlsHotspot::new(a[i], b[i], c[i], x[i]).map_err(model)?,
-                        ))
-                    })
-                    .collect::<Result<_, ConfigError>>()?
-            }
-            SurfaceConfig::Ocean {
-                wind_speed,
-                refractive_index,
-                shadowing,
-                ..
-            } => {
-                let ws = wind_speed.expand(ctx, &format!("{key}.wind_speed"), 0.0, 40.0)?;
-                let n = refractive_index
-                    .as_ref()
-                    .unwrap_or(&SpectralValue::Scalar(1.33))
-                    .expand(ctx, &format!("{key}.refractive_index"), 1.0, 3.0)?;
-                (0..nw)
-                    .map(|i| {
-                        Ok(Bsdf::Ocean(
-                            Ocean::new(ws[i], n[i], *shadowing).map_err(model)?,
-                        ))
-                    })
-                    .collect::<Result<_, ConfigError>>()?
-            }
-            SurfaceConfig::Tabulated {
-                file, symmetrize, ..
-            } => {
-                let table = BrdfTable::load(&ctx.file(file))
-                    .map_err(|m| ctx.err(format!("{key}.file"), m.to_string()))?;
-                wavelengths
-                    .iter()
-                    .map(|&w| Bsdf::Tabulated(Tabulated::new(table.clone(), w, *symmetrize)))
-                    .collect()
-            }
-            SurfaceConfig::Hapke {
-                w,
-                b,
-                c,
-                theta,
-                b_0,
-                h,
-                ..
-            } => {
-                let w = spectral("w", w)?;
-                let b = spectral("b", b)?;
-                let c = spectral("c", c)?;
-                let th = spectral("theta", theta)?;
-                let b0 = spectral("B_0", b_0)?;
-                let h = spectral("h", h)?;
-                (0..nw)
-                    .map(|i| {
-                        Ok(Bsdf::Hapke(
-                            Hapke::new(w[i], b[i], c[i], th[i], b0[i], h[i]).map_err(model)?,
-                        ))
-                    })
-                    .collect::<Result<_, ConfigError>>()?
-            }
-        })
+            _ => (String::new(), String::new()),
+        };
+        ctx.err(format!("{key}.{param}{at}"), format!("{e}{nm}"))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn surface(text: &str) -> Result<SurfaceConfig, String> {
+        #[derive(Deserialize)]
+        struct T {
+            surface: SurfaceConfig,
+        }
+        toml::from_str::<T>(text)
+            .map(|t| t.surface)
+            .map_err(|e| e.to_string())
+    }
+
+    fn resolve(text: &str, wavelengths: &[f64]) -> Result<Vec<Bsdf>, String> {
+        let s = surface(text)?;
+        let ctx = ConfigCtx {
+            path: std::path::Path::new("exp.toml"),
+            base: std::path::Path::new("."),
+            nw: wavelengths.len(),
+            wavelengths,
+        };
+        s.resolve(&ctx, "surface", wavelengths)
+            .map_err(|e| e.to_string())
+    }
+
+    /// Rationale: the flat form (every existing experiment) and the nested form read as the
+    /// same `{ brdf, temperature, solver }`; a misspelt key is refused naming it, in either.
+    #[test]
+    fn flat_and_nested_forms_are_the_same_surface() {
+        let flat = surface(
+            "[surface]\ntype = \"rpv\"\nrho_0 = 0.1\nk = 0.8\ng = -0.1\ntemperature = 300.0",
+        )
+        .unwrap();
+        let nested = surface(
+            "[surface]\ntemperature = 300\nbrdf = { type = \"rpv\", rho_0 = 0.1, k = 0.8, g = -0.1 }",
+        )
+        .unwrap();
+        assert_eq!(flat, nested);
+        assert_eq!(flat.temperature(), Some(300.0));
+        assert_eq!(flat.brdf.type_name(), "rpv");
+        let e = surface("[surface]\ntype = \"lambertian\"\nreflectanse = 0.3").unwrap_err();
+        assert!(e.contains("unknown field `reflectanse`"), "{e}");
+        let e = surface("[surface]\nbrdf = { type = \"lambertian\", reflectance = 0.3 }\nk = 1")
+            .unwrap_err();
+        assert!(e.contains("unknown field `k`"), "{e}");
+        let e = surface("[surface]\ntype = \"lambertian\"").unwrap_err();
+        assert!(e.contains("missing field `reflectance`"), "{e}");
+    }
+
+    /// Rationale: every model, including the scene-only `bi_lambertian` and the once 1D-only
+    /// `rtls_hotspot`, builds as a 1D ground; out-of-range values are reported at the
+    /// parameter's key with the list index or the wavelength.
+    #[test]
+    fn every_model_resolves_and_errors_name_the_parameter() {
+        let w = [500.0, 600.0];
+        let leaf = resolve(
+            "[surface]\ntype = \"bi_lambertian\"\nreflectance = [0.3, 0.4]\ntransmittance = 0.5",
+            &w,
+        )
+        .unwrap();
+        match &leaf[1] {
+            Bsdf::Lambertian(l) => assert_eq!(l.reflectance, 0.4),
+            other => panic!("{other:?}"),
+        }
+        let h = resolve(
+            "[surface]\ntype = \"rtls_hotspot\"\nf_iso = 0.2\nf_vol = 0.1\nf_geo = 0.02",
+            &w,
+        )
+        .unwrap();
+        assert!(matches!(h[0], Bsdf::RtlsHotspot(_)));
+        let e = resolve(
+            "[surface]\ntype = \"rpv\"\nrho_0 = 0.1\nk = [0.5, 2.5]\ng = 0.0",
+            &w,
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("surface.k[1]") && e.contains("`k` = 2.5 must lie in [0, 2]"),
+            "{e}"
+        );
+        let e = resolve(
+            "[surface]\ntype = \"rpv\"\nrho_0 = 0.1\nk = { wavelengths_nm = [500.0, 600.0], values = [0.5, 2.5] }\ng = 0.0",
+            &w,
+        )
+        .unwrap_err();
+        assert!(e.contains("surface.k") && e.contains("(at 600 nm)"), "{e}");
+        let e = resolve(
+            "[surface]\ntype = \"lambertian\"\nreflectance = [0.1, 0.2, 0.3]",
+            &w,
+        )
+        .unwrap_err();
+        assert!(
+            e.contains("has 3 values but there are 2 wavelengths"),
+            "{e}"
+        );
     }
 }

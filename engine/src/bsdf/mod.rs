@@ -27,12 +27,19 @@
 //! pair of strategies to weigh, and no MIS weight. The one place two strategies meet is the
 //! defensive mixture above (cosine and table), combined by its one-sample MIS density.
 //!
-//! Adding a model touches three files, all in this folder (see CONTRIBUTING.md): its file
-//! (doc header with parameters, units, ranges and reference; its constructor checking the
-//! ranges against `bundle::BRDF_PARAM_RANGES`; its tests),
-//! a variant of [`Bsdf`] here, and a variant of [`SurfaceConfig`] with its arm in
-//! [`SurfaceConfig::resolve`] (`config.rs`).
+//! **One vocabulary.** A model is written in TOML as a `bundle::BrdfSpec` (one spec struct per
+//! model, spectral parameters as `bundle::Spectrum`), the same in the experiment's 1D
+//! `[surface]` (`config.rs`: the spec plus `temperature` and `solver`) and in every material of
+//! a 3D scene; [`Bsdf::build`] turns a spec into the model at one run wavelength for both, by
+//! the model's one constructor, which checks the ranges of `bundle::BRDF_PARAM_RANGES`.
+//!
+//! Adding a model touches four files (see CONTRIBUTING.md, "Adding a BRDF"): its file here (doc
+//! header with parameters, units, ranges and reference; its constructor checking the ranges;
+//! its tests), a variant of [`Bsdf`] with its arms here (dispatch and [`Bsdf::build`]), its spec
+//! struct, variant and range rows in `bundle/src/brdf/spec.rs`, and its keys in
+//! `docs/experiment.md`. It then works in 1D and in 3D scenes.
 
+pub mod bi_lambertian;
 pub mod config;
 pub mod emissivity;
 pub mod error;
@@ -47,6 +54,7 @@ pub mod tabulated;
 
 use glam::DVec3;
 
+pub use bi_lambertian::BiLambertian;
 pub use config::SurfaceConfig;
 pub use emissivity::SurfaceEmission;
 pub use error::BrdfError;
@@ -60,6 +68,7 @@ pub use table_sampler::TableSampler;
 pub use tabulated::Tabulated;
 
 use crate::frame::sample_cosine_hemisphere;
+use bundle::{BrdfSpec, Spectrum};
 
 /// A sampled incident direction with its Monte Carlo weight.
 #[derive(Clone, Copy, Debug)]
@@ -86,7 +95,87 @@ pub enum Bsdf {
     Tabulated(Tabulated),
 }
 
+/// What a BRDF spec builds at one wavelength ([`Bsdf::build`]): an opaque BRDF, or a
+/// two-sided bi-Lambertian leaf (3D scenes; a 1D ground keeps its reflection only).
+#[derive(Clone, Debug)]
+pub enum Built {
+    Opaque(Bsdf),
+    Leaf(BiLambertian),
+}
+
+impl Built {
+    /// The BRDF of a 1D ground: a leaf's transmitted light enters the ground and is absorbed,
+    /// so it is the Lambertian of its reflectance (`bi_lambertian.rs`).
+    pub fn into_opaque(self) -> Bsdf {
+        match self {
+            Built::Opaque(b) => b,
+            Built::Leaf(l) => Bsdf::Lambertian(Lambertian {
+                reflectance: l.reflectance,
+            }),
+        }
+    }
+}
+
 impl Bsdf {
+    /// The model of `spec` at run wavelength `iw` (`wavelength_nm`, nm), by the model's one
+    /// constructor (ranges of `bundle::BRDF_PARAM_RANGES`; the error names the parameter). A
+    /// tabulated BRDF's `file` must be a usable path (relative paths are taken from the
+    /// current folder: callers anchor them first, `scene/material.rs::with_files_in`).
+    pub fn build(spec: &BrdfSpec, iw: usize, wavelength_nm: f64) -> Result<Built, BrdfError> {
+        let at = |s: &Spectrum| s.at_run(iw, wavelength_nm);
+        let opaque = |b: Bsdf| Ok(Built::Opaque(b));
+        match spec {
+            BrdfSpec::Lambertian(s) => {
+                opaque(Bsdf::Lambertian(Lambertian::new(at(&s.reflectance))?))
+            }
+            BrdfSpec::BiLambertian(s) => Ok(Built::Leaf(BiLambertian::new(
+                at(&s.reflectance),
+                at(&s.transmittance),
+                wavelength_nm,
+            )?)),
+            BrdfSpec::Rpv(s) => opaque(Bsdf::Rpv(Rpv::new(
+                at(&s.rho_0),
+                at(&s.k),
+                at(&s.g),
+                at(s.rho_c.as_ref().unwrap_or(&s.rho_0)),
+            )?)),
+            BrdfSpec::Rtls(s) => opaque(Bsdf::Rtls(Rtls::new(
+                at(&s.f_iso),
+                at(&s.f_vol),
+                at(&s.f_geo),
+            )?)),
+            BrdfSpec::RtlsHotspot(s) => opaque(Bsdf::RtlsHotspot(RtlsHotspot::new(
+                at(&s.f_iso),
+                at(&s.f_vol),
+                at(&s.f_geo),
+                at(&s.xi0),
+            )?)),
+            BrdfSpec::Hapke(s) => opaque(Bsdf::Hapke(Hapke::new(
+                at(&s.w),
+                at(&s.b),
+                at(&s.c),
+                at(&s.theta),
+                at(&s.b_0),
+                at(&s.h),
+            )?)),
+            BrdfSpec::Ocean(s) => opaque(Bsdf::Ocean(Ocean::new(
+                at(&s.wind_speed),
+                s.refractive_index
+                    .as_ref()
+                    .map_or(bundle::DEFAULT_WATER_INDEX, at),
+                s.shadowing,
+            )?)),
+            BrdfSpec::Tabulated(s) => {
+                let table = tabulated::BrdfTable::load(std::path::Path::new(&s.file))?;
+                opaque(Bsdf::Tabulated(Tabulated::new(
+                    table,
+                    wavelength_nm,
+                    s.symmetrize,
+                )))
+            }
+        }
+    }
+
     /// BRDF value in sr⁻¹; 0 when either direction is below the horizon.
     #[inline]
     pub fn eval(&self, wi: DVec3, wo: DVec3) -> f64 {

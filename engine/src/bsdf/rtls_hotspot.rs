@@ -3,9 +3,8 @@
 //! volumetric kernel peaks towards backscattering, as POLDER observations of every surface type
 //! show.
 //!
-//! The kernel weights have RTLS's ranges, from the shared table `bundle::BRDF_PARAM_RANGES`
-//! (rows `rtls.*`); `xi0` has no row there yet, so [`XI0_RANGE`] holds its range in the same
-//! form, ready to become the row `rtls_hotspot.xi0`. [`RtlsHotspot::new`] checks both.
+//! Ranges are those of the shared table `bundle::BRDF_PARAM_RANGES` (rows `rtls_hotspot.*`: the
+//! kernel weights have RTLS's ranges), which [`RtlsHotspot::new`] checks.
 //!
 //! | parameter | unit | range    | meaning                                                    |
 //! |-----------|------|----------|------------------------------------------------------------|
@@ -52,21 +51,8 @@ use std::f64::consts::{FRAC_1_PI, FRAC_PI_4};
 use super::error::{check_param, BrdfError};
 use super::{Rtls, TableSampler};
 
-/// ξ0 of Maignan et al. (2004), degrees.
-pub const DEFAULT_XI0_DEG: f64 = 1.5;
-
-/// The range of `xi0`, in the shared table's form (not in `bundle::BRDF_PARAM_RANGES` yet).
-pub const XI0_RANGE: bundle::ParamRange = bundle::ParamRange {
-    brdf: "rtls_hotspot",
-    param: "xi0",
-    unit: "deg",
-    range: bundle::Range {
-        lo: 0.0,
-        hi: 90.0,
-        lo_open: true,
-        hi_open: false,
-    },
-};
+/// ξ0 of Maignan et al. (2004), degrees (the spec's default).
+pub use bundle::DEFAULT_XI0_DEG;
 
 #[derive(Clone, Debug)]
 pub struct RtlsHotspot {
@@ -85,18 +71,15 @@ impl RtlsHotspot {
     /// RTLS-H from its kernel weights and ξ0 in degrees (ranges in the module header; NaN
     /// fails).
     pub fn new(f_iso: f64, f_vol: f64, f_geo: f64, xi0_deg: f64) -> Result<Self, BrdfError> {
-        // The weights' ranges are RTLS's, from the shared table; xi0's is XI0_RANGE.
-        for (name, v) in [("f_iso", f_iso), ("f_vol", f_vol), ("f_geo", f_geo)] {
-            check_param("rtls", name, name, v)?;
+        // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`).
+        for (name, v) in [
+            ("f_iso", f_iso),
+            ("f_vol", f_vol),
+            ("f_geo", f_geo),
+            ("xi0", xi0_deg),
+        ] {
+            check_param("rtls_hotspot", name, name, v)?;
         }
-        XI0_RANGE
-            .check("xi0", xi0_deg)
-            .map_err(|message| BrdfError::Param {
-                model: "rtls_hotspot",
-                param: "xi0",
-                value: xi0_deg,
-                message,
-            })?;
         let mut m = Self {
             f_iso,
             f_vol,

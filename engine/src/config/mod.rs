@@ -41,7 +41,7 @@ pub use crate::integrator::settings::{IntegratorConfig, IntegratorSettings};
 pub use crate::measure::config::MeasureConfig;
 pub use crate::phase::{PhaseConfig, PhaseResolver};
 pub use crate::sources::illumination::{IlluminationConfig, IrradianceValue};
-pub use crate::spectral::{Mode, SpectralConfig, SpectralValue};
+pub use crate::spectral::{Mode, SpectralConfig, Spectrum};
 pub use resolve::{resolve, Experiment};
 
 #[derive(Clone, Debug, Deserialize)]

@@ -241,6 +241,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         path,
         base: &base,
         nw: 0,
+        wavelengths: &[],
     };
     let ckd = cfg.mode == Mode::Ckd;
     let absorption_data = cfg.atmosphere.as_ref().and_then(|a| a.absorption_data());
@@ -248,7 +249,11 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         .spectral
         .resolve(&ctx, cfg.mode, || ckd_bins(&ctx, absorption_data))?;
     let nw = wavelengths.len();
-    let ctx = ConfigCtx { nw, ..ctx };
+    let ctx = ConfigCtx {
+        nw,
+        wavelengths: &wavelengths,
+        ..ctx
+    };
 
     let geometry = cfg.geometry.resolve(&ctx)?;
     let (ground, toa, planet_radius) = (geometry.ground, geometry.toa, geometry.planet_radius);
@@ -409,6 +414,10 @@ fn resolve_scene(
     // Under a spherical shell the scene is bent onto the planet (scene::curvature).
     let bend = planet_radius.map(|radius| crate::scene::curvature::Curvature { radius });
     let built = scene::build_scene_shared(sc, ctx.base, bend).map_err(|(k, m)| ctx.err(k, m))?;
+    // An experiment's material may give a list with one value per run wavelength.
+    built
+        .check_spectra(ctx.nw)
+        .map_err(|m| ctx.err("scene", m))?;
     // (Bent scenes hold bent heights: their lowest point sags below its altitude.)
     if cfg.atmosphere.is_some() && built.curvature.is_none() && built.z_range[0] < ground - 1e-6 {
         tracing::warn!(
@@ -642,7 +651,7 @@ fn optical_state(
     } = inputs;
     let scene_models = match &scene {
         Some(sc) => sc
-            .models_at(wavelengths[iw])
+            .models_at(iw, wavelengths[iw])
             .map_err(|m| ctx.err("scene", m.to_string()))?,
         None => Vec::new(),
     };

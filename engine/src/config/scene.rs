@@ -191,9 +191,16 @@ fn here(spec: &BrdfSpec, base: &Path) -> BrdfSpec {
 }
 
 fn check_spec(key: &str, spec: &BrdfSpec) -> Result<(), SceneErr> {
+    // A list with one value per run wavelength: every value checked here, its length against
+    // the run's wavelengths by `Scene::check_spectra`.
+    if spec.params().iter().any(|(_, s)| s.is_per_wavelength()) {
+        return spec
+            .validate()
+            .map_err(|e| (key.to_string(), e.to_string()));
+    }
     // Validate at a few wavelengths: spectra are checked for shape, models for ranges.
     for w in [400.0, 550.0, 700.0, 1000.0, 2000.0] {
-        crate::scene::material::SurfaceModel::from_spec(spec, w)
+        crate::scene::material::SurfaceModel::from_spec(spec, 0, w)
             .map_err(|m| (key.to_string(), m.to_string()))?;
     }
     Ok(())
@@ -476,10 +483,10 @@ fn cone_trees_of(i: usize, t: &ConeTreesConfig, base: &Path) -> Result<build::Co
     }
     let trunk_brdf = here(&t.trunk_brdf, base);
     check_spec(&format!("{key}.trunk_brdf"), &trunk_brdf)?;
-    let leaf_brdf = BrdfSpec::BiLambertian {
+    let leaf_brdf = BrdfSpec::BiLambertian(bundle::BiLambertianSpec {
         reflectance: t.reflectance.clone(),
         transmittance: t.transmittance.clone(),
-    };
+    });
     check_spec(&key, &leaf_brdf)?;
     Ok(build::ConeTrees {
         positions,
@@ -517,10 +524,10 @@ fn leaf_cloud_of(i: usize, o: &LeafCloudConfig, base: &Path) -> Result<LeafCloud
             .map(|r| DVec3::new(r[0], r[1], r[2]))
             .collect(),
     };
-    let brdf = BrdfSpec::BiLambertian {
+    let brdf = BrdfSpec::BiLambertian(bundle::BiLambertianSpec {
         reflectance: o.reflectance.clone(),
         transmittance: o.transmittance.clone(),
-    };
+    });
     check_spec(&key, &brdf)?;
     Ok(LeafCloud {
         name: o.name.clone().unwrap_or_else(|| format!("leaves{i}")),

@@ -227,7 +227,7 @@ fn read_textures(
                 material: r.material.clone(),
             });
         };
-        if !matches!(materials[id].1, BrdfSpec::Lambertian { .. }) {
+        if !matches!(materials[id].1, BrdfSpec::Lambertian(_)) {
             return Err(SceneError::TextureNotLambertian {
                 file: r.file.clone(),
                 material: r.material.clone(),

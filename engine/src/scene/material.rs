@@ -27,9 +27,7 @@
 
 use glam::DVec3;
 
-use crate::bsdf::error::check_param;
-use crate::bsdf::tabulated::BrdfTable;
-use crate::bsdf::{BrdfError, Bsdf, Hapke, Lambertian, Ocean, Rpv, Rtls, Tabulated};
+use crate::bsdf::{BrdfError, Bsdf, Built};
 use crate::frame::{basis_around, sample_cosine_hemisphere};
 use bundle::BrdfSpec;
 
@@ -58,79 +56,17 @@ fn to_local(v: DVec3, n: DVec3, t: DVec3, b: DVec3) -> DVec3 {
 }
 
 impl SurfaceModel {
-    /// Build the model of `spec` at `wavelength_nm`; the error says which parameter is wrong.
-    /// The ranges are those of `bundle::BRDF_PARAM_RANGES` (checked by the models'
-    /// constructors), so a spec that passes `BrdfSpec::validate` builds at every wavelength.
-    pub fn from_spec(spec: &BrdfSpec, wavelength_nm: f64) -> Result<Self, BrdfError> {
-        let at = |s: &bundle::Spectrum| s.at(wavelength_nm);
-        Ok(match spec {
-            BrdfSpec::Lambertian { reflectance } => {
-                SurfaceModel::Opaque(Bsdf::Lambertian(Lambertian::new(at(reflectance))?))
-            }
-            BrdfSpec::BiLambertian {
-                reflectance,
-                transmittance,
-            } => {
-                let (r, t) = (at(reflectance), at(transmittance));
-                // Ranges from the shared table (`bundle::BRDF_PARAM_RANGES`).
-                check_param("bi_lambertian", "reflectance", "reflectance", r)?;
-                check_param("bi_lambertian", "transmittance", "transmittance", t)?;
-                if r + t > bundle::BI_LAMBERTIAN_MAX_SUM {
-                    return Err(BrdfError::LeafSum {
-                        reflectance: r,
-                        transmittance: t,
-                        wavelength_nm,
-                        max: bundle::BI_LAMBERTIAN_MAX_SUM,
-                    });
-                }
-                SurfaceModel::Leaf {
-                    reflectance: r,
-                    transmittance: t,
-                }
-            }
-            BrdfSpec::Rpv { rho_0, k, g, rho_c } => SurfaceModel::Opaque(Bsdf::Rpv(Rpv::new(
-                at(rho_0),
-                at(k),
-                at(g),
-                rho_c.as_ref().map_or(at(rho_0), at),
-            )?)),
-            BrdfSpec::Rtls {
-                f_iso,
-                f_vol,
-                f_geo,
-            } => SurfaceModel::Opaque(Bsdf::Rtls(Rtls::new(at(f_iso), at(f_vol), at(f_geo))?)),
-            BrdfSpec::Hapke {
-                w,
-                b,
-                c,
-                theta,
-                b_0,
-                h,
-            } => SurfaceModel::Opaque(Bsdf::Hapke(Hapke::new(
-                at(w),
-                at(b),
-                at(c),
-                at(theta),
-                at(b_0),
-                at(h),
-            )?)),
-            BrdfSpec::Ocean {
-                wind_speed,
-                refractive_index,
-                shadowing,
-            } => SurfaceModel::Opaque(Bsdf::Ocean(Ocean::new(
-                at(wind_speed),
-                refractive_index.as_ref().map_or(1.33, at),
-                *shadowing,
-            )?)),
-            BrdfSpec::Tabulated { file, symmetrize } => {
-                let table = BrdfTable::load(std::path::Path::new(file))?;
-                SurfaceModel::Opaque(Bsdf::Tabulated(Tabulated::new(
-                    table,
-                    wavelength_nm,
-                    *symmetrize,
-                )))
-            }
+    /// The model of `spec` at run wavelength `iw` (`wavelength_nm`), by [`Bsdf::build`] (the
+    /// same constructors as the 1D surface; the error says which parameter is wrong). The
+    /// ranges are those of `bundle::BRDF_PARAM_RANGES`, so a spec that passes
+    /// `BrdfSpec::validate` builds at every wavelength.
+    pub fn from_spec(spec: &BrdfSpec, iw: usize, wavelength_nm: f64) -> Result<Self, BrdfError> {
+        Ok(match Bsdf::build(spec, iw, wavelength_nm)? {
+            Built::Opaque(b) => SurfaceModel::Opaque(b),
+            Built::Leaf(l) => SurfaceModel::Leaf {
+                reflectance: l.reflectance,
+                transmittance: l.transmittance,
+            },
         })
     }
 
@@ -139,15 +75,15 @@ impl SurfaceModel {
     /// materials and with the experiment's folder to the experiment's own materials.
     pub fn with_files_in(spec: &BrdfSpec, dir: &std::path::Path) -> BrdfSpec {
         match spec {
-            BrdfSpec::Tabulated { file, symmetrize } => {
+            BrdfSpec::Tabulated(bundle::TabulatedSpec { file, symmetrize }) => {
                 let p = dir.join(file);
-                BrdfSpec::Tabulated {
+                BrdfSpec::Tabulated(bundle::TabulatedSpec {
                     file: std::path::absolute(&p)
                         .unwrap_or(p)
                         .to_string_lossy()
                         .into_owned(),
                     symmetrize: *symmetrize,
-                }
+                })
             }
             _ => spec.clone(),
         }
@@ -252,7 +188,7 @@ impl SurfaceModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use bundle::Spectrum;
+    use bundle::{BiLambertianSpec, LambertianSpec, RpvSpec, Spectrum};
 
     /// ∫ f dω over the sphere by the midpoint rule in cos θ (`nt` cells) and φ (`np` cells)
     /// about the axis `n` of the frame `(t, b, n)`.
@@ -287,12 +223,13 @@ mod tests {
                 transmittance: 0.3,
             },
             SurfaceModel::from_spec(
-                &BrdfSpec::Rpv {
+                &BrdfSpec::Rpv(RpvSpec {
                     rho_0: Spectrum::Constant(0.2),
                     k: Spectrum::Constant(0.7),
                     g: Spectrum::Constant(-0.1),
                     rho_c: None,
-                },
+                }),
+                0,
                 550.0,
             )
             .unwrap(),
@@ -379,19 +316,20 @@ mod tests {
         let pi = std::f64::consts::PI;
         assert!((leaf.eval_cos(n, up, wo) - 0.5 / pi * 0.8).abs() < 1e-15);
         assert!((leaf.eval_cos(n, down, wo) - 0.25 / pi * 0.8).abs() < 1e-15);
-        let bad = BrdfSpec::BiLambertian {
+        let bad = BrdfSpec::BiLambertian(BiLambertianSpec {
             reflectance: Spectrum::Constant(0.7),
             transmittance: Spectrum::Constant(0.4),
-        };
-        assert!(SurfaceModel::from_spec(&bad, 550.0)
+        });
+        assert!(SurfaceModel::from_spec(&bad, 0, 550.0)
             .unwrap_err()
             .to_string()
             .contains("sum"));
         // Opaque surfaces see nothing from behind.
         let lam = SurfaceModel::from_spec(
-            &BrdfSpec::Lambertian {
+            &BrdfSpec::Lambertian(LambertianSpec {
                 reflectance: Spectrum::Constant(0.3),
-            },
+            }),
+            0,
             550.0,
         )
         .unwrap();

@@ -716,12 +716,28 @@ impl Scene {
         self.textures[k].reflectance(h.point.x, h.point.y, wavelength_nm)
     }
 
-    /// The material models at one wavelength, indexed by material id.
-    pub fn models_at(&self, wavelength_nm: f64) -> Result<Vec<SurfaceModel>, SceneError> {
+    /// `Err` naming the material and parameter when a per-wavelength list (an experiment's own
+    /// material) does not have one value for each of the `nw` run wavelengths.
+    pub fn check_spectra(&self, nw: usize) -> Result<(), String> {
+        for (name, spec) in &self.materials {
+            for (param, s) in spec.params() {
+                s.check_len(nw)
+                    .map_err(|m| format!("material `{name}`: `{param}` {m}"))?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The material models at run wavelength `iw` (`wavelength_nm`), indexed by material id.
+    pub fn models_at(
+        &self,
+        iw: usize,
+        wavelength_nm: f64,
+    ) -> Result<Vec<SurfaceModel>, SceneError> {
         self.materials
             .iter()
             .map(|(name, spec)| {
-                SurfaceModel::from_spec(spec, wavelength_nm).map_err(|source| {
+                SurfaceModel::from_spec(spec, iw, wavelength_nm).map_err(|source| {
                     SceneError::Material {
                         name: name.clone(),
                         source,

@@ -9,8 +9,8 @@ use serde::Deserialize;
 use crate::error::{ConfigCtx, ConfigError};
 use crate::frame::direction_from_angles;
 use crate::sources::sun_position::sun_position;
-use crate::spectral::solar::{day_of_year, earth_sun_factor, Spectrum};
-use crate::spectral::SpectralValue;
+use crate::spectral::solar::{day_of_year, earth_sun_factor, Spectrum as SolarSpectrum};
+use crate::spectral::{Spectrum, SpectrumExt};
 
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
@@ -82,12 +82,12 @@ pub enum IlluminationConfig {
 #[derive(Clone, Debug, Deserialize)]
 #[serde(untagged)]
 pub enum IrradianceValue {
-    Value(SpectralValue),
+    Value(Spectrum),
     Spectrum(String),
 }
 
 fn one_irradiance() -> IrradianceValue {
-    IrradianceValue::Value(SpectralValue::Scalar(1.0))
+    IrradianceValue::Value(Spectrum::Constant(1.0))
 }
 
 /// The Sun of a run.
@@ -412,14 +412,14 @@ fn irradiance_at(
     Ok(match irradiance {
         IrradianceValue::Value(v) => v.expand(ctx, key, 0.0, 1e9)?,
         IrradianceValue::Spectrum(name) => {
-            let spectrum = match Spectrum::builtin(name) {
+            let spectrum = match SolarSpectrum::builtin(name) {
                 Some(s) => s,
                 None => {
                     let fpath = ctx.file(name);
                     let text = std::fs::read_to_string(&fpath).map_err(|e| {
                             ctx.err(key, format!("\"{name}\" is neither a built-in spectrum (\"tsis_1\", \"thuillier_2003\") nor a readable file ({}: {e})", fpath.display()))
                         })?;
-                    Spectrum::from_csv(name, &text)
+                    SolarSpectrum::from_csv(name, &text)
                         .map_err(|e| ctx.err(key, format!("{}: {e}", fpath.display())))?
                 }
             };
@@ -549,6 +549,7 @@ mod tests {
             path: std::path::Path::new("exp.toml"),
             base: std::path::Path::new("."),
             nw: 1,
+            wavelengths: &[550.0],
         };
         cfg.resolve(&ctx, &[550.0], false)
     }

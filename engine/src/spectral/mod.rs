@@ -1,6 +1,6 @@
 //! Spectral bookkeeping: the `[spectral]` table and `mode` of the experiment file (raw serde
 //! types and their resolution into the run's wavelengths and sensor band), per-wavelength values
-//! of the other tables ([`SpectralValue`]), and which wavelengths one walk serves together
+//! of the other tables ([`Spectrum`]), and which wavelengths one walk serves together
 //! (spectral ALIS groups), shared by the resolver and the run driver; solar spectra
 //! (`solar.rs`) and sensors' spectral response functions (`srf.rs`).
 
@@ -56,84 +56,49 @@ pub const MIN_WAVELENGTH_NM: f64 = 100.0;
 /// Longest wavelength a run accepts, nm (1 mm, the end of the longwave k-distributions).
 pub const MAX_WAVELENGTH_NM: f64 = 1.0e6;
 
-/// A per-wavelength quantity: one number for every wavelength, or one per wavelength.
-#[derive(Clone, Debug)]
-pub enum SpectralValue {
-    Scalar(f64),
-    List(Vec<f64>),
+pub use bundle::Spectrum;
+
+/// The experiment's reading of a [`Spectrum`] (a number, a list with one value per run
+/// wavelength, or a `{ wavelengths_nm, values }` table): one value per run wavelength, checked
+/// against a range, errors naming the key.
+pub trait SpectrumExt {
+    /// One number per run wavelength (`ctx.wavelengths`), each finite and within `[lo, hi]`;
+    /// errors name `key` (and the list index, or the wavelength).
+    fn expand(&self, ctx: &ConfigCtx, key: &str, lo: f64, hi: f64)
+        -> Result<Vec<f64>, ConfigError>;
 }
 
-/// A number or a list of numbers; anything else is "invalid type: string "abc", expected a
-/// number or a list of numbers (one per wavelength)", which names the value (an untagged enum
-/// would only say that no variant matched, and the key could not be found).
-impl<'de> Deserialize<'de> for SpectralValue {
-    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
-        struct V;
-        impl<'de> serde::de::Visitor<'de> for V {
-            type Value = SpectralValue;
-            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
-                f.write_str("a number or a list of numbers (one per wavelength)")
-            }
-            fn visit_f64<E: serde::de::Error>(self, v: f64) -> Result<SpectralValue, E> {
-                Ok(SpectralValue::Scalar(v))
-            }
-            fn visit_i64<E: serde::de::Error>(self, v: i64) -> Result<SpectralValue, E> {
-                Ok(SpectralValue::Scalar(v as f64))
-            }
-            fn visit_u64<E: serde::de::Error>(self, v: u64) -> Result<SpectralValue, E> {
-                Ok(SpectralValue::Scalar(v as f64))
-            }
-            fn visit_seq<A: serde::de::SeqAccess<'de>>(
-                self,
-                mut seq: A,
-            ) -> Result<SpectralValue, A::Error> {
-                let mut out = Vec::with_capacity(seq.size_hint().unwrap_or(0).min(1 << 16));
-                while let Some(x) = seq.next_element::<f64>()? {
-                    out.push(x);
-                }
-                Ok(SpectralValue::List(out))
-            }
-        }
-        d.deserialize_any(V)
-    }
-}
-
-impl SpectralValue {
-    /// One number per run wavelength (`ctx.nw`), each finite and within `[lo, hi]`; errors name
-    /// `key` (and the list index).
-    pub fn expand(
+impl SpectrumExt for Spectrum {
+    fn expand(
         &self,
         ctx: &ConfigCtx,
         key: &str,
         lo: f64,
         hi: f64,
     ) -> Result<Vec<f64>, ConfigError> {
-        let vals = match self {
-            SpectralValue::Scalar(x) => vec![*x; ctx.nw],
-            SpectralValue::List(l) => {
-                if l.len() != ctx.nw {
-                    return Err(ctx.err(
-                        key,
-                        format!(
-                            "has {} values but there are {} wavelengths",
-                            l.len(),
-                            ctx.nw
-                        ),
-                    ));
-                }
-                l.clone()
-            }
-        };
+        if let Spectrum::Table { .. } = self {
+            self.validate().map_err(|m| ctx.err(key, m))?;
+        }
+        self.check_len(ctx.nw).map_err(|m| ctx.err(key, m))?;
+        let vals: Vec<f64> = (0..ctx.nw)
+            .map(|i| {
+                let w = ctx.wavelengths.get(i).copied().unwrap_or(f64::NAN);
+                self.at_run(i, w)
+            })
+            .collect();
         for (i, x) in vals.iter().enumerate() {
             if !x.is_finite() || *x < lo || *x > hi {
-                let at = if matches!(self, SpectralValue::List(_)) {
-                    format!("[{i}]")
-                } else {
-                    String::new()
+                let at = match self {
+                    Spectrum::PerWavelength(_) => format!("[{i}]"),
+                    _ => String::new(),
+                };
+                let nm = match self {
+                    Spectrum::Table { .. } => format!(" at {} nm", ctx.wavelengths[i]),
+                    _ => String::new(),
                 };
                 return Err(ctx.err(
                     format!("{key}{at}"),
-                    format!("{x} must lie in [{lo}, {hi}]"),
+                    format!("{x}{nm} must lie in [{lo}, {hi}]"),
                 ));
             }
         }

@@ -34,9 +34,9 @@ pub struct PlaneSpec {
 }
 
 pub fn lambertian(r: f64) -> BrdfSpec {
-    BrdfSpec::Lambertian {
+    BrdfSpec::Lambertian(LambertianSpec {
         reflectance: Spectrum::Constant(r),
-    }
+    })
 }
 
 /// A flat square terrain of one Lambertian material `reflectance` at height `h0`, `size` m wide
@@ -74,12 +74,12 @@ pub fn spectral_slope_image(
     pixel: f64,
     spp: u64,
 ) -> String {
-    let grass = BrdfSpec::Lambertian {
+    let grass = BrdfSpec::Lambertian(LambertianSpec {
         reflectance: Spectrum::Table {
             wavelengths_nm: vec![440.0, 660.0],
             values: vec![0.04, 0.12],
         },
-    };
+    });
     let b = write_two_material_slope(dir, grass, 0.2, -0.1, 8);
     format!(
         "seed = {seed}\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
@@ -102,12 +102,12 @@ pub fn write_two_material_slope(
     sy: f64,
     n: usize,
 ) -> PathBuf {
-    let soil = BrdfSpec::Lambertian {
+    let soil = BrdfSpec::Lambertian(LambertianSpec {
         reflectance: Spectrum::Table {
             wavelengths_nm: vec![440.0, 660.0],
             values: vec![0.12, 0.35],
         },
-    };
+    });
     write_plane(
         dir,
         &PlaneSpec {
