@@ -80,6 +80,14 @@ pub struct HapkeSpec {
     pub h: Spectrum,
 }
 
+/// Lommel–Seeliger: single scattering of a semi-infinite isotropic medium (`w`: the particles'
+/// single-scattering albedo).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LommelSeeligerSpec {
+    pub w: Spectrum,
+}
+
 /// Rough water surface (Cox–Munk, Fresnel, shadowing); wind speed in m/s, refractive index
 /// 1.33 by default; polarizing.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -121,6 +129,7 @@ pub enum BrdfSpec {
     Rtls(RtlsSpec),
     RtlsHotspot(RtlsHotspotSpec),
     Hapke(HapkeSpec),
+    LommelSeeliger(LommelSeeligerSpec),
     Ocean(OceanSpec),
     Tabulated(TabulatedSpec),
 }
@@ -135,6 +144,7 @@ impl BrdfSpec {
             BrdfSpec::Rtls(_) => "rtls",
             BrdfSpec::RtlsHotspot(_) => "rtls_hotspot",
             BrdfSpec::Hapke(_) => "hapke",
+            BrdfSpec::LommelSeeliger(_) => "lommel_seeliger",
             BrdfSpec::Ocean(_) => "ocean",
             BrdfSpec::Tabulated(_) => "tabulated",
         }
@@ -151,6 +161,7 @@ impl BrdfSpec {
             BrdfSpec::Rtls(s) => Some(&s.f_iso),
             BrdfSpec::RtlsHotspot(s) => Some(&s.f_iso),
             BrdfSpec::Hapke(s) => Some(&s.w),
+            BrdfSpec::LommelSeeliger(s) => Some(&s.w),
             BrdfSpec::Ocean(_) | BrdfSpec::Tabulated(_) => None,
         }
     }
@@ -190,6 +201,7 @@ impl BrdfSpec {
                 ("B_0", &s.b_0),
                 ("h", &s.h),
             ],
+            BrdfSpec::LommelSeeliger(s) => vec![("w", &s.w)],
             BrdfSpec::Ocean(s) => {
                 let mut v = vec![("wind_speed", &s.wind_speed)];
                 if let Some(n) = &s.refractive_index {
@@ -247,6 +259,7 @@ pub const BRDF_PARAM_RANGES: &[ParamRange] = &[
     row("hapke", "theta", "deg", Range::closed_open(0.0, 90.0)),
     row("hapke", "B_0", "", Range::closed(0.0, 1.0)),
     row("hapke", "h", "", Range::closed(0.0, 1.0)),
+    row("lommel_seeliger", "w", "", Range::closed(0.0, 1.0)),
     row("ocean", "wind_speed", "m/s", Range::closed(0.0, 40.0)),
     row("ocean", "refractive_index", "", Range::closed(1.0, 3.0)),
 ];
@@ -290,6 +303,9 @@ pub(crate) fn every_type() -> Vec<BrdfSpec> {
             theta: Spectrum::Constant(15.0),
             b_0: Spectrum::Constant(0.8),
             h: Spectrum::Constant(0.06),
+        }),
+        BrdfSpec::LommelSeeliger(LommelSeeligerSpec {
+            w: Spectrum::Constant(0.3),
         }),
         BrdfSpec::Ocean(OceanSpec {
             wind_speed: Spectrum::Constant(5.0),

@@ -45,6 +45,7 @@ pub mod emissivity;
 pub mod error;
 pub mod hapke;
 pub mod lambertian;
+pub mod lommel_seeliger;
 pub mod ocean;
 pub mod rpv;
 pub mod rtls;
@@ -60,6 +61,7 @@ pub use emissivity::SurfaceEmission;
 pub use error::BrdfError;
 pub use hapke::Hapke;
 pub use lambertian::Lambertian;
+pub use lommel_seeliger::LommelSeeliger;
 pub use ocean::Ocean;
 pub use rpv::Rpv;
 pub use rtls::Rtls;
@@ -90,6 +92,8 @@ pub enum Bsdf {
     /// RTLS with the Maignan et al. (2004) hot spot.
     RtlsHotspot(RtlsHotspot),
     Hapke(Hapke),
+    /// Single scattering of a semi-infinite isotropic medium (`lommel_seeliger.rs`).
+    LommelSeeliger(LommelSeeliger),
     Ocean(Ocean),
     /// A measured BRDF read from a netCDF table (`tabulated.rs`).
     Tabulated(Tabulated),
@@ -158,6 +162,9 @@ impl Bsdf {
                 at(&s.b_0),
                 at(&s.h),
             )?)),
+            BrdfSpec::LommelSeeliger(s) => {
+                opaque(Bsdf::LommelSeeliger(LommelSeeliger::new(at(&s.w))?))
+            }
             BrdfSpec::Ocean(s) => opaque(Bsdf::Ocean(Ocean::new(
                 at(&s.wind_speed),
                 s.refractive_index
@@ -188,6 +195,7 @@ impl Bsdf {
             Bsdf::Rtls(m) => m.eval(wi, wo),
             Bsdf::RtlsHotspot(m) => m.eval(wi, wo),
             Bsdf::Hapke(m) => m.eval(wi, wo),
+            Bsdf::LommelSeeliger(m) => m.eval(wi, wo),
             Bsdf::Ocean(m) => m.eval(wi, wo),
             Bsdf::Tabulated(m) => m.eval(wi, wo),
         }
@@ -215,6 +223,7 @@ impl Bsdf {
             Bsdf::Rtls(m) => Some(&m.sampler),
             Bsdf::RtlsHotspot(m) => Some(&m.sampler),
             Bsdf::Hapke(m) => Some(&m.sampler),
+            Bsdf::LommelSeeliger(m) => Some(&m.sampler),
             Bsdf::Tabulated(m) => Some(&m.sampler),
         }
     }
@@ -480,6 +489,7 @@ mod tests {
             Bsdf::Rtls(Rtls::new(0.2, 0.05, 0.03).unwrap()),
             Bsdf::RtlsHotspot(RtlsHotspot::new(0.2, 0.05, 0.03, 1.5).unwrap()),
             Bsdf::Hapke(Hapke::new(0.5, 0.3, 0.4, 15.0, 0.8, 0.06).unwrap()),
+            Bsdf::LommelSeeliger(LommelSeeliger::new(0.7).unwrap()),
         ]
     }
 
@@ -507,6 +517,10 @@ mod tests {
             (
                 "hapke",
                 Bsdf::Hapke(Hapke::new(0.5, 0.3, 0.4, 15.0, 0.8, 0.06).unwrap()),
+            ),
+            (
+                "lommel_seeliger",
+                Bsdf::LommelSeeliger(LommelSeeliger::new(0.7).unwrap()),
             ),
             (
                 "hapke smooth",
