@@ -157,7 +157,9 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
             let (u1, u2) = (rng.next_f64(), rng.next_f64());
             image_aim(scene, m, cell, u1, u2)
         }
-        _ => unreachable!(
+        MeasureKind::Radiancemeter { .. }
+        | MeasureKind::DistantFlux { .. }
+        | MeasureKind::Hdrf { .. } => unreachable!(
             "the resolver allows only distant, ortho and perspective measures with a scene"
         ),
     }
@@ -210,7 +212,10 @@ fn image_aim(scene: &Scene, m: &Measure, cell: usize, u1: f64, u2: f64) -> Scene
                 dir: (c.forward + c.right * x - c.up * y).normalize(),
             }
         }
-        _ => unreachable!("image measures only"),
+        MeasureKind::Distant { .. }
+        | MeasureKind::Radiancemeter { .. }
+        | MeasureKind::DistantFlux { .. }
+        | MeasureKind::Hdrf { .. } => unreachable!("image measures only"),
     }
 }
 

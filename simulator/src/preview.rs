@@ -93,7 +93,10 @@ fn render_one(
             )
         }
         MeasureKind::Perspective(c) => (c.width, c.height, None),
-        _ => unreachable!("image measures only"),
+        MeasureKind::Distant { .. }
+        | MeasureKind::Radiancemeter { .. }
+        | MeasureKind::DistantFlux { .. }
+        | MeasureKind::Hdrf { .. } => unreachable!("image measures only"),
     };
     let nw = exp.wavelengths.len();
     let mu_s = sun.z.max(1e-6);

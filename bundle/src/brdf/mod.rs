@@ -21,7 +21,7 @@ mod spectrum;
 
 use std::fmt;
 
-pub use range::{check_param, param_range, ParamRange, Range};
+pub use range::{ParamRange, Range};
 pub use spec::*;
 pub use spectrum::Spectrum;
 

@@ -1,10 +1,8 @@
-//! Allowed ranges of BRDF parameters: [`Range`] (an interval, each end open or closed),
+//! Allowed ranges of BRDF parameters: [`Range`] (an interval, each end open or closed) and
 //! [`ParamRange`] (one row of the table [`crate::BRDF_PARAM_RANGES`], which lives beside the
-//! model specs in `spec.rs`), and the lookups [`param_range`] and [`check_param`].
+//! model specs in `spec.rs` with its lookups `param_range` and `check_param`).
 
 use std::fmt;
-
-use super::spec::BRDF_PARAM_RANGES;
 
 /// An interval of allowed values; each end closed or open.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -111,21 +109,4 @@ impl ParamRange {
             Err(format!("`{label}` = {v}{unit} must lie in {}", self.range))
         }
     }
-}
-
-/// The row of (`brdf`, `param`) in [`BRDF_PARAM_RANGES`].
-pub fn param_range(brdf: &str, param: &str) -> Option<&'static ParamRange> {
-    BRDF_PARAM_RANGES
-        .iter()
-        .find(|r| r.brdf == brdf && r.param == param)
-}
-
-/// Checks `v` against the row of (`brdf`, `param`); the message names `label`.
-///
-/// # Panics
-/// If the table has no such row (a programming error, caught by the callers' tests).
-pub fn check_param(brdf: &str, param: &str, label: &str, v: f64) -> Result<(), String> {
-    param_range(brdf, param)
-        .unwrap_or_else(|| panic!("no range for {brdf}.{param} in BRDF_PARAM_RANGES"))
-        .check(label, v)
 }

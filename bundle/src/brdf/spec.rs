@@ -267,6 +267,23 @@ pub const BRDF_PARAM_RANGES: &[ParamRange] = &[
 /// Upper bound of `reflectance + transmittance` of a `bi_lambertian` material (energy).
 pub const BI_LAMBERTIAN_MAX_SUM: f64 = 1.0;
 
+/// The row of (`brdf`, `param`) in [`BRDF_PARAM_RANGES`].
+pub fn param_range(brdf: &str, param: &str) -> Option<&'static ParamRange> {
+    BRDF_PARAM_RANGES
+        .iter()
+        .find(|r| r.brdf == brdf && r.param == param)
+}
+
+/// Checks `v` against the row of (`brdf`, `param`); the message names `label`.
+///
+/// # Panics
+/// If the table has no such row (a programming error, caught by the callers' tests).
+pub fn check_param(brdf: &str, param: &str, label: &str, v: f64) -> Result<(), String> {
+    param_range(brdf, param)
+        .unwrap_or_else(|| panic!("no range for {brdf}.{param} in BRDF_PARAM_RANGES"))
+        .check(label, v)
+}
+
 /// One spec of every type with every optional parameter given (tests of `mod.rs`); a new
 /// model adds its spec here.
 #[cfg(test)]

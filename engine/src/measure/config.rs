@@ -304,7 +304,10 @@ impl MeasureConfig {
                 adaptive,
                 ..
             } => (*target_fraction, *adaptive),
-            _ => (None, None),
+            MeasureConfig::Mdistant { .. }
+            | MeasureConfig::Radiancemeter { .. }
+            | MeasureConfig::DistantFlux { .. }
+            | MeasureConfig::Hdrf { .. } => (None, None),
         };
         if adaptive.is_some() && target.is_none() {
             return Err(ctx.err(

@@ -169,7 +169,7 @@ impl Measure {
             MeasureKind::Hdrf { directions, .. } => directions.len() + 1,
             MeasureKind::Ortho(g) => g.width * g.height,
             MeasureKind::Perspective(c) => c.width * c.height,
-            _ => 1,
+            MeasureKind::Radiancemeter { .. } | MeasureKind::DistantFlux { .. } => 1,
         }
     }
 
@@ -213,7 +213,11 @@ impl Measure {
     pub fn row_count(&self) -> usize {
         match &self.kind {
             MeasureKind::Hdrf { directions, .. } => directions.len(),
-            _ => self.cell_count(),
+            MeasureKind::Distant { .. }
+            | MeasureKind::Radiancemeter { .. }
+            | MeasureKind::DistantFlux { .. }
+            | MeasureKind::Ortho(_)
+            | MeasureKind::Perspective(_) => self.cell_count(),
         }
     }
 

@@ -101,7 +101,10 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                 )
             }
             MeasureKind::Perspective(c) => (c.width, c.height, None, None),
-            _ => continue,
+            MeasureKind::Distant { .. }
+            | MeasureKind::Radiancemeter { .. }
+            | MeasureKind::DistantFlux { .. }
+            | MeasureKind::Hdrf { .. } => continue,
         };
         let idx = match out.iter().position(|p| p.measure == r.measure) {
             Some(i) => i,

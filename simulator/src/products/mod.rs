@@ -196,7 +196,11 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 let (d, de) = r.acc.mean_stderr(directions.len(), 0);
                 Some((d + direct_at(*altitude), de))
             }
-            _ => None,
+            MeasureKind::Distant { .. }
+            | MeasureKind::Radiancemeter { .. }
+            | MeasureKind::DistantFlux { .. }
+            | MeasureKind::Ortho(_)
+            | MeasureKind::Perspective(_) => None,
         };
         for c in 0..m.row_count() {
             let (t, te) = r.acc.mean_stderr(c, 0);
