@@ -163,7 +163,10 @@ fn config_errors() {
             .unwrap_or_else(|| panic!("accepted:\n{t}"))
             .to_string()
     };
-    let e = err(&text.replace("spectral_walk = \"alis\"\n", ""));
+    let e = err(&text.replace(
+        "spectral_walk = \"alis\"\n",
+        "spectral_walk = \"independent\"\n",
+    ));
     assert!(
         e.contains("integrator.above_scene") && e.contains("spectral_walk"),
         "{e}"

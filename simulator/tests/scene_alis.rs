@@ -26,10 +26,14 @@ use bundle::*;
 use common::bundles::{tmp, write_random_leaves, write_two_material_slope};
 use common::{compare_brf_rows, experiment, run_on_1_and_2_threads, run_rows};
 
-/// The experiment text with the spectral walk turned on and another seed.
+/// The experiment text with the spectral walk turned on and another seed (the texts ask for
+/// independent walks explicitly: `"auto"`, the default, would choose ALIS for these scenes).
 fn grouped(text: &str, seed: u64) -> String {
-    text.replace("[integrator]\n", "[integrator]\nspectral_walk = \"alis\"\n")
-        .replace("seed = 1\n", &format!("seed = {seed}\n"))
+    text.replace(
+        "spectral_walk = \"independent\"\n",
+        "spectral_walk = \"alis\"\n",
+    )
+    .replace("seed = 1\n", &format!("seed = {seed}\n"))
 }
 
 fn table(values: [f64; 3]) -> String {
@@ -42,7 +46,7 @@ fn table(values: [f64; 3]) -> String {
 const HEAD: &str = "seed = 1\n[spectral]\nwavelengths = [440.0, 550.0, 660.0]\n\
      [atmosphere]\ntype = \"molecular\"\n\
      [illumination]\ntype = \"directional\"\nzenith = 40.0\nazimuth = 30.0\n\
-     [integrator]\n";
+     [integrator]\nspectral_walk = \"independent\"\n";
 
 fn mdistant(spp: u64, extra: &str) -> String {
     format!(
@@ -185,4 +189,43 @@ fn config_errors() {
     // Per-material solvers other than the default.
     let e = err(&format!("{text}[scene.solvers.soil]\ntype = \"simple\"\n"));
     assert!(e.contains("scene.solvers.soil"), "{e}");
+}
+
+/// `spectral_walk = "auto"` (the default) walks a scene's wavelengths together where ALIS is
+/// built (scalar, plane-parallel, two or more wavelengths, default solvers) and falls back to
+/// independent walks, without an error, where an explicit `"alis"` is refused.
+#[test]
+fn auto_chooses_grouped_walks_where_they_are_built() {
+    let dir = tmp("alis-auto");
+    let text = bundle_text(&dir, 100, 100).replace("spectral_walk = \"independent\"\n", "");
+    let walk = |t: &str| {
+        engine::config::Experiment::from_str(t, &common::data_dir().join("test.toml"))
+            .unwrap_or_else(|e| panic!("{e}\n{t}"))
+            .integrator
+            .spectral_alis
+    };
+    assert_eq!(walk(&text), Some(8));
+    assert_eq!(
+        walk(&text.replace(
+            "wavelengths = [440.0, 550.0, 660.0]",
+            "wavelengths = [550.0]"
+        )),
+        None
+    );
+    assert_eq!(walk(&format!("polarized = true\n{text}")), None);
+    assert_eq!(
+        walk(&text.replace(
+            "[integrator]\n",
+            "[geometry]\ntype = \"spherical_shell\"\n[integrator]\n",
+        )),
+        None
+    );
+    assert_eq!(
+        walk(&format!("{text}[scene.solvers.soil]\ntype = \"simple\"\n")),
+        None
+    );
+    assert_eq!(
+        walk(&text.replace("[integrator]\n", "[integrator]\nalis_group = 2\n")),
+        Some(2)
+    );
 }

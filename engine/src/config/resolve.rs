@@ -296,6 +296,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
                 )
             }),
             moon: sun.moon.is_some(),
+            wavelengths: wavelengths.len(),
+            emission: cfg.emission,
         },
     )?;
 
@@ -303,8 +305,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         t.check_integrator(&ctx, &mut integrator, &measures)?;
     }
     check_moon(&cfg, &ctx, &sun, &mut integrator)?;
-    check_above_scene(&ctx, &integrator, scene.as_deref(), &sun)?;
-    check_scene_solvers(&ctx, &integrator, scene.as_deref())?;
+    check_scene_solvers(&ctx, &mut integrator, scene.as_deref())?;
     apply_surface_solver(&cfg, &ctx, planet_radius, &mut integrator)?;
     if ckd && atmosphere.ckd.is_empty() {
         return Err(ctx.err(
@@ -325,13 +326,20 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let optics = build_optics(&inputs, atmosphere, surfaces)?;
 
     let atmospheres: Vec<&PlaneParallel> = optics.iter().map(|o| &o.atmosphere).collect();
-    crate::integrator::backward_alis::check_spectral_groups(
+    if let Err(e) = crate::integrator::backward_alis::check_spectral_groups(
         &integrator,
         &ctx,
         &wavelengths,
         &atmospheres,
         scene.is_some(),
-    )?;
+    ) {
+        // `spectral_walk = "auto"` falls back to independent walks.
+        if !integrator.drop_auto_alis() {
+            return Err(e);
+        }
+    }
+    // After every check that may turn off the walks that `"auto"` chose.
+    check_above_scene(&ctx, &integrator, scene.as_deref(), &sun)?;
     if let Some(b) = &band {
         relax_targets_for_band(&mut measures, &b.weights, &sun.irradiance);
     }
@@ -537,7 +545,7 @@ fn check_above_scene(
 /// Spectral walks through a scene follow the scene materials' default solver only.
 fn check_scene_solvers(
     ctx: &ConfigCtx,
-    integrator: &IntegratorSettings,
+    integrator: &mut IntegratorSettings,
     scene: Option<&Scene>,
 ) -> Result<(), ConfigError> {
     // Spectral walks through a scene (`scene_alis.rs`) follow the default solver only.
@@ -549,6 +557,9 @@ fn check_scene_solvers(
             .map(|(i, (name, _))| (name, sc.solver(i as u16)))
             .find(|(_, s)| *s != bundle::SolverSpec::default())
         {
+            if integrator.drop_auto_alis() {
+                return Ok(());
+            }
             return Err(ctx.err(
                 format!("scene.solvers.{name}"),
                 format!("the `{}` solver is not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): drop one or the other", solver.type_name()),

@@ -116,7 +116,7 @@ impl Thermal {
             IntegratorKind::Auto => s.kind = IntegratorKind::Backward,
             IntegratorKind::Backward => {}
         }
-        if s.spectral_alis.is_some() {
+        if s.spectral_alis.is_some() && !s.drop_auto_alis() {
             return Err(ctx.err(
                 "integrator.spectral_walk",
                 "\"alis\" does not carry thermal emission yet: use \"independent\"",
