@@ -229,3 +229,99 @@ fn auto_chooses_grouped_walks_where_they_are_built() {
         Some(2)
     );
 }
+
+/// `simulate bench-image` (issue 45): the samples per pixel it projects for a target are
+/// `(σ·√n / target)²` of the σ it measured at `n` samples, the worst band sets the tile's
+/// samples, and the core-hours are pixels × samples × CPU per sample; a file without an image
+/// measure is refused naming it.
+#[test]
+fn bench_image_projects_from_what_it_measured() {
+    let dir = tmp("bench-image");
+    let text = bundle_text(&dir, 100, 64).replace("spectral_walk = \"independent\"\n", "");
+    let exp = dir.join("exp.toml");
+    std::fs::write(&exp, &text).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+        .args([
+            "bench-image",
+            "--target",
+            "0.01",
+            "--tile-km",
+            "10",
+            "-j",
+            "2",
+            "-q",
+        ])
+        .arg(&exp)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout).to_string();
+    assert!(
+        out.status.success(),
+        "{stdout}\n{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("64 samples per pixel"), "{stdout}");
+    assert!(stdout.contains("grouped ALIS walks"), "{stdout}");
+    let mut worst = 0.0f64;
+    for w in ["440.0", "550.0", "660.0"] {
+        let line = stdout
+            .lines()
+            .find(|l| l.trim_start().starts_with(w))
+            .unwrap_or_else(|| panic!("no row for {w}:\n{stdout}"));
+        let v: Vec<f64> = line
+            .split_whitespace()
+            .map(|x| x.parse().unwrap())
+            .collect();
+        let (sigma, spread, n_t) = (v[1] / 100.0, v[2], v[3]);
+        assert!((spread - sigma * 8.0).abs() < 2e-4, "{line}");
+        assert!(
+            (n_t - (sigma * 8.0 / 0.01f64).powi(2)).abs() <= 1.0 + 2e-3 * n_t,
+            "{line}"
+        );
+        worst = worst.max(n_t);
+    }
+    assert!(
+        stdout.contains(&format!("{worst:.0} samples per pixel (set by")),
+        "{stdout}"
+    );
+    let us: f64 = stdout
+        .split(" CPU µs per sample")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let hours: f64 = stdout
+        .split(" core-hours")
+        .next()
+        .and_then(|s| s.rsplit(' ').next())
+        .unwrap()
+        .parse()
+        .unwrap();
+    let expected = (10_000.0f64 / 1000.0).powi(2) * worst * us * 1e-6 / 3600.0;
+    assert!(
+        (hours - expected).abs() <= 0.5 + 0.02 * expected,
+        "{hours} vs {expected}\n{stdout}"
+    );
+    // No image measure.
+    let no_image: String = text
+        .lines()
+        .take_while(|l| !l.contains("id = \"img\""))
+        .collect::<Vec<_>>()
+        .join("\n");
+    let no_image = no_image
+        .trim_end()
+        .trim_end_matches("[[measures]]")
+        .to_string();
+    std::fs::write(&exp, no_image).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+        .args(["bench-image", "-q"])
+        .arg(&exp)
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&out.stderr).to_string();
+    assert!(
+        !out.status.success() && stderr.contains("needs an image measure"),
+        "{stderr}"
+    );
+}

@@ -2,6 +2,7 @@
 //! Lambertian surface of reflectance 0.3, SZA 30°, 35 principal-plane directions (−85°…85° by
 //! 5°); figure of merit: wall time until every direction has a relative standard error ≤ target.
 
+pub mod image;
 pub mod polarized;
 pub mod scene;
 

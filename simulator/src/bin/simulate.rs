@@ -175,6 +175,28 @@ enum Command {
         #[arg(long)]
         threads: Option<usize>,
     },
+    /// What an image of a scene costs at the sensor's resolution: per band, the median relative
+    /// standard error, the per-sample spread and the samples per pixel for a target; the CPU
+    /// per sample; the core-hours for a square tile (see BENCHMARKS.md, docs/scaling.md).
+    BenchImage {
+        /// Experiment file with an image measure (its first one is run).
+        experiment: PathBuf,
+        /// Samples per pixel to measure with (default: the measure's `spp`).
+        #[arg(long)]
+        spp: Option<u64>,
+        /// Target median relative standard error of every band, for the projection.
+        #[arg(long, default_value_t = 0.005)]
+        target: f64,
+        /// Side of the square tile of the projection, km.
+        #[arg(long, default_value_t = 100.0)]
+        tile_km: f64,
+        /// Also project at a sensor's native resolutions per band ("s2": Sentinel-2 MSI).
+        #[arg(long)]
+        native: Option<String>,
+        /// Worker threads (default: all cores).
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+    },
     /// Thick polarized media: standard errors of the polarized walk against the scalar one and
     /// against the scatter over seeds (see BENCHMARKS.md).
     BenchPolarized {
@@ -510,6 +532,17 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
         } => {
             set_threads(threads)?;
             simulator::bench::scene::run(&bundle, pixel, target, rays)
+        }
+        Command::BenchImage {
+            experiment,
+            spp,
+            target,
+            tile_km,
+            native,
+            threads,
+        } => {
+            set_threads(threads)?;
+            simulator::bench::image::run(&experiment, spp, target, tile_km, native.as_deref())
         }
         Command::BenchPolarized {
             walks,
