@@ -82,7 +82,7 @@ impl fmt::Display for Range {
     }
 }
 
-/// One row of [`BRDF_PARAM_RANGES`].
+/// One row of [`BRDF_PARAM_RANGES`](crate::BRDF_PARAM_RANGES).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ParamRange {
     /// The BRDF's `type` tag (`rpv`, …).
