@@ -136,7 +136,7 @@ fn a_rebuilt_bundle_is_not_served_from_old_checkpoints() {
     std::fs::write(
         &exp,
         format!(
-            "[spectral]\nwavelengths = [550.0, 650.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0\nsingle_scattering_albedo = 1.0\nphase = {{ type = \"rayleigh\" }}\n[scene]\ntype = \"bundle\"\npath = \"{}\"\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[[measures]]\nid = \"nadir\"\ntype = \"mdistant\"\nconstruct = \"hplane\"\nazimuth = 0.0\nzeniths = [0.0]\nspp = 2000\ntarget_m = [499500.0, 3999500.0, 500500.0, 4000500.0]\n",
+            "[spectral]\nwavelengths = [550.0, 650.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.0\nsingle_scattering_albedo = 1.0\nphase = {{ type = \"rayleigh\" }}\n[scene]\ntype = \"bundle\"\npath = \"{}\"\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[[measures]]\nid = \"nadir\"\ntype = \"mdistant\"\nconstruct = \"hplane\"\nazimuth = 0.0\nzeniths = [0.0]\nspp = 2000\ntarget_m = [499500.0, 3999500.0, 500500.0, 4000500.0]\n[integrator]\nspectral_walk = \"independent\"\n",
             b.display()
         ),
     )

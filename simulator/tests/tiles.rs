@@ -14,6 +14,10 @@ mod common;
 use common::bundles::{flat_plane, tmp, write_plane};
 use common::experiment;
 
+/// Walks of one wavelength each (`"auto"` would group the two wavelengths into one walk, and
+/// these tests count the units of independent ones).
+const INDEPENDENT: &str = "[integrator]\nspectral_walk = \"independent\"\n";
+
 fn exp_text(bundle: &std::path::Path, extra: &str) -> String {
     format!(
         "seed = 3\n[spectral]\nwavelengths = [450.0, 650.0]\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.3\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[scene]\ntype = \"bundle\"\npath = \"{}\"\n[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 100.0\nspp = 16\n{extra}",
@@ -26,7 +30,7 @@ fn tiled_shards_merge_bit_for_bit() {
     let dir = tmp("tiles");
     let b = write_plane(&dir.join("bundle"), &flat_plane(1000.0, 0.0, -500.0, 0.2));
     let pooled = "[integrator]\nspectral_walk = \"alis\"\nabove_scene = \"pooled\"\n";
-    for (variant, extra) in [("", ""), ("pooled", pooled)] {
+    for (variant, extra) in [("", INDEPENDENT), ("pooled", pooled)] {
         let exp = experiment(&exp_text(&b, extra));
         let unsplit = simulator::run::run(&exp, false);
         tiled_runs_equal(&dir.join(variant), &exp, &unsplit);
@@ -75,7 +79,10 @@ fn tiled_runs_equal(
 fn images_with_a_target_are_not_tiled() {
     let dir = tmp("tiles-target");
     let b = write_plane(&dir.join("bundle"), &flat_plane(1000.0, 0.0, -500.0, 0.2));
-    let exp = experiment(&exp_text(&b, "target_rel_stderr = 0.05\n"));
+    let exp = experiment(&exp_text(
+        &b,
+        &format!("target_rel_stderr = 0.05\n{INDEPENDENT}"),
+    ));
     let units = simulator::run::units::units(&exp, 5);
     assert_eq!(units.len(), 2);
     assert!(units.iter().all(|u| u.tiles == 1 && u.cells == (0..100)));
@@ -86,7 +93,7 @@ fn merge_names_a_shard_that_left_nothing() {
     use simulator::cluster::manifest::{Estimate, Plan, Resources};
     let dir = tmp("tiles-merge");
     let b = write_plane(&dir.join("bundle"), &flat_plane(1000.0, 0.0, -500.0, 0.2));
-    let exp = experiment(&exp_text(&b, ""));
+    let exp = experiment(&exp_text(&b, INDEPENDENT));
     let out = dir.join("plan");
     let shards = 3;
     let plan = Plan {
