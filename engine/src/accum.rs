@@ -115,6 +115,110 @@ impl Accum {
         self.ncomp == 6
     }
 
+    /// `Err` with what is wrong when these sums cannot come from samples (a damaged or edited
+    /// checkpoint or shard): array lengths that disagree with the cell count, a value that is
+    /// not finite, a negative sum of squares, `n·Σx² < (Σx)²` (Cauchy–Schwarz, with a relative
+    /// rounding margin of 1e-6), non-zero sums without samples, or replicate counts and sums
+    /// that do not add up to the totals.
+    pub fn check_invariants(&self) -> Result<(), String> {
+        let cells = self.n.len();
+        let nc = self.ncomp;
+        if nc != 3 && nc != 6 {
+            return Err(format!("{nc} components per cell (3 or 6)"));
+        }
+        let lens = [
+            ("sum", self.sum.len(), cells * nc),
+            ("sum2", self.sum2.len(), cells * nc),
+            ("sum3", self.sum3.len(), cells),
+            ("sum4", self.sum4.len(), cells),
+            ("max", self.max.len(), cells),
+            (
+                "cross",
+                self.cross.len(),
+                if nc == 6 { cells * 3 } else { 0 },
+            ),
+        ];
+        for (name, got, want) in lens {
+            if got != want {
+                return Err(format!(
+                    "`{name}` has {got} values for {cells} cells (expected {want})"
+                ));
+            }
+        }
+        if !self.rep_n.is_empty()
+            && (self.rep_n.len() != cells * REPLICATES
+                || self.rep_sum.len() != self.rep_n.len() * nc)
+        {
+            return Err(format!(
+                "replicate sums of the wrong length ({} counts, {} sums for {cells} cells)",
+                self.rep_n.len(),
+                self.rep_sum.len()
+            ));
+        }
+        let all = [
+            ("sum", &self.sum),
+            ("sum2", &self.sum2),
+            ("sum3", &self.sum3),
+            ("sum4", &self.sum4),
+            ("max", &self.max),
+            ("cross", &self.cross),
+            ("rep_sum", &self.rep_sum),
+        ];
+        for (name, v) in all {
+            if let Some(i) = v.iter().position(|x| !x.is_finite()) {
+                return Err(format!("`{name}`[{i}] = {} is not finite", v[i]));
+            }
+        }
+        for c in 0..cells {
+            let n = self.n[c] as f64;
+            if self.sum4[c] < 0.0 {
+                return Err(format!("cell {c}: `sum4` = {} is negative", self.sum4[c]));
+            }
+            for k in 0..nc {
+                let (s, q) = (self.sum[c * nc + k], self.sum2[c * nc + k]);
+                if q < 0.0 {
+                    return Err(format!("cell {c}: `sum2` = {q} is negative"));
+                }
+                if n == 0.0 && (s != 0.0 || q != 0.0) {
+                    return Err(format!("cell {c}: sums {s}, {q} without samples"));
+                }
+                if n * q < s * s * (1.0 - 1e-6) {
+                    return Err(format!(
+                        "cell {c}: n·sum2 = {} < sum² = {} (no set of {n} samples has these sums)",
+                        n * q,
+                        s * s
+                    ));
+                }
+            }
+            if !self.rep_n.is_empty() {
+                let r = &self.rep_n[c * REPLICATES..(c + 1) * REPLICATES];
+                if r.iter().sum::<u64>() != self.n[c] {
+                    return Err(format!(
+                        "cell {c}: replicate counts add up to {}, not n = {}",
+                        r.iter().sum::<u64>(),
+                        self.n[c]
+                    ));
+                }
+                for k in 0..nc {
+                    let total: f64 = (0..REPLICATES)
+                        .map(|j| self.rep_sum[(c * REPLICATES + j) * nc + k])
+                        .sum();
+                    let s = self.sum[c * nc + k];
+                    let scale: f64 = (0..REPLICATES)
+                        .map(|j| self.rep_sum[(c * REPLICATES + j) * nc + k].abs())
+                        .sum::<f64>()
+                        .max(s.abs());
+                    if (total - s).abs() > 1e-9 * scale {
+                        return Err(format!(
+                            "cell {c}: replicate sums add up to {total}, not the total {s}"
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+
     /// Keep per-replicate sums (quasi-random runs); the walks then set [`Accum::rep_now`] to
     /// each sample's replicate before recording it.
     pub fn enable_replicates(&mut self) {
@@ -471,6 +575,60 @@ mod tail_tests {
     /// The VOV from power sums against its definition computed directly, merged blocks equal
     /// one accumulator, scaling leaves it unchanged; light tails pass, a Pareto tail (α = 1.5,
     /// infinite variance) fails.
+    /// Rationale (issue 43): sums that samples produced pass, whatever the samples (equal ones
+    /// included: n·Σx² = (Σx)² up to rounding), scalar, polarized and with replicates; doubled
+    /// sums, a negative sum of squares, sums without samples, a NaN and replicates that do not
+    /// add up are refused, naming the cell.
+    #[test]
+    fn invariants_of_sampled_sums() {
+        let mut rng = crate::rng::Stream::new(9, [2, 7, 1, 8]);
+        let mut a = Accum::new(3);
+        for i in 0..5000 {
+            a.add(i % 3, rng.next_f64(), 0.3);
+        }
+        let mut same = Accum::new(1);
+        (0..1000).for_each(|_| same.add(0, 0.1, 0.2));
+        let mut p = Accum::new_polarized(2);
+        (0..100).for_each(|i| p.add_stokes(i % 2, 0.2, 0.1, -0.05, 0.01, 0.0));
+        let mut r = Accum::new(2);
+        r.enable_replicates();
+        for s in 0..320u64 {
+            r.rep_now = Some((s % REPLICATES as u64) as usize);
+            r.add((s % 2) as usize, rng.next_f64(), 0.0);
+        }
+        for ok in [&a, &same, &p, &r] {
+            ok.check_invariants().unwrap();
+        }
+        let mut doubled = a.clone();
+        doubled.sum.iter_mut().for_each(|x| *x *= 2.0);
+        doubled.sum2.iter_mut().for_each(|x| *x *= 2.0);
+        assert!(doubled.check_invariants().unwrap_err().contains("n·sum2"));
+        let mut neg = a.clone();
+        neg.sum2[4] = -5.0;
+        assert!(neg
+            .check_invariants()
+            .unwrap_err()
+            .contains("cell 1: `sum2` = -5"));
+        let mut none = Accum::new(2);
+        none.sum[0] = 1.0;
+        assert!(none
+            .check_invariants()
+            .unwrap_err()
+            .contains("without samples"));
+        let mut nan = a.clone();
+        nan.max[0] = f64::NAN;
+        assert!(nan.check_invariants().unwrap_err().contains("`max`[0]"));
+        let mut rep = r.clone();
+        rep.rep_sum[0] += 1.0;
+        assert!(rep
+            .check_invariants()
+            .unwrap_err()
+            .contains("replicate sums"));
+        let mut short = a.clone();
+        short.sum.pop();
+        assert!(short.check_invariants().is_err());
+    }
+
     #[test]
     fn vov_of_light_and_heavy_tails() {
         let mut rng = crate::rng::Stream::new(5, [3, 1, 4, 1]);

@@ -26,6 +26,10 @@ pub enum OutputError {
     /// Another `simulate run` holds the output folder's lock.
     #[error("another simulate run is writing into {} (its lock {} is held); wait for it to finish or choose another output folder", dir.display(), lock.display())]
     Busy { dir: PathBuf, lock: PathBuf },
+    /// A checkpoint (or a shard's) of this run whose sums were edited or damaged
+    /// (`run/checkpoint.rs`, "Integrity").
+    #[error("checkpoint {} belongs to this run but {problem}: it was edited or damaged; delete it (or run with --fresh) to compute its samples again", path.display())]
+    Checkpoint { path: PathBuf, problem: String },
     /// PNG encoding failed (`path` is the product's final name).
     #[error("cannot write PNG {}: {source}", path.display())]
     Image {

@@ -459,6 +459,8 @@ pub fn run_shard(
                 .group
                 .iter()
                 .map(|&iw| checkpoint::load(dir, exp, &key, iw, &u))
+                .collect::<Result<Vec<_>, _>>()?
+                .into_iter()
                 .collect();
             if let Some(rs) = loaded {
                 bar.inc(m.spp * per);

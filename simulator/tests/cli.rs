@@ -475,4 +475,87 @@ fn plan_and_merge_one_shard_equal_an_unsplit_run() {
         .unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("plan.toml"));
+    // A shard whose sums were doubled by hand (issue 43): the merge names the checkpoint and
+    // refuses instead of writing twice the BRF.
+    let shard_files = json_files(&plan.join("shards/0/checkpoints"));
+    assert!(!shard_files.is_empty());
+    double_sums(&shard_files[0]);
+    let o = bin()
+        .args(["-q", "merge", plan.to_str().unwrap()])
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(!o.status.success(), "{err}");
+    let name = shard_files[0]
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .to_string();
+    assert!(err.contains(&name) && err.contains("digest"), "{err}");
+}
+
+/// The checkpoint files (`*.json`) of a folder, sorted.
+fn json_files(dir: &Path) -> Vec<PathBuf> {
+    let mut v: Vec<PathBuf> = std::fs::read_dir(dir)
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "json"))
+        .collect();
+    v.sort();
+    v
+}
+
+/// Multiply every `sum`, `sum2`… of a checkpoint by 2, as a careless edit would.
+fn double_sums(file: &Path) {
+    let mut v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(file).unwrap()).unwrap();
+    for key in ["sum", "sum2"] {
+        for x in v["acc"][key].as_array_mut().unwrap() {
+            *x = serde_json::json!(x.as_f64().unwrap() * 2.0);
+        }
+    }
+    std::fs::write(file, serde_json::to_string(&v).unwrap()).unwrap();
+}
+
+/// Rationale (issue 43): a resume finds its checkpoints by the run's hash; one whose sums were
+/// edited (doubled) or made impossible (a negative sum of squares) must not be resumed from
+/// (it gave BRF 0.637 ± 0 against 0.318) nor silently recomputed: the run stops with exit 2
+/// naming the file, and `--fresh` starts over.
+#[test]
+fn edited_checkpoints_are_refused_naming_the_file() {
+    let dir = tmpdir("tampered");
+    let exp = example_at(&dir, 2048);
+    let out = dir.join("out");
+    // An explicit shard keeps its checkpoints (as an interrupted run leaves them).
+    let run = |extra: &[&str]| {
+        let mut a = vec![
+            "run",
+            exp.to_str().unwrap(),
+            "-o",
+            out.to_str().unwrap(),
+            "-q",
+        ];
+        a.extend_from_slice(&["--shard", "0/1"]);
+        a.extend_from_slice(extra);
+        bin().args(&a).output().unwrap()
+    };
+    let o = run(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let files = json_files(&out.join("checkpoints"));
+    assert!(!files.is_empty(), "no checkpoints in {}", out.display());
+    // Untouched: the second run resumes from them.
+    let o = run(&[]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    double_sums(&files[0]);
+    let o = run(&[]);
+    let err = String::from_utf8_lossy(&o.stderr).to_string();
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    let name = files[0].file_name().unwrap().to_string_lossy().to_string();
+    assert!(
+        err.contains(&name) && err.contains("digest") && err.contains("--fresh"),
+        "{err}"
+    );
+    let o = run(&["--fresh"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }

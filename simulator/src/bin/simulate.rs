@@ -250,7 +250,14 @@ fn main() -> ExitCode {
             for cause in e.chain().skip(1) {
                 eprintln!("  caused by: {cause}");
             }
-            if e.chain().any(|c| c.downcast_ref::<ConfigError>().is_some()) {
+            let bad_input = |c: &(dyn std::error::Error + 'static)| {
+                c.downcast_ref::<ConfigError>().is_some()
+                    || matches!(
+                        c.downcast_ref::<simulator::error::OutputError>(),
+                        Some(simulator::error::OutputError::Checkpoint { .. })
+                    )
+            };
+            if e.chain().any(bad_input) {
                 ExitCode::from(2)
             } else if e.chain().any(|c| {
                 matches!(

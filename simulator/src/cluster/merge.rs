@@ -109,12 +109,22 @@ pub fn collect(
         let dir = super::shard_dir(out, k).join("checkpoints");
         let units = shard_units(exp, k, plan.shards);
         let (mut missing, mut foreign) = (0, 0);
+        let mut bad = Vec::new();
         for u in &units {
-            let rs: Option<Vec<MeasureResult>> = u
+            let rs: Result<Vec<Option<MeasureResult>>, _> = u
                 .group
                 .iter()
                 .map(|&iw| checkpoint::load(&dir, exp, key, iw, u))
                 .collect();
+            let rs = match rs {
+                Ok(rs) => rs.into_iter().collect::<Option<Vec<_>>>(),
+                Err(e) => {
+                    // An edited or damaged checkpoint: the shard must run again.
+                    missing += 1;
+                    bad.push(e.to_string());
+                    continue;
+                }
+            };
             match rs {
                 Some(rs) => found.push((u.clone(), rs)),
                 None => {
@@ -132,7 +142,11 @@ pub fn collect(
                 missing,
                 units: units.len(),
                 foreign,
-                reason: task_state(out, k),
+                reason: if bad.is_empty() {
+                    task_state(out, k)
+                } else {
+                    bad.join("; ")
+                },
             });
         }
     }

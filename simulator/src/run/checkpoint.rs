@@ -9,6 +9,13 @@
 //! tile files when the folder has one (the checkpoints of a run split into shards, collected
 //! in one folder). Sums are written with enough digits to read back bit for bit
 //! (`serde_json`'s `float_roundtrip`).
+//!
+//! **Integrity.** Each file carries `sums_digest`, FNV-1a 64 of its sums' bits (with the
+//! experiment hash and the first cell), and its sums must satisfy the invariants of samples
+//! (`Accum::check_invariants`: n·Σx² ≥ (Σx)², Σx² ≥ 0, finite values, lengths, replicates that
+//! add up). A file of this run that fails either was edited or damaged: [`load`] refuses it,
+//! naming the file (a resume, `simulate merge`), rather than resuming from it or silently
+//! recomputing. Files of other runs are ignored as before.
 
 use std::path::{Path, PathBuf};
 
@@ -30,7 +37,42 @@ struct Stored {
     /// First cell of a tile (0 for a whole task; absent in older files).
     #[serde(default)]
     first_cell: usize,
+    /// FNV-1a 64 of the sums ([`sums_digest`]), in hex.
+    #[serde(default)]
+    sums_digest: String,
     acc: Accum,
+}
+
+/// FNV-1a 64 of the experiment hash, the first cell and every stored number of `acc` (their
+/// bits, in a fixed order), in hex: a sum edited by hand no longer matches.
+fn sums_digest(key: &str, first_cell: usize, acc: &Accum) -> String {
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |bytes: &[u8]| {
+        for &b in bytes {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    eat(key.as_bytes());
+    eat(&(first_cell as u64).to_le_bytes());
+    eat(&(acc.ncomp as u64).to_le_bytes());
+    for v in [&acc.n, &acc.rep_n] {
+        eat(&(v.len() as u64).to_le_bytes());
+        v.iter().for_each(|x| eat(&x.to_le_bytes()));
+    }
+    for v in [
+        &acc.sum,
+        &acc.sum2,
+        &acc.cross,
+        &acc.sum3,
+        &acc.sum4,
+        &acc.max,
+        &acc.rep_sum,
+    ] {
+        eat(&(v.len() as u64).to_le_bytes());
+        v.iter().for_each(|x| eat(&x.to_bits().to_le_bytes()));
+    }
+    format!("{h:016x}")
 }
 
 /// FNV-1a 64 of the experiment text, the simulator's build ([`crate::BUILD_ID`]: version and
@@ -64,13 +106,21 @@ pub fn path(dir: &Path, iw: usize, u: &Unit) -> PathBuf {
 }
 
 /// A stored result of wavelength `iw` of unit `u`, if one exists and belongs to this
-/// experiment; for a whole task, also from a complete set of tile files in `dir`.
-pub fn load(dir: &Path, exp: &Experiment, key: &str, iw: usize, u: &Unit) -> Option<MeasureResult> {
-    if let Some(r) = load_file(&path(dir, iw, u), exp, key, iw, u) {
-        return Some(r);
+/// experiment; for a whole task, also from a complete set of tile files in `dir`. `Err` for a
+/// file of this experiment whose sums fail their digest or the invariants of samples (module
+/// header).
+pub fn load(
+    dir: &Path,
+    exp: &Experiment,
+    key: &str,
+    iw: usize,
+    u: &Unit,
+) -> Result<Option<MeasureResult>, OutputError> {
+    if let Some(r) = load_file(&path(dir, iw, u), exp, key, iw, u)? {
+        return Ok(Some(r));
     }
     if u.tiles > 1 {
-        return None;
+        return Ok(None);
     }
     load_tiles(dir, exp, key, iw, u.measure)
 }
@@ -81,9 +131,23 @@ fn load_file(
     key: &str,
     iw: usize,
     u: &Unit,
-) -> Option<MeasureResult> {
-    let text = std::fs::read_to_string(file).ok()?;
-    let s: Stored = serde_json::from_str(&text).ok()?;
+) -> Result<Option<MeasureResult>, OutputError> {
+    let Ok(text) = std::fs::read_to_string(file) else {
+        return Ok(None);
+    };
+    let Ok(s) = serde_json::from_str::<Stored>(&text) else {
+        return Ok(None);
+    };
+    if s.experiment_hash == key {
+        let bad = |problem: String| OutputError::Checkpoint {
+            path: file.to_path_buf(),
+            problem,
+        };
+        if s.sums_digest != sums_digest(key, s.first_cell, &s.acc) {
+            return Err(bad("its sums do not match their digest".into()));
+        }
+        s.acc.check_invariants().map_err(bad)?;
+    }
     let m = &exp.measures[u.measure];
     let method = match s.method.as_str() {
         "forward" => Method::Forward,
@@ -100,14 +164,14 @@ fn load_file(
         || s.acc.n.len() != cells
         || (method != Method::Forward && s.first_cell != u.cells.start)
     {
-        return None;
+        return Ok(None);
     }
-    Some(MeasureResult {
+    Ok(Some(MeasureResult {
         measure: u.measure,
         wavelength: iw,
         method,
         acc: s.acc,
-    })
+    }))
 }
 
 /// Measure `im` at wavelength `iw` from the tile files of one tiling found in `dir` (the
@@ -118,10 +182,12 @@ fn load_tiles(
     key: &str,
     iw: usize,
     im: usize,
-) -> Option<MeasureResult> {
+) -> Result<Option<MeasureResult>, OutputError> {
     let prefix = format!("w{iw:03}_m{im:03}_t");
-    let mut counts: Vec<usize> = std::fs::read_dir(dir)
-        .ok()?
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return Ok(None);
+    };
+    let mut counts: Vec<usize> = entries
         .flatten()
         .filter_map(|e| {
             let name = e.file_name().to_string_lossy().into_owned();
@@ -132,22 +198,28 @@ fn load_tiles(
     counts.sort_unstable();
     counts.dedup();
     let cells = exp.measures[im].cell_count();
-    counts.into_iter().find_map(|tiles| {
-        let parts = (0..tiles)
-            .map(|tile| {
-                let u = Unit {
-                    group: vec![iw],
-                    measure: im,
-                    tile,
-                    tiles,
-                    cells: super::units::tile_cells(cells, tile, tiles),
-                };
-                let r = load_file(&path(dir, iw, &u), exp, key, iw, &u)?;
-                Some((u.cells, r))
-            })
-            .collect::<Option<Vec<_>>>()?;
-        super::units::assemble(exp, parts)
-    })
+    for tiles in counts {
+        let mut parts = Vec::with_capacity(tiles);
+        for tile in 0..tiles {
+            let u = Unit {
+                group: vec![iw],
+                measure: im,
+                tile,
+                tiles,
+                cells: super::units::tile_cells(cells, tile, tiles),
+            };
+            match load_file(&path(dir, iw, &u), exp, key, iw, &u)? {
+                Some(r) => parts.push((u.cells, r)),
+                None => break,
+            }
+        }
+        if parts.len() == tiles {
+            if let Some(r) = super::units::assemble(exp, parts) {
+                return Ok(Some(r));
+            }
+        }
+    }
+    Ok(None)
 }
 
 /// Store wavelength `r.wavelength` of unit `u` in `dir` (atomically).
@@ -162,17 +234,19 @@ pub fn store(
         path: dir.to_path_buf(),
         source,
     })?;
+    let first_cell = if r.method == Method::Forward {
+        0
+    } else {
+        u.cells.start
+    };
     let s = Stored {
         experiment_hash: key.to_string(),
         version: crate::BUILD_ID.into(),
         measure: exp.measures[r.measure].id.clone(),
         wavelength_nm: exp.wavelengths[r.wavelength],
         method: r.method.name().into(),
-        first_cell: if r.method == Method::Forward {
-            0
-        } else {
-            u.cells.start
-        },
+        first_cell,
+        sums_digest: sums_digest(key, first_cell, &r.acc),
         acc: r.acc.clone(),
     };
     let text = serde_json::to_string(&s).expect("checkpoint serialises");
