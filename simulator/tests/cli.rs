@@ -138,6 +138,11 @@ fn bad_input_is_a_clear_error() {
             vec!["atmosphere.optical_thickness", "-0.5"],
         ),
         (
+            "negative sample count",
+            base.replace("spp = 100000", "spp = -5"),
+            vec!["measures[0].spp", "-5", "non-negative integer"],
+        ),
+        (
             "albedo above 1",
             base.replace("reflectance = 0.3", "reflectance = 1.3"),
             vec!["surface.reflectance", "1.3"],
@@ -194,6 +199,10 @@ fn bad_input_is_a_clear_error() {
             assert!(err.contains(n), "{name}: `{n}` not in: {err}");
         }
         assert!(!err.contains("panicked"), "{name}: {err}");
+        assert!(
+            !err.contains("expected u64") && !err.contains("expected f64"),
+            "{name}: a Rust type in: {err}"
+        );
     }
     // A missing experiment file.
     let o = bin()

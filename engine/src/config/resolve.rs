@@ -72,7 +72,7 @@ impl Experiment {
             let inner = e.into_inner().to_string().trim_end().to_string();
             let found = locate_offender(text, &inner);
             let (toml_line, core) = split_toml_message(&inner);
-            let core = plain_closed_choice(&core);
+            let core = plain_number_types(&plain_closed_choice(&core));
             // serde's path, or the offender's when serde stopped at its table.
             let key = match found.as_slice() {
                 [one] => one.clone(),
@@ -115,6 +115,26 @@ impl Experiment {
         }
         Ok(exp)
     }
+}
+
+/// serde's names of Rust number types in words a user of the experiment file reads ("integer
+/// `-5`, expected u64" becomes "integer `-5`, expected a non-negative integer").
+fn plain_number_types(message: &str) -> String {
+    let mut m = message.to_string();
+    for (rust, plain) in [
+        ("expected u64", "expected a non-negative integer"),
+        ("expected u32", "expected a non-negative integer"),
+        ("expected u16", "expected a non-negative integer"),
+        ("expected u8", "expected a non-negative integer"),
+        ("expected usize", "expected a non-negative integer"),
+        ("expected i64", "expected an integer"),
+        ("expected i32", "expected an integer"),
+        ("expected f64", "expected a number"),
+        ("expected f32", "expected a number"),
+    ] {
+        m = m.replace(rust, plain);
+    }
+    m
 }
 
 /// serde's messages about a closed choice (a `type` tag or a string value such as
@@ -166,7 +186,9 @@ fn locate_offender(text: &str, message: &str) -> Vec<String> {
         Some(rest[..rest.find('"')?].to_string())
     };
     let number_value = || -> Option<String> {
-        let i = message.find("invalid type: ")?;
+        let i = message
+            .find("invalid type: ")
+            .or_else(|| message.find("invalid value: "))?;
         let rest = &message[i..];
         let a = rest.find('`')? + 1;
         let b = a + rest[a..].find('`')?;
