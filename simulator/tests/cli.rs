@@ -138,6 +138,11 @@ fn bad_input_is_a_clear_error() {
             vec!["atmosphere.optical_thickness", "-0.5"],
         ),
         (
+            "a string among the view zeniths, equal to the Sun's zenith",
+            base.replace("15.0, 30.0, 45.0", "15.0, \"30\", 45.0"),
+            vec!["measures[0].zeniths[7]", "\"30\""],
+        ),
+        (
             "negative sample count",
             base.replace("spp = 100000", "spp = -5"),
             vec!["measures[0].spp", "-5", "non-negative integer"],
@@ -202,6 +207,10 @@ fn bad_input_is_a_clear_error() {
         assert!(
             !err.contains("expected u64") && !err.contains("expected f64"),
             "{name}: a Rust type in: {err}"
+        );
+        assert!(
+            !(name.starts_with("a string among") && err.contains("illumination.zenith")),
+            "{name}: the Sun's zenith blamed: {err}"
         );
     }
     // A missing experiment file.

@@ -71,6 +71,13 @@ impl Experiment {
             let key = e.path().to_string();
             let inner = e.into_inner().to_string().trim_end().to_string();
             let found = locate_offender(text, &inner);
+            // Of several offenders, those under the table serde stopped in.
+            let under: Vec<String> = found
+                .iter()
+                .filter(|f| key != "." && !key.is_empty() && f.starts_with(&key))
+                .cloned()
+                .collect();
+            let found = if under.is_empty() { found } else { under };
             let (toml_line, core) = split_toml_message(&inner);
             let core = plain_number_types(&plain_closed_choice(&core));
             // serde's path, or the offender's when serde stopped at its table.
@@ -194,12 +201,20 @@ fn locate_offender(text: &str, message: &str) -> Vec<String> {
         let b = a + rest[a..].find('`')?;
         Some(rest[a..b].to_string())
     };
-    let (needle, is_key) = if let Some(k) = quoted("unknown field `") {
-        (k, true)
+    // What the message names: a key, a string value or a number (a string needle matches only
+    // strings: "30" given for a number is not the 30.0 of another key).
+    #[derive(Clone, Copy, PartialEq)]
+    enum Kind {
+        Key,
+        Str,
+        Num,
+    }
+    let (needle, kind) = if let Some(k) = quoted("unknown field `") {
+        (k, Kind::Key)
     } else if let Some(v) = quoted("unknown variant `").or_else(string_value) {
-        (v, false)
+        (v, Kind::Str)
     } else if let Some(v) = number_value() {
-        (v, false)
+        (v, Kind::Num)
     } else {
         return Vec::new();
     };
@@ -207,7 +222,17 @@ fn locate_offender(text: &str, message: &str) -> Vec<String> {
         return Vec::new();
     };
     let mut found = Vec::new();
-    fn walk(v: &toml::Value, path: String, needle: &str, is_key: bool, found: &mut Vec<String>) {
+    fn value_hit(x: &toml::Value, needle: &str, kind: Kind) -> bool {
+        match (x, kind) {
+            (toml::Value::String(s), Kind::Str) => s == needle,
+            (toml::Value::Integer(i), Kind::Num) => i.to_string() == needle,
+            (toml::Value::Float(f), Kind::Num) => {
+                f.to_string() == needle || format!("{f:?}") == needle
+            }
+            _ => false,
+        }
+    }
+    fn walk(v: &toml::Value, path: String, needle: &str, kind: Kind, found: &mut Vec<String>) {
         match v {
             toml::Value::Table(t) => {
                 for (k, x) in t {
@@ -216,27 +241,23 @@ fn locate_offender(text: &str, message: &str) -> Vec<String> {
                     } else {
                         format!("{path}.{k}")
                     };
-                    let hit = if is_key {
-                        k == needle
-                    } else {
-                        match x {
-                            toml::Value::String(s) => s == needle,
-                            toml::Value::Integer(i) => i.to_string() == needle,
-                            toml::Value::Float(f) => {
-                                f.to_string() == needle || format!("{f:?}") == needle
-                            }
-                            _ => false,
-                        }
+                    let hit = match kind {
+                        Kind::Key => k == needle,
+                        _ => value_hit(x, needle, kind),
                     };
                     if hit {
                         found.push(p.clone());
                     }
-                    walk(x, p, needle, is_key, found);
+                    walk(x, p, needle, kind, found);
                 }
             }
             toml::Value::Array(a) => {
                 for (i, x) in a.iter().enumerate() {
-                    walk(x, format!("{path}[{i}]"), needle, is_key, found);
+                    let p = format!("{path}[{i}]");
+                    if kind != Kind::Key && value_hit(x, needle, kind) {
+                        found.push(p.clone());
+                    }
+                    walk(x, p, needle, kind, found);
                 }
             }
             _ => {}
@@ -246,7 +267,7 @@ fn locate_offender(text: &str, message: &str) -> Vec<String> {
         &toml::Value::Table(root),
         String::new(),
         &needle,
-        is_key,
+        kind,
         &mut found,
     );
     found
