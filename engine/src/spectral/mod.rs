@@ -106,12 +106,23 @@ impl SpectrumExt for Spectrum {
     }
 }
 
+/// A number or a list of numbers, as a list (`wavelengths = 550.0` is `[550.0]`).
+fn one_or_many<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f64>>, D::Error> {
+    match Spectrum::deserialize(d)? {
+        Spectrum::Constant(v) => Ok(Some(vec![v])),
+        Spectrum::PerWavelength(l) => Ok(Some(l)),
+        Spectrum::Table { .. } => Err(serde::de::Error::custom(
+            "invalid type: table, expected a number or a list of numbers (nm)",
+        )),
+    }
+}
+
 /// The `[spectral]` table.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct SpectralConfig {
-    /// nm.
-    #[serde(default)]
+    /// nm; one number is a list of one.
+    #[serde(default, deserialize_with = "one_or_many")]
     pub wavelengths: Option<Vec<f64>>,
     /// A sensor band (embedded SRF name or CSV file): sample it and add band-weighted outputs.
     #[serde(default)]
@@ -257,5 +268,26 @@ pub fn wavelength_groups_of(wavelengths: &[f64], group: Option<usize>) -> Vec<Ve
             order.sort_by(|&a, &b| wavelengths[a].total_cmp(&wavelengths[b]).then(a.cmp(&b)));
             order.chunks(n.max(1)).map(|c| c.to_vec()).collect()
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Rationale (issue 42): `wavelengths = 550.0` is the list `[550.0]`, as Eradiate users
+    /// write it; a list stays a list; a table is not a set of wavelengths.
+    #[test]
+    fn one_wavelength_may_be_a_number() {
+        let w = |t: &str| toml::from_str::<SpectralConfig>(t).map(|c| c.wavelengths);
+        assert_eq!(w("wavelengths = 550.0").unwrap(), Some(vec![550.0]));
+        assert_eq!(w("wavelengths = 550").unwrap(), Some(vec![550.0]));
+        assert_eq!(
+            w("wavelengths = [440.0, 550.0]").unwrap(),
+            Some(vec![440.0, 550.0])
+        );
+        assert_eq!(w("").unwrap(), None);
+        assert!(w("wavelengths = { wavelengths_nm = [1.0], values = [1.0] }").is_err());
+        assert!(w("wavelengths = \"550\"").is_err());
     }
 }
