@@ -99,7 +99,7 @@ same_as_local out/plan
 # walked independently they are three units per tile, so a shard stores a unit and then goes on
 # to the next, and the cancel can fall between them.
 KILL=2
-sed '/^spectral_walk/d' "$EXP" >examples/grenoble/render_fixed_independent.toml
+sed 's/^spectral_walk.*/spectral_walk = "independent"/' "$EXP" >examples/grenoble/render_fixed_independent.toml
 EXP=examples/grenoble/render_fixed_independent.toml
 "$SIMULATE" -q run "$EXP" -o out/local_independent --spp "$SPP" >/dev/null || fail "local run (independent walks)"
 "$SIMULATE" -q plan "$EXP" --shards "$SHARDS" -o out/plan_kill --spp "$SPP" --cpus-per-task 1 ||
