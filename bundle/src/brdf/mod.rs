@@ -170,48 +170,12 @@ impl BrdfSpec {
             true,
         ) = (self, violations.is_empty())
         {
-            if let Some(v) = list_sum_above_one(reflectance, transmittance) {
-                violations.push(v);
-            }
-        }
-        if let (
-            BrdfSpec::BiLambertian(BiLambertianSpec {
-                reflectance,
-                transmittance,
-            }),
-            true,
-        ) = (self, violations.is_empty())
-        {
-            if reflectance.is_per_wavelength() || transmittance.is_per_wavelength() {
-                return Ok(());
-            }
-            // Both piecewise linear with constant ends: their sum is linear between the union
-            // of their wavelengths, so checking there is exact.
-            let mut ws: Vec<f64> = reflectance
-                .points()
-                .into_iter()
-                .chain(transmittance.points())
-                .filter_map(|(w, _)| w)
-                .collect();
-            ws.sort_by(f64::total_cmp);
-            ws.dedup();
-            let probes: Vec<Option<f64>> = if ws.is_empty() {
-                vec![None]
+            let sum = if reflectance.is_per_wavelength() || transmittance.is_per_wavelength() {
+                list_sum_above_one(reflectance, transmittance)
             } else {
-                ws.into_iter().map(Some).collect()
+                table_sum_above_one(reflectance, transmittance)
             };
-            for w in probes {
-                let at = |s: &Spectrum| w.map_or_else(|| s.at(0.0), |w| s.at(w));
-                let (r, t) = (at(reflectance), at(transmittance));
-                if r + t > BI_LAMBERTIAN_MAX_SUM {
-                    violations.push(BrdfViolation::SumAboveOne {
-                        reflectance: r,
-                        transmittance: t,
-                        wavelength_nm: w,
-                    });
-                    break;
-                }
-            }
+            violations.extend(sum);
         }
         if violations.is_empty() {
             Ok(())
@@ -245,6 +209,35 @@ impl BrdfSpec {
             }
         }
     }
+}
+
+/// `reflectance + transmittance` of two constants or tables, at the union of their
+/// wavelengths; `None` when it stays within [`BI_LAMBERTIAN_MAX_SUM`].
+fn table_sum_above_one(reflectance: &Spectrum, transmittance: &Spectrum) -> Option<BrdfViolation> {
+    // Both piecewise linear with constant ends: their sum is linear between the union
+    // of their wavelengths, so checking there is exact.
+    let mut ws: Vec<f64> = reflectance
+        .points()
+        .into_iter()
+        .chain(transmittance.points())
+        .filter_map(|(w, _)| w)
+        .collect();
+    ws.sort_by(f64::total_cmp);
+    ws.dedup();
+    let probes: Vec<Option<f64>> = if ws.is_empty() {
+        vec![None]
+    } else {
+        ws.into_iter().map(Some).collect()
+    };
+    probes.into_iter().find_map(|w| {
+        let at = |s: &Spectrum| w.map_or_else(|| s.at(0.0), |w| s.at(w));
+        let (r, t) = (at(reflectance), at(transmittance));
+        (r + t > BI_LAMBERTIAN_MAX_SUM).then_some(BrdfViolation::SumAboveOne {
+            reflectance: r,
+            transmittance: t,
+            wavelength_nm: w,
+        })
+    })
 }
 
 /// `reflectance + transmittance` of two per-wavelength lists (or a list and a constant), value

@@ -87,16 +87,6 @@ fn message(e: &toml::de::Error) -> String {
 const ANY: (f64, f64) = (-1e6, 1e6);
 
 impl SurfaceConfig {
-    /// The surface's radiometry solver, if given.
-    pub fn solver(&self) -> Option<bundle::SolverSpec> {
-        self.solver
-    }
-
-    /// `temperature` (K), if given.
-    pub fn temperature(&self) -> Option<f64> {
-        self.temperature
-    }
-
     /// One BRDF per run wavelength (`wavelengths`, nm). `key` is the table's key path
     /// (`surface`): a value that is not a finite number, or a list of the wrong length, is
     /// reported at `key.NAME`; a value out of its model's range at `key.NAME` (with `[i]` for a
@@ -199,7 +189,7 @@ mod tests {
         )
         .unwrap();
         assert_eq!(flat, nested);
-        assert_eq!(flat.temperature(), Some(300.0));
+        assert_eq!(flat.temperature, Some(300.0));
         assert_eq!(flat.brdf.type_name(), "rpv");
         let e = surface("[surface]\ntype = \"lambertian\"\nreflectanse = 0.3").unwrap_err();
         assert!(e.contains("unknown field `reflectanse`"), "{e}");

@@ -619,7 +619,7 @@ fn apply_surface_solver(
     planet_radius: Option<f64>,
     integrator: &mut IntegratorSettings,
 ) -> Result<(), ConfigError> {
-    if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver()) {
+    if let Some(solver) = cfg.surface.as_ref().and_then(|s| s.solver) {
         solver
             .validate()
             .map_err(|(k, m)| ctx.err(format!("surface.solver.{k}"), m))?;

@@ -57,7 +57,7 @@ pub fn resolve(
         None => Vec::new(),
         Some(a) => a.temperatures(ctx, geometry)?,
     };
-    let surface = match cfg.surface.as_ref().and_then(|s| s.temperature()) {
+    let surface = match cfg.surface.as_ref().and_then(|s| s.temperature) {
         // A 3D scene's materials carry their own temperatures (`scene::emission`).
         None if cfg.scene.is_some() => 0.0,
         None => {

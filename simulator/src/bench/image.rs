@@ -105,10 +105,9 @@ pub fn run(
         .collect();
     bands.sort_by(|a, b| a.wavelength.total_cmp(&b.wavelength));
     let us_per_sample = 1e6 * c_run / (pixels as f64 * n as f64);
-    let groups = match exp.integrator.spectral_alis {
-        Some(g) => exp.wavelengths.len().div_ceil(g),
-        None => exp.wavelengths.len(),
-    };
+    let groups =
+        engine::spectral::wavelength_groups_of(&exp.wavelengths, exp.integrator.spectral_alis)
+            .len();
     println!("experiment: {}", experiment.display());
     println!(
         "measure `{}`: {pixels} pixels{}, {n} samples per pixel, {} band(s) in {groups} walk(s) per sample ({})",
@@ -176,10 +175,8 @@ fn native_s2(bands: &[Band], us_per_sample: f64, groups: usize, tile_km: f64, ex
             println!("  {res} m: none of its bands is in the experiment");
             continue;
         }
-        let walks = match group {
-            Some(g) => members.len().div_ceil(g),
-            None => members.len(),
-        };
+        let class: Vec<f64> = members.iter().map(|b| b.wavelength).collect();
+        let walks = engine::spectral::wavelength_groups_of(&class, group).len();
         let n_t = members.iter().map(|b| b.n_target).fold(0.0f64, f64::max);
         let px = (tile_km * 1000.0 / res).powi(2);
         let hours = px * n_t * us_per_sample * (walks as f64 / groups as f64) * 1e-6 / 3600.0;

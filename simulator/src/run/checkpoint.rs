@@ -46,13 +46,8 @@ struct Stored {
 /// FNV-1a 64 of the experiment hash, the first cell and every stored number of `acc` (their
 /// bits, in a fixed order), in hex: a sum edited by hand no longer matches.
 fn sums_digest(key: &str, first_cell: usize, acc: &Accum) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    let mut eat = |bytes: &[u8]| {
-        for &b in bytes {
-            h ^= b as u64;
-            h = h.wrapping_mul(0x0000_0100_0000_01b3);
-        }
-    };
+    let mut h = Fnv::new();
+    let mut eat = |bytes: &[u8]| h.eat(bytes);
     eat(key.as_bytes());
     eat(&(first_cell as u64).to_le_bytes());
     eat(&(acc.ncomp as u64).to_le_bytes());
@@ -72,7 +67,7 @@ fn sums_digest(key: &str, first_cell: usize, acc: &Accum) -> String {
         eat(&(v.len() as u64).to_le_bytes());
         v.iter().for_each(|x| eat(&x.to_bits().to_le_bytes()));
     }
-    format!("{h:016x}")
+    h.hex()
 }
 
 /// FNV-1a 64 of the experiment text, the simulator's build ([`crate::BUILD_ID`]: version and
@@ -85,12 +80,29 @@ pub fn experiment_hash(exp: &Experiment) -> String {
 
 /// FNV-1a 64 of the experiment text, a build id and an input digest, in hex.
 fn hash_of(text: &str, build: &str, inputs: &str) -> String {
-    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
-    for b in text.bytes().chain(build.bytes()).chain(inputs.bytes()) {
-        h ^= b as u64;
-        h = h.wrapping_mul(0x0000_0100_0000_01b3);
+    let mut h = Fnv::new();
+    for part in [text, build, inputs] {
+        h.eat(part.as_bytes());
     }
-    format!("{h:016x}")
+    h.hex()
+}
+
+/// FNV-1a 64, fed in pieces.
+struct Fnv(u64);
+
+impl Fnv {
+    fn new() -> Self {
+        Fnv(0xcbf2_9ce4_8422_2325)
+    }
+    fn eat(&mut self, bytes: &[u8]) {
+        for &b in bytes {
+            self.0 ^= b as u64;
+            self.0 = self.0.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    }
+    fn hex(&self) -> String {
+        format!("{:016x}", self.0)
+    }
 }
 
 /// The file of wavelength `iw` of unit `u` in `dir`.
