@@ -67,6 +67,10 @@ pub struct Stream {
     /// With `sobol`: the sample's first surface fan has not yet taken its points
     /// ([`Stream::take_fan`]).
     qmc_fan: bool,
+    /// The last four Sobol dimensions computed together (`sobol_burley::sample_4d`, the same
+    /// values as four `sample` calls) and their (point index, seed, dimension set).
+    qmc_cache: [f32; 4],
+    qmc_cache_key: [u32; 3],
 }
 
 /// Quasi-random draws of a fan's copy: the two numbers of its direction. (Taking the first
@@ -121,6 +125,8 @@ impl Stream {
             qmc_index: 0,
             qmc_seed: 0,
             qmc_fan: false,
+            qmc_cache: [0.0; 4],
+            qmc_cache_key: [0, 0, u32::MAX],
         }
     }
 
@@ -193,7 +199,13 @@ impl Stream {
         let dim = self.qmc_dim;
         self.qmc_dim += 1;
         self.qmc_left -= 1;
-        let v = sobol_burley::sample(self.qmc_index, dim, self.qmc_seed) as f64;
+        // A sample's quasi-random draws come in order: one SIMD call serves four of them.
+        let key = [self.qmc_index, self.qmc_seed, dim / 4];
+        if self.qmc_cache_key != key {
+            self.qmc_cache = sobol_burley::sample_4d(key[0], key[2], key[1]);
+            self.qmc_cache_key = key;
+        }
+        let v = f64::from(self.qmc_cache[(dim % 4) as usize]);
         let jitter = self.next_philox_f64() * (1.0 / (1u64 << 23) as f64);
         (v + jitter).min(1.0 - f64::EPSILON)
     }
@@ -250,6 +262,39 @@ mod tests {
     /// the 4 copies of a sample's fan are one aligned block of its 2D sequence, so each of the
     /// 2 × 2, 4 × 1 and 1 × 4 cells of [0, 1)² holds exactly one of their directions' numbers;
     /// the stream's own quasi-random state comes back with `restore_qmc`.
+    /// The four-at-once Sobol draws equal sobol_burley's one-dimension `sample` (the stratum
+    /// of each quasi-random draw), for every dimension of several samples, and across a fan's
+    /// save and restore of the stream's state.
+    #[test]
+    fn cached_sobol_draws_equal_single_dimension_samples() {
+        let stratum = |x: f64| (x * (1u64 << 23) as f64).floor() as u32;
+        for sample in [0u64, 1, 17, 4099, 1 << 20] {
+            let mut s = Stream::for_sample(7, [1, 2, 3, sample], true);
+            let (index, seed) = (s.qmc_index, s.qmc_seed);
+            for d in 0..QMC_DIMS {
+                let want = sobol_burley::sample(index, d, seed);
+                let got = s.next_f64();
+                assert_eq!(
+                    stratum(got),
+                    (f64::from(want) * (1u64 << 23) as f64) as u32,
+                    "sample {sample}, dimension {d}"
+                );
+            }
+        }
+        let mut s = Stream::for_sample(7, [1, 2, 3, 5], true);
+        let (index, seed) = (s.qmc_index, s.qmc_seed);
+        let _ = s.next_f64();
+        let saved = s.qmc_state();
+        if let Some(points) = s.take_fan(4) {
+            points.enter(1, &mut s);
+            let _ = (s.next_f64(), s.next_f64());
+        }
+        s.restore_qmc(saved);
+        let got = s.next_f64();
+        let want = sobol_burley::sample(index, 1, seed);
+        assert_eq!(stratum(got), (f64::from(want) * (1u64 << 23) as f64) as u32);
+    }
+
     #[test]
     fn fan_points_are_taken_once_and_stratified() {
         assert!(Stream::for_sample(3, [1, 2, 3, 4], false)

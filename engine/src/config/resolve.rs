@@ -341,6 +341,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             moon: sun.moon.is_some(),
             wavelengths: wavelengths.len(),
             emission: cfg.emission,
+            atmosphere: atmosphere.layers.iter().any(|l| !l.is_empty()),
+            images: measures.iter().any(|m| m.is_image()),
         },
     )?;
 
