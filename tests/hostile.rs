@@ -572,6 +572,26 @@ fn hostile_inputs_fail_cleanly() {
     s.check("output under a file", &o, &e(1, &["a-file"]));
     let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous", "--shard", "3/2"]);
     s.check("shard out of range", &o, &e(2, &["--shard"]));
+    // A user's file in the checkpoints folder survives a complete run and --fresh (named in a
+    // warning); an absurd thread count runs on the machine's cores, with a note.
+    std::fs::create_dir_all(root.join("keep/checkpoints")).unwrap();
+    std::fs::write(root.join("keep/checkpoints/thesis.txt"), "years of work").unwrap();
+    for fresh in [false, true] {
+        let mut args = vec!["run", "-q", "base.toml", "-o", "keep", "-j", "100000"];
+        if fresh {
+            args.push("--fresh");
+        }
+        let o = s.simulate(&args);
+        let name = format!("a user's file in OUTDIR/checkpoints (fresh: {fresh})");
+        s.check(&name, &o, &e(0, &["thesis.txt", "-j 100000"]));
+        if std::fs::read_to_string(root.join("keep/checkpoints/thesis.txt"))
+            .ok()
+            .as_deref()
+            != Some("years of work")
+        {
+            s.failures.push(format!("{name}: the file was deleted"));
+        }
+    }
     let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous", "--bogus"]);
     s.check("unknown flag", &o, &e(2, &["--bogus"]));
 
@@ -668,6 +688,45 @@ fn hostile_inputs_fail_cleanly() {
     if !root.join("precious/thesis.txt").is_file() {
         s.failures
             .push("force onto a non-bundle: the folder was emptied".into());
+    }
+    // --force never empties another tool's folder that has a format_version, nor a bundle a
+    // user has put files into.
+    std::fs::create_dir_all(root.join("other-tool/photos")).unwrap();
+    std::fs::write(
+        root.join("other-tool/manifest.toml"),
+        "format = \"something-else\"\nformat_version = 3\n",
+    )
+    .unwrap();
+    std::fs::write(root.join("other-tool/thesis.txt"), "years of work").unwrap();
+    let o = s.scenegen(&["build", "-q", "region.toml", "-o", "other-tool", "--force"]);
+    s.check(
+        "force onto another tool's folder",
+        &o,
+        &e(2, &["other-tool", "something-else"]),
+    );
+    if !root.join("other-tool/thesis.txt").is_file() || !root.join("other-tool/photos").is_dir() {
+        s.failures
+            .push("force onto another tool's folder: its files were deleted".into());
+    }
+    let mine = root.join("bundle-with-notes");
+    copy_dir(&root.join("bundle"), &mine);
+    std::fs::write(mine.join("notes.txt"), "mine").unwrap();
+    let o = s.scenegen(&[
+        "build",
+        "-q",
+        "region.toml",
+        "-o",
+        "bundle-with-notes",
+        "--force",
+    ]);
+    s.check(
+        "force onto a bundle holding a user's file",
+        &o,
+        &e(2, &["bundle-with-notes", "notes.txt"]),
+    );
+    if !mine.join("notes.txt").is_file() {
+        s.failures
+            .push("force onto a bundle holding a user's file: the file was deleted".into());
     }
     let o = s.scenegen(&["build", "-q", "region.toml", "-o", "bundle"]);
     s.check(

@@ -147,14 +147,25 @@ impl Drop for TmpDirGuard {
     }
 }
 
+/// The files a bundle writer puts in a bundle folder (every other name is someone else's).
+const BUNDLE_FILES: [&str; 5] = [
+    MANIFEST_FILE,
+    TERRAIN_FILE,
+    TEMPLATES_FILE,
+    INSTANCES_FILE,
+    MATERIALS_FILE,
+];
+
 /// Whether `dir` may be replaced by a forced write: it does not exist, or it is an empty
-/// directory, or a directory with a bundle manifest (`manifest.toml` naming a format version).
-/// Anything else (a file, a directory of other data) is refused with
-/// [`BundleError::NotABundle`], so `--force` never deletes data that is not a bundle.
+/// directory, or one of our bundles: a `manifest.toml` that parses as TOML with `format =
+/// "eo-scene-bundle"` and an integer `format_version`, and nothing in the folder but the files
+/// a bundle holds. Anything else (a file, a symbolic link, another tool's folder, a bundle a
+/// user has put files into) is refused with [`BundleError::NotABundle`] naming what is in the
+/// way, so `--force` never deletes data it did not write.
 pub fn check_replaceable(dir: &Path) -> Result<(), BundleError> {
-    let not = |reason: &str| BundleError::NotABundle {
+    let not = |reason: String| BundleError::NotABundle {
         path: dir.to_path_buf(),
-        reason: reason.into(),
+        reason,
     };
     let meta = match std::fs::symlink_metadata(dir) {
         Ok(m) => m,
@@ -168,23 +179,65 @@ pub fn check_replaceable(dir: &Path) -> Result<(), BundleError> {
     };
     if !meta.is_dir() {
         return Err(not(if meta.file_type().is_symlink() {
-            "a symbolic link"
+            "a symbolic link".into()
         } else {
-            "not a directory"
+            "not a directory".into()
         }));
     }
-    let mut entries = std::fs::read_dir(dir).map_err(|source| BundleError::Write {
+    let entries = std::fs::read_dir(dir).map_err(|source| BundleError::Write {
         path: dir.to_path_buf(),
         source,
     })?;
-    if entries.next().is_none() {
+    let mut foreign = Vec::new();
+    let mut any = false;
+    for e in entries {
+        let e = e.map_err(|source| BundleError::Write {
+            path: dir.to_path_buf(),
+            source,
+        })?;
+        any = true;
+        let name = e.file_name().to_string_lossy().into_owned();
+        let regular = e.file_type().is_ok_and(|t| t.is_file());
+        if !(regular && BUNDLE_FILES.contains(&name.as_str())) {
+            foreign.push(name);
+        }
+    }
+    if !any {
         return Ok(());
     }
-    match std::fs::read_to_string(dir.join(MANIFEST_FILE)) {
-        Ok(text) if text.contains("format_version") => Ok(()),
-        Ok(_) => Err(not("its manifest.toml has no format_version")),
-        Err(_) => Err(not("no manifest.toml")),
+    let manifest = dir.join(MANIFEST_FILE);
+    let regular = std::fs::symlink_metadata(&manifest).is_ok_and(|m| m.is_file());
+    let text = match regular.then(|| std::fs::read_to_string(&manifest)) {
+        Some(Ok(text)) => text,
+        _ => return Err(not("no manifest.toml".into())),
+    };
+    let table: toml::Table = text
+        .parse()
+        .map_err(|_| not("its manifest.toml is not TOML".into()))?;
+    let format = table.get("format").and_then(|v| v.as_str());
+    if format != Some(FORMAT_NAME) {
+        return Err(not(match format {
+            Some(f) => format!("its manifest.toml says format = \"{f}\", not \"{FORMAT_NAME}\""),
+            None => format!("its manifest.toml has no format = \"{FORMAT_NAME}\""),
+        }));
     }
+    if !table.get("format_version").is_some_and(|v| v.is_integer()) {
+        return Err(not("its manifest.toml has no integer format_version".into()));
+    }
+    if !foreign.is_empty() {
+        foreign.sort();
+        return Err(not(format!(
+            "it holds {} that a bundle does not ({}); move {} out of the folder first",
+            if foreign.len() == 1 {
+                "an entry"
+            } else {
+                "entries"
+            },
+            foreign.join(", "),
+            if foreign.len() == 1 { "it" } else { "them" },
+        )));
+    }
+    Ok(())
 }
 
 impl Bundle {
@@ -1231,6 +1284,52 @@ mod tests {
             .collect();
         names.sort();
         assert_eq!(names, ["empty", "notes.txt", "thesis"]);
+        std::fs::remove_dir_all(&parent).unwrap();
+    }
+
+    /// Rationale: `--force` replaces only our own bundles, whole (issue 43 item 5): another
+    /// tool's folder whose manifest has a `format_version` but another `format`, and a real
+    /// bundle into which a user has put a file or a folder, are refused naming what is in the
+    /// way, and nothing in them changes.
+    #[test]
+    fn force_refuses_other_formats_and_foreign_files() {
+        let parent = tmpdir("force-foreign");
+        std::fs::create_dir_all(&parent).unwrap();
+        let b = sample();
+        let other = parent.join("other-tool");
+        std::fs::create_dir_all(other.join("photos")).unwrap();
+        std::fs::write(
+            other.join("manifest.toml"),
+            "format = \"something-else\"\nformat_version = 3\n",
+        )
+        .unwrap();
+        std::fs::write(other.join("thesis.txt"), "precious").unwrap();
+        let e = b.write(&other, true).unwrap_err().to_string();
+        assert!(e.contains("something-else"), "{e}");
+        assert_eq!(
+            std::fs::read_to_string(other.join("thesis.txt")).unwrap(),
+            "precious"
+        );
+        assert!(other.join("photos").is_dir());
+        std::fs::write(other.join("manifest.toml"), "not = [toml").unwrap();
+        let e = b.write(&other, true).unwrap_err().to_string();
+        assert!(e.contains("not TOML"), "{e}");
+
+        let bundle = parent.join("bundle");
+        b.write(&bundle, false).unwrap();
+        std::fs::write(bundle.join("notes.txt"), "mine").unwrap();
+        std::fs::create_dir_all(bundle.join("figures")).unwrap();
+        let e = b.write(&bundle, true).unwrap_err().to_string();
+        assert!(e.contains("figures, notes.txt"), "{e}");
+        assert_eq!(
+            std::fs::read_to_string(bundle.join("notes.txt")).unwrap(),
+            "mine"
+        );
+        Bundle::verify(&bundle).unwrap();
+        std::fs::remove_file(bundle.join("notes.txt")).unwrap();
+        std::fs::remove_dir(bundle.join("figures")).unwrap();
+        b.write(&bundle, true).unwrap();
+        Bundle::verify(&bundle).unwrap();
         std::fs::remove_dir_all(&parent).unwrap();
     }
 

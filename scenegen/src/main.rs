@@ -200,8 +200,17 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             tolerance_m,
         } => {
             if let Some(n) = threads {
+                // More threads than cores only cost start-up time and memory (the bundle does
+                // not depend on the count): capped, with a note.
+                let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+                let n = n.max(1);
+                if n > cores {
+                    tracing::warn!(
+                        "-j {n}: this process may use {cores} core(s); running {cores} thread(s)"
+                    );
+                }
                 rayon::ThreadPoolBuilder::new()
-                    .num_threads(n.max(1))
+                    .num_threads(n.min(cores))
                     .build_global()
                     .context("thread pool")?;
             }

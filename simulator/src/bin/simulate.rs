@@ -281,10 +281,20 @@ fn main() -> ExitCode {
     }
 }
 
+/// Build the global pool for `-j N`. More threads than the cores this process may use only
+/// cost start-up time (quadratic in rayon: `-j 100000` took minutes) and memory, and results do
+/// not depend on the count, so N is capped at the cores, with a note.
 fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
     if let Some(n) = threads {
+        let cores = std::thread::available_parallelism().map_or(1, |c| c.get());
+        let n = n.max(1);
+        if n > cores {
+            tracing::warn!(
+                "-j {n}: this process may use {cores} core(s); running {cores} thread(s) (results do not depend on the count)"
+            );
+        }
         rayon::ThreadPoolBuilder::new()
-            .num_threads(n.max(1))
+            .num_threads(n.min(cores))
             .build_global()
             .context("thread pool")?;
     }
@@ -418,7 +428,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 }
             );
             if fresh {
-                let _ = std::fs::remove_dir_all(&ckpt);
+                simulator::run::checkpoint::clear(&ckpt);
             }
             let (shard, shards) = match &shard {
                 None => (0, 1),
@@ -451,7 +461,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             // Products are complete: the checkpoints are no longer needed, except those of an
             // explicit shard (`--shard 0/1`, a one-shard plan), which `simulate merge` reads.
             if !sharded {
-                let _ = std::fs::remove_dir_all(&ckpt);
+                simulator::run::checkpoint::clear(&ckpt);
             }
             tracing::info!(
                 "done in {:.2} s: wrote {} and {}",

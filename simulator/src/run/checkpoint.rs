@@ -117,6 +117,75 @@ pub fn path(dir: &Path, iw: usize, u: &Unit) -> PathBuf {
     }
 }
 
+/// Whether `name` is a file this module writes into a checkpoints folder: a unit's
+/// `wIII_mMMM[_tTTTTTTofNNNNNN].json` ([`path`]) or the temporary `.NAME.PID.partial` of one
+/// (`products::write_atomic`).
+pub fn is_ours(name: &str) -> bool {
+    let digits = |s: &str, n: usize| s.len() == n && s.bytes().all(|b| b.is_ascii_digit());
+    let unit = |s: &str| -> bool {
+        let Some(stem) = s.strip_suffix(".json") else {
+            return false;
+        };
+        let (base, tile) = match stem.split_once("_t") {
+            Some((b, t)) => (b, Some(t)),
+            None => (stem, None),
+        };
+        let base_ok = base.len() == 9
+            && base.starts_with('w')
+            && digits(&base[1..4], 3)
+            && &base[4..6] == "_m"
+            && digits(&base[6..9], 3);
+        let tile_ok = tile.is_none_or(|t| {
+            t.len() == 14 && digits(&t[..6], 6) && &t[6..8] == "of" && digits(&t[8..], 6)
+        });
+        base_ok && tile_ok
+    };
+    if let Some(rest) = name
+        .strip_prefix('.')
+        .and_then(|r| r.strip_suffix(".partial"))
+    {
+        // `.NAME.PID.partial`
+        return rest.rsplit_once('.').is_some_and(|(n, pid)| {
+            !pid.is_empty() && pid.bytes().all(|b| b.is_ascii_digit()) && unit(n)
+        });
+    }
+    unit(name)
+}
+
+/// Remove the checkpoints folder `dir` (after a complete run, or for `--fresh`): the files this
+/// module wrote, then the folder if that leaves it empty. Anything else in it (a user's file)
+/// stays, and is named in a warning; the number of files left is returned.
+pub fn clear(dir: &Path) -> usize {
+    let Ok(entries) = std::fs::read_dir(dir) else {
+        return 0;
+    };
+    let mut left = Vec::new();
+    for e in entries.flatten() {
+        let name = e.file_name().to_string_lossy().to_string();
+        let file = e.file_type().is_ok_and(|t| t.is_file());
+        if file && is_ours(&name) {
+            if std::fs::remove_file(e.path()).is_err() {
+                left.push(name);
+            }
+        } else {
+            left.push(name);
+        }
+    }
+    if left.is_empty() {
+        let _ = std::fs::remove_dir(dir);
+    } else {
+        left.sort();
+        tracing::warn!(
+            "{}: left {} entr{} that simulate did not write: {}",
+            dir.display(),
+            left.len(),
+            if left.len() == 1 { "y" } else { "ies" },
+            left.join(", ")
+        );
+    }
+    left.len()
+}
+
 /// A stored result of wavelength `iw` of unit `u`, if one exists and belongs to this
 /// experiment; for a whole task, also from a complete set of tile files in `dir`. `Err` for a
 /// file of this experiment whose sums fail their digest or the invariants of samples (module
@@ -268,6 +337,45 @@ pub fn store(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Rationale: clearing a checkpoints folder removes only what simulate wrote there (unit
+    /// files and their temporaries); a user's file and folder stay, and so does the folder.
+    #[test]
+    fn clear_removes_only_our_files() {
+        for name in [
+            "w000_m000.json",
+            "w012_m003_t000004of000010.json",
+            ".w000_m001.json.4242.partial",
+        ] {
+            assert!(is_ours(name), "{name}");
+        }
+        for name in [
+            "thesis.txt",
+            "w000_m000.json.bak",
+            "w0_m0.json",
+            "w000_m000_t4of10.json",
+            ".w000_m001.json.partial",
+            ".thesis.txt.42.partial",
+            "W000_M000.json",
+        ] {
+            assert!(!is_ours(name), "{name}");
+        }
+        let dir = std::env::temp_dir().join(format!("ckpt-clear-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&dir);
+        std::fs::create_dir_all(dir.join("photos")).unwrap();
+        for f in ["w000_m000.json", ".w001_m000.json.7.partial", "thesis.txt"] {
+            std::fs::write(dir.join(f), "x").unwrap();
+        }
+        assert_eq!(clear(&dir), 2);
+        assert!(dir.join("thesis.txt").exists() && dir.join("photos").is_dir());
+        assert!(!dir.join("w000_m000.json").exists());
+        assert!(!dir.join(".w001_m000.json.7.partial").exists());
+        std::fs::remove_dir_all(dir.join("photos")).unwrap();
+        std::fs::remove_file(dir.join("thesis.txt")).unwrap();
+        std::fs::write(dir.join("w000_m000.json"), "x").unwrap();
+        assert_eq!(clear(&dir), 0);
+        assert!(!dir.exists(), "an emptied folder is removed");
+    }
 
     /// The build id is the crate version and a source digest, and it is part of the key: two
     /// builds of the same version whose sources differ never share checkpoints.
