@@ -592,6 +592,24 @@ fn hostile_inputs_fail_cleanly() {
             s.failures.push(format!("{name}: the file was deleted"));
         }
     }
+    // Counts checked before allocation: an SRF sampled every 1e-9 nm, a plan of 10^12 shards.
+    s.experiment(
+        "srf-step-1e-9",
+        &x(
+            "wavelengths = [550.0]",
+            "srf = \"sentinel_2a-msi-4\"\nwavelength_step = 1e-9",
+        ),
+        &e(2, &["wavelength_step", "at most"]),
+    );
+    let o = s.simulate(&[
+        "plan",
+        "base.toml",
+        "--shards",
+        "1000000000000",
+        "-o",
+        "plan-huge",
+    ]);
+    s.check("plan of 10^12 shards", &o, &e(2, &["--shards", "at most"]));
     let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous", "--bogus"]);
     s.check("unknown flag", &o, &e(2, &["--bogus"]));
 

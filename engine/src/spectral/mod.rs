@@ -117,6 +117,9 @@ fn one_or_many<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f64>
     }
 }
 
+/// Most wavelengths an `srf` band is sampled at in `mode = "mono"` (`wavelength_step`).
+pub const MAX_SRF_WAVELENGTHS: usize = 100_000;
+
 /// The `[spectral]` table.
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -221,6 +224,22 @@ impl SpectralConfig {
                         return Err(ctx.err(
                             "spectral.wavelength_step",
                             format!("{step} nm must be positive"),
+                        ));
+                    }
+                    // Counted before the grid is built: a step of 1e-9 nm would otherwise
+                    // allocate until memory runs out.
+                    let (lo, hi) = (
+                        srf.wavelength.first().copied().unwrap_or(0.0),
+                        srf.wavelength.last().copied().unwrap_or(0.0),
+                    );
+                    let count = (hi - lo) / step + 1.0;
+                    if count > MAX_SRF_WAVELENGTHS as f64 {
+                        return Err(ctx.err(
+                            "spectral.wavelength_step",
+                            format!(
+                                "{step} nm samples the {lo}–{hi} nm band at {count:.3e} wavelengths: at most {MAX_SRF_WAVELENGTHS} (use a step of at least {:.3e} nm)",
+                                (hi - lo) / (MAX_SRF_WAVELENGTHS as f64 - 1.0)
+                            ),
                         ));
                     }
                     let (w, weights) = srf

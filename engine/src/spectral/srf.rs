@@ -182,6 +182,24 @@ impl Srf {
 mod tests {
     use super::*;
 
+    /// Rationale: CSV exports from spreadsheets start with a UTF-8 byte-order mark; an SRF file
+    /// with one reads exactly as without it (issue 43 item 7), as do the other CSV readers
+    /// (profiles, solar spectra, cross-sections and leaf tables strip it the same way).
+    #[test]
+    fn a_byte_order_mark_is_not_data() {
+        let text = "wavelength_nm,response\n600,0\n650,1\n700,0\n";
+        let plain = Srf::from_csv("band.csv", text).unwrap();
+        let marked = Srf::from_csv("band.csv", &format!("\u{feff}{text}")).unwrap();
+        assert_eq!(plain.wavelength, marked.wavelength);
+        assert_eq!(plain.response, marked.response);
+        let profile = "z,n\n0,2.5e19\n100,1e13\n";
+        let plain = crate::atmosphere::molecular::Profile::from_csv("p.csv", profile).unwrap();
+        let marked =
+            crate::atmosphere::molecular::Profile::from_csv("p.csv", &format!("\u{feff}{profile}"))
+                .unwrap();
+        assert_eq!((plain.z, plain.n), (marked.z, marked.n));
+    }
+
     /// Bin weights integrate the SRF exactly: over bins tiling the support they sum to the
     /// integral of S, and a bin outside the support weighs 0.
     #[test]

@@ -34,10 +34,24 @@ fn invalid(path: &Path, key: &str, message: String) -> anyhow::Error {
     })
 }
 
+/// Most shards a plan accepts.
+pub const MAX_SHARDS: usize = 1_000_000;
+
 /// Plan `experiment` (as given, relative to the current folder) into `out` (absolute).
 pub fn plan(experiment: &Path, out: &Path, o: &Options) -> anyhow::Result<Plan> {
     if o.shards == 0 {
         return Err(invalid(experiment, "--shards", "must be at least 1".into()));
+    }
+    if o.shards > MAX_SHARDS {
+        // Checked before anything is sized by the count (per-shard lists, pixel tiles).
+        return Err(invalid(
+            experiment,
+            "--shards",
+            format!(
+                "{} shards: at most {MAX_SHARDS} (Slurm's own array limit, MaxArraySize, is usually far lower)",
+                o.shards
+            ),
+        ));
     }
     if o.cpus_per_task == 0 {
         return Err(invalid(
@@ -73,10 +87,6 @@ pub fn plan(experiment: &Path, out: &Path, o: &Options) -> anyhow::Result<Plan> 
         }
     }
     let all = units::units(&exp, o.shards);
-    let mut per_shard = vec![Vec::new(); o.shards];
-    for (k, u) in all.iter().enumerate() {
-        per_shard[k % o.shards].push(u.clone());
-    }
     if all.len() < o.shards {
         return Err(invalid(
             experiment,
@@ -88,6 +98,10 @@ pub fn plan(experiment: &Path, out: &Path, o: &Options) -> anyhow::Result<Plan> 
                 all.len()
             ),
         ));
+    }
+    let mut per_shard = vec![Vec::new(); o.shards];
+    for (k, u) in all.iter().enumerate() {
+        per_shard[k % o.shards].push(u.clone());
     }
     tracing::info!(
         "{} work unit(s) over {} shard(s); timing a pilot",
