@@ -660,6 +660,47 @@ fn hostile_inputs_fail_cleanly() {
         &r("size_km = 2.2", "size_km = 20"),
         &e(2, &["dem.tif", "does not cover"]),
     );
+    // Float land covers: 18.7 is not a class (it was built as class 19), NaN is a hole.
+    let float_lc = |name: &str, v: f32| {
+        write_geotiff(
+            &root.join(name),
+            20,
+            20,
+            Some([-1200.0, 120.0, 0.0, 1200.0, 0.0, -120.0]),
+            Some(LOCAL),
+            None,
+            (0..400)
+                .map(|k| if k == 210 { v } else { 18.0f32 })
+                .collect::<Vec<f32>>(),
+        )
+        .unwrap();
+    };
+    float_lc("lc_float.tif", 18.7);
+    s.region(
+        "float-landcover-fraction",
+        &r("file = \"lc.tif\"", "file = \"lc_float.tif\""),
+        &e(2, &["lc_float.tif", "18.7", "integer class codes"]),
+    );
+    float_lc("lc_nan.tif", f32::NAN);
+    let o = {
+        std::fs::write(
+            root.join("region-nan.toml"),
+            r("file = \"lc.tif\"", "file = \"lc_nan.tif\""),
+        )
+        .unwrap();
+        s.scenegen(&[
+            "build",
+            "-q",
+            "region-nan.toml",
+            "-o",
+            "bundle-nan",
+            "--force",
+        ])
+    };
+    if o.stderr.contains("2147483647") || o.stderr.contains("panicked") {
+        s.failures
+            .push(format!("NaN land-cover pixel: {}", o.stderr));
+    }
     write_lc(&root.join("lc_unknown.tif"), 77);
     s.region(
         "unknown-landcover-class",

@@ -694,17 +694,45 @@ pub fn load_landcover(
     } else {
         GDALResampleAlg::GRA_NearestNeighbour
     };
-    let v: Vec<i32> = warp(&ds, path, frame, grid, alg, NODATA as f64)?;
-    let codes = v
-        .into_iter()
-        .map(|c| {
-            let c = c as i64;
-            if c == NODATA as i64 || Some(c as f64) == band_nodata || Some(c) == scheme_nodata {
-                None
+    let nodata =
+        |c: i64| c == NODATA as i64 || Some(c as f64) == band_nodata || Some(c) == scheme_nodata;
+    use gdal::raster::GdalDataType;
+    let float = matches!(
+        band.band_type(),
+        GdalDataType::Float32 | GdalDataType::Float64
+    );
+    let codes = if float {
+        // A float raster must hold class codes: integers, or NaN/nodata for holes. Read as
+        // floats (an integer warp would round 18.7 to class 19 and turn NaN into i32::MIN + 1).
+        let v: Vec<f64> = warp(&ds, path, frame, grid, alg, NODATA as f64)?;
+        let mut codes = Vec::with_capacity(v.len());
+        for (k, x) in v.into_iter().enumerate() {
+            if x.is_nan() || Some(x) == band_nodata {
+                codes.push(None);
+            } else if x.fract() != 0.0 || x.abs() > 2f64.powi(31) {
+                let (col, row) = (k % grid.width, k / grid.width);
+                return Err(input(
+                    path,
+                    format!(
+                        "land cover holds {x} near working-frame x = {:.0} m, y = {:.0} m: a float raster must hold integer class codes (or NaN / nodata for holes)",
+                        grid.x(col),
+                        grid.y(row)
+                    ),
+                ));
             } else {
-                Some(c)
+                let c = x as i64;
+                codes.push((!nodata(c)).then_some(c));
             }
-        })
-        .collect();
+        }
+        codes
+    } else {
+        let v: Vec<i32> = warp(&ds, path, frame, grid, alg, NODATA as f64)?;
+        v.into_iter()
+            .map(|c| {
+                let c = c as i64;
+                (!nodata(c)).then_some(c)
+            })
+            .collect()
+    };
     Ok((codes, if mode { "mode" } else { "nearest" }))
 }
