@@ -610,6 +610,40 @@ fn hostile_inputs_fail_cleanly() {
         "plan-huge",
     ]);
     s.check("plan of 10^12 shards", &o, &e(2, &["--shards", "at most"]));
+    // Bad values of bench flags and a garbage plan are bad input: exit 2, the flag or file named.
+    for (name, args, needles) in [
+        (
+            "bench-scene --target nan",
+            vec!["bench-scene", "-q", "--target", "nan", "bundle"],
+            vec!["--target", "NaN"],
+        ),
+        (
+            "bench-scene --pixel 0",
+            vec!["bench-scene", "-q", "--pixel", "0", "bundle"],
+            vec!["--pixel"],
+        ),
+        (
+            "bench --method sideways",
+            vec!["bench", "-q", "--method", "sideways"],
+            vec!["--method", "sideways"],
+        ),
+        (
+            "merge of a missing plan folder",
+            vec!["merge", "no-such-plan"],
+            vec!["no-such-plan"],
+        ),
+    ] {
+        let o = s.simulate(&args);
+        let expect = Expect {
+            code: 2,
+            needles: &needles,
+        };
+        s.check(name, &o, &expect);
+    }
+    std::fs::create_dir_all(root.join("garbage-plan")).unwrap();
+    std::fs::write(root.join("garbage-plan/plan.toml"), "shards = [").unwrap();
+    let o = s.simulate(&["merge", "garbage-plan"]);
+    s.check("merge of a garbage plan.toml", &o, &e(2, &["plan.toml"]));
     let o = s.simulate(&["run", "-q", "base.toml", "-o", "previous", "--bogus"]);
     s.check("unknown flag", &o, &e(2, &["--bogus"]));
 

@@ -50,14 +50,15 @@ pub fn run(
     tile_km: f64,
     native: Option<&str>,
 ) -> anyhow::Result<()> {
-    anyhow::ensure!(
-        target > 0.0 && target.is_finite(),
-        "--target must be a positive relative error (e.g. 0.005), not {target}"
-    );
-    anyhow::ensure!(
-        tile_km > 0.0 && tile_km.is_finite(),
-        "--tile-km must be positive, not {tile_km}"
-    );
+    let what = experiment.display().to_string();
+    super::check_target(&what, target)?;
+    if !(tile_km > 0.0 && tile_km.is_finite()) {
+        return Err(super::flag_error(
+            &what,
+            "--tile-km",
+            format!("{tile_km} must be a positive number of km"),
+        ));
+    }
     let cpu = || engine::util::cpu_time::process_seconds().unwrap_or(f64::NAN);
     let (c0, t0) = (cpu(), Instant::now());
     let mut exp = Experiment::load_with_spp(experiment, spp)?;

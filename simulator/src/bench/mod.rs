@@ -39,11 +39,40 @@ spp = 100000000
 target_rel_stderr = {target}
 "#;
 
+/// A bad command-line value of a bench command (`what`: the command or the file it reads):
+/// bad input, exit 2, the flag named.
+pub(crate) fn flag_error(what: &str, flag: &str, message: String) -> anyhow::Error {
+    anyhow::Error::new(engine::error::ConfigError::Invalid {
+        path: what.into(),
+        key: flag.into(),
+        message,
+    })
+}
+
+/// `--target`: a relative standard error in (0, 1).
+pub(crate) fn check_target(what: &str, target: f64) -> anyhow::Result<()> {
+    if !(target > 0.0 && target < 1.0) {
+        return Err(flag_error(
+            what,
+            "--target",
+            format!("{target} must be a relative standard error in (0, 1), e.g. 0.005"),
+        ));
+    }
+    Ok(())
+}
+
 pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyhow::Result<()> {
+    check_target("simulate bench", target)?;
     let methods: Vec<&str> = match method {
         "both" => vec!["forward", "backward"],
         m @ ("forward" | "backward") => vec![m],
-        other => anyhow::bail!("unknown --method {other} (forward, backward or both)"),
+        other => {
+            return Err(flag_error(
+                "simulate bench",
+                "--method",
+                format!("unknown method \"{other}\" (forward, backward or both)"),
+            ))
+        }
     };
     let threads = rayon::current_num_threads();
     println!(

@@ -637,10 +637,11 @@ fn plan_command(
 fn merge_command(plan_dir: &std::path::Path) -> anyhow::Result<()> {
     use simulator::cluster::{manifest::Plan, merge};
     let t0 = Instant::now();
-    let out = plan_dir
-        .canonicalize()
-        .with_context(|| format!("plan folder {}", plan_dir.display()))?;
-    let plan = Plan::read(&out).map_err(anyhow::Error::msg)?;
+    let out = plan_dir.canonicalize().map_err(|e| ConfigError::Parse {
+        path: plan_dir.to_path_buf(),
+        message: format!("{e} (the plan folder `simulate plan` wrote)"),
+    })?;
+    let plan = Plan::read(&out)?;
     if plan.simulator_version != simulator::BUILD_ID {
         anyhow::bail!(
             "{}: planned with simulator {}, this is {}: merge with the build that ran the shards",

@@ -69,24 +69,26 @@ pub struct Plan {
 }
 
 impl Plan {
-    /// Read `OUT/plan.toml`; errors name the file.
-    pub fn read(out: &Path) -> Result<Plan, String> {
+    /// Read `OUT/plan.toml`; errors name the file (bad input: exit 2).
+    pub fn read(out: &Path) -> Result<Plan, engine::error::ConfigError> {
         let path = out.join(super::PLAN_FILE);
+        let bad = |message: String| engine::error::ConfigError::Parse {
+            path: path.clone(),
+            message,
+        };
         let text = std::fs::read_to_string(&path).map_err(|e| {
-            format!(
-                "{}: {e} (is {} a folder written by `simulate plan`?)",
-                path.display(),
+            bad(format!(
+                "{e} (is {} a folder written by `simulate plan`?)",
                 out.display()
-            )
+            ))
         })?;
-        let plan: Plan = toml::from_str(&text).map_err(|e| format!("{}: {e}", path.display()))?;
+        let plan: Plan = toml::from_str(&text).map_err(|e| bad(e.to_string()))?;
         if plan.shards == 0 || plan.units_per_shard.len() != plan.shards {
-            return Err(format!(
-                "{}: shards = {} but units_per_shard has {} entries",
-                path.display(),
+            return Err(bad(format!(
+                "shards = {} but units_per_shard has {} entries",
                 plan.shards,
                 plan.units_per_shard.len()
-            ));
+            )));
         }
         Ok(plan)
     }
