@@ -487,11 +487,12 @@ fn plan_and_merge_one_shard_equal_an_unsplit_run() {
             "{f} differs"
         );
     }
+    // A folder that is not a plan is bad input: exit 2 (issue 43 item 7), plan.toml named.
     let o = bin()
         .args(["-q", "merge", dir.to_str().unwrap()])
         .output()
         .unwrap();
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(String::from_utf8_lossy(&o.stderr).contains("plan.toml"));
     // A shard whose sums were doubled by hand (issue 43): the merge names the checkpoint and
     // refuses instead of writing twice the BRF.
