@@ -125,6 +125,24 @@ impl Suite {
         run(&self.scenegen, &a, &self.root)
     }
 
+    /// `scenegen build --force` of the region onto `folder`: refused with exit 2 and `needles`,
+    /// and every file and folder of `kept` (relative to the suite's root) still there as it was.
+    fn force_onto(&mut self, name: &str, folder: &str, needles: &[&str], kept: &[&str]) {
+        let root = self.root.clone();
+        let is_dir = |k: &str| std::fs::metadata(root.join(k)).map(|m| m.is_dir());
+        let before: Vec<_> = kept
+            .iter()
+            .map(|k| is_dir(k).expect("kept paths exist"))
+            .collect();
+        let o = self.scenegen(&["build", "-q", "region.toml", "-o", folder, "--force"]);
+        self.check(name, &o, &Expect { code: 2, needles });
+        for (k, dir) in kept.iter().zip(before) {
+            if is_dir(k).ok() != Some(dir) {
+                self.failures.push(format!("{name}: {k} was deleted"));
+            }
+        }
+    }
+
     /// `simulate check` and `simulate run` of `text` written as `name.toml`: both must fail
     /// with `e`; the run into a folder holding a previous run's products leaves them intact.
     fn experiment(&mut self, name: &str, text: &str, e: &Expect) {
@@ -769,21 +787,16 @@ fn hostile_inputs_fail_cleanly() {
         &format!("{REGION}[terrain]\ntolerance_m = -1\n"),
         &e(2, &["tolerance_m"]),
     );
-    // --force never empties a folder that is not a bundle.
+    // --force never empties a folder that is not a bundle, another tool's folder that has a
+    // format_version, nor a bundle a user has put files into.
     std::fs::create_dir_all(root.join("precious")).unwrap();
     std::fs::write(root.join("precious/thesis.txt"), "years of work").unwrap();
-    let o = s.scenegen(&["build", "-q", "region.toml", "-o", "precious", "--force"]);
-    s.check(
+    s.force_onto(
         "force onto a non-bundle",
-        &o,
-        &e(2, &["precious", "not a scene bundle"]),
+        "precious",
+        &["precious", "not a scene bundle"],
+        &["precious/thesis.txt"],
     );
-    if !root.join("precious/thesis.txt").is_file() {
-        s.failures
-            .push("force onto a non-bundle: the folder was emptied".into());
-    }
-    // --force never empties another tool's folder that has a format_version, nor a bundle a
-    // user has put files into.
     std::fs::create_dir_all(root.join("other-tool/photos")).unwrap();
     std::fs::write(
         root.join("other-tool/manifest.toml"),
@@ -791,36 +804,20 @@ fn hostile_inputs_fail_cleanly() {
     )
     .unwrap();
     std::fs::write(root.join("other-tool/thesis.txt"), "years of work").unwrap();
-    let o = s.scenegen(&["build", "-q", "region.toml", "-o", "other-tool", "--force"]);
-    s.check(
+    s.force_onto(
         "force onto another tool's folder",
-        &o,
-        &e(2, &["other-tool", "something-else"]),
+        "other-tool",
+        &["other-tool", "something-else"],
+        &["other-tool/thesis.txt", "other-tool/photos"],
     );
-    if !root.join("other-tool/thesis.txt").is_file() || !root.join("other-tool/photos").is_dir() {
-        s.failures
-            .push("force onto another tool's folder: its files were deleted".into());
-    }
-    let mine = root.join("bundle-with-notes");
-    copy_dir(&root.join("bundle"), &mine);
-    std::fs::write(mine.join("notes.txt"), "mine").unwrap();
-    let o = s.scenegen(&[
-        "build",
-        "-q",
-        "region.toml",
-        "-o",
-        "bundle-with-notes",
-        "--force",
-    ]);
-    s.check(
+    copy_dir(&root.join("bundle"), &root.join("bundle-with-notes"));
+    std::fs::write(root.join("bundle-with-notes/notes.txt"), "mine").unwrap();
+    s.force_onto(
         "force onto a bundle holding a user's file",
-        &o,
-        &e(2, &["bundle-with-notes", "notes.txt"]),
+        "bundle-with-notes",
+        &["bundle-with-notes", "notes.txt"],
+        &["bundle-with-notes/notes.txt"],
     );
-    if !mine.join("notes.txt").is_file() {
-        s.failures
-            .push("force onto a bundle holding a user's file: the file was deleted".into());
-    }
     let o = s.scenegen(&["build", "-q", "region.toml", "-o", "bundle"]);
     s.check(
         "existing output without --force",

@@ -100,8 +100,7 @@ impl CrossSection {
             source,
         })?;
         let (mut wl, mut sigma) = (Vec::new(), Vec::new());
-        // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first line.
-        let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+        let text = crate::util::without_bom(&text);
         for (i, line) in text.lines().enumerate() {
             let line = line.split('#').next().unwrap_or("").trim();
             if line.is_empty() {

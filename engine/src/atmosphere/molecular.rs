@@ -115,8 +115,7 @@ impl Profile {
 
     /// Parse AFGL-style CSV with columns `z` (km) and `n` (cm⁻³) among others.
     pub fn from_csv(name: &str, text: &str) -> Result<Profile, ProfileError> {
-        // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first field.
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let text = crate::util::without_bom(text);
         let mut lines = text.lines().filter(|l| !l.trim().is_empty());
         let header: Vec<&str> = lines
             .next()

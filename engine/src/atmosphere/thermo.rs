@@ -278,8 +278,7 @@ fn parse_csv(text: &str) -> Result<Csv, TableError> {
 
 /// A user table (format in the module header).
 pub fn from_user_csv(path: &str, text: &str) -> Result<AtmosphereProfile, TableError> {
-    // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first field.
-    let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+    let text = crate::util::without_bom(text);
     let t = parse_csv(text)?;
     let need = |c: &str| {
         t.column(c).ok_or_else(|| TableError::MissingColumn {

@@ -113,7 +113,7 @@ impl Sampler {
     /// a pixel gets) and 7× smaller accumulators.
     pub fn resolve_auto(self, run: &RunShape) -> Sampler {
         match self {
-            Sampler::Auto if run.scene && !run.atmosphere && !run.images => Sampler::Sobol,
+            Sampler::Auto if run.canopy_like() && !run.images => Sampler::Sobol,
             Sampler::Auto => Sampler::Random,
             s => s,
         }
@@ -262,6 +262,14 @@ pub struct RunShape {
     pub atmosphere: bool,
     /// Some measure is an image (ortho or perspective).
     pub images: bool,
+}
+
+impl RunShape {
+    /// A 3D scene without an atmosphere (canopies): after the first interaction only other
+    /// surfaces light a path. The `rr_depth` and `sampler` defaults were measured for it.
+    pub fn canopy_like(&self) -> bool {
+        self.scene && !self.atmosphere
+    }
 }
 
 impl IntegratorSettings {
@@ -468,7 +476,7 @@ impl IntegratorSettings {
             spectral_alis_auto: cfg.spectral_walk == SpectralWalk::Auto && spectral_alis.is_some(),
             kind,
             max_depth,
-            rr_depth: cfg.rr_depth.unwrap_or(if run.scene && !run.atmosphere {
+            rr_depth: cfg.rr_depth.unwrap_or(if run.canopy_like() {
                 // A scene without an atmosphere (canopies): after the first interaction only
                 // other surfaces light a path, and roulette from the second order costs little
                 // variance where paths are dark: HOM at 550 nm 2.9× the efficiency (its

@@ -391,8 +391,7 @@ pub fn read_table(path: &Path, columns: usize) -> Result<Vec<Vec<f64>>, SceneErr
         path: path.to_path_buf(),
         source,
     })?;
-    // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first line.
-    let text = text.strip_prefix('\u{feff}').unwrap_or(&text);
+    let text = crate::util::without_bom(&text);
     let mut rows = Vec::new();
     for (i, line) in text.lines().enumerate() {
         let line = line.split('#').next().unwrap_or("").trim();

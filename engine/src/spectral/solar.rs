@@ -46,8 +46,7 @@ impl Spectrum {
 
     /// Parse a two-column CSV (`#` comment lines, a header line, then `wavelength_nm,value`).
     pub fn from_csv(name: &str, text: &str) -> Result<Spectrum, SpectrumError> {
-        // A UTF-8 byte-order mark (spreadsheet exports) is not part of the first field.
-        let text = text.strip_prefix('\u{feff}').unwrap_or(text);
+        let text = crate::util::without_bom(text);
         let (mut w, mut v) = (Vec::new(), Vec::new());
         let mut header_allowed = true;
         for (i, line) in text.lines().enumerate() {

@@ -52,13 +52,7 @@ pub fn run(
 ) -> anyhow::Result<()> {
     let what = experiment.display().to_string();
     super::check_target(&what, target)?;
-    if !(tile_km > 0.0 && tile_km.is_finite()) {
-        return Err(super::flag_error(
-            &what,
-            "--tile-km",
-            format!("{tile_km} must be a positive number of km"),
-        ));
-    }
+    super::check_positive(&what, "--tile-km", tile_km, "number of km")?;
     let cpu = || engine::util::cpu_time::process_seconds().unwrap_or(f64::NAN);
     let (c0, t0) = (cpu(), Instant::now());
     let mut exp = Experiment::load_with_spp(experiment, spp)?;

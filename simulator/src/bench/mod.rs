@@ -61,6 +61,18 @@ pub(crate) fn check_target(what: &str, target: f64) -> anyhow::Result<()> {
     Ok(())
 }
 
+/// A flag that must be a positive finite number (`unit` completes the message).
+pub(crate) fn check_positive(what: &str, flag: &str, value: f64, unit: &str) -> anyhow::Result<()> {
+    if !(value > 0.0 && value.is_finite()) {
+        return Err(flag_error(
+            what,
+            flag,
+            format!("{value} must be a positive {unit}"),
+        ));
+    }
+    Ok(())
+}
+
 pub fn run(target: f64, method: &str, polarized: bool, spherical: bool) -> anyhow::Result<()> {
     check_target("simulate bench", target)?;
     let methods: Vec<&str> = match method {

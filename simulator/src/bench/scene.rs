@@ -39,13 +39,7 @@ fn peak_rss_mib() -> f64 {
 pub fn run(bundle: &Path, pixel_m: f64, target: f64, rays: usize) -> anyhow::Result<()> {
     let what = bundle.display().to_string();
     super::check_target(&what, target)?;
-    if !(pixel_m > 0.0 && pixel_m.is_finite()) {
-        return Err(super::flag_error(
-            &what,
-            "--pixel",
-            format!("{pixel_m} must be a positive pixel size in m"),
-        ));
-    }
+    super::check_positive(&what, "--pixel", pixel_m, "pixel size in m")?;
     if rays == 0 {
         return Err(super::flag_error(
             &what,
