@@ -22,13 +22,12 @@ See README.md next to this file.
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 import time
 
-# Must be set before Eradiate is imported (its settings are read at import).
-os.environ.setdefault("ERADIATE_OFFLINE", "true")  # never try to download data
-os.environ.setdefault("ERADIATE_PROGRESS", "none")  # no progress bars
+# Sets the offline environment Eradiate reads at import: import it first.
+from common import (add_scheduling_args, brf_result, resolve_scheduling,
+                    scheduling_kdict, signed_zeniths, start_kernel)
 
 # Case definition -------------------------------------------------------------
 TAU = 0.5  # vertical optical thickness at 550 nm
@@ -62,34 +61,11 @@ def parse_args(argv=None):
                         "repeats are reported as well")
     p.add_argument("--seed", type=int, default=0,
                    help="root seed; run i uses a seed derived from it")
-    p.add_argument("--threads", type=int, default=2,
-                   help="total render threads. Mitsuba's scalar renderer "
-                        "uses the calling thread plus the Dr.Jit pool, so "
-                        "this calls drjit.set_thread_count(threads - 1)")
-    p.add_argument("--block-size", type=int, default=1,
-                   help="Mitsuba integrator block_size (pixels = directions "
-                        "per work item). Mitsuba's automatic choice (32) "
-                        "puts 32 of the 35 directions in one block, i.e. ~1 "
-                        "busy thread; 1 balances the load. 0 = Mitsuba auto")
-    p.add_argument("--passes", type=int, default=-1,
-                   help="split the spp of each direction into this many "
-                        "passes (Mitsuba samples_per_pass = spp/passes) so "
-                        "that work items are small and balanced; must "
-                        "divide spp. -1 = largest of 64,32,...,1 dividing "
-                        "spp; 1 = Mitsuba default (single pass)")
-    p.add_argument("--mitsuba-defaults", action="store_true",
-                   help="out-of-the-box scheduling: same as --block-size 0 "
-                        "--passes 1 (expect poor 2-thread scaling)")
-    p.add_argument("--verbose", action="store_true",
-                   help="show Mitsuba Info log (prints the render job line "
-                        "with the thread and pass counts)")
+    add_scheduling_args(p)
     p.add_argument("--integrator", default="volpath",
                    choices=["volpath", "eovolpath", "volpathmis"],
                    help="Eradiate integrator (Eradiate's own default for a "
                         "homogeneous atmosphere is volpath)")
-    p.add_argument("--no-moment", action="store_true",
-                   help="do not accumulate the 2nd moment (no in-run variance "
-                        "estimate); slightly cheaper per sample")
     p.add_argument("--sign-flip", action="store_true",
                    help="debug: label output with the opposite zenith sign")
     return p.parse_args(argv)
@@ -134,31 +110,19 @@ def build_experiment(spp: int, integrator: str, moment: bool,
         measures=[measure],
         integrator={"type": integrator, "moment": moment},
     )
-    # Extra kernel (Mitsuba) dictionary entries for the top-level integrator
-    # (with moment=True that is Eradiate's 'stokes_moment' wrapper, which
-    # owns the render loop).
-    kdict = {}
-    if block_size > 0:
-        kdict["integrator.block_size"] = block_size
-    if passes > 1:
-        kdict["integrator.samples_per_pass"] = spp // passes
-    exp.kdict = kdict
+    exp.kdict = scheduling_kdict(spp, block_size, passes)
     assert isinstance(exp.surface.bsdf, LambertianBSDF)
     return exp
 
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    if args.repeats < 1 or args.spp < 1 or args.threads < 1:
-        print("--spp, --repeats and --threads must be >= 1", file=sys.stderr)
+    if args.repeats < 1:
+        print("--repeats must be >= 1", file=sys.stderr)
         return 2
-    if args.mitsuba_defaults:
-        args.block_size, args.passes = 0, 1
-    if args.passes == -1:
-        args.passes = next(p for p in (64, 32, 16, 8, 4, 2, 1)
-                           if args.spp % p == 0)
-    if args.passes < 1 or args.spp % args.passes:
-        print("--passes must be >= 1 and divide --spp", file=sys.stderr)
+    error = resolve_scheduling(args)
+    if error:
+        print(error, file=sys.stderr)
         return 2
 
     t_import0 = time.perf_counter()
@@ -171,28 +135,7 @@ def main(argv=None) -> int:
     eradiate.set_mode("mono_double")
     t_import = time.perf_counter() - t_import0
 
-    # Mitsuba's scalar render loop (dr.parallel_for on the nanothread pool)
-    # also runs work on the calling thread: N pool workers => N+1 threads.
-    dr.set_thread_count(args.threads - 1)
-    mi.set_log_level(mi.LogLevel.Info if args.verbose else mi.LogLevel.Error)
-
-    try:
-        from importlib.metadata import version
-        kernel_pkg = f"eradiate-mitsuba {version('eradiate-mitsuba')}"
-    except Exception:  # pragma: no cover
-        kernel_pkg = "eradiate-mitsuba ?"
-
-    print(f"eradiate {eradiate.__version__} | kernel: {kernel_pkg} "
-          f"(mitsuba {mi.__version__}, variant {mi.variant()}) | "
-          f"drjit {dr.__version__}")
-    print(f"mode: {eradiate.mode().id} | offline: "
-          f"{eradiate.config.settings.offline} | render threads: "
-          f"{dr.thread_count() + 1} (calling thread + {dr.thread_count()} "
-          f"Dr.Jit pool workers) | integrator: {args.integrator} | "
-          f"moment: {not args.no_moment}")
-    print(f"scheduling: block_size={args.block_size or 'auto'} "
-          f"passes={args.passes} (samples_per_pass="
-          f"{args.spp // args.passes})")
+    start_kernel(args, dr, mi, eradiate)
     print(f"case: homogeneous Rayleigh tau={TAU} ssa=1 TOA={TOA_KM} km, "
           f"Lambertian {SURFACE_REFLECTANCE}, SZA={SZA_DEG} SAA={SAA_DEG}, "
           f"{len(VZA_DEG)} directions, spp={args.spp}/direction, "
@@ -218,20 +161,14 @@ def main(argv=None) -> int:
         ds = exp.results["toa_brf"]
         post_walls.append(time.perf_counter() - w0)
 
-        vza = ds["vza"].values.ravel()
-        vaa = ds["vaa"].values.ravel()
-        brf = ds["brf"].values.ravel()
+        vza, vaa, brf, se = brf_result(ds)
         brfs.append(brf)
-        if "radiance_var" in ds:
-            rad = ds["radiance"].values.ravel()
-            var = ds["radiance_var"].values.ravel()
-            # BRF = radiance * pi / (E cos SZA): same scale factor for stderr
-            stderrs.append(np.sqrt(np.maximum(var, 0.0)) * brf / rad)
+        if se is not None:
+            stderrs.append(se)
 
     # Map Eradiate angles to our signed-zenith convention (+ = Sun's side).
     # Eradiate: vaa == SAA for positive input zeniths, SAA+180 for negative.
-    dphi = (vaa - SAA_DEG) % 360.0
-    signed = np.where(np.isclose(dphi, 0.0) | np.isclose(dphi, 360.0), vza, -vza)
+    signed = signed_zeniths(vza, vaa, SAA_DEG)
     if args.sign_flip:
         signed = -signed
     order = np.argsort(signed)

@@ -32,14 +32,13 @@ from __future__ import annotations
 
 import argparse
 import csv
-import os
 import sys
 import time
 from pathlib import Path
 
-# Must be set before Eradiate is imported (its settings are read at import).
-os.environ.setdefault("ERADIATE_OFFLINE", "true")  # never try to download data
-os.environ.setdefault("ERADIATE_PROGRESS", "none")  # no progress bars
+# Sets the offline environment Eradiate reads at import: import it first.
+from common import (add_scheduling_args, brf_result, resolve_scheduling,
+                    scheduling_kdict, signed_zeniths, start_kernel)
 
 REPO = Path(__file__).resolve().parents[2]
 # shared/ sits next to the checkout (hom.toml refers to ../../../shared/...)
@@ -68,10 +67,6 @@ def parse_args(argv=None):
     p = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     p.add_argument("--spp", type=int, default=1000,
                    help="samples per direction (per mdistant pixel)")
-    p.add_argument("--threads", type=int, default=2,
-                   help="total render threads (calls "
-                        "drjit.set_thread_count(threads - 1): Mitsuba's "
-                        "scalar renderer also uses the calling thread)")
     p.add_argument("--seed", type=int, default=0,
                    help="root seed (eradiate.rng.SeedState)")
     p.add_argument("--csv", type=Path, default=None,
@@ -97,20 +92,7 @@ def parse_args(argv=None):
                    help="Eradiate integrator (no participating medium here, "
                         "so 'path' suffices; CanopyExperiment's own default "
                         "is volpath)")
-    p.add_argument("--block-size", type=int, default=1,
-                   help="Mitsuba integrator block_size (see bench.py / "
-                        "README: 1 balances 35 directions over threads; "
-                        "0 = Mitsuba auto)")
-    p.add_argument("--passes", type=int, default=-1,
-                   help="split each direction's spp into this many passes "
-                        "(samples_per_pass = spp/passes); -1 = largest of "
-                        "64,32,...,1 dividing spp; 1 = single pass")
-    p.add_argument("--mitsuba-defaults", action="store_true",
-                   help="same as --block-size 0 --passes 1")
-    p.add_argument("--no-moment", action="store_true",
-                   help="do not accumulate the 2nd moment (no stderr)")
-    p.add_argument("--verbose", action="store_true",
-                   help="show Mitsuba Info log")
+    add_scheduling_args(p)
     return p.parse_args(argv)
 
 
@@ -210,12 +192,7 @@ def build_experiment(canopy, spp: int, integrator: str, moment: bool,
         measures=[measure],
         integrator={"type": integrator, "moment": moment},
     )
-    kdict = {}
-    if block_size > 0:
-        kdict["integrator.block_size"] = block_size
-    if passes > 1:
-        kdict["integrator.samples_per_pass"] = spp // passes
-    exp.kdict = kdict
+    exp.kdict = scheduling_kdict(spp, block_size, passes)
     return exp
 
 
@@ -238,16 +215,9 @@ def load_ref(path: Path):
 
 def main(argv=None) -> int:
     args = parse_args(argv)
-    if args.spp < 1 or args.threads < 1:
-        print("--spp and --threads must be >= 1", file=sys.stderr)
-        return 2
-    if args.mitsuba_defaults:
-        args.block_size, args.passes = 0, 1
-    if args.passes == -1:
-        args.passes = next(p for p in (64, 32, 16, 8, 4, 2, 1)
-                           if args.spp % p == 0)
-    if args.passes < 1 or args.spp % args.passes:
-        print("--passes must be >= 1 and divide --spp", file=sys.stderr)
+    error = resolve_scheduling(args)
+    if error:
+        print(error, file=sys.stderr)
         return 2
 
     t_import0 = time.perf_counter()
@@ -267,26 +237,8 @@ def main(argv=None) -> int:
     eradiate.set_mode("mono_double")
     t_import = time.perf_counter() - t_import0
 
-    dr.set_thread_count(args.threads - 1)
-    mi.set_log_level(mi.LogLevel.Info if args.verbose else mi.LogLevel.Error)
-
-    try:
-        from importlib.metadata import version
-        kernel_pkg = f"eradiate-mitsuba {version('eradiate-mitsuba')}"
-    except Exception:  # pragma: no cover
-        kernel_pkg = "eradiate-mitsuba ?"
+    start_kernel(args, dr, mi, eradiate)
     moment = not args.no_moment
-    print(f"eradiate {eradiate.__version__} | kernel: {kernel_pkg} "
-          f"(mitsuba {mi.__version__}, variant {mi.variant()}) | "
-          f"drjit {dr.__version__}")
-    print(f"mode: {eradiate.mode().id} | offline: "
-          f"{eradiate.config.settings.offline} | render threads: "
-          f"{dr.thread_count() + 1} (calling thread + {dr.thread_count()} "
-          f"Dr.Jit pool workers) | integrator: {args.integrator} | "
-          f"moment: {moment}")
-    print(f"scheduling: block_size={args.block_size or 'auto'} "
-          f"passes={args.passes} (samples_per_pass="
-          f"{args.spp // args.passes})")
 
     # Setup 1: canopy (leaf file read or Eradiate generator)
     t0 = time.perf_counter()
@@ -323,22 +275,13 @@ def main(argv=None) -> int:
     w0 = time.perf_counter()
     exp.postprocess()
     ds = exp.results["principal_plane"]
-    vza = ds["vza"].values.ravel()
-    vaa = ds["vaa"].values.ravel()
-    brf = ds["brf"].values.ravel()
-    if "radiance_var" in ds:
-        rad = ds["radiance"].values.ravel()
-        var = ds["radiance_var"].values.ravel()  # variance of the mean
-        # BRF = pi L / (E cos SZA): same scale factor for the stderr
-        se = np.sqrt(np.maximum(var, 0.0)) * brf / rad
-    else:
+    vza, vaa, brf, se = brf_result(ds)
+    if se is None:
         se = np.full_like(brf, np.nan)
     t_post = time.perf_counter() - w0
 
     # Eradiate vaa (ccw from +X): 180 -> our positive zenith, 0 -> negative
-    dphi = (vaa - VIEW_HPLANE_AZ_DEG) % 360.0
-    signed = np.where(np.isclose(dphi, 0.0) | np.isclose(dphi, 360.0),
-                      vza, -vza)
+    signed = signed_zeniths(vza, vaa, VIEW_HPLANE_AZ_DEG)
     order = np.argsort(signed)
     signed, brf, se = signed[order], brf[order], se[order]
 
