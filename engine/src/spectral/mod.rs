@@ -38,6 +38,14 @@ pub enum SpectrumError {
     },
     #[error("the response is zero everywhere")]
     ZeroResponse { name: String },
+    /// A sampling step that would give more than [`MAX_SRF_WAVELENGTHS`] wavelengths.
+    #[error("{step} nm samples the {lo}–{hi} nm band at {count:.3e} wavelengths: at most {MAX_SRF_WAVELENGTHS} (use a step of at least {:.3e} nm)", (hi - lo) / (MAX_SRF_WAVELENGTHS as f64 - 1.0))]
+    TooManyWavelengths {
+        step: f64,
+        lo: f64,
+        hi: f64,
+        count: f64,
+    },
 }
 
 /// `mode`: how wavelengths are simulated.
@@ -226,25 +234,13 @@ impl SpectralConfig {
                             format!("{step} nm must be positive"),
                         ));
                     }
-                    // Counted before the grid is built: a step of 1e-9 nm would otherwise
-                    // allocate until memory runs out.
-                    let (lo, hi) = (
-                        srf.wavelength.first().copied().unwrap_or(0.0),
-                        srf.wavelength.last().copied().unwrap_or(0.0),
-                    );
-                    let count = (hi - lo) / step + 1.0;
-                    if count > MAX_SRF_WAVELENGTHS as f64 {
-                        return Err(ctx.err(
-                            "spectral.wavelength_step",
-                            format!(
-                                "{step} nm samples the {lo}–{hi} nm band at {count:.3e} wavelengths: at most {MAX_SRF_WAVELENGTHS} (use a step of at least {:.3e} nm)",
-                                (hi - lo) / (MAX_SRF_WAVELENGTHS as f64 - 1.0)
-                            ),
-                        ));
-                    }
-                    let (w, weights) = srf
-                        .grid(step)
-                        .map_err(|e| ctx.err("spectral.srf", e.to_string()))?;
+                    let (w, weights) = srf.grid(step).map_err(|e| {
+                        let key = match e {
+                            SpectrumError::TooManyWavelengths { .. } => "spectral.wavelength_step",
+                            _ => "spectral.srf",
+                        };
+                        ctx.err(key, e.to_string())
+                    })?;
                     (
                         w,
                         Some(Band {

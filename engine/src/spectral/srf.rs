@@ -163,7 +163,18 @@ impl Srf {
         // The support includes the zero just outside the first and last positive samples.
         let lo = self.wavelength[first.saturating_sub(1)];
         let hi = self.wavelength[(last + 1).min(self.wavelength.len() - 1)];
-        let n = ((hi - lo) / step).ceil().max(1.0) as usize;
+        // Counted before the grid is built: a step of 1e-9 nm would otherwise allocate until
+        // memory runs out.
+        let count = ((hi - lo) / step).ceil().max(1.0) + 1.0;
+        if count.is_nan() || count > super::MAX_SRF_WAVELENGTHS as f64 {
+            return Err(SpectrumError::TooManyWavelengths {
+                step,
+                lo,
+                hi,
+                count,
+            });
+        }
+        let n = count as usize - 1;
         let h = (hi - lo) / n as f64;
         let (mut wl, mut wt) = (Vec::new(), Vec::new());
         for k in 0..=n {
