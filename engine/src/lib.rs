@@ -39,6 +39,7 @@ pub mod config;
 pub mod error;
 pub mod frame;
 pub mod integrator;
+pub mod lidar;
 pub mod measure;
 pub mod optics;
 pub mod phase;

@@ -47,7 +47,7 @@ fn write_products(
         path: output.to_path_buf(),
         source,
     })?;
-    products::write_all(output, exp, rows, band, images)
+    products::write_all(output, exp, rows, band, images, &[])
         .map(|w| w.files)
         .map_err(|e| *e.error)
 }

@@ -22,6 +22,7 @@ pub mod bench;
 pub mod cluster;
 pub mod error;
 pub mod heavy_tail;
+pub mod lidar;
 pub mod pics;
 pub mod preview;
 pub mod products;

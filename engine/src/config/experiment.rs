@@ -31,6 +31,8 @@ pub struct Experiment {
     /// Earth–Sun distance (AU) when the Sun comes from `illumination.time` (or `date`).
     pub sun_distance_au: Option<f64>,
     pub measures: Vec<Measure>,
+    /// Lidar measures (`type = "lidar"` in `[[measures]]`; `lidar/`).
+    pub lidars: Vec<crate::lidar::Lidar>,
     pub integrator: IntegratorSettings,
     pub seed: u64,
     /// Stokes-vector transport.

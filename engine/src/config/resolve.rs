@@ -323,6 +323,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     }
 
     let mut measures = resolve_measures(&cfg, &ctx, ground, toa, scene.as_deref())?;
+    let lidars = resolve_lidars(&cfg, &ctx, ground, scene.as_deref())?;
 
     let mut integrator = IntegratorSettings::from_config(
         &ctx,
@@ -409,6 +410,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         sun_azimuth_deg: sun.azimuth_deg,
         sun_distance_au: sun.distance_au,
         measures,
+        lidars,
         integrator,
         seed: cfg.seed,
         polarized: cfg.polarized,
@@ -493,6 +495,7 @@ fn resolve_measures(
     if cfg.measures.is_empty() {
         return Err(ctx.err("measures", "at least one measure is required"));
     }
+    check_ids(cfg, ctx)?;
     let frame = scene.map(scene::frame);
     let at = MeasureContext {
         ground,
@@ -501,10 +504,59 @@ fn resolve_measures(
     };
     let mut measures = Vec::with_capacity(cfg.measures.len());
     for (im, m) in cfg.measures.iter().enumerate() {
+        if matches!(m, MeasureConfig::Lidar(_)) {
+            continue;
+        }
         let m = m.resolve(ctx, im, &measures, &at)?;
         measures.push(m);
     }
     Ok(measures)
+}
+
+/// Lidar measures' ids must differ from every other measure's (the passive ones check their
+/// own among themselves).
+fn check_ids(cfg: &ExperimentConfig, ctx: &ConfigCtx) -> Result<(), ConfigError> {
+    for (i, m) in cfg.measures.iter().enumerate() {
+        if let MeasureConfig::Lidar(l) = m {
+            if let Some(j) = cfg.measures[..i].iter().position(|o| o.id() == l.id) {
+                return Err(ctx.err(
+                    format!("measures[{i}].id"),
+                    format!(
+                        "`{}` is also the id of measures[{j}]; ids must be unique",
+                        l.id
+                    ),
+                ));
+            }
+        } else if let Some(j) = cfg.measures[..i]
+            .iter()
+            .position(|o| matches!(o, MeasureConfig::Lidar(_)) && o.id() == m.id())
+        {
+            return Err(ctx.err(
+                format!("measures[{i}].id"),
+                format!(
+                    "`{}` is also the id of measures[{j}]; ids must be unique",
+                    m.id()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The lidar measures, resolved at their wavelengths against the 1D ground or the scene.
+fn resolve_lidars(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    ground: f64,
+    scene: Option<&Scene>,
+) -> Result<Vec<crate::lidar::Lidar>, ConfigError> {
+    let mut out = Vec::new();
+    for (im, m) in cfg.measures.iter().enumerate() {
+        if let MeasureConfig::Lidar(l) = m {
+            out.push(l.resolve(ctx, im, ground, scene)?);
+        }
+    }
+    Ok(out)
 }
 
 /// With thermal emission, every material of the scene needs a temperature.

@@ -45,10 +45,15 @@ pub fn resolve(
     sun: &Sun,
 ) -> Result<Option<Thermal>, ConfigError> {
     if !cfg.emission {
-        if !sun.shines {
+        // A lidar brings its own light; passive measures need the Sun or emission.
+        let passive = cfg
+            .measures
+            .iter()
+            .any(|m| !matches!(m, crate::measure::config::MeasureConfig::Lidar(_)));
+        if !sun.shines && passive {
             return Err(ctx.err(
                 "illumination.type",
-                "\"none\" leaves nothing to see without thermal emission (`emission = true`)",
+                "\"none\" leaves nothing for the passive measures to see without thermal emission (`emission = true`); only lidar measures bring their own light",
             ));
         }
         return Ok(None);

@@ -134,6 +134,9 @@ pub enum MeasureConfig {
         #[serde(default)]
         target_rel_stderr: Option<f64>,
     },
+    /// A pulsed laser and its receiver (`lidar/`): resolved apart from the passive measures
+    /// into the experiment's `lidars`.
+    Lidar(Box<crate::lidar::LidarConfig>),
 }
 
 /// `mdistant.construct`: how the directions are laid out.
@@ -220,7 +223,13 @@ impl MeasureConfig {
                 target_rel_stderr,
                 ..
             } => (id, *spp, *target_rel_stderr),
+            MeasureConfig::Lidar(l) => (&l.id, l.spp, None),
         }
+    }
+
+    /// The measure's `id`.
+    pub fn id(&self) -> &str {
+        self.common().0
     }
 
     /// Replace the samples per direction/pixel (`simulate run --spp`).
@@ -232,6 +241,7 @@ impl MeasureConfig {
             | MeasureConfig::Hdrf { spp, .. }
             | MeasureConfig::Ortho { spp, .. }
             | MeasureConfig::Perspective { spp, .. } => *spp = n,
+            MeasureConfig::Lidar(l) => l.spp = n,
         }
     }
 
@@ -307,7 +317,8 @@ impl MeasureConfig {
             MeasureConfig::Mdistant { .. }
             | MeasureConfig::Radiancemeter { .. }
             | MeasureConfig::DistantFlux { .. }
-            | MeasureConfig::Hdrf { .. } => (None, None),
+            | MeasureConfig::Hdrf { .. }
+            | MeasureConfig::Lidar(_) => (None, None),
         };
         if adaptive.is_some() && target.is_none() {
             return Err(ctx.err(
@@ -449,6 +460,12 @@ impl MeasureConfig {
                     altitude: a,
                     direction: direction.unwrap_or(FluxDirection::Up),
                 }
+            }
+            MeasureConfig::Lidar(_) => {
+                return Err(ctx.err(
+                    key.clone(),
+                    "a lidar is resolved by `LidarConfig::resolve`, not as a passive measure",
+                ))
             }
         })
     }

@@ -132,6 +132,9 @@ pub struct SurfaceHit {
     pub material: u16,
     /// Whether it is a terrain hit (textures apply to the terrain only).
     pub terrain: bool,
+    /// Whether it is the ground: the terrain or the ground plane (not an object); lidar
+    /// returns are split by it.
+    pub ground: bool,
 }
 
 /// A plane mirror of a scene ([`Scene::mirror_planes`]): the surfaces of `material` with this
@@ -442,6 +445,7 @@ impl Scene {
                         normal: h.normal,
                         material,
                         terrain: true,
+                        ground: true,
                     });
                 }
             }
@@ -461,6 +465,7 @@ impl Scene {
                     normal,
                     material,
                     terrain: false,
+                    ground: false,
                 });
             }
         }
@@ -473,6 +478,7 @@ impl Scene {
                     normal: g.normal(point, from_above),
                     material: if from_above { g.material } else { BLACK },
                     terrain: false,
+                    ground: true,
                 });
             }
         }

@@ -457,7 +457,7 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 return Ok(());
             }
             let results: Vec<_> = results.into_iter().flatten().collect();
-            let (csv, nc) = write_products(&exp, &results, &output)?;
+            let (csv, nc) = write_products(&exp, &results, &output, !quiet)?;
             // Products are complete: the checkpoints are no longer needed, except those of an
             // explicit shard (`--shard 0/1`, a one-shard plan), which `simulate merge` reads.
             if !sharded {
@@ -674,7 +674,7 @@ fn merge_command(plan_dir: &std::path::Path) -> anyhow::Result<()> {
     let results: Option<Vec<_>> = simulator::run::gather(&exp, parts).into_iter().collect();
     let results = results.context("the shards' units do not cover every (wavelength, measure): was the plan written for another shard count?")?;
     crate::heavy_tail_warn(&exp, &results);
-    let (csv, nc) = write_products(&exp, &results, &out)?;
+    let (csv, nc) = write_products(&exp, &results, &out, false)?;
     tracing::info!(
         "merged {} shard(s) in {:.2} s: wrote {} and {}",
         plan.shards,
@@ -697,17 +697,23 @@ fn write_products(
     exp: &Experiment,
     results: &[simulator::run::MeasureResult],
     output: &std::path::Path,
+    progress: bool,
 ) -> anyhow::Result<(PathBuf, PathBuf)> {
     let rows = products::rows(exp, results);
     let band = products::band_rows(exp, &rows);
     let images = products::imagery::image_products(exp, results);
+    // Lidar measures are traced here, once the passive tasks (checkpointed, sharded) are done:
+    // they are short, deterministic and written with the rest.
+    let lidars = simulator::lidar::run_all(exp, progress);
     // Every product goes to a staging folder and is moved in only when all are
     // written: a failure (a full disk) leaves the previous products as they were.
     let written =
-        products::write_all(output, exp, &rows, &band, &images).map_err(|e| match e.step {
-            products::WriteStep::Write => explain_write_error(*e.error, output),
-            products::WriteStep::Stage | products::WriteStep::Commit => {
-                anyhow::Error::new(*e.error)
+        products::write_all(output, exp, &rows, &band, &images, &lidars).map_err(|e| {
+            match e.step {
+                products::WriteStep::Write => explain_write_error(*e.error, output),
+                products::WriteStep::Stage | products::WriteStep::Commit => {
+                    anyhow::Error::new(*e.error)
+                }
             }
         })?;
     let csv = output.join("results.csv");

@@ -71,6 +71,7 @@ pub fn write_all(
     rows: &[Row],
     band: &[BandRow],
     images: &[imagery::ImageProduct],
+    lidars: &[crate::lidar::LidarResult],
 ) -> Result<Written, WriteError> {
     let at = |step| {
         move |error| WriteError {
@@ -89,6 +90,7 @@ pub fn write_all(
         if !band.is_empty() {
             csv::write_band(&stage.path("results_band.csv"), band)?;
         }
+        crate::lidar::write(stage.dir(), lidars)?;
         Ok(())
     })()
     .map_err(at(WriteStep::Write))?;

@@ -1,0 +1,438 @@
+//! The `[[measures]]` table of a lidar (`type = "lidar"`), checked and resolved into a
+//! [`Lidar`]. Keys, units and defaults: docs/experiment.md, "Lidar".
+
+use glam::DVec3;
+use serde::Deserialize;
+
+use super::bins::Bins;
+use super::{Footprint, Lidar, LidarMode, Slope, C_M_PER_NS};
+use crate::config::scene::frame;
+use crate::error::{ConfigCtx, ConfigError};
+use crate::frame::direction_from_angles;
+use crate::scene::Scene;
+
+/// Footprint shapes of the experiment file.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum FootprintShape {
+    #[default]
+    Gaussian,
+    Tophat,
+}
+
+#[derive(Clone, Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LidarConfig {
+    pub id: String,
+    #[serde(default)]
+    pub mode: LidarMode,
+    /// nm: one of `spectral.wavelengths`.
+    pub wavelength: f64,
+    /// Platform height above z = 0 of the scene's frame, m.
+    pub altitude_m: f64,
+    /// Beam direction: zenith and azimuth (clockwise from North) of the direction from the
+    /// footprint towards the sensor, degrees.
+    #[serde(default)]
+    pub zenith: f64,
+    #[serde(default)]
+    pub azimuth: f64,
+    #[serde(default)]
+    pub footprint: FootprintShape,
+    /// Gaussian: the 1/e² diameter (σ = D/4); tophat: the disc's diameter, m.
+    #[serde(default)]
+    pub footprint_diameter_m: Option<f64>,
+    /// Gaussian: σ per axis, m (instead of `footprint_diameter_m`).
+    #[serde(default)]
+    pub footprint_sigma_m: Option<f64>,
+    /// Gaussian pulse FWHM, ns (0: a delta pulse).
+    #[serde(default)]
+    pub pulse_fwhm_ns: f64,
+    #[serde(default = "one")]
+    pub pulse_energy_j: f64,
+    #[serde(default = "one")]
+    pub receiver_area_m2: f64,
+    /// Receiver field of view: half-angle, µrad, or diameter at the footprint centre's range, m.
+    #[serde(default)]
+    pub fov_half_angle_urad: Option<f64>,
+    #[serde(default)]
+    pub fov_diameter_m: Option<f64>,
+    /// Bins in time (ns, two-way delay after `2 R0 / c`): width and [first, last] centre.
+    #[serde(default)]
+    pub bin_ns: Option<f64>,
+    #[serde(default)]
+    pub bins_ns: Option<[f64; 2]>,
+    /// Bins in apparent height above the footprint centre (m): width and [lowest, highest]
+    /// centre.
+    #[serde(default)]
+    pub bin_m: Option<f64>,
+    #[serde(default)]
+    pub bins_m: Option<[f64; 2]>,
+    /// Footprint centres [x, y] in the experiment's coordinates (default one at [0, 0]).
+    #[serde(default)]
+    pub shots: Option<Vec<[f64; 2]>>,
+    /// Height of the footprint centres, m (default: the ground under each, or the 1D ground).
+    #[serde(default)]
+    pub footprint_height_m: Option<f64>,
+    /// Photon paths per shot.
+    pub spp: u64,
+    /// Highest scattering order traced (default: all, ended by roulette).
+    #[serde(default)]
+    pub max_order: Option<u32>,
+    /// 1D ground only (tests): tilt the ground plane by this slope (degrees) towards the
+    /// downhill azimuth `ground_aspect_deg` (clockwise from North).
+    #[serde(default)]
+    pub ground_slope_deg: f64,
+    #[serde(default)]
+    pub ground_aspect_deg: f64,
+    /// Photon counting: detector efficiency in (0, 1].
+    #[serde(default = "one")]
+    pub detector_efficiency: f64,
+    #[serde(default)]
+    pub dead_time_ns: f64,
+    #[serde(default = "default_shots")]
+    pub shots_per_location: u64,
+    /// Photon counting under the Sun: the receiver's filter width (nm) and range gate (ns) that
+    /// set the solar background (0: none).
+    #[serde(default)]
+    pub filter_width_nm: f64,
+    #[serde(default)]
+    pub range_gate_ns: Option<f64>,
+}
+
+fn one() -> f64 {
+    1.0
+}
+fn default_shots() -> u64 {
+    10_000
+}
+
+/// Most photon paths per shot and shots per location (counts are checked before anything is
+/// sized).
+pub const MAX_SPP: u64 = 1 << 40;
+pub const MAX_BINS: usize = 1 << 22;
+pub const MAX_SHOTS: usize = 1 << 20;
+
+impl LidarConfig {
+    /// The lidar `measures[index]` of an experiment whose run wavelengths are
+    /// `ctx.wavelengths`; `ground`: the 1D ground's altitude (m), `scene`: the 3D scene.
+    pub fn resolve(
+        &self,
+        ctx: &ConfigCtx,
+        index: usize,
+        ground: f64,
+        scene: Option<&Scene>,
+    ) -> Result<Lidar, ConfigError> {
+        let key = |k: &str| format!("measures[{index}].{k}");
+        let finite = |k: &str, x: f64| ctx.finite(&key(k), x);
+        let positive = |k: &str, x: f64| -> Result<f64, ConfigError> {
+            let x = finite(k, x)?;
+            if x > 0.0 {
+                Ok(x)
+            } else {
+                Err(ctx.err(key(k), format!("{x} must be > 0")))
+            }
+        };
+        let wl = positive("wavelength", self.wavelength)?;
+        let iw = ctx
+            .wavelengths
+            .iter()
+            .position(|&w| (w - wl).abs() <= 1e-9 * wl)
+            .ok_or_else(|| {
+                ctx.err(
+                    key("wavelength"),
+                    format!(
+                        "{wl} nm is not one of the run's wavelengths ({:?} nm): add it to `spectral.wavelengths`, where the atmosphere and the materials are evaluated",
+                        ctx.wavelengths
+                    ),
+                )
+            })?;
+        let zen = finite("zenith", self.zenith)?;
+        if !(0.0..80.0).contains(&zen) {
+            return Err(ctx.err(key("zenith"), format!("{zen}° must lie in [0, 80)")));
+        }
+        let az = finite("azimuth", self.azimuth)?;
+        let to_sensor = direction_from_angles(zen.to_radians(), az.to_radians());
+
+        let footprint = match self.footprint {
+            FootprintShape::Gaussian => match (self.footprint_sigma_m, self.footprint_diameter_m) {
+                (Some(s), None) => Footprint::Gaussian {
+                    sigma: positive("footprint_sigma_m", s)?,
+                },
+                (None, Some(d)) => Footprint::Gaussian {
+                    sigma: positive("footprint_diameter_m", d)? / 4.0,
+                },
+                (Some(_), Some(_)) => {
+                    return Err(ctx.err(
+                        key("footprint_sigma_m"),
+                        "give `footprint_sigma_m` or `footprint_diameter_m`, not both",
+                    ))
+                }
+                (None, None) => {
+                    return Err(ctx.err(
+                        key("footprint_diameter_m"),
+                        "a Gaussian footprint needs `footprint_diameter_m` (1/e² diameter, m) or `footprint_sigma_m`",
+                    ))
+                }
+            },
+            FootprintShape::Tophat => {
+                if self.footprint_sigma_m.is_some() {
+                    return Err(ctx.err(
+                        key("footprint_sigma_m"),
+                        "is for Gaussian footprints; a tophat takes `footprint_diameter_m`",
+                    ));
+                }
+                let d = self.footprint_diameter_m.ok_or_else(|| {
+                    ctx.err(
+                        key("footprint_diameter_m"),
+                        "a tophat footprint needs `footprint_diameter_m` (m)",
+                    )
+                })?;
+                Footprint::TopHat {
+                    radius: positive("footprint_diameter_m", d)? / 2.0,
+                }
+            }
+        };
+        let fwhm = finite("pulse_fwhm_ns", self.pulse_fwhm_ns)?;
+        if fwhm < 0.0 {
+            return Err(ctx.err(
+                key("pulse_fwhm_ns"),
+                format!("{fwhm} must be ≥ 0 (0: a delta pulse)"),
+            ));
+        }
+        let pulse_sigma_ns = fwhm / (8.0 * std::f64::consts::LN_2).sqrt();
+        let pulse_energy_j = positive("pulse_energy_j", self.pulse_energy_j)?;
+        let receiver_area_m2 = positive("receiver_area_m2", self.receiver_area_m2)?;
+
+        // Shots: footprint centres in the local frame.
+        let given = self.shots.clone().unwrap_or_else(|| vec![[0.0, 0.0]]);
+        if given.is_empty() || given.len() > MAX_SHOTS {
+            return Err(ctx.err(
+                key("shots"),
+                format!(
+                    "needs 1 to {MAX_SHOTS} footprint centres, got {}",
+                    given.len()
+                ),
+            ));
+        }
+        let sf = scene.map(frame);
+        let mut shots = Vec::with_capacity(given.len());
+        for (i, s) in given.iter().enumerate() {
+            let k = format!("shots[{i}]");
+            let (x, y) = (finite(&k, s[0])?, finite(&k, s[1])?);
+            let (lx, ly) = sf.as_ref().map_or((x, y), |f| f.to_local(x, y));
+            let z = match (self.footprint_height_m, scene) {
+                (Some(z), _) => finite("footprint_height_m", z)?,
+                (None, Some(sc)) => sc.ground_height(lx, ly).ok_or_else(|| {
+                    ctx.err(
+                        key(&k),
+                        format!("no ground under the footprint centre ({x}, {y}): it lies outside the scene; give `footprint_height_m` or move the shot"),
+                    )
+                })?,
+                (None, None) => ground,
+            };
+            shots.push(DVec3::new(lx, ly, z));
+        }
+        let top = scene.map_or(ground, |s| s.z_range[1]);
+        let altitude = finite("altitude_m", self.altitude_m)?;
+        if shots.iter().any(|c| altitude <= c.z.max(top) + 1.0) {
+            return Err(ctx.err(
+                key("altitude_m"),
+                format!("{altitude} m must lie above the scene and the footprint centres (highest {:.1} m)", shots.iter().map(|c| c.z).fold(top, f64::max)),
+            ));
+        }
+        let r0 = (altitude - shots[0].z) / to_sensor.z;
+
+        let fov_half_angle = match (self.fov_half_angle_urad, self.fov_diameter_m) {
+            (Some(a), None) => positive("fov_half_angle_urad", a)? * 1e-6,
+            (None, Some(d)) => (positive("fov_diameter_m", d)? / 2.0 / r0).atan(),
+            (None, None) => (2.0 * footprint.extent() / r0).atan(),
+            (Some(_), Some(_)) => {
+                return Err(ctx.err(
+                    key("fov_half_angle_urad"),
+                    "give `fov_half_angle_urad` or `fov_diameter_m`, not both",
+                ))
+            }
+        };
+        if fov_half_angle >= 0.1 {
+            return Err(ctx.err(
+                key("fov_half_angle_urad"),
+                format!(
+                    "the field of view's half-angle ({:.3} rad) must be below 0.1 rad",
+                    fov_half_angle
+                ),
+            ));
+        }
+
+        let bins = self.bins(ctx, index, scene, &shots, ground)?;
+
+        if self.spp < 2 || self.spp > MAX_SPP {
+            return Err(ctx.err(
+                key("spp"),
+                format!("{} photon paths per shot: must lie in [2, 2⁴⁰]", self.spp),
+            ));
+        }
+        let max_order = self.max_order.unwrap_or(u32::MAX);
+        if max_order == 0 {
+            return Err(ctx.err(key("max_order"), "must be ≥ 1 (1: first order only)"));
+        }
+        let slope_deg = finite("ground_slope_deg", self.ground_slope_deg)?;
+        let aspect = finite("ground_aspect_deg", self.ground_aspect_deg)?;
+        let slope = if slope_deg != 0.0 {
+            if scene.is_some() {
+                return Err(ctx.err(
+                    key("ground_slope_deg"),
+                    "tilts the 1D ground only; a scene's slopes are its terrain",
+                ));
+            }
+            if !(0.0..80.0).contains(&slope_deg) {
+                return Err(ctx.err(
+                    key("ground_slope_deg"),
+                    format!("{slope_deg}° must lie in [0, 80)"),
+                ));
+            }
+            Some(Slope {
+                normal: direction_from_angles(slope_deg.to_radians(), aspect.to_radians()),
+            })
+        } else {
+            None
+        };
+        let efficiency = finite("detector_efficiency", self.detector_efficiency)?;
+        if !(efficiency > 0.0 && efficiency <= 1.0) {
+            return Err(ctx.err(
+                key("detector_efficiency"),
+                format!("{efficiency} must lie in (0, 1]"),
+            ));
+        }
+        let dead_time_ns = finite("dead_time_ns", self.dead_time_ns)?;
+        if dead_time_ns < 0.0 {
+            return Err(ctx.err(key("dead_time_ns"), format!("{dead_time_ns} must be ≥ 0")));
+        }
+        if self.shots_per_location == 0 || self.shots_per_location > MAX_SPP {
+            return Err(ctx.err(
+                key("shots_per_location"),
+                format!("{} must lie in [1, 2⁴⁰]", self.shots_per_location),
+            ));
+        }
+        let filter_width_nm = finite("filter_width_nm", self.filter_width_nm)?;
+        if filter_width_nm < 0.0 {
+            return Err(ctx.err(
+                key("filter_width_nm"),
+                format!("{filter_width_nm} must be ≥ 0 (0: no solar background)"),
+            ));
+        }
+        let gate_ns = match self.range_gate_ns {
+            Some(g) => positive("range_gate_ns", g)?,
+            None => bins.count as f64 * bins.width_ns,
+        };
+        Ok(Lidar {
+            id: self.id.clone(),
+            index,
+            mode: self.mode,
+            wavelength: wl,
+            iw,
+            altitude,
+            to_sensor,
+            zenith_deg: zen,
+            azimuth_deg: az,
+            footprint,
+            pulse_sigma_ns,
+            pulse_energy_j,
+            receiver_area_m2,
+            fov_half_angle,
+            bins,
+            shots,
+            shots_given: given,
+            spp: self.spp,
+            max_order,
+            slope,
+            efficiency,
+            dead_time_ns,
+            shots_per_location: self.shots_per_location,
+            filter_width_nm,
+            gate_ns,
+        })
+    }
+
+    /// The time bins from `bin_ns`/`bins_ns` or `bin_m`/`bins_m` (default range: the scene's
+    /// heights ± 5 m, or ±30 m about a 1D ground).
+    fn bins(
+        &self,
+        ctx: &ConfigCtx,
+        index: usize,
+        scene: Option<&Scene>,
+        shots: &[DVec3],
+        ground: f64,
+    ) -> Result<Bins, ConfigError> {
+        let key = |k: &str| format!("measures[{index}].{k}");
+        let zc = shots[0].z;
+        let default_heights = match scene {
+            Some(s) => [s.z_range[0] - zc - 5.0, s.z_range[1] - zc + 5.0],
+            None => [ground - zc - 30.0, ground - zc + 30.0],
+        };
+        let (width, range, in_height, k) = match (self.bin_ns, self.bin_m) {
+            (Some(w), None) => {
+                if self.bins_m.is_some() {
+                    return Err(ctx.err(key("bins_m"), "goes with `bin_m`, not `bin_ns`"));
+                }
+                let r = self.bins_ns.unwrap_or([
+                    -2.0 * default_heights[1] / C_M_PER_NS,
+                    -2.0 * default_heights[0] / C_M_PER_NS,
+                ]);
+                (w, r, false, "bins_ns")
+            }
+            (None, Some(w)) => {
+                if self.bins_ns.is_some() {
+                    return Err(ctx.err(key("bins_ns"), "goes with `bin_ns`, not `bin_m`"));
+                }
+                (w, self.bins_m.unwrap_or(default_heights), true, "bins_m")
+            }
+            (None, None) => {
+                return Err(ctx.err(
+                    key("bin_ns"),
+                    "a lidar needs its bins: `bin_ns` (two-way time, ns) or `bin_m` (apparent height, m)",
+                ))
+            }
+            (Some(_), Some(_)) => {
+                return Err(ctx.err(key("bin_ns"), "give `bin_ns` or `bin_m`, not both"))
+            }
+        };
+        let wkey = if in_height { "bin_m" } else { "bin_ns" };
+        let width = ctx.finite(&key(wkey), width)?;
+        if width <= 0.0 {
+            return Err(ctx.err(key(wkey), format!("{width} must be > 0")));
+        }
+        let (a, b) = (
+            ctx.finite(&key(k), range[0])?,
+            ctx.finite(&key(k), range[1])?,
+        );
+        if b < a {
+            return Err(ctx.err(
+                key(k),
+                format!("[{a}, {b}]: the first centre must not exceed the last"),
+            ));
+        }
+        let n = ((b - a) / width + 1e-9).floor() + 1.0;
+        if n > MAX_BINS as f64 {
+            return Err(ctx.err(key(k), format!("{n} bins of {width}: at most {MAX_BINS}")));
+        }
+        let count = n as usize;
+        Ok(if in_height {
+            // Height centres a + k·w, highest first: time centres from −2(b)/c upwards.
+            let width_ns = 2.0 * width / C_M_PER_NS;
+            let highest = a + (count - 1) as f64 * width;
+            Bins {
+                first_ns: -2.0 * highest / C_M_PER_NS,
+                width_ns,
+                count,
+                in_height: true,
+            }
+        } else {
+            Bins {
+                first_ns: a,
+                width_ns: width,
+                count,
+                in_height: false,
+            }
+        })
+    }
+}

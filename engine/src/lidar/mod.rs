@@ -1,0 +1,190 @@
+//! Lidar: a pulsed laser and a co-located receiver (monostatic), time-resolved returns
+//! (waveforms) and photon counting, over the same 1D surfaces, atmospheres and 3D scenes as the
+//! passive measures (`[[measures]] type = "lidar"`, docs/experiment.md, "Lidar").
+//!
+//! **Model.** The laser sits at `S`, `R0 = (altitude − z_c)/cos θ` from the footprint centre
+//! `C = (x, y, z_c)` of a shot, and fires a pulse of energy `E_T` along the beam axis `b`
+//! (`C − S`, unit). The pulse's energy is spread across the beam in the plane through `C`
+//! perpendicular to `b`: Gaussian, `F(r) = exp(−r²/2σ²)/(2πσ²)`, or uniform over a disc. Its
+//! time profile is Gaussian (standard deviation `σ_t = FWHM/2.3548`) or a delta. The receiver
+//! has an aperture `A_r` at `S` and sees the points within its field of view (a cone of
+//! half-angle `fov` about `b`).
+//!
+//! **Estimator** (`trace.rs`). Photon paths are traced *from the laser*: each starts at `S`
+//! towards a point of the footprint drawn from `F`, and at every scattering vertex `p` (air,
+//! leaf, ground, any surface) the energy that reaches the telescope is added by a next-event
+//! estimate towards `S`:
+//!
+//! * surface: `e = w · π f(ω_in, ω_r) |n·ω_r| · (R0/D)² · T(p→S)`,
+//! * air:     `e = w · ϖ P(Θ)/4 · (R0/D)² · T(p→S)`,
+//!
+//! with `w` the path's weight, `D = |S − p|`, `ω_r` the unit vector towards `S`, `P` the phase
+//! function (mean 1 over the sphere), `T` the air's transmittance and the scene's visibility
+//! along the return line, and `e` the **normalised energy** `E_R / (E_T · A_r / (π R0²))` (a
+//! Lambertian plane of reflectance `ρ` seen at normal incidence gives `e = ρ`). A first-order
+//! return goes back along the line it came in on, which it has just crossed: its return
+//! transmittance through explicit geometry is 1 (the hot spot), found by tracing the return
+//! ray rather than assumed; air (point scatterers) attenuates both ways. Every contribution
+//! arrives at `t = (L − 2R0)/c`, `L` the true two-way path length, so multiple scattering
+//! arrives later. The first flight is split into its uncollided part (weight `T`, on to the
+//! first surface) and a forced collision in the air (weight `1 − T`, collision point drawn
+//! from `β T`): first-order air returns then have little noise. Later flights are analog, and
+//! Russian roulette ends paths of small weight without bias.
+//!
+//! **Pulse and bins** (`bins.rs`). Each contribution is spread over the time bins by the
+//! pulse's exact integral over each bin (Gaussian: `Φ((b − t)/σ_t) − Φ((a − t)/σ_t)`), so the
+//! pulse adds no noise. Bins are given in time or in apparent height `z = z_c − c t/2`.
+//!
+//! **Errors.** One sample is one photon path (both branches of its first flight together):
+//! every bin and total is the mean over the photons of a shot, with the standard error of that
+//! mean from the same photons. Photons are traced in fixed blocks on streams keyed by the
+//! seed, the measure, the shot and the block, and merged in block order: results do not depend
+//! on the thread count.
+//!
+//! **Photon counting** (`counting.rs`). Detected signal photons per shot are Poisson with mean
+//! `n̄ = E_T λ/(h c) · η · e · A_r/(π R0²)`; solar background photons per range gate are Poisson
+//! with mean `L_bg · A_r · π fov² · Δλ · gate · η · λ/(h c)`, `L_bg` the passive radiance of
+//! the footprint towards the receiver (first order: the Sun reflected by the surfaces the
+//! receiver sees, with shadowing and the air's two-way transmittance).
+//!
+//! **Units.** Inside: m, s (times in ns where named), radians. Config: degrees, nm, ns, J, m².
+//!
+//! References: Measures, R. M. (1984), *Laser Remote Sensing*, Wiley, ch. 7 (the lidar
+//! equation); Gardner, C. S. (1992), IEEE TGRS 30(5), 1061–1072 (slope and footprint broadening
+//! of pulses); Hancock et al. (2019), *Earth Space Sci.* 6, 294–310 (GEDI waveform simulator);
+//! Neumann et al. (2019), ICESat-2 ATL03 ATBD (photon counting).
+
+pub mod bins;
+pub mod config;
+pub mod counting;
+pub mod trace;
+
+use glam::DVec3;
+
+pub use config::LidarConfig;
+pub use counting::CountingStats;
+pub use trace::{trace_shot, ShotWaveform};
+
+/// Speed of light in vacuum, m/ns.
+pub const C_M_PER_NS: f64 = 0.299_792_458;
+/// Planck constant, J s.
+pub const PLANCK: f64 = 6.626_070_15e-34;
+/// Speed of light, m/s.
+pub const C_M_PER_S: f64 = 299_792_458.0;
+
+/// What a lidar measure records.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum LidarMode {
+    /// Full waveforms (GEDI-like): energy per time bin.
+    #[default]
+    Waveform,
+    /// Detected photons per shot (ICESat-2-like): Poisson statistics and photon events.
+    PhotonCounting,
+}
+
+/// The energy distribution of the pulse across the beam.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Footprint {
+    /// Gaussian with this standard deviation per axis, m.
+    Gaussian { sigma: f64 },
+    /// Uniform over a disc of this radius, m.
+    TopHat { radius: f64 },
+}
+
+impl Footprint {
+    /// A point of the footprint (offsets along two axes perpendicular to the beam, m) from two
+    /// uniform numbers.
+    #[inline]
+    pub fn sample(&self, u1: f64, u2: f64) -> (f64, f64) {
+        let phi = std::f64::consts::TAU * u2;
+        let r = match *self {
+            Footprint::Gaussian { sigma } => sigma * (-2.0 * (1.0 - u1).ln()).sqrt(),
+            Footprint::TopHat { radius } => radius * u1.sqrt(),
+        };
+        let (s, c) = phi.sin_cos();
+        (r * c, r * s)
+    }
+
+    /// A radius that holds the footprint's energy but for a negligible part (4σ or the disc).
+    pub fn extent(&self) -> f64 {
+        match *self {
+            Footprint::Gaussian { sigma } => 4.0 * sigma,
+            Footprint::TopHat { radius } => radius,
+        }
+    }
+}
+
+/// A tilted 1D ground (lidar tests on slopes): the plane through the 1D ground's origin with
+/// this unit normal.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Slope {
+    pub normal: DVec3,
+}
+
+/// A resolved lidar measure (SI units; see the module header).
+#[derive(Clone, Debug)]
+pub struct Lidar {
+    pub id: String,
+    /// Index of this measure in `[[measures]]` (for streams and messages).
+    pub index: usize,
+    pub mode: LidarMode,
+    /// nm, and its index among the run's wavelengths.
+    pub wavelength: f64,
+    pub iw: usize,
+    /// Platform height above z = 0 of the scene's frame, m.
+    pub altitude: f64,
+    /// Unit vector from the footprint centre towards the sensor.
+    pub to_sensor: DVec3,
+    /// View zenith and azimuth of the beam, degrees (for the products).
+    pub zenith_deg: f64,
+    pub azimuth_deg: f64,
+    pub footprint: Footprint,
+    /// Standard deviation of the Gaussian pulse, ns (0: a delta pulse).
+    pub pulse_sigma_ns: f64,
+    pub pulse_energy_j: f64,
+    pub receiver_area_m2: f64,
+    /// Half-angle of the receiver's field of view, rad.
+    pub fov_half_angle: f64,
+    pub bins: bins::Bins,
+    /// Footprint centres (x, y, z_c) in the local frame, m, and as given (the experiment's
+    /// coordinates) for the products.
+    pub shots: Vec<DVec3>,
+    pub shots_given: Vec<[f64; 2]>,
+    /// Photon paths per shot.
+    pub spp: u64,
+    /// Highest scattering order traced (1: first order only).
+    pub max_order: u32,
+    /// 1D ground only: a tilted plane.
+    pub slope: Option<Slope>,
+    /// Photon counting: detector efficiency, dead time (ns), shots simulated per footprint,
+    /// the receiver's filter width (nm) and range gate (ns).
+    pub efficiency: f64,
+    pub dead_time_ns: f64,
+    pub shots_per_location: u64,
+    pub filter_width_nm: f64,
+    pub gate_ns: f64,
+}
+
+impl Lidar {
+    /// The sensor's position for the shot centred on `c`, m.
+    pub fn sensor(&self, c: DVec3) -> DVec3 {
+        c + self.to_sensor * self.range0(c)
+    }
+
+    /// `R0`: the distance from the sensor to the footprint centre `c`, m.
+    pub fn range0(&self, c: DVec3) -> f64 {
+        (self.altitude - c.z) / self.to_sensor.z
+    }
+
+    /// `A_r / (π R0²)`: normalised energy × this × `E_T` = received energy (J).
+    pub fn energy_scale(&self, c: DVec3) -> f64 {
+        let r0 = self.range0(c);
+        self.receiver_area_m2 / (std::f64::consts::PI * r0 * r0)
+    }
+
+    /// Photons of the laser's wavelength per joule.
+    pub fn photons_per_joule(&self) -> f64 {
+        self.wavelength * 1e-9 / (PLANCK * C_M_PER_S)
+    }
+}

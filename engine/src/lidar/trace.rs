@@ -1,0 +1,552 @@
+//! Photon paths from the laser, with next-event estimates towards the receiver (the module
+//! header of `lidar/mod.rs` gives the estimator). One shot at a time: [`trace_shot`].
+
+use glam::DVec3;
+use rayon::prelude::*;
+
+use super::{Lidar, C_M_PER_NS};
+use crate::atmosphere::PlaneParallel;
+use crate::frame::{basis_around, rotate_about};
+use crate::rng::Stream;
+use crate::scene::material::SurfaceModel;
+use crate::scene::world::BLACK;
+use crate::scene::Scene;
+
+/// The parts a waveform is split into.
+pub const NCOMP: usize = 6;
+/// All orders.
+pub const TOTAL: usize = 0;
+/// Exactly one scattering event between the laser and the receiver.
+pub const FIRST: usize = 1;
+/// Two or more.
+pub const MULTIPLE: usize = 2;
+/// First order from objects (leaves, trunks, buildings), from the ground (terrain, ground
+/// plane, 1D surface), from the air.
+pub const FIRST_CANOPY: usize = 3;
+pub const FIRST_GROUND: usize = 4;
+pub const FIRST_AIR: usize = 5;
+/// Names of the parts in the products.
+pub const COMP_NAMES: [&str; NCOMP] = [
+    "total",
+    "first_order",
+    "multiple",
+    "first_order_canopy",
+    "first_order_ground",
+    "first_order_air",
+];
+
+/// Photons per block: the unit of parallel work and of deterministic merging.
+const BLOCK: u64 = 8192;
+/// Blocks traced at once before merging (bounds the memory of per-block accumulators).
+const CHUNK: usize = 32;
+/// Russian roulette: paths of weight below this, from the second order on, survive with
+/// probability `w / RR_WEIGHT` and carry `RR_WEIGHT`.
+const RR_WEIGHT: f64 = 0.2;
+/// Stream tag of lidar photons.
+const LIDAR_STREAM: u64 = 0x11DA_4000;
+
+/// A mean over the photons of a shot and the standard error of that mean.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Stat {
+    pub mean: f64,
+    pub stderr: f64,
+}
+
+/// One shot's waveform in normalised energy `e` (see `lidar/mod.rs`).
+#[derive(Clone, Debug)]
+pub struct ShotWaveform {
+    pub photons: u64,
+    /// Per bin, per part ([`TOTAL`] … [`FIRST_AIR`]).
+    pub bins: Vec<[Stat; NCOMP]>,
+    /// Whole returns (every delay, inside the bins or not), per part.
+    pub totals: [Stat; NCOMP],
+}
+
+/// Running sums over photons.
+#[derive(Clone)]
+struct Acc {
+    n: u64,
+    sum: Vec<f64>,
+    sq: Vec<f64>,
+    tsum: [f64; NCOMP],
+    tsq: [f64; NCOMP],
+}
+
+impl Acc {
+    fn new(nbins: usize) -> Self {
+        Self {
+            n: 0,
+            sum: vec![0.0; nbins * NCOMP],
+            sq: vec![0.0; nbins * NCOMP],
+            tsum: [0.0; NCOMP],
+            tsq: [0.0; NCOMP],
+        }
+    }
+
+    fn merge(&mut self, o: &Acc) {
+        self.n += o.n;
+        for (a, b) in self.sum.iter_mut().zip(&o.sum) {
+            *a += b;
+        }
+        for (a, b) in self.sq.iter_mut().zip(&o.sq) {
+            *a += b;
+        }
+        for c in 0..NCOMP {
+            self.tsum[c] += o.tsum[c];
+            self.tsq[c] += o.tsq[c];
+        }
+    }
+}
+
+/// One photon's scores before they are added to the sums (sparse over the bins).
+struct Scratch {
+    cur: Vec<f64>,
+    touched: Vec<usize>,
+    tot: [f64; NCOMP],
+}
+
+impl Scratch {
+    fn add(&mut self, idx: usize, v: f64) {
+        if self.cur[idx] == 0.0 {
+            self.touched.push(idx);
+        }
+        self.cur[idx] += v;
+    }
+
+    fn flush(&mut self, acc: &mut Acc) {
+        acc.n += 1;
+        for &i in &self.touched {
+            let v = self.cur[i];
+            acc.sum[i] += v;
+            acc.sq[i] += v * v;
+            self.cur[i] = 0.0;
+        }
+        self.touched.clear();
+        for c in 0..NCOMP {
+            acc.tsum[c] += self.tot[c];
+            acc.tsq[c] += self.tot[c] * self.tot[c];
+            self.tot[c] = 0.0;
+        }
+    }
+}
+
+/// Where a lidar's photons travel: the air, and the scene or the 1D ground.
+pub struct World<'a> {
+    pub atmosphere: &'a PlaneParallel,
+    pub scene: Option<&'a Scene>,
+    /// Scene materials at the lidar's wavelength (indexed by material id).
+    pub models: &'a [SurfaceModel],
+    /// The 1D ground (without a scene).
+    pub ground: SurfaceModel,
+    /// The 1D ground's altitude, m.
+    pub ground_z: f64,
+}
+
+struct Hit<'m> {
+    t: f64,
+    normal: DVec3,
+    model: &'m SurfaceModel,
+    ground: bool,
+}
+
+const BLACK_MODEL: SurfaceModel = SurfaceModel::Black;
+
+impl World<'_> {
+    /// A height above every part of the scene (rays from far away start their scene search
+    /// there, where f32 geometry is precise).
+    fn top(&self) -> f64 {
+        self.scene.map_or(self.ground_z, |s| s.z_range[1]) + 1.0
+    }
+
+    /// The first surface along `o + t·d`, `t < tmax`.
+    fn hit(&self, lidar: &Lidar, o: DVec3, d: DVec3, tmax: f64) -> Option<Hit<'_>> {
+        match self.scene {
+            Some(scene) => {
+                let top = self.top();
+                let mut t0 = 0.0;
+                if o.z > top {
+                    if d.z >= 0.0 {
+                        return None;
+                    }
+                    t0 = (o.z - top) / -d.z;
+                }
+                if t0 >= tmax {
+                    return None;
+                }
+                let h = scene.intersect(o + d * t0, d, tmax - t0)?;
+                let model = if h.material == BLACK {
+                    &BLACK_MODEL
+                } else {
+                    self.models.get(h.material as usize).unwrap_or(&BLACK_MODEL)
+                };
+                Some(Hit {
+                    t: t0 + h.t,
+                    normal: h.normal,
+                    model,
+                    ground: h.ground,
+                })
+            }
+            None => {
+                let n = lidar.slope.map_or(DVec3::Z, |s| s.normal);
+                let dn = d.dot(n);
+                if dn >= 0.0 {
+                    return None;
+                }
+                let t = (DVec3::new(0.0, 0.0, self.ground_z) - o).dot(n) / dn;
+                (t > 0.0 && t < tmax).then_some(Hit {
+                    t,
+                    normal: n,
+                    model: &self.ground,
+                    ground: true,
+                })
+            }
+        }
+    }
+
+    /// The first surface seen from `o` along `d`: its point, normal (facing `o`) and model.
+    pub fn first_surface(
+        &self,
+        lidar: &Lidar,
+        o: DVec3,
+        d: DVec3,
+    ) -> Option<(DVec3, DVec3, &SurfaceModel)> {
+        self.hit(lidar, o, d, 1e9)
+            .map(|h| (o + d * h.t, h.normal, h.model))
+    }
+
+    /// Whether the line from `p` (leaving a surface of normal `n`, or in the air: `None`)
+    /// upwards along `dir` is free of the scene.
+    pub fn sees_up(&self, p: DVec3, n: Option<DVec3>, dir: DVec3) -> bool {
+        let Some(scene) = self.scene else {
+            return true;
+        };
+        let top = self.top();
+        if p.z >= top {
+            return true;
+        }
+        let o = match n {
+            Some(n) => scene.offset(p, n, dir),
+            None => p,
+        };
+        let t = (top - o.z) / dir.z;
+        !scene.occluded(o, dir, t)
+    }
+}
+
+/// The geometry of one shot.
+struct Shot {
+    sensor: DVec3,
+    r0: f64,
+    /// Beam axis (from the sensor down), and two unit vectors across it.
+    axis: DVec3,
+    e1: DVec3,
+    e2: DVec3,
+    centre: DVec3,
+    cos_fov: f64,
+}
+
+/// A return to score: its delay (ns), normalised energy, order and part.
+#[inline]
+fn score(lidar: &Lidar, s: &mut Scratch, t_ns: f64, e: f64, order: u32, first_part: usize) {
+    if !(e > 0.0) {
+        return;
+    }
+    let parts: [usize; 2] = if order <= 1 {
+        [FIRST, first_part]
+    } else {
+        [MULTIPLE, usize::MAX]
+    };
+    s.tot[TOTAL] += e;
+    s.tot[parts[0]] += e;
+    if parts[1] != usize::MAX {
+        s.tot[parts[1]] += e;
+    }
+    lidar.bins.spread(t_ns, e, lidar.pulse_sigma_ns, |k, v| {
+        s.add(k * NCOMP + TOTAL, v);
+        s.add(k * NCOMP + parts[0], v);
+        if parts[1] != usize::MAX {
+            s.add(k * NCOMP + parts[1], v);
+        }
+    });
+}
+
+/// A path in flight.
+#[derive(Clone, Copy)]
+struct Path {
+    p: DVec3,
+    d: DVec3,
+    w: f64,
+    /// Path length so far, m.
+    len: f64,
+    /// Scattering events so far.
+    order: u32,
+    /// Whether the next flight is the first (from the laser).
+    first_flight: bool,
+}
+
+/// Trace one photon (both branches of its first flight) and score it into `s`.
+fn photon(lidar: &Lidar, world: &World, shot: &Shot, rng: &mut Stream, s: &mut Scratch) {
+    let (fx, fy) = lidar.footprint.sample(rng.next_f64(), rng.next_f64());
+    let target = shot.centre + shot.e1 * fx + shot.e2 * fy;
+    let d = (target - shot.sensor).normalize();
+    let mut stack = [None, None];
+    stack[0] = Some(Path {
+        p: shot.sensor,
+        d,
+        w: 1.0,
+        len: 0.0,
+        order: 0,
+        first_flight: true,
+    });
+    let mut top = 1;
+    while top > 0 {
+        top -= 1;
+        let Some(mut path) = stack[top].take() else {
+            continue;
+        };
+        loop {
+            match flight(lidar, world, shot, rng, s, &mut path) {
+                Flight::Continue(branch) => {
+                    if let Some(b) = branch {
+                        stack[top] = Some(b);
+                        top += 1;
+                    }
+                }
+                Flight::End => break,
+            }
+        }
+    }
+}
+
+enum Flight {
+    /// The path goes on (with, after the first flight, the forced-collision branch to trace).
+    Continue(Option<Path>),
+    End,
+}
+
+/// One flight of `path` and the event that ends it (scoring its next-event estimate).
+fn flight(
+    lidar: &Lidar,
+    world: &World,
+    shot: &Shot,
+    rng: &mut Stream,
+    s: &mut Scratch,
+    path: &mut Path,
+) -> Flight {
+    let atm = world.atmosphere;
+    let far = 1e9;
+    let hit = world.hit(lidar, path.p, path.d, far);
+    let t_end = hit.as_ref().map_or(far, |h| h.t);
+    let mut branch = None;
+    let has_air = atm.total_tau() > 0.0;
+    // Where the flight collides in the air, if it does.
+    let mut collision = None;
+    if has_air {
+        if path.first_flight {
+            // Forced collision: the collided branch (weight 1 − T) goes on its own.
+            let tau = atm.optical_path(path.p.z, path.d.z, t_end);
+            let tr = (-tau).exp();
+            if tau > 0.0 {
+                let u = rng.next_f64();
+                let tau_c = -(-u * (-(-tau).exp_m1())).ln_1p();
+                if let Some(tc) = atm.march(path.p.z, path.d.z, tau_c, t_end) {
+                    let mut b = *path;
+                    b.w *= 1.0 - tr;
+                    b.first_flight = false;
+                    if air_event(lidar, world, shot, rng, s, &mut b, tc) {
+                        branch = Some(b);
+                    }
+                }
+            }
+            path.w *= tr;
+        } else {
+            let u = rng.next_f64_open0();
+            collision = atm.march(path.p.z, path.d.z, -u.ln(), t_end);
+        }
+    }
+    path.first_flight = false;
+    if let Some(tc) = collision {
+        return if air_event(lidar, world, shot, rng, s, path, tc) {
+            Flight::Continue(branch)
+        } else {
+            Flight::End
+        };
+    }
+    let Some(h) = hit else {
+        return match branch {
+            Some(b) => {
+                *path = b;
+                Flight::Continue(None)
+            }
+            None => Flight::End,
+        };
+    };
+    // A surface.
+    path.p += path.d * h.t;
+    path.len += h.t;
+    path.order += 1;
+    let to_s = shot.sensor - path.p;
+    let dist = to_s.length();
+    let wr = to_s / dist;
+    let part = if h.ground { FIRST_GROUND } else { FIRST_CANOPY };
+    if in_fov(shot, path.p) {
+        let f = h.model.eval_cos(h.normal, wr, -path.d);
+        if f > 0.0 && world.sees_up(path.p, Some(h.normal), wr) {
+            let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
+            let ratio = shot.r0 / dist;
+            let e = path.w * std::f64::consts::PI * f * ratio * ratio * tr;
+            let t_ns = (path.len + dist - 2.0 * shot.r0) / C_M_PER_NS;
+            score(lidar, s, t_ns, e, path.order, part);
+        }
+    }
+    let go_on = path.order < lidar.max_order
+        && h.model
+            .sample(
+                h.normal,
+                -path.d,
+                [rng.next_f64(), rng.next_f64(), rng.next_f64()],
+            )
+            .map(|smp| {
+                path.w *= smp.weight;
+                let n = h.normal;
+                path.p = match world.scene {
+                    Some(sc) => sc.offset(path.p, n, smp.wi),
+                    None => path.p + n * (1e-9 * (1.0 + path.p.abs().max_element())),
+                };
+                path.d = smp.wi;
+            })
+            .is_some()
+        && roulette(path, rng);
+    if go_on {
+        Flight::Continue(branch)
+    } else {
+        match branch {
+            Some(b) => {
+                *path = b;
+                Flight::Continue(None)
+            }
+            None => Flight::End,
+        }
+    }
+}
+
+/// A collision in the air `tc` metres along the path: absorption, the next-event estimate and
+/// the new direction; false when the path ends.
+fn air_event(
+    lidar: &Lidar,
+    world: &World,
+    shot: &Shot,
+    rng: &mut Stream,
+    s: &mut Scratch,
+    path: &mut Path,
+    tc: f64,
+) -> bool {
+    let atm = world.atmosphere;
+    path.p += path.d * tc;
+    path.len += tc;
+    path.order += 1;
+    let layer = atm.layer_at_altitude(path.p.z);
+    path.w *= atm.albedo(layer);
+    if !(path.w > 0.0) {
+        return false;
+    }
+    let phase = atm.phase(layer);
+    let to_s = shot.sensor - path.p;
+    let dist = to_s.length();
+    let wr = to_s / dist;
+    if in_fov(shot, path.p) && world.sees_up(path.p, None, wr) {
+        let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
+        let ratio = shot.r0 / dist;
+        let e = path.w * phase.eval(path.d.dot(wr)) * 0.25 * ratio * ratio * tr;
+        let t_ns = (path.len + dist - 2.0 * shot.r0) / C_M_PER_NS;
+        score(lidar, s, t_ns, e, path.order, FIRST_AIR);
+    }
+    if path.order >= lidar.max_order {
+        return false;
+    }
+    let mu = phase.sample_cos(rng.next_f64());
+    let phi = std::f64::consts::TAU * rng.next_f64();
+    path.d = rotate_about(path.d, mu, phi);
+    roulette(path, rng)
+}
+
+/// Russian roulette from the second order on; false when the path ends.
+#[inline]
+fn roulette(path: &mut Path, rng: &mut Stream) -> bool {
+    if path.order < 2 || path.w >= RR_WEIGHT {
+        return true;
+    }
+    if rng.next_f64() * RR_WEIGHT < path.w {
+        path.w = RR_WEIGHT;
+        true
+    } else {
+        false
+    }
+}
+
+#[inline]
+fn in_fov(shot: &Shot, p: DVec3) -> bool {
+    let v = p - shot.sensor;
+    v.dot(shot.axis) >= shot.cos_fov * v.length()
+}
+
+/// Trace `lidar.spp` photons of shot `k` over `world` (`seed`: the run's).
+pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWaveform {
+    let centre = lidar.shots[k];
+    let axis = -lidar.to_sensor;
+    let (e1, e2) = basis_around(axis);
+    let shot = Shot {
+        sensor: lidar.sensor(centre),
+        r0: lidar.range0(centre),
+        axis,
+        e1,
+        e2,
+        centre,
+        cos_fov: lidar.fov_half_angle.cos(),
+    };
+    let nbins = lidar.bins.count;
+    let nblocks = lidar.spp.div_ceil(BLOCK);
+    let mut acc = Acc::new(nbins);
+    let blocks: Vec<u64> = (0..nblocks).collect();
+    for chunk in blocks.chunks(CHUNK) {
+        let parts: Vec<Acc> = chunk
+            .par_iter()
+            .map(|&b| {
+                let mut rng = Stream::new(seed, [LIDAR_STREAM, lidar.index as u64, k as u64, b]);
+                let mut a = Acc::new(nbins);
+                let mut s = Scratch {
+                    cur: vec![0.0; nbins * NCOMP],
+                    touched: Vec::new(),
+                    tot: [0.0; NCOMP],
+                };
+                let n = BLOCK.min(lidar.spp - b * BLOCK);
+                for _ in 0..n {
+                    photon(lidar, world, &shot, &mut rng, &mut s);
+                    s.flush(&mut a);
+                }
+                a
+            })
+            .collect();
+        for p in &parts {
+            acc.merge(p);
+        }
+    }
+    let n = acc.n as f64;
+    let stat = |sum: f64, sq: f64| {
+        let mean = sum / n;
+        let var = ((sq / n - mean * mean) * n / (n - 1.0)).max(0.0);
+        Stat {
+            mean,
+            stderr: (var / n).sqrt(),
+        }
+    };
+    let bins = (0..nbins)
+        .map(|b| std::array::from_fn(|c| stat(acc.sum[b * NCOMP + c], acc.sq[b * NCOMP + c])))
+        .collect();
+    let totals = std::array::from_fn(|c| stat(acc.tsum[c], acc.tsq[c]));
+    ShotWaveform {
+        photons: acc.n,
+        bins,
+        totals,
+    }
+}

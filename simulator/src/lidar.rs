@@ -1,0 +1,246 @@
+//! Lidar measures of a run (`engine::lidar`): every shot traced, photon-counting statistics and
+//! events, and their products (`ID_waveform.csv`, `ID_totals.csv`, and for photon counting
+//! `ID_photon_stats.csv` and `ID_photons.csv`; columns in docs/experiment.md, "Lidar").
+
+use std::fmt::Write as _;
+use std::path::Path;
+
+use engine::config::resolve::Experiment;
+use engine::lidar::counting::{self, CountingStats, PhotonEvent};
+use engine::lidar::trace::{trace_shot, ShotWaveform, Stat, World, COMP_NAMES, NCOMP};
+use engine::lidar::{Lidar, LidarMode, C_M_PER_NS};
+use engine::scene::material::SurfaceModel;
+
+use crate::error::OutputError;
+
+/// Lines of sight per footprint for the solar background.
+const BACKGROUND_SAMPLES: u64 = 1 << 16;
+
+/// One lidar measure's results.
+#[derive(Clone, Debug)]
+pub struct LidarResult {
+    pub lidar: Lidar,
+    pub shots: Vec<ShotWaveform>,
+    /// Photon counting: per shot location.
+    pub counting: Vec<CountingStats>,
+    pub events: Vec<PhotonEvent>,
+}
+
+/// Run every lidar measure of `exp`.
+pub fn run_all(exp: &Experiment, progress: bool) -> Vec<LidarResult> {
+    exp.lidars
+        .iter()
+        .map(|l| run_one(exp, l, progress))
+        .collect()
+}
+
+/// Run one lidar measure.
+pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
+    let optics = &exp.optics[lidar.iw];
+    let world = World {
+        atmosphere: &optics.atmosphere,
+        scene: exp.scene.as_deref(),
+        models: &optics.scene_models,
+        ground: SurfaceModel::Opaque(optics.surface.clone()),
+        ground_z: optics.atmosphere.ground(),
+    };
+    let t0 = std::time::Instant::now();
+    let bar = progress.then(|| {
+        let b = indicatif::ProgressBar::new(lidar.shots.len() as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{prefix:>16} lidar [{bar:30}] {pos}/{len} shots {elapsed}<{eta}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b.set_prefix(lidar.id.clone());
+        b
+    });
+    let mut shots = Vec::with_capacity(lidar.shots.len());
+    let mut stats = Vec::new();
+    let mut events = Vec::new();
+    for k in 0..lidar.shots.len() {
+        let w = trace_shot(lidar, &world, exp.seed, k);
+        if lidar.mode == LidarMode::PhotonCounting {
+            let bg = if exp.sun_up() {
+                counting::background(
+                    lidar,
+                    &world,
+                    exp.sun_dir,
+                    optics.irradiance,
+                    exp.seed,
+                    k,
+                    BACKGROUND_SAMPLES,
+                )
+            } else {
+                Stat::default()
+            };
+            let st = counting::stats(lidar, &w, k, bg);
+            events.extend(counting::simulate_shots(lidar, &st, exp.seed, k));
+            stats.push(st);
+        }
+        shots.push(w);
+        if let Some(b) = &bar {
+            b.inc(1);
+        }
+    }
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    tracing::info!(
+        "lidar `{}`: {} shot(s) × {} photon paths in {:.2} s",
+        lidar.id,
+        lidar.shots.len(),
+        lidar.spp,
+        t0.elapsed().as_secs_f64()
+    );
+    LidarResult {
+        lidar: lidar.clone(),
+        shots,
+        counting: stats,
+        events,
+    }
+}
+
+/// A number for the CSV products: plain for 10⁻³ ≤ |x| < 10⁷, else in exponent form (the
+/// shortest text that reads back to the same f64 either way).
+fn num(x: f64) -> String {
+    if x == 0.0 {
+        "0".into()
+    } else if (1e-3..1e7).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
+/// The text of `ID_waveform.csv`: one row per shot and bin.
+pub fn waveform_csv(r: &LidarResult) -> String {
+    let l = &r.lidar;
+    let mut s = String::from("shot,x,y,time_ns,range_m,height_m");
+    for name in ["energy"].iter().chain(COMP_NAMES[1..].iter()) {
+        let _ = write!(s, ",{name},{name}_stderr");
+    }
+    s.push_str(",energy_j,energy_j_stderr\n");
+    for (k, w) in r.shots.iter().enumerate() {
+        let c = l.shots[k];
+        let r0 = l.range0(c);
+        let scale = l.pulse_energy_j * l.energy_scale(c);
+        let [x, y] = l.shots_given[k];
+        for (b, stats) in w.bins.iter().enumerate() {
+            let t = l.bins.centre_ns(b);
+            let _ = write!(
+                s,
+                "{k},{x},{y},{},{},{}",
+                num(t),
+                num(r0 + 0.5 * C_M_PER_NS * t),
+                num(-0.5 * C_M_PER_NS * t)
+            );
+            for st in stats.iter().take(NCOMP) {
+                let _ = write!(s, ",{},{}", num(st.mean), num(st.stderr));
+            }
+            let _ = writeln!(
+                s,
+                ",{},{}",
+                num(stats[0].mean * scale),
+                num(stats[0].stderr * scale)
+            );
+        }
+    }
+    s
+}
+
+/// The text of `ID_totals.csv`: one row per shot and part of the return.
+pub fn totals_csv(r: &LidarResult) -> String {
+    let l = &r.lidar;
+    let mut s = String::from(
+        "shot,x,y,part,energy,energy_stderr,energy_j,energy_j_stderr,photons_traced\n",
+    );
+    for (k, w) in r.shots.iter().enumerate() {
+        let scale = l.pulse_energy_j * l.energy_scale(l.shots[k]);
+        let [x, y] = l.shots_given[k];
+        for (c, st) in w.totals.iter().enumerate() {
+            let _ = writeln!(
+                s,
+                "{k},{x},{y},{},{},{},{},{},{}",
+                COMP_NAMES[c],
+                num(st.mean),
+                num(st.stderr),
+                num(st.mean * scale),
+                num(st.stderr * scale),
+                w.photons
+            );
+        }
+    }
+    s
+}
+
+/// The text of `ID_photon_stats.csv`: per location, each statistic with its standard error.
+pub fn photon_stats_csv(r: &LidarResult) -> String {
+    let mut s = String::from("location,x,y,statistic,value,stderr\n");
+    for (k, st) in r.counting.iter().enumerate() {
+        let [x, y] = r.lidar.shots_given[k];
+        let mut row = |name: &str, v: Stat| {
+            let _ = writeln!(s, "{k},{x},{y},{name},{},{}", num(v.mean), num(v.stderr));
+        };
+        row("mean", st.mean);
+        row("variance", st.variance);
+        for (j, p) in st.p.iter().enumerate() {
+            row(&format!("p{j}"), *p);
+        }
+        row("canopy_mean", st.canopy_mean);
+        row("ground_mean", st.ground_mean);
+        row("ground_p0", st.ground_p0);
+        row("background_per_gate", st.background_per_gate);
+        // What the simulated shots gave (a check of the Poisson draws).
+        let shots = r.lidar.shots_per_location as f64;
+        let signal = r
+            .events
+            .iter()
+            .filter(|e| e.location == k && e.signal)
+            .count() as f64;
+        row(
+            "simulated_signal_mean",
+            Stat {
+                mean: signal / shots,
+                stderr: (signal.max(1.0)).sqrt() / shots,
+            },
+        );
+    }
+    s
+}
+
+/// The text of `ID_photons.csv` (ATL03-like): one row per detected photon.
+pub fn photons_csv(r: &LidarResult) -> String {
+    let mut s = String::from("location,shot,time_ns,height_m,signal\n");
+    for e in &r.events {
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{}",
+            e.location,
+            e.shot,
+            num(e.time_ns),
+            num(e.height_m),
+            u8::from(e.signal)
+        );
+    }
+    s
+}
+
+/// Write every lidar product into `dir`.
+pub fn write(dir: &Path, results: &[LidarResult]) -> Result<(), OutputError> {
+    let put = |name: String, text: String| {
+        let path = dir.join(name);
+        std::fs::write(&path, text).map_err(|source| OutputError::Io { path, source })
+    };
+    for r in results {
+        let id = &r.lidar.id;
+        put(format!("{id}_waveform.csv"), waveform_csv(r))?;
+        put(format!("{id}_totals.csv"), totals_csv(r))?;
+        if r.lidar.mode == LidarMode::PhotonCounting {
+            put(format!("{id}_photon_stats.csv"), photon_stats_csv(r))?;
+            put(format!("{id}_photons.csv"), photons_csv(r))?;
+        }
+    }
+    Ok(())
+}
