@@ -20,6 +20,17 @@ pub enum FootprintShape {
     Tophat,
 }
 
+/// How the photons leave the laser.
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+pub enum Rays {
+    /// From the sensor's point through the footprint, back to that point.
+    #[default]
+    Point,
+    /// Parallel to the beam axis (far-field limit).
+    Parallel,
+}
+
 #[derive(Clone, Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LidarConfig {
@@ -44,9 +55,11 @@ pub struct LidarConfig {
     /// Gaussian: σ per axis, m (instead of `footprint_diameter_m`).
     #[serde(default)]
     pub footprint_sigma_m: Option<f64>,
-    /// Gaussian pulse FWHM, ns (0: a delta pulse).
+    /// Gaussian pulse FWHM, ns (0: a delta pulse), or its standard deviation.
     #[serde(default)]
-    pub pulse_fwhm_ns: f64,
+    pub pulse_fwhm_ns: Option<f64>,
+    #[serde(default)]
+    pub pulse_sigma_ns: Option<f64>,
     #[serde(default = "one")]
     pub pulse_energy_j: f64,
     #[serde(default = "one")]
@@ -73,6 +86,9 @@ pub struct LidarConfig {
     /// Height of the footprint centres, m (default: the ground under each, or the 1D ground).
     #[serde(default)]
     pub footprint_height_m: Option<f64>,
+    /// `"point"` (default) or `"parallel"`.
+    #[serde(default)]
+    pub rays: Rays,
     /// Photon paths per shot.
     pub spp: u64,
     /// Highest scattering order traced (default: all, ended by roulette).
@@ -192,14 +208,25 @@ impl LidarConfig {
                 }
             }
         };
-        let fwhm = finite("pulse_fwhm_ns", self.pulse_fwhm_ns)?;
-        if fwhm < 0.0 {
-            return Err(ctx.err(
-                key("pulse_fwhm_ns"),
-                format!("{fwhm} must be ≥ 0 (0: a delta pulse)"),
-            ));
+        let fwhm_per_sigma = (8.0 * std::f64::consts::LN_2).sqrt();
+        let (k, sigma) = match (self.pulse_fwhm_ns, self.pulse_sigma_ns) {
+            (Some(f), None) => (
+                "pulse_fwhm_ns",
+                finite("pulse_fwhm_ns", f)? / fwhm_per_sigma,
+            ),
+            (None, Some(s)) => ("pulse_sigma_ns", finite("pulse_sigma_ns", s)?),
+            (None, None) => ("pulse_fwhm_ns", 0.0),
+            (Some(_), Some(_)) => {
+                return Err(ctx.err(
+                    key("pulse_sigma_ns"),
+                    "give `pulse_fwhm_ns` or `pulse_sigma_ns`, not both",
+                ))
+            }
+        };
+        if sigma < 0.0 {
+            return Err(ctx.err(key(k), format!("{sigma} must be ≥ 0 (0: a delta pulse)")));
         }
-        let pulse_sigma_ns = fwhm / (8.0 * std::f64::consts::LN_2).sqrt();
+        let pulse_sigma_ns = sigma;
         let pulse_energy_j = positive("pulse_energy_j", self.pulse_energy_j)?;
         let receiver_area_m2 = positive("receiver_area_m2", self.receiver_area_m2)?;
 
@@ -342,6 +369,7 @@ impl LidarConfig {
             bins,
             shots,
             shots_given: given,
+            parallel: self.rays == Rays::Parallel,
             spp: self.spp,
             max_order,
             slope,

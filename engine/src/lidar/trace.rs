@@ -35,8 +35,19 @@ pub const COMP_NAMES: [&str; NCOMP] = [
     "first_order_air",
 ];
 
-/// Photons per block: the unit of parallel work and of deterministic merging.
+/// Photons per block: the unit of parallel work and of deterministic merging (a multiple of
+/// [`REPLICATES`]).
 const BLOCK: u64 = 8192;
+/// Independently scrambled Sobol sequences of footprint points per shot: photon `i` belongs to
+/// replicate `i mod R` and takes point `i div R` of its sequence. The footprint integral is
+/// smooth over flat and sloped ground, where Sobol points make its error fall almost as 1/N,
+/// and the replicates' means are independent, so the standard error is their spread
+/// (`√(Σ(m_r − m)²/(R(R−1)))`, R − 1 = 31 degrees of freedom). A third dimension places the
+/// first flight's forced collision in the air. Shots are traced in whole
+/// cycles of R photons (`spp` rounded up).
+pub const REPLICATES: u64 = 32;
+/// Sobol points per scrambled sequence before a new scrambling (`sobol_burley` indices).
+const SOBOL_POINTS: u64 = 1 << 16;
 /// Blocks traced at once before merging (bounds the memory of per-block accumulators).
 const CHUNK: usize = 32;
 /// Russian roulette: paths of weight below this, from the second order on, survive with
@@ -62,24 +73,22 @@ pub struct ShotWaveform {
     pub totals: [Stat; NCOMP],
 }
 
-/// Running sums over photons.
+/// Running sums over photons, per replicate (see [`REPLICATES`]).
 #[derive(Clone)]
 struct Acc {
     n: u64,
+    /// [replicate][bin][part].
     sum: Vec<f64>,
-    sq: Vec<f64>,
-    tsum: [f64; NCOMP],
-    tsq: [f64; NCOMP],
+    /// [replicate][part].
+    tsum: Vec<f64>,
 }
 
 impl Acc {
     fn new(nbins: usize) -> Self {
         Self {
             n: 0,
-            sum: vec![0.0; nbins * NCOMP],
-            sq: vec![0.0; nbins * NCOMP],
-            tsum: [0.0; NCOMP],
-            tsq: [0.0; NCOMP],
+            sum: vec![0.0; REPLICATES as usize * nbins * NCOMP],
+            tsum: vec![0.0; REPLICATES as usize * NCOMP],
         }
     }
 
@@ -88,12 +97,8 @@ impl Acc {
         for (a, b) in self.sum.iter_mut().zip(&o.sum) {
             *a += b;
         }
-        for (a, b) in self.sq.iter_mut().zip(&o.sq) {
+        for (a, b) in self.tsum.iter_mut().zip(&o.tsum) {
             *a += b;
-        }
-        for c in 0..NCOMP {
-            self.tsum[c] += o.tsum[c];
-            self.tsq[c] += o.tsq[c];
         }
     }
 }
@@ -113,18 +118,17 @@ impl Scratch {
         self.cur[idx] += v;
     }
 
-    fn flush(&mut self, acc: &mut Acc) {
+    /// Add the photon's scores to replicate `r` of `acc`.
+    fn flush(&mut self, acc: &mut Acc, r: usize) {
         acc.n += 1;
+        let base = r * self.cur.len();
         for &i in &self.touched {
-            let v = self.cur[i];
-            acc.sum[i] += v;
-            acc.sq[i] += v * v;
+            acc.sum[base + i] += self.cur[i];
             self.cur[i] = 0.0;
         }
         self.touched.clear();
         for c in 0..NCOMP {
-            acc.tsum[c] += self.tot[c];
-            acc.tsq[c] += self.tot[c] * self.tot[c];
+            acc.tsum[r * NCOMP + c] += self.tot[c];
             self.tot[c] = 0.0;
         }
     }
@@ -248,7 +252,7 @@ struct Shot {
 /// A return to score: its delay (ns), normalised energy, order and part.
 #[inline]
 fn score(lidar: &Lidar, s: &mut Scratch, t_ns: f64, e: f64, order: u32, first_part: usize) {
-    if !(e > 0.0) {
+    if e.is_nan() || e <= 0.0 {
         return;
     }
     let parts: [usize; 2] = if order <= 1 {
@@ -282,21 +286,39 @@ struct Path {
     order: u32,
     /// Whether the next flight is the first (from the laser).
     first_flight: bool,
+    /// The uniform number that places the first flight's forced collision (a Sobol
+    /// dimension: the air's first-order returns are then stratified in optical depth).
+    u_force: f64,
 }
 
-/// Trace one photon (both branches of its first flight) and score it into `s`.
-fn photon(lidar: &Lidar, world: &World, shot: &Shot, rng: &mut Stream, s: &mut Scratch) {
-    let (fx, fy) = lidar.footprint.sample(rng.next_f64(), rng.next_f64());
+/// Trace one photon (both branches of its first flight) through the footprint point of the
+/// uniform numbers `u` and score it into `s`.
+fn photon(
+    lidar: &Lidar,
+    world: &World,
+    shot: &Shot,
+    u: [f64; 3],
+    rng: &mut Stream,
+    s: &mut Scratch,
+) {
+    let (fx, fy, w0) = lidar.footprint.sample(u[0], u[1]);
     let target = shot.centre + shot.e1 * fx + shot.e2 * fy;
-    let d = (target - shot.sensor).normalize();
+    // A point source at the sensor, or parallel rays from the plane through the sensor
+    // perpendicular to the beam.
+    let (start, d) = if lidar.parallel {
+        (target - shot.axis * shot.r0, shot.axis)
+    } else {
+        (shot.sensor, (target - shot.sensor).normalize())
+    };
     let mut stack = [None, None];
     stack[0] = Some(Path {
-        p: shot.sensor,
+        p: start,
         d,
-        w: 1.0,
+        w: w0,
         len: 0.0,
         order: 0,
         first_flight: true,
+        u_force: u[2],
     });
     let mut top = 1;
     while top > 0 {
@@ -304,15 +326,10 @@ fn photon(lidar: &Lidar, world: &World, shot: &Shot, rng: &mut Stream, s: &mut S
         let Some(mut path) = stack[top].take() else {
             continue;
         };
-        loop {
-            match flight(lidar, world, shot, rng, s, &mut path) {
-                Flight::Continue(branch) => {
-                    if let Some(b) = branch {
-                        stack[top] = Some(b);
-                        top += 1;
-                    }
-                }
-                Flight::End => break,
+        while let Flight::Continue(branch) = flight(lidar, world, shot, rng, s, &mut path) {
+            if let Some(b) = branch {
+                stack[top] = Some(b);
+                top += 1;
             }
         }
     }
@@ -347,7 +364,7 @@ fn flight(
             let tau = atm.optical_path(path.p.z, path.d.z, t_end);
             let tr = (-tau).exp();
             if tau > 0.0 {
-                let u = rng.next_f64();
+                let u = path.u_force;
                 let tau_c = -(-u * (-(-tau).exp_m1())).ln_1p();
                 if let Some(tc) = atm.march(path.p.z, path.d.z, tau_c, t_end) {
                     let mut b = *path;
@@ -385,9 +402,7 @@ fn flight(
     path.p += path.d * h.t;
     path.len += h.t;
     path.order += 1;
-    let to_s = shot.sensor - path.p;
-    let dist = to_s.length();
-    let wr = to_s / dist;
+    let (wr, dist) = towards_receiver(lidar, shot, path.p);
     let part = if h.ground { FIRST_GROUND } else { FIRST_CANOPY };
     if in_fov(shot, path.p) {
         let f = h.model.eval_cos(h.normal, wr, -path.d);
@@ -447,13 +462,11 @@ fn air_event(
     path.order += 1;
     let layer = atm.layer_at_altitude(path.p.z);
     path.w *= atm.albedo(layer);
-    if !(path.w > 0.0) {
+    if path.w.is_nan() || path.w <= 0.0 {
         return false;
     }
     let phase = atm.phase(layer);
-    let to_s = shot.sensor - path.p;
-    let dist = to_s.length();
-    let wr = to_s / dist;
+    let (wr, dist) = towards_receiver(lidar, shot, path.p);
     if in_fov(shot, path.p) && world.sees_up(path.p, None, wr) {
         let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
         let ratio = shot.r0 / dist;
@@ -484,6 +497,19 @@ fn roulette(path: &mut Path, rng: &mut Stream) -> bool {
     }
 }
 
+/// The unit direction from `p` towards the receiver and the distance the return travels: to
+/// the sensor's point, or with parallel rays along the beam axis to the sensor's plane.
+#[inline]
+fn towards_receiver(lidar: &Lidar, shot: &Shot, p: DVec3) -> (DVec3, f64) {
+    if lidar.parallel {
+        (-shot.axis, (p - shot.sensor).dot(shot.axis))
+    } else {
+        let to_s = shot.sensor - p;
+        let dist = to_s.length();
+        (to_s / dist, dist)
+    }
+}
+
 #[inline]
 fn in_fov(shot: &Shot, p: DVec3) -> bool {
     let v = p - shot.sensor;
@@ -505,7 +531,8 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
         cos_fov: lidar.fov_half_angle.cos(),
     };
     let nbins = lidar.bins.count;
-    let nblocks = lidar.spp.div_ceil(BLOCK);
+    let spp = lidar.spp.div_ceil(REPLICATES) * REPLICATES;
+    let nblocks = spp.div_ceil(BLOCK);
     let mut acc = Acc::new(nbins);
     let blocks: Vec<u64> = (0..nblocks).collect();
     for chunk in blocks.chunks(CHUNK) {
@@ -519,10 +546,25 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
                     touched: Vec::new(),
                     tot: [0.0; NCOMP],
                 };
-                let n = BLOCK.min(lidar.spp - b * BLOCK);
-                for _ in 0..n {
-                    photon(lidar, world, &shot, &mut rng, &mut s);
-                    s.flush(&mut a);
+                for i in b * BLOCK..(b * BLOCK + BLOCK).min(spp) {
+                    let r = i % REPLICATES;
+                    let j = i / REPLICATES;
+                    let scramble = crate::rng::mix64(
+                        seed ^ crate::rng::mix64(
+                            (lidar.index as u64) << 40
+                                ^ (k as u64) << 8
+                                ^ r
+                                ^ (j / SOBOL_POINTS) << 48,
+                        ),
+                    ) as u32;
+                    let idx = (j % SOBOL_POINTS) as u32;
+                    let u = [
+                        f64::from(sobol_burley::sample(idx, 0, scramble)),
+                        f64::from(sobol_burley::sample(idx, 1, scramble)),
+                        f64::from(sobol_burley::sample(idx, 2, scramble)),
+                    ];
+                    photon(lidar, world, &shot, u, &mut rng, &mut s);
+                    s.flush(&mut a, r as usize);
                 }
                 a
             })
@@ -531,19 +573,29 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
             acc.merge(p);
         }
     }
-    let n = acc.n as f64;
-    let stat = |sum: f64, sq: f64| {
-        let mean = sum / n;
-        let var = ((sq / n - mean * mean) * n / (n - 1.0)).max(0.0);
+    // Replicate r holds spp / R photons.
+    let per = (spp / REPLICATES) as f64;
+    let rn = REPLICATES as f64;
+    let stat = |sums: &mut dyn Iterator<Item = f64>| {
+        let means: Vec<f64> = sums.map(|x| x / per).collect();
+        let mean = means.iter().sum::<f64>() / rn;
+        let var = means.iter().map(|m| (m - mean) * (m - mean)).sum::<f64>() / (rn * (rn - 1.0));
         Stat {
             mean,
-            stderr: (var / n).sqrt(),
+            stderr: var.sqrt(),
         }
     };
+    let stride = nbins * NCOMP;
     let bins = (0..nbins)
-        .map(|b| std::array::from_fn(|c| stat(acc.sum[b * NCOMP + c], acc.sq[b * NCOMP + c])))
+        .map(|b| {
+            std::array::from_fn(|c| {
+                stat(&mut (0..REPLICATES as usize).map(|r| acc.sum[r * stride + b * NCOMP + c]))
+            })
+        })
         .collect();
-    let totals = std::array::from_fn(|c| stat(acc.tsum[c], acc.tsq[c]));
+    let totals = std::array::from_fn(|c| {
+        stat(&mut (0..REPLICATES as usize).map(|r| acc.tsum[r * NCOMP + c]))
+    });
     ShotWaveform {
         photons: acc.n,
         bins,
