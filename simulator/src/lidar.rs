@@ -56,32 +56,46 @@ pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
         b.set_prefix(lidar.id.clone());
         b
     });
-    let mut shots = Vec::with_capacity(lidar.shots.len());
+    // Shots in parallel (each shot's photon blocks too): every shot's result depends only on
+    // its own streams, so the order of work does not matter.
+    use rayon::prelude::*;
+    let per_shot: Vec<(ShotWaveform, Option<(CountingStats, Vec<PhotonEvent>)>)> =
+        (0..lidar.shots.len())
+            .into_par_iter()
+            .map(|k| {
+                let w = trace_shot(lidar, &world, exp.seed, k);
+                let counted = (lidar.mode == LidarMode::PhotonCounting).then(|| {
+                    let bg = if exp.sun_up() {
+                        counting::background(
+                            lidar,
+                            &world,
+                            exp.sun_dir,
+                            optics.irradiance,
+                            exp.seed,
+                            k,
+                            BACKGROUND_SAMPLES,
+                        )
+                    } else {
+                        Stat::default()
+                    };
+                    let st = counting::stats(lidar, &w, k, bg);
+                    let ev = counting::simulate_shots(lidar, &st, exp.seed, k);
+                    (st, ev)
+                });
+                if let Some(b) = &bar {
+                    b.inc(1);
+                }
+                (w, counted)
+            })
+            .collect();
+    let mut shots = Vec::with_capacity(per_shot.len());
     let mut stats = Vec::new();
     let mut events = Vec::new();
-    for k in 0..lidar.shots.len() {
-        let w = trace_shot(lidar, &world, exp.seed, k);
-        if lidar.mode == LidarMode::PhotonCounting {
-            let bg = if exp.sun_up() {
-                counting::background(
-                    lidar,
-                    &world,
-                    exp.sun_dir,
-                    optics.irradiance,
-                    exp.seed,
-                    k,
-                    BACKGROUND_SAMPLES,
-                )
-            } else {
-                Stat::default()
-            };
-            let st = counting::stats(lidar, &w, k, bg);
-            events.extend(counting::simulate_shots(lidar, &st, exp.seed, k));
-            stats.push(st);
-        }
+    for (w, counted) in per_shot {
         shots.push(w);
-        if let Some(b) = &bar {
-            b.inc(1);
+        if let Some((st, ev)) = counted {
+            stats.push(st);
+            events.extend(ev);
         }
     }
     if let Some(b) = bar {

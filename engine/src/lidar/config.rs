@@ -83,6 +83,11 @@ pub struct LidarConfig {
     /// Footprint centres [x, y] in the experiment's coordinates (default one at [0, 0]).
     #[serde(default)]
     pub shots: Option<Vec<[f64; 2]>>,
+    /// Or a ground track: footprint centres every `track_spacing_m` from [x0, y0] to [x1, y1].
+    #[serde(default)]
+    pub track_m: Option<[f64; 4]>,
+    #[serde(default)]
+    pub track_spacing_m: Option<f64>,
     /// Height of the footprint centres, m (default: the ground under each, or the 1D ground).
     #[serde(default)]
     pub footprint_height_m: Option<f64>,
@@ -231,7 +236,40 @@ impl LidarConfig {
         let receiver_area_m2 = positive("receiver_area_m2", self.receiver_area_m2)?;
 
         // Shots: footprint centres in the local frame.
-        let given = self.shots.clone().unwrap_or_else(|| vec![[0.0, 0.0]]);
+        let given = match (&self.shots, self.track_m) {
+            (Some(_), Some(_)) => {
+                return Err(ctx.err(key("track_m"), "give `shots` or `track_m`, not both"))
+            }
+            (Some(s), None) => s.clone(),
+            (None, None) => vec![[0.0, 0.0]],
+            (None, Some(t)) => {
+                let sp = self.track_spacing_m.ok_or_else(|| {
+                    ctx.err(key("track_spacing_m"), "a `track_m` needs its spacing (m)")
+                })?;
+                let sp = positive("track_spacing_m", sp)?;
+                for (i, v) in t.iter().enumerate() {
+                    finite(&format!("track_m[{i}]"), *v)?;
+                }
+                let len = ((t[2] - t[0]).powi(2) + (t[3] - t[1]).powi(2)).sqrt();
+                let n = (len / sp + 1e-9).floor() + 1.0;
+                if n > MAX_SHOTS as f64 {
+                    return Err(ctx.err(
+                        key("track_spacing_m"),
+                        format!("{n} shots along the track: at most {MAX_SHOTS}"),
+                    ));
+                }
+                let n = n as usize;
+                (0..n)
+                    .map(|i| {
+                        let f = if len > 0.0 { i as f64 * sp / len } else { 0.0 };
+                        [t[0] + f * (t[2] - t[0]), t[1] + f * (t[3] - t[1])]
+                    })
+                    .collect()
+            }
+        };
+        if self.track_spacing_m.is_some() && self.track_m.is_none() {
+            return Err(ctx.err(key("track_spacing_m"), "goes with `track_m`"));
+        }
         if given.is_empty() || given.len() > MAX_SHOTS {
             return Err(ctx.err(
                 key("shots"),

@@ -32,17 +32,20 @@
 //! arrives later. The first flight is split into its uncollided part (weight `T`, on to the
 //! first surface) and a forced collision in the air (weight `1 − T`, collision point drawn
 //! from `β T`): first-order air returns then have little noise. Later flights are analog, and
-//! Russian roulette ends paths of small weight without bias.
+//! Russian roulette ends paths of small weight after each scattering, without bias.
 //!
 //! **Pulse and bins** (`bins.rs`). Each contribution is spread over the time bins by the
 //! pulse's exact integral over each bin (Gaussian: `Φ((b − t)/σ_t) − Φ((a − t)/σ_t)`), so the
 //! pulse adds no noise. Bins are given in time or in apparent height `z = z_c − c t/2`.
 //!
-//! **Errors.** One sample is one photon path (both branches of its first flight together):
-//! every bin and total is the mean over the photons of a shot, with the standard error of that
-//! mean from the same photons. Photons are traced in fixed blocks on streams keyed by the
-//! seed, the measure, the shot and the block, and merged in block order: results do not depend
-//! on the thread count.
+//! **Errors.** One sample is one photon path (both branches of its first flight together).
+//! Footprint points (and the forced collision's optical depth) come from 32 independently
+//! Owen-scrambled Sobol sequences (`trace.rs`, `REPLICATES`): every bin and total is the mean
+//! over the shot's photons, with the standard error from the spread of the 32 replicates'
+//! means. Gaussian footprints are sampled from a defensive mixture with bounded weights, so the
+//! far tails are sampled too. Photons are traced in fixed blocks on streams keyed by the seed,
+//! the measure, the shot and the block, and merged in block order: results do not depend on the
+//! thread count.
 //!
 //! **Photon counting** (`counting.rs`). Detected signal photons per shot are Poisson with mean
 //! `n̄ = E_T λ/(h c) · η · e · A_r/(π R0²)`; solar background photons per range gate are Poisson

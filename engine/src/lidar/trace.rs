@@ -50,8 +50,8 @@ pub const REPLICATES: u64 = 32;
 const SOBOL_POINTS: u64 = 1 << 16;
 /// Blocks traced at once before merging (bounds the memory of per-block accumulators).
 const CHUNK: usize = 32;
-/// Russian roulette: paths of weight below this, from the second order on, survive with
-/// probability `w / RR_WEIGHT` and carry `RR_WEIGHT`.
+/// Russian roulette: paths of weight below this survive a scattering with probability
+/// `w / RR_WEIGHT` and carry `RR_WEIGHT`.
 const RR_WEIGHT: f64 = 0.2;
 /// Stream tag of lidar photons.
 const LIDAR_STREAM: u64 = 0x11DA_4000;
@@ -483,10 +483,12 @@ fn air_event(
     roulette(path, rng)
 }
 
-/// Russian roulette from the second order on; false when the path ends.
+/// Russian roulette once a path has scattered (its next-event estimate made); false when the
+/// path ends. It ends most forced-collision branches in thin air at once (their weight is
+/// `1 − T`), and dark surfaces' paths, without bias.
 #[inline]
 fn roulette(path: &mut Path, rng: &mut Stream) -> bool {
-    if path.order < 2 || path.w >= RR_WEIGHT {
+    if path.order < 1 || path.w >= RR_WEIGHT {
         return true;
     }
     if rng.next_f64() * RR_WEIGHT < path.w {
