@@ -16,6 +16,9 @@ use crate::error::OutputError;
 /// Lines of sight per footprint for the solar background.
 const BACKGROUND_SAMPLES: u64 = 1 << 16;
 
+/// One shot's photon-counting statistics and simulated photons.
+type Counted = (CountingStats, Vec<PhotonEvent>);
+
 /// One lidar measure's results.
 #[derive(Clone, Debug)]
 pub struct LidarResult {
@@ -59,35 +62,34 @@ pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
     // Shots in parallel (each shot's photon blocks too): every shot's result depends only on
     // its own streams, so the order of work does not matter.
     use rayon::prelude::*;
-    let per_shot: Vec<(ShotWaveform, Option<(CountingStats, Vec<PhotonEvent>)>)> =
-        (0..lidar.shots.len())
-            .into_par_iter()
-            .map(|k| {
-                let w = trace_shot(lidar, &world, exp.seed, k);
-                let counted = (lidar.mode == LidarMode::PhotonCounting).then(|| {
-                    let bg = if exp.sun_up() {
-                        counting::background(
-                            lidar,
-                            &world,
-                            exp.sun_dir,
-                            optics.irradiance,
-                            exp.seed,
-                            k,
-                            BACKGROUND_SAMPLES,
-                        )
-                    } else {
-                        Stat::default()
-                    };
-                    let st = counting::stats(lidar, &w, k, bg);
-                    let ev = counting::simulate_shots(lidar, &st, exp.seed, k);
-                    (st, ev)
-                });
-                if let Some(b) = &bar {
-                    b.inc(1);
-                }
-                (w, counted)
-            })
-            .collect();
+    let per_shot: Vec<(ShotWaveform, Option<Counted>)> = (0..lidar.shots.len())
+        .into_par_iter()
+        .map(|k| {
+            let w = trace_shot(lidar, &world, exp.seed, k);
+            let counted = (lidar.mode == LidarMode::PhotonCounting).then(|| {
+                let bg = if exp.sun_up() {
+                    counting::background(
+                        lidar,
+                        &world,
+                        exp.sun_dir,
+                        optics.irradiance,
+                        exp.seed,
+                        k,
+                        BACKGROUND_SAMPLES,
+                    )
+                } else {
+                    Stat::default()
+                };
+                let st = counting::stats(lidar, &w, k, bg);
+                let ev = counting::simulate_shots(lidar, &st, exp.seed, k);
+                (st, ev)
+            });
+            if let Some(b) = &bar {
+                b.inc(1);
+            }
+            (w, counted)
+        })
+        .collect();
     let mut shots = Vec::with_capacity(per_shot.len());
     let mut stats = Vec::new();
     let mut events = Vec::new();
