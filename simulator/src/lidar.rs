@@ -191,6 +191,44 @@ pub fn totals_csv(r: &LidarResult) -> String {
     s
 }
 
+/// The text of `ID_metrics.csv`: GEDI-like metrics per shot (engine::lidar::metrics), heights
+/// in m (the ground above the footprint centre and as an elevation; RH above the ground), each
+/// with its standard error; shots without a ground return are left out.
+pub fn metrics_csv(r: &LidarResult) -> String {
+    use engine::lidar::metrics::RH_PERCENTS;
+    let mut s = String::from("shot,x,y,ground_m,ground_m_stderr,ground_elevation_m");
+    for p in RH_PERCENTS {
+        let _ = write!(s, ",rh{p},rh{p}_stderr");
+    }
+    s.push_str(",top_m,top_m_stderr,cover,cover_stderr\n");
+    for (k, w) in r.shots.iter().enumerate() {
+        let Some((m, e)) = &w.metrics else {
+            continue;
+        };
+        let [x, y] = r.lidar.shots_given[k];
+        let zc = r.lidar.shots[k].z;
+        let _ = write!(
+            s,
+            "{k},{x},{y},{},{},{}",
+            num(m.ground),
+            num(e.ground),
+            num(zc + m.ground)
+        );
+        for (v, se) in m.rh.iter().zip(&e.rh) {
+            let _ = write!(s, ",{},{}", num(*v), num(*se));
+        }
+        let _ = writeln!(
+            s,
+            ",{},{},{},{}",
+            num(m.top),
+            num(e.top),
+            num(m.cover),
+            num(e.cover)
+        );
+    }
+    s
+}
+
 /// The text of `ID_photon_stats.csv`: per location, each statistic with its standard error.
 pub fn photon_stats_csv(r: &LidarResult) -> String {
     let mut s = String::from("location,x,y,statistic,value,stderr\n");
@@ -253,6 +291,7 @@ pub fn write(dir: &Path, results: &[LidarResult]) -> Result<(), OutputError> {
         let id = &r.lidar.id;
         put(format!("{id}_waveform.csv"), waveform_csv(r))?;
         put(format!("{id}_totals.csv"), totals_csv(r))?;
+        put(format!("{id}_metrics.csv"), metrics_csv(r))?;
         if r.lidar.mode == LidarMode::PhotonCounting {
             put(format!("{id}_photon_stats.csv"), photon_stats_csv(r))?;
             put(format!("{id}_photons.csv"), photons_csv(r))?;

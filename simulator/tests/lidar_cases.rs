@@ -148,6 +148,23 @@ fn lidar_validation_cases() {
     check_total("A1", a1.shots[0].totals[TOTAL], 0.3);
     check_profile("A1", &a1, false, gauss_bin(0.3, sigma_z));
     height_rows(&mut out, "A1", &a1, TOTAL);
+    // GEDI-like metrics of a waveform whose RH values are known: ground at 0, RH n the pulse's
+    // quantiles (σ_z Φ⁻¹(n)), no canopy.
+    let (m, e) = a1.shots[0].metrics.clone().expect("a ground return");
+    let rh = |p: f64| {
+        m.rh[engine::lidar::metrics::RH_PERCENTS
+            .iter()
+            .position(|&x| x == p)
+            .unwrap()]
+    };
+    println!(
+        "A1 metrics: ground {:.2e} ± {:.1e} m, RH25 {:.4} RH50 {:.4} RH75 {:.4} (±{:.4} expected), cover {}",
+        m.ground, e.ground, rh(25.0), rh(50.0), rh(75.0), 0.674_489_75 * sigma_z, m.cover
+    );
+    assert!(m.ground.abs() < 1e-4 && rh(50.0).abs() < 1e-3);
+    assert!((rh(75.0) - 0.674_489_75 * sigma_z).abs() < 5e-3);
+    assert!((rh(25.0) + 0.674_489_75 * sigma_z).abs() < 5e-3);
+    assert_eq!(m.cover, 0.0);
     let a2 = run("A2");
     check_total("A2", a2.shots[0].totals[TOTAL], 0.5);
     check_profile(
@@ -436,4 +453,65 @@ spp = 400000
         e.mean, e.stderr
     );
     assert!(z.abs() < 4.0);
+}
+
+/// Bad lidar input is refused with the key named (and nothing panics).
+#[test]
+fn bad_lidar_input_names_the_key() {
+    let base = std::fs::read_to_string(dir().join("A1.toml")).unwrap();
+    let cases = [
+        (
+            "wavelength = 1064.0\naltitude",
+            "wavelength = 532.0\naltitude",
+            "measures[0].wavelength",
+        ),
+        ("bin_m = 0.15\n", "", "measures[0].bin_ns"),
+        (
+            "spp = 200000",
+            "spp = 200000\nfootprint_sigma = 3.0",
+            "footprint_sigma",
+        ),
+        (
+            "footprint_sigma_m = 5.5",
+            "footprint_sigma_m = nan",
+            "measures[0].footprint_sigma_m",
+        ),
+        (
+            "altitude_m = 500000.0",
+            "altitude_m = 0.5",
+            "measures[0].altitude_m",
+        ),
+        (
+            "spp = 200000",
+            "spp = 200000\nzenith = 95.0",
+            "measures[0].zenith",
+        ),
+        (
+            "spp = 200000",
+            "spp = 200000\nground_slope_deg = 85.0",
+            "measures[0].ground_slope_deg",
+        ),
+        (
+            "bins_m = [-6.0, 6.0]",
+            "bins_m = [6.0, -6.0]",
+            "measures[0].bins_m",
+        ),
+        (
+            "spp = 200000",
+            "spp = 200000\ntrack_spacing_m = 5.0",
+            "measures[0].track_spacing_m",
+        ),
+    ];
+    for (from, to, key) in cases {
+        assert!(base.contains(from), "{from}");
+        let text = base.replacen(from, to, 1);
+        match Experiment::from_str(&text, &dir().join("bad.toml")) {
+            Ok(_) => panic!("accepted: {to}"),
+            Err(e) => {
+                let msg = e.to_string();
+                assert!(msg.contains(key), "{key} not named: {msg}");
+                println!("{key}: {msg}");
+            }
+        }
+    }
 }

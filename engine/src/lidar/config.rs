@@ -6,7 +6,6 @@ use serde::Deserialize;
 
 use super::bins::Bins;
 use super::{Footprint, Lidar, LidarMode, Slope, C_M_PER_NS};
-use crate::config::scene::frame;
 use crate::error::{ConfigCtx, ConfigError};
 use crate::frame::direction_from_angles;
 use crate::scene::Scene;
@@ -118,6 +117,18 @@ pub struct LidarConfig {
     pub filter_width_nm: f64,
     #[serde(default)]
     pub range_gate_ns: Option<f64>,
+    /// Canopy-cover metric: vegetation and ground reflectances (gediMetric's 0.57 and 0.4).
+    #[serde(default = "rho_v")]
+    pub cover_rho_v: f64,
+    #[serde(default = "rho_g")]
+    pub cover_rho_g: f64,
+}
+
+fn rho_v() -> f64 {
+    0.57
+}
+fn rho_g() -> f64 {
+    0.4
 }
 
 fn one() -> f64 {
@@ -279,12 +290,13 @@ impl LidarConfig {
                 ),
             ));
         }
-        let sf = scene.map(frame);
+        // The experiment's coordinates of the scene's local origin (a bundle's working CRS).
+        let origin = scene.and_then(|s| s.georef.as_ref().map(|g| (g.origin.x, g.origin.y)));
         let mut shots = Vec::with_capacity(given.len());
         for (i, s) in given.iter().enumerate() {
             let k = format!("shots[{i}]");
             let (x, y) = (finite(&k, s[0])?, finite(&k, s[1])?);
-            let (lx, ly) = sf.as_ref().map_or((x, y), |f| f.to_local(x, y));
+            let (lx, ly) = origin.map_or((x, y), |(ox, oy)| (x - ox, y - oy));
             let z = match (self.footprint_height_m, scene) {
                 (Some(z), _) => finite("footprint_height_m", z)?,
                 (None, Some(sc)) => sc.ground_height(lx, ly).ok_or_else(|| {
@@ -389,6 +401,10 @@ impl LidarConfig {
             Some(g) => positive("range_gate_ns", g)?,
             None => bins.count as f64 * bins.width_ns,
         };
+        let cover_rho = (
+            positive("cover_rho_v", self.cover_rho_v)?,
+            positive("cover_rho_g", self.cover_rho_g)?,
+        );
         Ok(Lidar {
             id: self.id.clone(),
             index,
@@ -416,6 +432,7 @@ impl LidarConfig {
             shots_per_location: self.shots_per_location,
             filter_width_nm,
             gate_ns,
+            cover_rho,
         })
     }
 

@@ -63,6 +63,7 @@
 pub mod bins;
 pub mod config;
 pub mod counting;
+pub mod metrics;
 pub mod trace;
 
 use glam::DVec3;
@@ -191,6 +192,8 @@ pub struct Lidar {
     pub shots_per_location: u64,
     pub filter_width_nm: f64,
     pub gate_ns: f64,
+    /// Leaf and ground reflectances of the canopy-cover metric (`metrics.rs`).
+    pub cover_rho: (f64, f64),
 }
 
 impl Lidar {

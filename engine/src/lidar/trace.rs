@@ -71,6 +71,9 @@ pub struct ShotWaveform {
     pub bins: Vec<[Stat; NCOMP]>,
     /// Whole returns (every delay, inside the bins or not), per part.
     pub totals: [Stat; NCOMP],
+    /// GEDI-like metrics of the waveform (`metrics.rs`) and their standard errors (NaN when a
+    /// replicate has no ground return); `None` without a ground return.
+    pub metrics: Option<(super::metrics::Metrics, super::metrics::Metrics)>,
 }
 
 /// Running sums over photons, per replicate (see [`REPLICATES`]).
@@ -598,9 +601,76 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
     let totals = std::array::from_fn(|c| {
         stat(&mut (0..REPLICATES as usize).map(|r| acc.tsum[r * NCOMP + c]))
     });
+    let metrics = shot_metrics(lidar, &acc, per);
     ShotWaveform {
         photons: acc.n,
         bins,
         totals,
+        metrics,
     }
+}
+
+/// The metrics of the shot's mean waveform, and their standard errors from the replicates.
+fn shot_metrics(
+    lidar: &Lidar,
+    acc: &Acc,
+    per: f64,
+) -> Option<(super::metrics::Metrics, super::metrics::Metrics)> {
+    use super::metrics::{metrics, Metrics, Profile};
+    let nbins = lidar.bins.count;
+    let stride = nbins * NCOMP;
+    let heights: Vec<f64> = (0..nbins)
+        .map(|k| -0.5 * C_M_PER_NS * lidar.bins.centre_ns(k))
+        .collect();
+    let w = 0.5 * C_M_PER_NS * lidar.bins.width_ns;
+    let (rv, rg) = lidar.cover_rho;
+    let reps = REPLICATES as usize;
+    // Replicate r's waveform, or (r = None) the mean of all.
+    let of = |r: Option<usize>| -> Option<Metrics> {
+        let (rs, scale) = match r {
+            Some(r) => (r..r + 1, 1.0 / per),
+            None => (0..reps, 1.0 / (per * reps as f64)),
+        };
+        let part = |c: usize| -> Vec<f64> {
+            (0..nbins)
+                .map(|b| {
+                    rs.clone()
+                        .map(|r| acc.sum[r * stride + b * NCOMP + c])
+                        .sum::<f64>()
+                        * scale
+                })
+                .collect()
+        };
+        let energy = |c: usize| rs.clone().map(|r| acc.tsum[r * NCOMP + c]).sum::<f64>() * scale;
+        let (total, ground) = (part(TOTAL), part(FIRST_GROUND));
+        let p = Profile {
+            heights: &heights,
+            width: w,
+            total: &total,
+            ground: &ground,
+            canopy_energy: energy(FIRST_CANOPY),
+            ground_energy: energy(FIRST_GROUND),
+        };
+        metrics(&p, rv, rg)
+    };
+    let full = of(None)?;
+    let each: Vec<Option<Metrics>> = (0..reps).map(|r| of(Some(r))).collect();
+    let spread = |get: &dyn Fn(&Metrics) -> f64| -> f64 {
+        let vals: Option<Vec<f64>> = each.iter().map(|m| m.as_ref().map(get)).collect();
+        match vals {
+            Some(v) => {
+                let n = v.len() as f64;
+                let mean = v.iter().sum::<f64>() / n;
+                (v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0) / n).sqrt()
+            }
+            None => f64::NAN,
+        }
+    };
+    let err = Metrics {
+        ground: spread(&|m| m.ground),
+        rh: (0..full.rh.len()).map(|i| spread(&|m| m.rh[i])).collect(),
+        top: spread(&|m| m.top),
+        cover: spread(&|m| m.cover),
+    };
+    Some((full, err))
 }
