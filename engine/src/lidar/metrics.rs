@@ -104,9 +104,7 @@ mod tests {
         total[2] = 2.0; // the bin [−0.5, 0.5]
         ground[2] = 2.0;
         // Canopy: bins centred at 11 … 20 (covering 10.5 … 20.5), 0.1 each.
-        for k in 13..23 {
-            total[k] = 0.1;
-        }
+        total[13..23].fill(0.1);
         let p = Profile {
             heights: &heights,
             width: 1.0,
