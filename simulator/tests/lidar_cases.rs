@@ -515,3 +515,42 @@ fn bad_lidar_input_names_the_key() {
         }
     }
 }
+
+/// The lidar products (CSV and the netCDF variables) hold the run's numbers.
+#[test]
+fn lidar_products_read_back() {
+    let exp = Experiment::load_with_spp(&dir().join("C1.toml"), Some(2_000)).unwrap();
+    let r = run_one(&exp, &exp.lidars[0], false);
+    let out = std::env::temp_dir().join(format!("lidar_products_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    simulator::products::write_all(&out, &exp, &[], &[], &[], std::slice::from_ref(&r)).unwrap();
+    // netCDF: energy(shot, part, bin) and its coordinates.
+    let f = netcdf::open(out.join("results.nc")).unwrap();
+    let e: Vec<f64> = f.variable("C1_energy").unwrap().get_values(..).unwrap();
+    let nb = r.lidar.bins.count;
+    assert_eq!(e.len(), engine::lidar::trace::NCOMP * nb);
+    for (k, b) in r.shots[0].bins.iter().enumerate() {
+        assert_eq!(e[k], b[TOTAL].mean);
+        assert_eq!(e[FIRST * nb + k], b[FIRST].mean);
+    }
+    let h: Vec<f64> = f.variable("C1_height_m").unwrap().get_values(..).unwrap();
+    assert!(
+        (h[0] - 9.0).abs() < 1e-9 && (h[nb - 1] + 9.0).abs() < 1e-9,
+        "{} {}",
+        h[0],
+        h[nb - 1]
+    );
+    let rh: Vec<f64> = f.variable("C1_rh_m").unwrap().get_values(..).unwrap();
+    assert_eq!(rh, r.shots[0].metrics.as_ref().unwrap().0.rh);
+    // CSV: the same waveform, one row per bin.
+    let text = std::fs::read_to_string(out.join("C1_waveform.csv")).unwrap();
+    let rows: Vec<&str> = text.lines().skip(1).collect();
+    assert_eq!(rows.len(), nb);
+    for (row, b) in rows.iter().zip(&r.shots[0].bins) {
+        let v: f64 = row.split(',').nth(6).unwrap().parse().unwrap();
+        assert_eq!(v, b[TOTAL].mean);
+    }
+    assert!(out.join("C1_metrics.csv").is_file() && out.join("C1_totals.csv").is_file());
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -90,6 +90,7 @@ pub fn write_all(
         if !band.is_empty() {
             csv::write_band(&stage.path("results_band.csv"), band)?;
         }
+        netcdf::lidar::append(&stage.path("results.nc"), lidars)?;
         crate::lidar::write(stage.dir(), lidars)?;
         Ok(())
     })()

@@ -21,6 +21,7 @@
 
 mod grid_mapping;
 mod image;
+pub mod lidar;
 mod table;
 
 use std::path::Path;
