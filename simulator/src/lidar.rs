@@ -7,7 +7,9 @@ use std::path::Path;
 
 use engine::config::resolve::Experiment;
 use engine::lidar::counting::{self, CountingStats, PhotonEvent};
-use engine::lidar::trace::{trace_shot, ShotWaveform, Stat, World, COMP_NAMES, NCOMP};
+use engine::lidar::trace::{
+    trace_shot, ShotWaveform, Stat, World, COMP_NAMES, FIRST_GROUND, NCOMP, TOTAL,
+};
 use engine::lidar::{Lidar, LidarMode, C_M_PER_NS};
 use engine::scene::material::SurfaceModel;
 
@@ -27,6 +29,11 @@ pub struct LidarResult {
     /// Photon counting: per shot location.
     pub counting: Vec<CountingStats>,
     pub events: Vec<PhotonEvent>,
+    /// Discrete mode: the returns of each shot's waveform.
+    pub returns: Vec<Vec<engine::lidar::discrete::Return>>,
+    /// The working CRS (WKT) and the coordinates of the scene's local origin in it, for the
+    /// point cloud (none for 1D runs: local coordinates).
+    pub georef: Option<engine::scene::world::Georef>,
 }
 
 /// Run every lidar measure of `exp`.
@@ -110,11 +117,33 @@ pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
         lidar.spp,
         t0.elapsed().as_secs_f64()
     );
+    let returns = if lidar.mode == LidarMode::Discrete {
+        shots
+            .iter()
+            .map(|w| {
+                let total: Vec<f64> = w.bins.iter().map(|b| b[TOTAL].mean).collect();
+                let ground: Vec<f64> = w.bins.iter().map(|b| b[FIRST_GROUND].mean).collect();
+                engine::lidar::discrete::detect(
+                    &total,
+                    &ground,
+                    lidar.bins.first_ns,
+                    lidar.bins.width_ns,
+                    lidar.detect_threshold,
+                    lidar.min_separation_ns,
+                    lidar.max_returns,
+                )
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     LidarResult {
         lidar: lidar.clone(),
         shots,
         counting: stats,
         events,
+        returns,
+        georef: exp.scene.as_ref().and_then(|s| s.georef.clone()),
     }
 }
 
@@ -281,6 +310,98 @@ pub fn photons_csv(r: &LidarResult) -> String {
     s
 }
 
+/// The points of a discrete-return run: position in the output CRS (the scene's working CRS,
+/// or the local frame of a 1D run), and the return.
+pub fn points(r: &LidarResult) -> Vec<([f64; 3], usize, engine::lidar::discrete::Return)> {
+    let l = &r.lidar;
+    let origin = r.georef.as_ref().map_or(glam::DVec3::ZERO, |g| g.origin);
+    let axis = -l.to_sensor;
+    let mut out = Vec::new();
+    for (k, rets) in r.returns.iter().enumerate() {
+        let c = l.shots[k];
+        let s = l.sensor(c);
+        for ret in rets {
+            let range = l.range0(c) + 0.5 * C_M_PER_NS * ret.time_ns;
+            let p = s + axis * range + origin;
+            out.push(([p.x, p.y, p.z], k, *ret));
+        }
+    }
+    out
+}
+
+/// Write the discrete returns of `r` as a LAS 1.4 point cloud (point format 6: GPS time,
+/// return numbers up to 15; coordinates to the millimetre; the working CRS as a WKT VLR).
+/// Intensity: the return's normalised energy × 65 535 (1 = a white Lambertian plane at normal
+/// incidence), clipped; classification 2 (ground) when the first-order ground return makes
+/// most of the return's energy, else 1 (unclassified: leaves, trunks and roofs are not told
+/// apart yet); GPS time: shot index / `pulse_rate_hz`; point source id: the shot index
+/// (modulo 65 536).
+pub fn write_las(path: &Path, r: &LidarResult) -> Result<(), OutputError> {
+    let err = |e: las::Error| OutputError::Io {
+        path: path.to_path_buf(),
+        source: std::io::Error::other(e.to_string()),
+    };
+    let mut b = las::Builder::from((1, 4));
+    b.point_format = las::point::Format::new(6).map_err(err)?;
+    b.generating_software = "eo-simulate".into();
+    b.system_identifier = "lidar simulation".into();
+    let pts = points(r);
+    let mut lo = [f64::INFINITY; 3];
+    for (p, _, _) in &pts {
+        for i in 0..3 {
+            lo[i] = lo[i].min(p[i]);
+        }
+    }
+    let offset = |i: usize| {
+        if lo[i].is_finite() {
+            lo[i].floor()
+        } else {
+            0.0
+        }
+    };
+    b.transforms = las::Vector {
+        x: las::Transform {
+            scale: 0.001,
+            offset: offset(0),
+        },
+        y: las::Transform {
+            scale: 0.001,
+            offset: offset(1),
+        },
+        z: las::Transform {
+            scale: 0.001,
+            offset: offset(2),
+        },
+    };
+    let mut header = b.into_header().map_err(err)?;
+    if let Some(g) = &r.georef {
+        header
+            .set_wkt_crs(g.wkt.clone().into_bytes())
+            .map_err(err)?;
+    }
+    let mut w = las::Writer::from_path(path, header).map_err(err)?;
+    for (p, k, ret) in pts {
+        let point = las::Point {
+            x: p[0],
+            y: p[1],
+            z: p[2],
+            intensity: (ret.energy * 65535.0).round().clamp(0.0, 65535.0) as u16,
+            return_number: ret.number,
+            number_of_returns: ret.count,
+            classification: if ret.ground_share > 0.5 {
+                las::point::Classification::Ground
+            } else {
+                las::point::Classification::Unclassified
+            },
+            gps_time: Some(k as f64 / r.lidar.pulse_rate_hz),
+            point_source_id: (k % 65_536) as u16,
+            ..Default::default()
+        };
+        w.write_point(point).map_err(err)?;
+    }
+    w.close().map_err(err)
+}
+
 /// Write every lidar product into `dir`.
 pub fn write(dir: &Path, results: &[LidarResult]) -> Result<(), OutputError> {
     let put = |name: String, text: String| {
@@ -292,6 +413,9 @@ pub fn write(dir: &Path, results: &[LidarResult]) -> Result<(), OutputError> {
         put(format!("{id}_waveform.csv"), waveform_csv(r))?;
         put(format!("{id}_totals.csv"), totals_csv(r))?;
         put(format!("{id}_metrics.csv"), metrics_csv(r))?;
+        if r.lidar.mode == LidarMode::Discrete {
+            write_las(&dir.join(format!("{id}.las")), r)?;
+        }
         if r.lidar.mode == LidarMode::PhotonCounting {
             put(format!("{id}_photon_stats.csv"), photon_stats_csv(r))?;
             put(format!("{id}_photons.csv"), photons_csv(r))?;

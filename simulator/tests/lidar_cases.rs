@@ -554,3 +554,42 @@ fn lidar_products_read_back() {
     assert!(out.join("C1_metrics.csv").is_file() && out.join("C1_totals.csv").is_file());
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Discrete returns as a LAS 1.4 point cloud: it reads back with the `las` crate, and each
+/// shot's point lies on the sloped plane it came from (within half a range bin), classified
+/// as ground, with the shot's GPS time.
+#[test]
+fn discrete_returns_read_back_from_las() {
+    let text = std::fs::read_to_string(dir().join("C1.toml"))
+        .unwrap()
+        .replace("id = \"C1\"", "id = \"als\"\nmode = \"discrete\"\ntrack_m = [0.0, -20.0, 0.0, 20.0]\ntrack_spacing_m = 5.0")
+        .replace("spp = 1000000", "spp = 20000");
+    let exp = Experiment::from_str(&text, &dir().join("discrete.toml")).unwrap();
+    let r = run_one(&exp, &exp.lidars[0], false);
+    let out = std::env::temp_dir().join(format!("lidar_las_{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&out);
+    std::fs::create_dir_all(&out).unwrap();
+    simulator::lidar::write(&out, std::slice::from_ref(&r)).unwrap();
+    let mut reader = las::Reader::from_path(out.join("als.las")).unwrap();
+    assert_eq!(reader.header().version(), las::Version::new(1, 4));
+    let data = reader.read_all().unwrap();
+    let points: Vec<las::Point> = data.points().map(|p| p.unwrap()).collect();
+    assert_eq!(points.len(), 9, "one return per shot on a bare plane");
+    let slope = 10f64.to_radians();
+    let half_bin = 0.5 * 0.15;
+    for (k, p) in points.iter().enumerate() {
+        // The plane through the origin whose normal leans 10° towards North: z = −y tan 10°.
+        let plane_z = -p.y * slope.tan();
+        let dist = (p.z - plane_z).abs() * slope.cos();
+        println!(
+            "point {k}: ({:.3}, {:.3}, {:.3}), distance to the plane {dist:.4} m",
+            p.x, p.y, p.z
+        );
+        assert!(dist <= half_bin, "point {k} is {dist} m off the plane");
+        assert_eq!(p.classification, las::point::Classification::Ground);
+        assert_eq!((p.return_number, p.number_of_returns), (1, 1));
+        assert!((p.gps_time.unwrap() - k as f64 / 242.0).abs() < 1e-9);
+        assert!(p.intensity > 0);
+    }
+    let _ = std::fs::remove_dir_all(&out);
+}

@@ -122,6 +122,27 @@ pub struct LidarConfig {
     pub cover_rho_v: f64,
     #[serde(default = "rho_g")]
     pub cover_rho_g: f64,
+    /// Discrete returns: detection threshold (fraction of the waveform's peak), minimum
+    /// separation of returns (m of range; default the pulse's FWHM in range, at least two
+    /// bins), most returns per shot, shot rate (Hz) for the points' GPS time.
+    #[serde(default = "default_threshold")]
+    pub detect_threshold: f64,
+    #[serde(default)]
+    pub min_separation_m: Option<f64>,
+    #[serde(default = "default_max_returns")]
+    pub max_returns: u32,
+    #[serde(default = "default_rate")]
+    pub pulse_rate_hz: f64,
+}
+
+fn default_threshold() -> f64 {
+    0.05
+}
+fn default_max_returns() -> u32 {
+    5
+}
+fn default_rate() -> f64 {
+    242.0
 }
 
 fn rho_v() -> f64 {
@@ -401,6 +422,30 @@ impl LidarConfig {
             Some(g) => positive("range_gate_ns", g)?,
             None => bins.count as f64 * bins.width_ns,
         };
+        let detect_threshold = finite("detect_threshold", self.detect_threshold)?;
+        if !(detect_threshold > 0.0 && detect_threshold < 1.0) {
+            return Err(ctx.err(
+                key("detect_threshold"),
+                format!(
+                    "{detect_threshold} must lie in (0, 1) (a fraction of the waveform's peak)"
+                ),
+            ));
+        }
+        let fwhm_range = 0.5 * C_M_PER_NS * pulse_sigma_ns * fwhm_per_sigma;
+        let min_sep_m = match self.min_separation_m {
+            Some(m) => positive("min_separation_m", m)?,
+            None => fwhm_range.max(C_M_PER_NS * bins.width_ns),
+        };
+        if !(1..=15).contains(&self.max_returns) {
+            return Err(ctx.err(
+                key("max_returns"),
+                format!(
+                    "{} must lie in [1, 15] (LAS 1.4 return numbers)",
+                    self.max_returns
+                ),
+            ));
+        }
+        let pulse_rate_hz = positive("pulse_rate_hz", self.pulse_rate_hz)?;
         let cover_rho = (
             positive("cover_rho_v", self.cover_rho_v)?,
             positive("cover_rho_g", self.cover_rho_g)?,
@@ -433,6 +478,10 @@ impl LidarConfig {
             filter_width_nm,
             gate_ns,
             cover_rho,
+            detect_threshold,
+            min_separation_ns: 2.0 * min_sep_m / C_M_PER_NS,
+            max_returns: self.max_returns as usize,
+            pulse_rate_hz,
         })
     }
 

@@ -63,6 +63,7 @@
 pub mod bins;
 pub mod config;
 pub mod counting;
+pub mod discrete;
 pub mod metrics;
 pub mod trace;
 
@@ -88,6 +89,8 @@ pub enum LidarMode {
     Waveform,
     /// Detected photons per shot (ICESat-2-like): Poisson statistics and photon events.
     PhotonCounting,
+    /// Discrete returns (airborne laser scanning) found on each waveform, as a LAS point cloud.
+    Discrete,
 }
 
 /// The energy distribution of the pulse across the beam.
@@ -194,6 +197,12 @@ pub struct Lidar {
     pub gate_ns: f64,
     /// Leaf and ground reflectances of the canopy-cover metric (`metrics.rs`).
     pub cover_rho: (f64, f64),
+    /// Discrete returns (`discrete.rs`): threshold (fraction of the peak), minimum separation
+    /// (ns, two-way), most returns per shot, and the shots' rate (Hz) for the GPS time.
+    pub detect_threshold: f64,
+    pub min_separation_ns: f64,
+    pub max_returns: usize,
+    pub pulse_rate_hz: f64,
 }
 
 impl Lidar {
