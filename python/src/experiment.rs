@@ -42,12 +42,13 @@ fn write_products(
     rows: &[products::Row],
     band: &[products::BandRow],
     images: &[products::imagery::ImageProduct],
+    lidars: &[simulator::lidar::LidarResult],
 ) -> Result<Vec<PathBuf>, simulator::error::OutputError> {
     std::fs::create_dir_all(output).map_err(|source| simulator::error::OutputError::Io {
         path: output.to_path_buf(),
         source,
     })?;
-    products::write_all(output, exp, rows, band, images, &[])
+    products::write_all(output, exp, rows, band, images, lidars)
         .map(|w| w.files)
         .map_err(|e| *e.error)
 }
@@ -75,12 +76,15 @@ impl Experiment {
             let rows = products::rows(exp, &results);
             let band = products::band_rows(exp, &rows);
             let images = products::imagery::image_products(exp, &results);
+            // Lidar measures are traced after the passive ones, as the command line does.
+            let lidars = simulator::lidar::run_all(exp, false);
             let written = output
                 .as_deref()
-                .map(|o| write_products(o, exp, &rows, &band, &images))
+                .map(|o| write_products(o, exp, &rows, &band, &images, &lidars))
                 .transpose();
             let raw = crate::dataset::in_memory(|f| {
-                products::netcdf::fill(f, exp, &rows, &band, &images)
+                products::netcdf::fill(f, exp, &rows, &band, &images)?;
+                products::netcdf::lidar::fill(f, &lidars)
             });
             Some((written, raw))
         })?;
@@ -98,10 +102,13 @@ impl Experiment {
         self.exp.wavelengths.clone()
     }
 
-    /// The measures' ids, in order.
+    /// The measures' ids, in order (passive measures, then lidars).
     #[getter]
     fn measures(&self) -> Vec<String> {
-        self.exp.measures.iter().map(|m| m.id.clone()).collect()
+        let passive = self.exp.measures.iter().map(|m| m.id.clone());
+        passive
+            .chain(self.exp.lidars.iter().map(|l| l.id.clone()))
+            .collect()
     }
 
     #[getter]

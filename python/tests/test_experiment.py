@@ -191,3 +191,19 @@ def test_read_toml_and_runs_write_no_files(tmp_path, monkeypatch):
     monkeypatch.setenv("TMPDIR", str(tmp_path / "tmp"))
     eosim.run(d, spp=100, progress=False, base_dir=REPO / "examples")
     assert not any((tmp_path / "cwd").iterdir()) and not any((tmp_path / "tmp").iterdir())
+
+
+def test_lidar_measures_come_back_in_the_dataset(tmp_path):
+    # The flat-ground lidar case A1 (validation/lidar): its waveform, whole returns and
+    # GEDI-like metrics come back as variables, and the CSV products are written on request.
+    exp = eosim.load(REPO / "validation" / "lidar" / "A1.toml", spp=20000)
+    assert exp.measures == ["A1"]
+    ds = exp.run(progress=False, output=tmp_path / "out")
+    e = ds["A1_energy"]
+    assert e.dims == ("A1_shot", "A1_part", "A1_bin")
+    assert ds["A1_height_m"].sizes["A1_bin"] == 81
+    total = ds["A1_total"].values[0, 0]
+    assert abs(total - 0.3) < 1e-3
+    assert abs(float(ds["A1_ground_m"].values[0])) < 1e-3
+    assert (tmp_path / "out" / "A1_waveform.csv").is_file()
+    assert (tmp_path / "out" / "A1_metrics.csv").is_file()

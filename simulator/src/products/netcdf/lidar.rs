@@ -36,10 +36,13 @@ pub fn append(path: &Path, lidars: &[LidarResult]) -> Result<(), OutputError> {
     };
     let _session = engine::netcdf_session();
     let mut f = netcdf::append(path).map_err(nc)?;
-    for r in lidars {
-        write_one(&mut f, r).map_err(nc)?;
-    }
-    Ok(())
+    fill(&mut f, lidars).map_err(nc)
+}
+
+/// The lidar variables written into an open file (on disk for [`append`], in memory for the
+/// Python package's dataset).
+pub fn fill(f: &mut netcdf::FileMut, lidars: &[LidarResult]) -> Result<(), netcdf::Error> {
+    lidars.iter().try_for_each(|r| write_one(f, r))
 }
 
 fn write_one(f: &mut netcdf::FileMut, r: &LidarResult) -> Result<(), netcdf::Error> {
