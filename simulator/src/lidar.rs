@@ -15,6 +15,8 @@ use engine::scene::material::SurfaceModel;
 
 use crate::error::OutputError;
 
+/// Lines of sight per footprint that class discrete returns by the surfaces they come from.
+const CLASS_SAMPLES: u64 = 4096;
 /// Lines of sight per footprint for the solar background.
 const BACKGROUND_SAMPLES: u64 = 1 << 16;
 
@@ -29,8 +31,8 @@ pub struct LidarResult {
     /// Photon counting: per shot location.
     pub counting: Vec<CountingStats>,
     pub events: Vec<PhotonEvent>,
-    /// Discrete mode: the returns of each shot's waveform.
-    pub returns: Vec<Vec<engine::lidar::discrete::Return>>,
+    /// Discrete mode: the returns of each shot's waveform, each with its LAS class.
+    pub returns: Vec<Vec<(engine::lidar::discrete::Return, u8)>>,
     /// The working CRS (WKT) and the coordinates of the scene's local origin in it, for the
     /// point cloud (none for 1D runs: local coordinates).
     pub georef: Option<engine::scene::world::Georef>,
@@ -118,12 +120,15 @@ pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
         t0.elapsed().as_secs_f64()
     );
     let returns = if lidar.mode == LidarMode::Discrete {
+        use engine::lidar::discrete::{self, GROUND, UNCLASSIFIED};
+        use rayon::prelude::*;
         shots
-            .iter()
-            .map(|w| {
+            .par_iter()
+            .enumerate()
+            .map(|(k, w)| {
                 let total: Vec<f64> = w.bins.iter().map(|b| b[TOTAL].mean).collect();
                 let ground: Vec<f64> = w.bins.iter().map(|b| b[FIRST_GROUND].mean).collect();
-                engine::lidar::discrete::detect(
+                let rets = discrete::detect(
                     &total,
                     &ground,
                     lidar.bins.first_ns,
@@ -131,7 +136,19 @@ pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
                     lidar.detect_threshold,
                     lidar.min_separation_ns,
                     lidar.max_returns,
-                )
+                );
+                let samples =
+                    discrete::first_order_classes(lidar, &world, exp.seed, k, CLASS_SAMPLES);
+                rets.into_iter()
+                    .map(|r| {
+                        let fallback = if r.ground_share > 0.5 {
+                            GROUND
+                        } else {
+                            UNCLASSIFIED
+                        };
+                        (r, discrete::class_in(&samples, r.window_ns, fallback))
+                    })
+                    .collect()
             })
             .collect()
     } else {
@@ -312,7 +329,7 @@ pub fn photons_csv(r: &LidarResult) -> String {
 
 /// The points of a discrete-return run: position in the output CRS (the scene's working CRS,
 /// or the local frame of a 1D run), and the return.
-pub fn points(r: &LidarResult) -> Vec<([f64; 3], usize, engine::lidar::discrete::Return)> {
+pub fn points(r: &LidarResult) -> Vec<([f64; 3], usize, engine::lidar::discrete::Return, u8)> {
     let l = &r.lidar;
     let origin = r.georef.as_ref().map_or(glam::DVec3::ZERO, |g| g.origin);
     let axis = -l.to_sensor;
@@ -320,10 +337,10 @@ pub fn points(r: &LidarResult) -> Vec<([f64; 3], usize, engine::lidar::discrete:
     for (k, rets) in r.returns.iter().enumerate() {
         let c = l.shots[k];
         let s = l.sensor(c);
-        for ret in rets {
+        for (ret, class) in rets {
             let range = l.range0(c) + 0.5 * C_M_PER_NS * ret.time_ns;
             let p = s + axis * range + origin;
-            out.push(([p.x, p.y, p.z], k, *ret));
+            out.push(([p.x, p.y, p.z], k, *ret, *class));
         }
     }
     out
@@ -332,9 +349,10 @@ pub fn points(r: &LidarResult) -> Vec<([f64; 3], usize, engine::lidar::discrete:
 /// Write the discrete returns of `r` as a LAS 1.4 point cloud (point format 6: GPS time,
 /// return numbers up to 15; coordinates to the millimetre; the working CRS as a WKT VLR).
 /// Intensity: the return's normalised energy × 65 535 (1 = a white Lambertian plane at normal
-/// incidence), clipped; classification 2 (ground) when the first-order ground return makes
-/// most of the return's energy, else 1 (unclassified: leaves, trunks and roofs are not told
-/// apart yet); GPS time: shot index / `pulse_rate_hz`; point source id: the shot index
+/// incidence), clipped; classification: the class of the surfaces whose first-order returns
+/// carry most of the return's energy (`engine::lidar::discrete::class_of`: `las_classes`, else
+/// ground 2, water 9, leaves 5, other objects 1), or by the ground share when no first-order
+/// return falls in its window; GPS time: shot index / `pulse_rate_hz`; point source id: the shot index
 /// (modulo 65 536).
 pub fn write_las(path: &Path, r: &LidarResult) -> Result<(), OutputError> {
     let err = |e: las::Error| OutputError::Io {
@@ -347,7 +365,7 @@ pub fn write_las(path: &Path, r: &LidarResult) -> Result<(), OutputError> {
     b.system_identifier = "lidar simulation".into();
     let pts = points(r);
     let mut lo = [f64::INFINITY; 3];
-    for (p, _, _) in &pts {
+    for (p, _, _, _) in &pts {
         for i in 0..3 {
             lo[i] = lo[i].min(p[i]);
         }
@@ -380,7 +398,7 @@ pub fn write_las(path: &Path, r: &LidarResult) -> Result<(), OutputError> {
             .map_err(err)?;
     }
     let mut w = las::Writer::from_path(path, header).map_err(err)?;
-    for (p, k, ret) in pts {
+    for (p, k, ret, class) in pts {
         let point = las::Point {
             x: p[0],
             y: p[1],
@@ -388,11 +406,7 @@ pub fn write_las(path: &Path, r: &LidarResult) -> Result<(), OutputError> {
             intensity: (ret.energy * 65535.0).round().clamp(0.0, 65535.0) as u16,
             return_number: ret.number,
             number_of_returns: ret.count,
-            classification: if ret.ground_share > 0.5 {
-                las::point::Classification::Ground
-            } else {
-                las::point::Classification::Unclassified
-            },
+            classification: las::point::Classification::new(class).map_err(err)?,
             gps_time: Some(k as f64 / r.lidar.pulse_rate_hz),
             point_source_id: (k % 65_536) as u16,
             ..Default::default()

@@ -593,3 +593,41 @@ fn discrete_returns_read_back_from_las() {
     }
     let _ = std::fs::remove_dir_all(&out);
 }
+
+/// Discrete returns over explicit leaves: canopy points are classed from the surfaces they come
+/// from (leaves: 5, or what `las_classes` says), ground points 2.
+#[test]
+fn discrete_returns_are_classed_by_their_surfaces() {
+    let leaves = dir().join("../../../shared/lidar/data/lidar_d3_horizontal_leaves.txt");
+    if !leaves.is_file() {
+        println!("skipped: {} is missing", leaves.display());
+        return;
+    }
+    for (extra, canopy_class) in [("", 5u8), ("las_classes = { leaves = 6 }\n", 6)] {
+        let text = std::fs::read_to_string(dir().join("D3.toml"))
+            .unwrap()
+            .replace(
+                "id = \"D3\"",
+                &format!("id = \"als\"\nmode = \"discrete\"\n{extra}"),
+            )
+            .replace("max_order = 1\n", "")
+            .replace("spp = 3000000", "spp = 20000");
+        let exp = Experiment::from_str(&text, &dir().join("discrete_canopy.toml")).unwrap();
+        let r = run_one(&exp, &exp.lidars[0], false);
+        let pts = simulator::lidar::points(&r);
+        assert!(pts.len() >= 2, "{} returns", pts.len());
+        for (p, _, ret, class) in &pts {
+            println!(
+                "return {}/{} at z {:.2} m: class {class}",
+                ret.number, ret.count, p[2]
+            );
+            if p[2] > 5.0 {
+                assert_eq!(*class, canopy_class);
+            } else {
+                assert!(p[2].abs() < 0.5);
+                assert_eq!(*class, 2);
+            }
+        }
+        assert!(pts.iter().any(|x| x.3 == 2) && pts.iter().any(|x| x.3 == canopy_class));
+    }
+}

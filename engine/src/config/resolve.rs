@@ -324,6 +324,22 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
 
     let mut measures = resolve_measures(&cfg, &ctx, ground, toa, scene.as_deref())?;
     let lidars = resolve_lidars(&cfg, &ctx, ground, scene.as_deref())?;
+    if let Some(l) = lidars.first() {
+        // The lidar flies through plane-parallel layers at one wavelength.
+        let why = if planet_radius.is_some() {
+            Some("spherical-shell atmospheres")
+        } else if ckd {
+            Some("`mode = \"ckd\"` (use monochromatic wavelengths)")
+        } else {
+            None
+        };
+        if let Some(why) = why {
+            return Err(ctx.err(
+                format!("measures[{}]", l.index),
+                format!("lidar measures do not support {why} yet"),
+            ));
+        }
+    }
 
     let mut integrator = IntegratorSettings::from_config(
         &ctx,

@@ -133,6 +133,9 @@ pub struct LidarConfig {
     pub max_returns: u32,
     #[serde(default = "default_rate")]
     pub pulse_rate_hz: f64,
+    /// Discrete returns: ASPRS LAS classes of scene materials by name (`{ roof = 6 }`).
+    #[serde(default)]
+    pub las_classes: std::collections::BTreeMap<String, u8>,
 }
 
 fn default_threshold() -> f64 {
@@ -330,12 +333,13 @@ impl LidarConfig {
             };
             shots.push(DVec3::new(lx, ly, z));
         }
-        let top = scene.map_or(ground, |s| s.z_range[1]);
+        // An airborne sensor may fly below the scene's highest point, but above its footprints.
         let altitude = finite("altitude_m", self.altitude_m)?;
-        if shots.iter().any(|c| altitude <= c.z.max(top) + 1.0) {
+        let highest = shots.iter().map(|c| c.z).fold(f64::NEG_INFINITY, f64::max);
+        if altitude <= highest + 1.0 {
             return Err(ctx.err(
                 key("altitude_m"),
-                format!("{altitude} m must lie above the scene and the footprint centres (highest {:.1} m)", shots.iter().map(|c| c.z).fold(top, f64::max)),
+                format!("{altitude} m must lie more than 1 m above every footprint centre (highest {highest:.1} m)"),
             ));
         }
         let r0 = (altitude - shots[0].z) / to_sensor.z;
@@ -446,6 +450,28 @@ impl LidarConfig {
             ));
         }
         let pulse_rate_hz = positive("pulse_rate_hz", self.pulse_rate_hz)?;
+        for name in self.las_classes.keys() {
+            let known = scene.is_some_and(|s| s.materials.iter().any(|(n, _)| n == name));
+            if !known {
+                let list = scene.map_or_else(
+                    || "a 1D ground has no materials to name".to_string(),
+                    |s| {
+                        format!(
+                            "the scene's materials are {}",
+                            s.materials
+                                .iter()
+                                .map(|(n, _)| n.as_str())
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        )
+                    },
+                );
+                return Err(ctx.err(
+                    format!("measures[{index}].las_classes.{name}"),
+                    format!("no material `{name}`: {list}"),
+                ));
+            }
+        }
         let cover_rho = (
             positive("cover_rho_v", self.cover_rho_v)?,
             positive("cover_rho_g", self.cover_rho_g)?,
@@ -482,6 +508,7 @@ impl LidarConfig {
             min_separation_ns: 2.0 * min_sep_m / C_M_PER_NS,
             max_returns: self.max_returns as usize,
             pulse_rate_hz,
+            las_classes: self.las_classes.clone().into_iter().collect(),
         })
     }
 

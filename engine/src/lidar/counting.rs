@@ -121,9 +121,10 @@ pub fn background(
         let target = centre + e1 * (r * phi.cos()) + e2 * (r * phi.sin());
         let d = (target - sensor).normalize();
         let mut l = 0.0;
-        if let Some((p, n, model)) = world.first_surface(lidar, sensor, d) {
+        if let Some(seen) = world.first_surface(lidar, sensor, d) {
+            let (p, n, model) = (seen.point, seen.normal, seen.model);
             let f = model.eval_cos(n, sun_dir, -d);
-            if f > 0.0 && world.sees_up(p, Some(n), sun_dir) {
+            if f > 0.0 && world.sees_up(p, Some(n), sun_dir, f64::INFINITY) {
                 let t_sun = (-atm.optical_path(p.z, sun_dir.z, 1e9)).exp();
                 let dist = (sensor - p).length();
                 let t_view = (-atm.optical_path(p.z, -d.z, dist)).exp();

@@ -10,6 +10,20 @@
 //! waveform's energy within half the separation on either side (clipped at the neighbouring
 //! returns' midpoints); its ground share is the first-order ground energy's part of that.
 
+use glam::DVec3;
+
+use super::trace::{SurfaceSeen, World};
+use super::{Lidar, C_M_PER_NS};
+use crate::frame::basis_around;
+use crate::rng::Stream;
+use crate::scene::material::SurfaceModel;
+
+/// ASPRS LAS classes written by the point cloud.
+pub const UNCLASSIFIED: u8 = 1;
+pub const GROUND: u8 = 2;
+pub const HIGH_VEGETATION: u8 = 5;
+pub const WATER: u8 = 9;
+
 /// One detected return.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Return {
@@ -22,6 +36,8 @@ pub struct Return {
     pub energy: f64,
     /// Share of the return's energy from the first-order ground part.
     pub ground_share: f64,
+    /// The delays (ns) the return's energy was summed over.
+    pub window_ns: (f64, f64),
 }
 
 /// The returns of a waveform: `total[k]` and `ground[k]` per bin (time order), bins of width
@@ -104,9 +120,97 @@ pub fn detect(
                 } else {
                     0.0
                 },
+                window_ns: (
+                    first_ns + (lo as f64 - 0.5) * width_ns,
+                    first_ns + (hi as f64 + 0.5) * width_ns,
+                ),
             }
         })
         .collect()
+}
+
+/// The LAS class of a surface the beam hits: the experiment's `las_classes` (material name →
+/// class) first; then the ground (terrain, ground plane, 1D ground) is 2, or 9 when its
+/// material is named `water`; a bi-Lambertian object material (leaves) is 5 (high vegetation);
+/// any other object is 1 (unclassified).
+pub fn class_of(lidar: &Lidar, world: &World, seen: &SurfaceSeen) -> u8 {
+    let name = match (world.scene, seen.material) {
+        (Some(sc), Some(m)) => sc.materials.get(m as usize).map(|(n, _)| n.as_str()),
+        _ => None,
+    };
+    if let Some(c) = name.and_then(|n| lidar.las_classes.iter().find(|(k, _)| k == n)) {
+        return c.1;
+    }
+    if seen.ground {
+        if name == Some("water") {
+            WATER
+        } else {
+            GROUND
+        }
+    } else if matches!(seen.model, SurfaceModel::Leaf { .. }) {
+        HIGH_VEGETATION
+    } else {
+        UNCLASSIFIED
+    }
+}
+
+/// The first-order returns of shot `k` by class, from `n` lines of sight through the footprint
+/// (drawn as the tracer draws its photons): each first surface's first-order energy
+/// (`π f |n·ω_r|`, its share of the footprint's weight) at its delay (ns), with its class.
+/// Point clouds class a return by the class with the most energy within its window.
+pub fn first_order_classes(
+    lidar: &Lidar,
+    world: &World,
+    seed: u64,
+    k: usize,
+    n: u64,
+) -> Vec<(f64, f64, u8)> {
+    let c = lidar.shots[k];
+    let sensor = lidar.sensor(c);
+    let r0 = lidar.range0(c);
+    let axis = -lidar.to_sensor;
+    let (e1, e2) = basis_around(axis);
+    let mut rng = Stream::new(seed, [0x11DA_D000, lidar.index as u64, k as u64, 0]);
+    let mut out = Vec::with_capacity(n as usize);
+    for _ in 0..n {
+        let (fx, fy, w) = lidar.footprint.sample(rng.next_f64(), rng.next_f64());
+        let target = c + e1 * fx + e2 * fy;
+        let (start, d) = if lidar.parallel {
+            (target - axis * r0, axis)
+        } else {
+            (sensor, (target - sensor).normalize())
+        };
+        let Some(seen) = world.first_surface(lidar, start, d) else {
+            continue;
+        };
+        let back = if lidar.parallel {
+            (seen.point - sensor).dot(axis)
+        } else {
+            (sensor - seen.point).length()
+        };
+        let t = (seen.distance + back - 2.0 * r0) / C_M_PER_NS;
+        let wr: DVec3 = -d;
+        let e = w * std::f64::consts::PI * seen.model.eval_cos(seen.normal, wr, -d);
+        out.push((t, e / n as f64, class_of(lidar, world, &seen)));
+    }
+    out
+}
+
+/// The class with the most first-order energy inside a return's window (`samples` from
+/// [`first_order_classes`]); `fallback` when none falls inside it.
+pub fn class_in(samples: &[(f64, f64, u8)], window: (f64, f64), fallback: u8) -> u8 {
+    let mut by: Vec<(u8, f64)> = Vec::new();
+    for &(t, e, c) in samples {
+        if t >= window.0 && t <= window.1 {
+            match by.iter_mut().find(|(k, _)| *k == c) {
+                Some(x) => x.1 += e,
+                None => by.push((c, e)),
+            }
+        }
+    }
+    by.iter()
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+        .map_or(fallback, |x| x.0)
 }
 
 #[cfg(test)]

@@ -203,6 +203,8 @@ pub struct Lidar {
     pub min_separation_ns: f64,
     pub max_returns: usize,
     pub pulse_rate_hz: f64,
+    /// Discrete returns: LAS classes of scene materials by name (`discrete::class_of`).
+    pub las_classes: Vec<(String, u8)>,
 }
 
 impl Lidar {

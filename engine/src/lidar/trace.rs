@@ -154,6 +154,22 @@ struct Hit<'m> {
     normal: DVec3,
     model: &'m SurfaceModel,
     ground: bool,
+    /// The scene's material id (None: the 1D ground).
+    material: Option<u16>,
+}
+
+/// The first surface seen along a ray ([`World::first_surface`]).
+pub struct SurfaceSeen<'m> {
+    pub point: DVec3,
+    /// Unit normal facing the ray's origin.
+    pub normal: DVec3,
+    pub model: &'m SurfaceModel,
+    /// Terrain, ground plane or 1D ground.
+    pub ground: bool,
+    /// The scene's material id (None: the 1D ground).
+    pub material: Option<u16>,
+    /// Distance from the ray's origin, m.
+    pub distance: f64,
 }
 
 const BLACK_MODEL: SurfaceModel = SurfaceModel::Black;
@@ -191,6 +207,7 @@ impl World<'_> {
                     normal: h.normal,
                     model,
                     ground: h.ground,
+                    material: Some(h.material),
                 })
             }
             None => {
@@ -205,25 +222,28 @@ impl World<'_> {
                     normal: n,
                     model: &self.ground,
                     ground: true,
+                    material: None,
                 })
             }
         }
     }
 
-    /// The first surface seen from `o` along `d`: its point, normal (facing `o`) and model.
-    pub fn first_surface(
-        &self,
-        lidar: &Lidar,
-        o: DVec3,
-        d: DVec3,
-    ) -> Option<(DVec3, DVec3, &SurfaceModel)> {
-        self.hit(lidar, o, d, 1e9)
-            .map(|h| (o + d * h.t, h.normal, h.model))
+    /// The first surface seen from `o` along `d`.
+    pub fn first_surface(&self, lidar: &Lidar, o: DVec3, d: DVec3) -> Option<SurfaceSeen<'_>> {
+        self.hit(lidar, o, d, 1e9).map(|h| SurfaceSeen {
+            point: o + d * h.t,
+            normal: h.normal,
+            model: h.model,
+            ground: h.ground,
+            material: h.material,
+            distance: h.t,
+        })
     }
 
     /// Whether the line from `p` (leaving a surface of normal `n`, or in the air: `None`)
-    /// upwards along `dir` is free of the scene.
-    pub fn sees_up(&self, p: DVec3, n: Option<DVec3>, dir: DVec3) -> bool {
+    /// upwards along `dir` is free of the scene over the distance `reach` (to the receiver:
+    /// an airborne sensor may fly below the scene's highest point) or up to the scene's top.
+    pub fn sees_up(&self, p: DVec3, n: Option<DVec3>, dir: DVec3, reach: f64) -> bool {
         let Some(scene) = self.scene else {
             return true;
         };
@@ -235,7 +255,11 @@ impl World<'_> {
             Some(n) => scene.offset(p, n, dir),
             None => p,
         };
-        let t = (top - o.z) / dir.z;
+        let t = if dir.z > 0.0 {
+            ((top - o.z) / dir.z).min(reach)
+        } else {
+            reach
+        };
         !scene.occluded(o, dir, t)
     }
 }
@@ -409,7 +433,7 @@ fn flight(
     let part = if h.ground { FIRST_GROUND } else { FIRST_CANOPY };
     if in_fov(shot, path.p) {
         let f = h.model.eval_cos(h.normal, wr, -path.d);
-        if f > 0.0 && world.sees_up(path.p, Some(h.normal), wr) {
+        if f > 0.0 && world.sees_up(path.p, Some(h.normal), wr, dist) {
             let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
             let ratio = shot.r0 / dist;
             let e = path.w * std::f64::consts::PI * f * ratio * ratio * tr;
@@ -470,7 +494,7 @@ fn air_event(
     }
     let phase = atm.phase(layer);
     let (wr, dist) = towards_receiver(lidar, shot, path.p);
-    if in_fov(shot, path.p) && world.sees_up(path.p, None, wr) {
+    if in_fov(shot, path.p) && world.sees_up(path.p, None, wr, dist) {
         let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
         let ratio = shot.r0 / dist;
         let e = path.w * phase.eval(path.d.dot(wr)) * 0.25 * ratio * ratio * tr;
