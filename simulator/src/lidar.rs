@@ -113,10 +113,10 @@ pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
         b.finish_and_clear();
     }
     tracing::info!(
-        "lidar `{}`: {} shot(s) × {} photon paths in {:.2} s",
+        "lidar `{}`: {} shot(s), {} photon paths in all, in {:.2} s",
         lidar.id,
         lidar.shots.len(),
-        lidar.spp,
+        shots.iter().map(|w| w.photons).sum::<u64>(),
         t0.elapsed().as_secs_f64()
     );
     let returns = if lidar.mode == LidarMode::Discrete {

@@ -631,3 +631,36 @@ fn discrete_returns_are_classed_by_their_surfaces() {
         assert!(pts.iter().any(|x| x.3 == 2) && pts.iter().any(|x| x.3 == canopy_class));
     }
 }
+
+/// A target on the waveform's peak stops a shot early, and the stop does not depend on the
+/// thread count.
+#[test]
+fn target_on_the_peak_stops_early() {
+    let text = std::fs::read_to_string(dir().join("C2.toml"))
+        .unwrap()
+        .replace("spp = 2000000", "spp = 4000000\ntarget_rel_stderr = 0.002");
+    let exp = Experiment::from_str(&text, &dir().join("target.toml")).unwrap();
+    let on = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+            .install(|| run_one(&exp, &exp.lidars[0], false))
+    };
+    let (a, b) = (on(1), on(2));
+    let w = &a.shots[0];
+    let peak = w
+        .bins
+        .iter()
+        .map(|x| x[TOTAL])
+        .max_by(|x, y| x.mean.total_cmp(&y.mean))
+        .unwrap();
+    println!(
+        "C2 with a 0.2 % target on the peak: {} paths, peak {:.5} ± {:.2e}",
+        w.photons, peak.mean, peak.stderr
+    );
+    assert!(w.photons < 4_000_000 && w.photons % 8192 == 0);
+    assert!(peak.stderr <= 0.002 * peak.mean);
+    assert_eq!(w.photons, b.shots[0].photons);
+    assert_eq!(w.totals[TOTAL], b.shots[0].totals[TOTAL]);
+}

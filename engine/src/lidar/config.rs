@@ -90,6 +90,10 @@ pub struct LidarConfig {
     /// Height of the footprint centres, m (default: the ground under each, or the 1D ground).
     #[serde(default)]
     pub footprint_height_m: Option<f64>,
+    /// Stop a shot once the relative standard error of its waveform's highest bin is at most
+    /// this (`spp` is then the most photon paths).
+    #[serde(default)]
+    pub target_rel_stderr: Option<f64>,
     /// `"point"` (default) or `"parallel"`.
     #[serde(default)]
     pub rays: Rays,
@@ -373,6 +377,11 @@ impl LidarConfig {
                 format!("{} photon paths per shot: must lie in [2, 2⁴⁰]", self.spp),
             ));
         }
+        if let Some(t) = self.target_rel_stderr {
+            if !(t > 0.0 && t < 1.0) {
+                return Err(ctx.err(key("target_rel_stderr"), format!("{t} must lie in (0, 1)")));
+            }
+        }
         let max_order = self.max_order.unwrap_or(u32::MAX);
         if max_order == 0 {
             return Err(ctx.err(key("max_order"), "must be ≥ 1 (1: first order only)"));
@@ -496,6 +505,7 @@ impl LidarConfig {
             shots_given: given,
             parallel: self.rays == Rays::Parallel,
             spp: self.spp,
+            target_rel_stderr: self.target_rel_stderr,
             max_order,
             slope,
             efficiency,

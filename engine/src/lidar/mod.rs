@@ -182,8 +182,10 @@ pub struct Lidar {
     /// Parallel rays along the beam axis (the far-field limit: ranges measured along the axis)
     /// instead of a point source and receiver at the sensor.
     pub parallel: bool,
-    /// Photon paths per shot.
+    /// Photon paths per shot (the most, with a target).
     pub spp: u64,
+    /// Stop a shot once its waveform's highest bin has this relative standard error.
+    pub target_rel_stderr: Option<f64>,
     /// Highest scattering order traced (1: first order only).
     pub max_order: u32,
     /// 1D ground only: a tilted plane.

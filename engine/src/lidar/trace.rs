@@ -563,11 +563,19 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
     let spp = lidar.spp.div_ceil(REPLICATES) * REPLICATES;
     let nblocks = spp.div_ceil(BLOCK);
     let mut acc = Acc::new(nbins);
-    let blocks: Vec<u64> = (0..nblocks).collect();
-    for chunk in blocks.chunks(CHUNK) {
-        let parts: Vec<Acc> = chunk
-            .par_iter()
-            .map(|&b| {
+    // Rounds of blocks: CHUNK at a time, or with a target on the peak 2, 4, … up to CHUNK,
+    // checked after each round (the stop depends only on the results: thread-independent).
+    let mut next = 0u64;
+    let mut round = if lidar.target_rel_stderr.is_some() {
+        2
+    } else {
+        CHUNK as u64
+    };
+    while next < nblocks {
+        let end = (next + round).min(nblocks);
+        let parts: Vec<Acc> = (next..end)
+            .into_par_iter()
+            .map(|b| {
                 let mut rng = Stream::new(seed, [LIDAR_STREAM, lidar.index as u64, k as u64, b]);
                 let mut a = Acc::new(nbins);
                 let mut s = Scratch {
@@ -601,7 +609,15 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
         for p in &parts {
             acc.merge(p);
         }
+        next = end;
+        if let Some(t) = lidar.target_rel_stderr {
+            if peak_meets(&acc, nbins, (next * BLOCK).min(spp), t) {
+                break;
+            }
+            round = (round * 2).min(CHUNK as u64);
+        }
     }
+    let spp = (next * BLOCK).min(spp);
     // Replicate r holds spp / R photons.
     let per = (spp / REPLICATES) as f64;
     let rn = REPLICATES as f64;
@@ -632,6 +648,35 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
         totals,
         metrics,
     }
+}
+
+/// Whether the waveform's highest bin (all orders) has a relative standard error of at most
+/// `target` after `traced` photons (a multiple of [`REPLICATES`]).
+fn peak_meets(acc: &Acc, nbins: usize, traced: u64, target: f64) -> bool {
+    let stride = nbins * NCOMP;
+    let reps = REPLICATES as usize;
+    let per = (traced / REPLICATES) as f64;
+    let bin_mean = |b: usize| -> f64 {
+        (0..reps)
+            .map(|r| acc.sum[r * stride + b * NCOMP + TOTAL])
+            .sum::<f64>()
+            / (per * reps as f64)
+    };
+    let Some((peak, mean)) = (0..nbins)
+        .map(|b| (b, bin_mean(b)))
+        .max_by(|a, b| a.1.total_cmp(&b.1))
+    else {
+        return false;
+    };
+    if mean <= 0.0 {
+        return false;
+    }
+    let var = (0..reps)
+        .map(|r| acc.sum[r * stride + peak * NCOMP + TOTAL] / per - mean)
+        .map(|d| d * d)
+        .sum::<f64>()
+        / (reps as f64 * (reps as f64 - 1.0));
+    var.sqrt() <= target * mean
 }
 
 /// The metrics of the shot's mean waveform, and their standard errors from the replicates.
