@@ -638,7 +638,7 @@ fn discrete_returns_are_classed_by_their_surfaces() {
 fn target_on_the_peak_stops_early() {
     let text = std::fs::read_to_string(dir().join("C2.toml"))
         .unwrap()
-        .replace("spp = 2000000", "spp = 4000000\ntarget_rel_stderr = 0.002");
+        .replace("spp = 4000000", "spp = 4000000\ntarget_rel_stderr = 0.002");
     let exp = Experiment::from_str(&text, &dir().join("target.toml")).unwrap();
     let on = |threads: usize| {
         rayon::ThreadPoolBuilder::new()
