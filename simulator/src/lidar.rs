@@ -50,7 +50,11 @@ pub fn run_all(exp: &Experiment, progress: bool) -> Vec<LidarResult> {
 pub fn run_one(exp: &Experiment, lidar: &Lidar, progress: bool) -> LidarResult {
     let optics = &exp.optics[lidar.iw];
     let world = World {
-        atmosphere: &optics.atmosphere,
+        atmosphere: match &optics.shell {
+            Some(shell) => engine::lidar::air::Air::Shells(shell),
+            None => engine::lidar::air::Air::Layers(&optics.atmosphere),
+        },
+        has_air: optics.atmosphere.total_tau() > 0.0,
         scene: exp.scene.as_deref(),
         models: &optics.scene_models,
         ground: SurfaceModel::Opaque(optics.surface.clone()),

@@ -664,3 +664,48 @@ fn target_on_the_peak_stops_early() {
     assert_eq!(w.photons, b.shots[0].photons);
     assert_eq!(w.totals[TOTAL], b.shots[0].totals[TOTAL]);
 }
+
+/// Under spherical shells the lidar flies through the same air along curved-layer paths:
+/// at nadir the optical paths are the plane-parallel ones (B1, B3a: equal within their errors
+/// and 10⁻⁶), off nadir the shells shorten the slant path through a 10 km layer by about
+/// H tan²θ/(2R) (1·10⁻⁴ at 20°, B2).
+#[test]
+fn spherical_shells_agree_with_layers_near_nadir() {
+    for (case, spp, tol) in [
+        ("B1", 20_000u64, 1e-6),
+        ("B3a", 200_000, 1e-6),
+        ("B2", 20_000, 2e-4),
+    ] {
+        let path = dir().join(format!("{case}.toml"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        let sph = text.replace("type = \"plane_parallel\"", "type = \"spherical_shell\"");
+        assert_ne!(text, sph);
+        let flat = Experiment::load_with_spp(&path, Some(spp)).unwrap();
+        let round = Experiment::from_str(&sph, &dir().join("spherical.toml")).unwrap();
+        let round = {
+            let mut r = round;
+            r.lidars[0].spp = spp;
+            r
+        };
+        assert!(round.planet_radius.is_some());
+        let a = run_one(&flat, &flat.lidars[0], false).shots[0].totals;
+        let b = run_one(&round, &round.lidars[0], false).shots[0].totals;
+        for part in [TOTAL, FIRST_AIR] {
+            let (x, y) = (a[part], b[part]);
+            if x.mean == 0.0 {
+                assert_eq!(y.mean, 0.0);
+                continue;
+            }
+            let d = (y.mean - x.mean).abs();
+            println!(
+                "{case} part {part}: layers {:.8} ± {:.1e}, shells {:.8} ± {:.1e} (rel {:+.2e})",
+                x.mean,
+                x.stderr,
+                y.mean,
+                y.stderr,
+                y.mean / x.mean - 1.0
+            );
+            assert!(d <= tol * x.mean + 4.0 * (x.stderr.powi(2) + y.stderr.powi(2)).sqrt());
+        }
+    }
+}

@@ -326,9 +326,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let lidars = resolve_lidars(&cfg, &ctx, ground, scene.as_deref())?;
     if let Some(l) = lidars.first() {
         // The lidar flies through plane-parallel layers at one wavelength.
-        let why = if planet_radius.is_some() {
-            Some("spherical-shell atmospheres")
-        } else if ckd {
+        let why = if ckd {
             Some("`mode = \"ckd\"` (use monochromatic wavelengths)")
         } else {
             None

@@ -125,9 +125,9 @@ pub fn background(
             let (p, n, model) = (seen.point, seen.normal, seen.model);
             let f = model.eval_cos(n, sun_dir, -d);
             if f > 0.0 && world.sees_up(p, Some(n), sun_dir, f64::INFINITY) {
-                let t_sun = (-atm.optical_path(p.z, sun_dir.z, 1e9)).exp();
+                let t_sun = (-atm.optical_path(p, sun_dir, 1e9)).exp();
                 let dist = (sensor - p).length();
-                let t_view = (-atm.optical_path(p.z, -d.z, dist)).exp();
+                let t_view = (-atm.optical_path(p, -d, dist)).exp();
                 l = e0 * f * t_sun * t_view;
             }
         }

@@ -53,6 +53,9 @@
 //! the footprint towards the receiver (first order: the Sun reflected by the surfaces the
 //! receiver sees, with shadowing and the air's two-way transmittance).
 //!
+//! **Air** (`air.rs`): plane-parallel layers or spherical shells (a planet-centred point is the
+//! scene's plus `(0, 0, R)`); a 1D ground stays the plane tangent at the origin.
+//!
 //! **Units.** Inside: m, s (times in ns where named), radians. Config: degrees, nm, ns, J, m².
 //!
 //! References: Measures, R. M. (1984), *Laser Remote Sensing*, Wiley, ch. 7 (the lidar
@@ -60,6 +63,7 @@
 //! of pulses); Hancock et al. (2019), *Earth Space Sci.* 6, 294–310 (GEDI waveform simulator);
 //! Neumann et al. (2019), ICESat-2 ATL03 ATBD (photon counting).
 
+pub mod air;
 pub mod bins;
 pub mod config;
 pub mod counting;

@@ -4,8 +4,8 @@
 use glam::DVec3;
 use rayon::prelude::*;
 
+use super::air::Air;
 use super::{Lidar, C_M_PER_NS};
-use crate::atmosphere::PlaneParallel;
 use crate::frame::{basis_around, rotate_about};
 use crate::rng::Stream;
 use crate::scene::material::SurfaceModel;
@@ -139,7 +139,9 @@ impl Scratch {
 
 /// Where a lidar's photons travel: the air, and the scene or the 1D ground.
 pub struct World<'a> {
-    pub atmosphere: &'a PlaneParallel,
+    pub atmosphere: Air<'a>,
+    /// Whether the air has any extinction at the lidar's wavelength.
+    pub has_air: bool,
     pub scene: Option<&'a Scene>,
     /// Scene materials at the lidar's wavelength (indexed by material id).
     pub models: &'a [SurfaceModel],
@@ -382,18 +384,18 @@ fn flight(
     let hit = world.hit(lidar, path.p, path.d, far);
     let t_end = hit.as_ref().map_or(far, |h| h.t);
     let mut branch = None;
-    let has_air = atm.total_tau() > 0.0;
+    let has_air = world.has_air;
     // Where the flight collides in the air, if it does.
     let mut collision = None;
     if has_air {
         if path.first_flight {
             // Forced collision: the collided branch (weight 1 − T) goes on its own.
-            let tau = atm.optical_path(path.p.z, path.d.z, t_end);
+            let tau = atm.optical_path(path.p, path.d, t_end);
             let tr = (-tau).exp();
             if tau > 0.0 {
                 let u = path.u_force;
                 let tau_c = -(-u * (-(-tau).exp_m1())).ln_1p();
-                if let Some(tc) = atm.march(path.p.z, path.d.z, tau_c, t_end) {
+                if let Some(tc) = atm.march(path.p, path.d, tau_c, t_end) {
                     let mut b = *path;
                     b.w *= 1.0 - tr;
                     b.first_flight = false;
@@ -405,7 +407,7 @@ fn flight(
             path.w *= tr;
         } else {
             let u = rng.next_f64_open0();
-            collision = atm.march(path.p.z, path.d.z, -u.ln(), t_end);
+            collision = atm.march(path.p, path.d, -u.ln(), t_end);
         }
     }
     path.first_flight = false;
@@ -434,7 +436,7 @@ fn flight(
     if in_fov(shot, path.p) {
         let f = h.model.eval_cos(h.normal, wr, -path.d);
         if f > 0.0 && world.sees_up(path.p, Some(h.normal), wr, dist) {
-            let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
+            let tr = (-atm.optical_path(path.p, wr, dist)).exp();
             let ratio = shot.r0 / dist;
             let e = path.w * std::f64::consts::PI * f * ratio * ratio * tr;
             let t_ns = (path.len + dist - 2.0 * shot.r0) / C_M_PER_NS;
@@ -487,15 +489,14 @@ fn air_event(
     path.p += path.d * tc;
     path.len += tc;
     path.order += 1;
-    let layer = atm.layer_at_altitude(path.p.z);
-    path.w *= atm.albedo(layer);
+    let (albedo, phase) = atm.at(path.p);
+    path.w *= albedo;
     if path.w.is_nan() || path.w <= 0.0 {
         return false;
     }
-    let phase = atm.phase(layer);
     let (wr, dist) = towards_receiver(lidar, shot, path.p);
     if in_fov(shot, path.p) && world.sees_up(path.p, None, wr, dist) {
-        let tr = (-atm.optical_path(path.p.z, wr.z, dist)).exp();
+        let tr = (-atm.optical_path(path.p, wr, dist)).exp();
         let ratio = shot.r0 / dist;
         let e = path.w * phase.eval(path.d.dot(wr)) * 0.25 * ratio * ratio * tr;
         let t_ns = (path.len + dist - 2.0 * shot.r0) / C_M_PER_NS;
