@@ -42,7 +42,7 @@ fn write_products(
     rows: &[products::Row],
     band: &[products::BandRow],
     images: &[products::imagery::ImageProduct],
-    lidars: &[simulator::lidar::LidarResult],
+    lidars: &[engine::lidar::LidarResult],
 ) -> Result<Vec<PathBuf>, simulator::error::OutputError> {
     std::fs::create_dir_all(output).map_err(|source| simulator::error::OutputError::Io {
         path: output.to_path_buf(),

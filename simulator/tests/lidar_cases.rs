@@ -21,8 +21,9 @@ use std::path::{Path, PathBuf};
 
 use engine::config::resolve::Experiment;
 use engine::lidar::trace::{Stat, FIRST, FIRST_AIR, FIRST_CANOPY, FIRST_GROUND, TOTAL};
+use engine::lidar::LidarResult;
 use engine::lidar::C_M_PER_NS;
-use simulator::lidar::{run_one, LidarResult};
+use simulator::lidar::run_one;
 
 fn dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("../validation/lidar")
@@ -569,7 +570,7 @@ fn discrete_returns_read_back_from_las() {
     let out = std::env::temp_dir().join(format!("lidar_las_{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&out);
     std::fs::create_dir_all(&out).unwrap();
-    simulator::lidar::write(&out, std::slice::from_ref(&r)).unwrap();
+    simulator::products::lidar::write(&out, std::slice::from_ref(&r)).unwrap();
     let mut reader = las::Reader::from_path(out.join("als.las")).unwrap();
     assert_eq!(reader.header().version(), las::Version::new(1, 4));
     let data = reader.read_all().unwrap();
@@ -614,7 +615,7 @@ fn discrete_returns_are_classed_by_their_surfaces() {
             .replace("spp = 3000000", "spp = 20000");
         let exp = Experiment::from_str(&text, &dir().join("discrete_canopy.toml")).unwrap();
         let r = run_one(&exp, &exp.lidars[0], false);
-        let pts = simulator::lidar::points(&r);
+        let pts = simulator::products::lidar::points(&r);
         assert!(pts.len() >= 2, "{} returns", pts.len());
         for (p, _, ret, class) in &pts {
             println!(
@@ -708,4 +709,30 @@ fn spherical_shells_agree_with_layers_near_nadir() {
             assert!(d <= tol * x.mean + 4.0 * (x.stderr.powi(2) + y.stderr.powi(2)).sqrt());
         }
     }
+}
+
+/// The solar background comes from the full passive radiance: over E3's ground under the
+/// US-standard air at 532 nm it exceeds the directly transmitted first order
+/// `ρ E0 μs/π · e^{−τ/μs} e^{−τ}` (path radiance and sky light add to it) and stays within
+/// twice it; over the bare ground it is exact (case E3, above).
+#[test]
+fn background_includes_the_path_radiance() {
+    let text = std::fs::read_to_string(dir().join("E3.toml")).unwrap().replace(
+        "[surface]",
+        "[atmosphere]\ntype = \"molecular\"\nprofile = \"afgl_1986-us_standard\"\nlayer_thickness = 1.0\n\n[surface]",
+    );
+    let exp = Experiment::from_str(&text, &dir().join("e3_air.toml")).unwrap();
+    let r = run_one(&exp, &exp.lidars[0], false);
+    let bg = r.counting[0].background_per_gate;
+    let tau = exp.optics[0].atmosphere.total_tau();
+    let mu = 30f64.to_radians().cos();
+    let l = &r.lidar;
+    let omega = std::f64::consts::TAU * (1.0 - l.fov_half_angle.cos());
+    let per_radiance = 0.5 * omega * 0.03 * 1e-5 * 0.1 * l.photons_per_joule();
+    let direct = 0.3 * 1.85 * mu / std::f64::consts::PI * (-tau / mu - tau).exp() * per_radiance;
+    println!(
+        "background under air: {:.3} ± {:.3} photons per gate; directly transmitted first order {direct:.3} (τ {tau:.4})",
+        bg.mean, bg.stderr
+    );
+    assert!(bg.mean > direct + 4.0 * bg.stderr && bg.mean < 2.0 * direct);
 }

@@ -11,17 +11,13 @@
 //!
 //! Background photons per range gate are Poisson with mean
 //! `L_bg · A_r · Ω · Δλ · gate · η · λ/(h c)`, `Ω = 2π(1 − cos fov)` the receiver's solid angle
-//! and `L_bg` the radiance (W m⁻² sr⁻¹ nm⁻¹) the receiver sees, averaged over its field of
-//! view: here the first order, the Sun reflected by the first surface along each line of sight
-//! (shadowing by the scene and the air's transmittance on both legs). Light the air scatters
-//! towards the receiver and interreflections are left out (a lower bound under an atmosphere;
-//! exact over a bare surface without air).
+//! and `L_bg` the passive radiance (W m⁻² sr⁻¹ nm⁻¹) the receiver sees, every order and the
+//! air's path radiance included, from the run's own passive estimators (the application's
+//! `lidar.rs`, `passive_radiance`: a radiancemeter at the sensor over a 1D ground, an `mdistant`
+//! over the field of view's square in a scene).
 
-use glam::DVec3;
-
-use super::trace::{ShotWaveform, Stat, World, FIRST_CANOPY, FIRST_GROUND, TOTAL};
+use super::trace::{ShotWaveform, Stat, FIRST_CANOPY, FIRST_GROUND, TOTAL};
 use super::{Lidar, C_M_PER_NS};
-use crate::frame::basis_around;
 use crate::rng::Stream;
 
 /// Poisson statistics of one shot location.
@@ -90,53 +86,9 @@ pub fn stats(lidar: &Lidar, w: &ShotWaveform, shot: usize, background: Stat) -> 
     }
 }
 
-/// The mean background photons per range gate of shot `k`: `L_bg` from `samples` lines of
-/// sight spread uniformly over the field of view (module header). `sun_dir`: unit vector
-/// towards the Sun; `e0`: its irradiance normal to the beam at the lidar's wavelength
-/// (W m⁻² nm⁻¹).
-pub fn background(
-    lidar: &Lidar,
-    world: &World,
-    sun_dir: DVec3,
-    e0: f64,
-    seed: u64,
-    k: usize,
-    samples: u64,
-) -> Stat {
-    if lidar.filter_width_nm <= 0.0 || e0 <= 0.0 || sun_dir.z <= 0.0 {
-        return Stat::default();
-    }
-    let centre = lidar.shots[k];
-    let sensor = lidar.sensor(centre);
-    let r0 = lidar.range0(centre);
-    let axis = -lidar.to_sensor;
-    let (e1, e2) = basis_around(axis);
-    let radius = r0 * lidar.fov_half_angle.tan();
-    let mut rng = Stream::new(seed, [0x11DA_B000, lidar.index as u64, k as u64, 0]);
-    let atm = world.atmosphere;
-    let (mut sum, mut sq) = (0.0, 0.0);
-    for _ in 0..samples {
-        let r = radius * rng.next_f64().sqrt();
-        let phi = std::f64::consts::TAU * rng.next_f64();
-        let target = centre + e1 * (r * phi.cos()) + e2 * (r * phi.sin());
-        let d = (target - sensor).normalize();
-        let mut l = 0.0;
-        if let Some(seen) = world.first_surface(lidar, sensor, d) {
-            let (p, n, model) = (seen.point, seen.normal, seen.model);
-            let f = model.eval_cos(n, sun_dir, -d);
-            if f > 0.0 && world.sees_up(p, Some(n), sun_dir, f64::INFINITY) {
-                let t_sun = (-atm.optical_path(p, sun_dir, 1e9)).exp();
-                let dist = (sensor - p).length();
-                let t_view = (-atm.optical_path(p, -d, dist)).exp();
-                l = e0 * f * t_sun * t_view;
-            }
-        }
-        sum += l;
-        sq += l * l;
-    }
-    let n = samples as f64;
-    let mean = sum / n;
-    let var = ((sq / n - mean * mean) * n / (n - 1.0)).max(0.0);
+/// The mean background photons per range gate from the radiance `l_bg` (W m⁻² sr⁻¹ nm⁻¹, with
+/// its standard error) the receiver sees.
+pub fn background_from_radiance(lidar: &Lidar, l_bg: Stat) -> Stat {
     let omega = std::f64::consts::TAU * (1.0 - lidar.fov_half_angle.cos());
     let scale = lidar.receiver_area_m2
         * omega
@@ -146,8 +98,8 @@ pub fn background(
         * lidar.efficiency
         * lidar.photons_per_joule();
     Stat {
-        mean: mean * scale,
-        stderr: (var / n).sqrt() * scale,
+        mean: l_bg.mean * scale,
+        stderr: l_bg.stderr * scale,
     }
 }
 

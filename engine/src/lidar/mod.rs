@@ -49,9 +49,8 @@
 //!
 //! **Photon counting** (`counting.rs`). Detected signal photons per shot are Poisson with mean
 //! `n̄ = E_T λ/(h c) · η · e · A_r/(π R0²)`; solar background photons per range gate are Poisson
-//! with mean `L_bg · A_r · π fov² · Δλ · gate · η · λ/(h c)`, `L_bg` the passive radiance of
-//! the footprint towards the receiver (first order: the Sun reflected by the surfaces the
-//! receiver sees, with shadowing and the air's two-way transmittance).
+//! with mean `L_bg · A_r · Ω · Δλ · gate · η · λ/(h c)`, `L_bg` the passive radiance the
+//! receiver sees (every order, path radiance included, from the passive estimators).
 //!
 //! **Air** (`air.rs`): plane-parallel layers or spherical shells (a planet-centred point is the
 //! scene's plus `(0, 0, R)`); a 1D ground stays the plane tangent at the origin.
@@ -69,12 +68,14 @@ pub mod config;
 pub mod counting;
 pub mod discrete;
 pub mod metrics;
+pub mod result;
 pub mod trace;
 
 use glam::DVec3;
 
 pub use config::LidarConfig;
 pub use counting::CountingStats;
+pub use result::LidarResult;
 pub use trace::{trace_shot, ShotWaveform};
 
 /// Speed of light in vacuum, m/ns.

@@ -24,6 +24,7 @@
 pub mod csv;
 pub mod image;
 pub mod imagery;
+pub mod lidar;
 pub mod netcdf;
 pub mod output_lock;
 pub mod staging;
@@ -71,7 +72,7 @@ pub fn write_all(
     rows: &[Row],
     band: &[BandRow],
     images: &[imagery::ImageProduct],
-    lidars: &[crate::lidar::LidarResult],
+    lidars: &[engine::lidar::LidarResult],
 ) -> Result<Written, WriteError> {
     let at = |step| {
         move |error| WriteError {
@@ -91,7 +92,7 @@ pub fn write_all(
             csv::write_band(&stage.path("results_band.csv"), band)?;
         }
         netcdf::lidar::append(&stage.path("results.nc"), lidars)?;
-        crate::lidar::write(stage.dir(), lidars)?;
+        lidar::write(stage.dir(), lidars)?;
         Ok(())
     })()
     .map_err(at(WriteStep::Write))?;

@@ -1,5 +1,5 @@
 //! The variables of each lidar measure `ID` in `results.nc` (the same numbers as its CSV
-//! products, `crate::lidar`), added to the file the passive products made:
+//! products, `products/lidar.rs`), added to the file the passive products made:
 //!
 //! * dimensions `ID_shot`, `ID_bin`, `ID_part` (the parts of the return, named by the
 //!   attribute `parts`: total, first order, multiple, first-order canopy, ground, air) and
@@ -23,7 +23,7 @@ use engine::lidar::trace::{COMP_NAMES, NCOMP, TOTAL};
 use engine::lidar::C_M_PER_NS;
 
 use crate::error::OutputError;
-use crate::lidar::LidarResult;
+use engine::lidar::LidarResult;
 
 /// Add the lidar measures' variables to the netCDF file at `path`.
 pub fn append(path: &Path, lidars: &[LidarResult]) -> Result<(), OutputError> {
