@@ -36,6 +36,15 @@ fn load(case: &str) -> Experiment {
     exp
 }
 
+/// The experiment's lidar run on a pool of `threads` threads.
+fn on_threads(exp: &Experiment, threads: usize) -> LidarResult {
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(threads)
+        .build()
+        .unwrap()
+        .install(|| run_one(exp, &exp.lidars[0], false))
+}
+
 fn run(case: &str) -> LidarResult {
     let exp = load(case);
     run_one(&exp, &exp.lidars[0], false)
@@ -369,13 +378,7 @@ fn waveforms_do_not_depend_on_the_thread_count() {
     };
     let exp = Experiment::load_with_spp(&dir().join(format!("{case}.toml")), Some(40_000))
         .expect("case file");
-    let on = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| run_one(&exp, &exp.lidars[0], false))
-    };
+    let on = |threads: usize| on_threads(&exp, threads);
     let (a, b) = (on(1), on(3));
     for (x, y) in a.shots[0].bins.iter().zip(&b.shots[0].bins) {
         for c in 0..x.len() {
@@ -641,13 +644,7 @@ fn target_on_the_peak_stops_early() {
         .unwrap()
         .replace("spp = 4000000", "spp = 4000000\ntarget_rel_stderr = 0.002");
     let exp = Experiment::from_str(&text, &dir().join("target.toml")).unwrap();
-    let on = |threads: usize| {
-        rayon::ThreadPoolBuilder::new()
-            .num_threads(threads)
-            .build()
-            .unwrap()
-            .install(|| run_one(&exp, &exp.lidars[0], false))
-    };
+    let on = |threads: usize| on_threads(&exp, threads);
     let (a, b) = (on(1), on(2));
     let w = &a.shots[0];
     let peak = w

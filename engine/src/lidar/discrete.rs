@@ -12,9 +12,8 @@
 
 use glam::DVec3;
 
-use super::trace::{SurfaceSeen, World};
+use super::trace::{Shot, SurfaceSeen, World};
 use super::{Lidar, C_M_PER_NS};
-use crate::frame::basis_around;
 use crate::rng::Stream;
 use crate::scene::material::SurfaceModel;
 
@@ -165,30 +164,17 @@ pub fn first_order_classes(
     k: usize,
     n: u64,
 ) -> Vec<(f64, f64, u8)> {
-    let c = lidar.shots[k];
-    let sensor = lidar.sensor(c);
-    let r0 = lidar.range0(c);
-    let axis = -lidar.to_sensor;
-    let (e1, e2) = basis_around(axis);
+    let shot = Shot::new(lidar, k);
     let mut rng = Stream::new(seed, [0x11DA_D000, lidar.index as u64, k as u64, 0]);
     let mut out = Vec::with_capacity(n as usize);
     for _ in 0..n {
         let (fx, fy, w) = lidar.footprint.sample(rng.next_f64(), rng.next_f64());
-        let target = c + e1 * fx + e2 * fy;
-        let (start, d) = if lidar.parallel {
-            (target - axis * r0, axis)
-        } else {
-            (sensor, (target - sensor).normalize())
-        };
+        let (start, d) = shot.ray(fx, fy);
         let Some(seen) = world.first_surface(lidar, start, d) else {
             continue;
         };
-        let back = if lidar.parallel {
-            (seen.point - sensor).dot(axis)
-        } else {
-            (sensor - seen.point).length()
-        };
-        let t = (seen.distance + back - 2.0 * r0) / C_M_PER_NS;
+        let (_, back) = shot.towards_receiver(seen.point);
+        let t = (seen.distance + back - 2.0 * shot.r0) / C_M_PER_NS;
         let wr: DVec3 = -d;
         let e = w * std::f64::consts::PI * seen.model.eval_cos(seen.normal, wr, -d);
         out.push((t, e / n as f64, class_of(lidar, world, &seen)));

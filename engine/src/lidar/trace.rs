@@ -95,6 +95,21 @@ impl Acc {
         }
     }
 
+    /// Replicate means of bin `b`, part `c` (`per` photons per replicate).
+    fn bin_means(&self, nbins: usize, b: usize, c: usize, per: f64) -> Vec<f64> {
+        let stride = nbins * NCOMP;
+        (0..REPLICATES as usize)
+            .map(|r| self.sum[r * stride + b * NCOMP + c] / per)
+            .collect()
+    }
+
+    /// Replicate means of the whole return's part `c`.
+    fn total_means(&self, c: usize, per: f64) -> Vec<f64> {
+        (0..REPLICATES as usize)
+            .map(|r| self.tsum[r * NCOMP + c] / per)
+            .collect()
+    }
+
     fn merge(&mut self, o: &Acc) {
         self.n += o.n;
         for (a, b) in self.sum.iter_mut().zip(&o.sum) {
@@ -103,6 +118,19 @@ impl Acc {
         for (a, b) in self.tsum.iter_mut().zip(&o.tsum) {
             *a += b;
         }
+    }
+}
+
+/// The mean of independent replicate values and the standard error of that mean, from their
+/// spread (`√(Σ(m_r − m)²/(n(n − 1)))`): every error of a shot (bins, totals, metrics, the
+/// peak's target).
+fn spread(values: &[f64]) -> Stat {
+    let n = values.len() as f64;
+    let mean = values.iter().sum::<f64>() / n;
+    let var = values.iter().map(|m| (m - mean) * (m - mean)).sum::<f64>() / (n * (n - 1.0));
+    Stat {
+        mean,
+        stderr: var.sqrt(),
     }
 }
 
@@ -267,15 +295,60 @@ impl World<'_> {
 }
 
 /// The geometry of one shot.
-struct Shot {
-    sensor: DVec3,
-    r0: f64,
+pub(super) struct Shot {
+    pub(super) sensor: DVec3,
+    pub(super) r0: f64,
     /// Beam axis (from the sensor down), and two unit vectors across it.
     axis: DVec3,
     e1: DVec3,
     e2: DVec3,
     centre: DVec3,
     cos_fov: f64,
+    parallel: bool,
+}
+
+impl Shot {
+    /// The geometry of shot `k` of `lidar`.
+    pub(super) fn new(lidar: &Lidar, k: usize) -> Self {
+        let centre = lidar.shots[k];
+        let axis = -lidar.to_sensor;
+        let (e1, e2) = basis_around(axis);
+        Shot {
+            sensor: lidar.sensor(centre),
+            r0: lidar.range0(centre),
+            axis,
+            e1,
+            e2,
+            centre,
+            cos_fov: lidar.fov_half_angle.cos(),
+            parallel: lidar.parallel,
+        }
+    }
+
+    /// The ray of a photon through the footprint point `(fx, fy)` (m across the beam): from
+    /// a point source at the sensor, or parallel to the beam from the plane through the
+    /// sensor perpendicular to it. Its start and unit direction.
+    pub(super) fn ray(&self, fx: f64, fy: f64) -> (DVec3, DVec3) {
+        let target = self.centre + self.e1 * fx + self.e2 * fy;
+        if self.parallel {
+            (target - self.axis * self.r0, self.axis)
+        } else {
+            (self.sensor, (target - self.sensor).normalize())
+        }
+    }
+
+    /// The unit direction from `p` towards the receiver and the distance the return travels:
+    /// to the sensor's point, or with parallel rays along the beam axis to the sensor's plane.
+    #[inline]
+    pub(super) fn towards_receiver(&self, p: DVec3) -> (DVec3, f64) {
+        if self.parallel {
+            (-self.axis, (p - self.sensor).dot(self.axis))
+        } else {
+            let to_s = self.sensor - p;
+            let dist = to_s.length();
+            (to_s / dist, dist)
+        }
+    }
 }
 
 /// A return to score: its delay (ns), normalised energy, order and part.
@@ -331,14 +404,7 @@ fn photon(
     s: &mut Scratch,
 ) {
     let (fx, fy, w0) = lidar.footprint.sample(u[0], u[1]);
-    let target = shot.centre + shot.e1 * fx + shot.e2 * fy;
-    // A point source at the sensor, or parallel rays from the plane through the sensor
-    // perpendicular to the beam.
-    let (start, d) = if lidar.parallel {
-        (target - shot.axis * shot.r0, shot.axis)
-    } else {
-        (shot.sensor, (target - shot.sensor).normalize())
-    };
+    let (start, d) = shot.ray(fx, fy);
     let mut stack = [None, None];
     stack[0] = Some(Path {
         p: start,
@@ -431,7 +497,7 @@ fn flight(
     path.p += path.d * h.t;
     path.len += h.t;
     path.order += 1;
-    let (wr, dist) = towards_receiver(lidar, shot, path.p);
+    let (wr, dist) = shot.towards_receiver(path.p);
     let part = if h.ground { FIRST_GROUND } else { FIRST_CANOPY };
     if in_fov(shot, path.p) {
         let f = h.model.eval_cos(h.normal, wr, -path.d);
@@ -494,7 +560,7 @@ fn air_event(
     if path.w.is_nan() || path.w <= 0.0 {
         return false;
     }
-    let (wr, dist) = towards_receiver(lidar, shot, path.p);
+    let (wr, dist) = shot.towards_receiver(path.p);
     if in_fov(shot, path.p) && world.sees_up(path.p, None, wr, dist) {
         let tr = (-atm.optical_path(path.p, wr, dist)).exp();
         let ratio = shot.r0 / dist;
@@ -527,19 +593,6 @@ fn roulette(path: &mut Path, rng: &mut Stream) -> bool {
     }
 }
 
-/// The unit direction from `p` towards the receiver and the distance the return travels: to
-/// the sensor's point, or with parallel rays along the beam axis to the sensor's plane.
-#[inline]
-fn towards_receiver(lidar: &Lidar, shot: &Shot, p: DVec3) -> (DVec3, f64) {
-    if lidar.parallel {
-        (-shot.axis, (p - shot.sensor).dot(shot.axis))
-    } else {
-        let to_s = shot.sensor - p;
-        let dist = to_s.length();
-        (to_s / dist, dist)
-    }
-}
-
 #[inline]
 fn in_fov(shot: &Shot, p: DVec3) -> bool {
     let v = p - shot.sensor;
@@ -548,18 +601,7 @@ fn in_fov(shot: &Shot, p: DVec3) -> bool {
 
 /// Trace `lidar.spp` photons of shot `k` over `world` (`seed`: the run's).
 pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWaveform {
-    let centre = lidar.shots[k];
-    let axis = -lidar.to_sensor;
-    let (e1, e2) = basis_around(axis);
-    let shot = Shot {
-        sensor: lidar.sensor(centre),
-        r0: lidar.range0(centre),
-        axis,
-        e1,
-        e2,
-        centre,
-        cos_fov: lidar.fov_half_angle.cos(),
-    };
+    let shot = Shot::new(lidar, k);
     let nbins = lidar.bins.count;
     let spp = lidar.spp.div_ceil(REPLICATES) * REPLICATES;
     let nblocks = spp.div_ceil(BLOCK);
@@ -621,27 +663,10 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
     let spp = (next * BLOCK).min(spp);
     // Replicate r holds spp / R photons.
     let per = (spp / REPLICATES) as f64;
-    let rn = REPLICATES as f64;
-    let stat = |sums: &mut dyn Iterator<Item = f64>| {
-        let means: Vec<f64> = sums.map(|x| x / per).collect();
-        let mean = means.iter().sum::<f64>() / rn;
-        let var = means.iter().map(|m| (m - mean) * (m - mean)).sum::<f64>() / (rn * (rn - 1.0));
-        Stat {
-            mean,
-            stderr: var.sqrt(),
-        }
-    };
-    let stride = nbins * NCOMP;
     let bins = (0..nbins)
-        .map(|b| {
-            std::array::from_fn(|c| {
-                stat(&mut (0..REPLICATES as usize).map(|r| acc.sum[r * stride + b * NCOMP + c]))
-            })
-        })
+        .map(|b| std::array::from_fn(|c| spread(&acc.bin_means(nbins, b, c, per))))
         .collect();
-    let totals = std::array::from_fn(|c| {
-        stat(&mut (0..REPLICATES as usize).map(|r| acc.tsum[r * NCOMP + c]))
-    });
+    let totals = std::array::from_fn(|c| spread(&acc.total_means(c, per)));
     let metrics = shot_metrics(lidar, &acc, per);
     ShotWaveform {
         photons: acc.n,
@@ -654,30 +679,11 @@ pub fn trace_shot(lidar: &Lidar, world: &World, seed: u64, k: usize) -> ShotWave
 /// Whether the waveform's highest bin (all orders) has a relative standard error of at most
 /// `target` after `traced` photons (a multiple of [`REPLICATES`]).
 fn peak_meets(acc: &Acc, nbins: usize, traced: u64, target: f64) -> bool {
-    let stride = nbins * NCOMP;
-    let reps = REPLICATES as usize;
     let per = (traced / REPLICATES) as f64;
-    let bin_mean = |b: usize| -> f64 {
-        (0..reps)
-            .map(|r| acc.sum[r * stride + b * NCOMP + TOTAL])
-            .sum::<f64>()
-            / (per * reps as f64)
-    };
-    let Some((peak, mean)) = (0..nbins)
-        .map(|b| (b, bin_mean(b)))
-        .max_by(|a, b| a.1.total_cmp(&b.1))
-    else {
-        return false;
-    };
-    if mean <= 0.0 {
-        return false;
-    }
-    let var = (0..reps)
-        .map(|r| acc.sum[r * stride + peak * NCOMP + TOTAL] / per - mean)
-        .map(|d| d * d)
-        .sum::<f64>()
-        / (reps as f64 * (reps as f64 - 1.0));
-    var.sqrt() <= target * mean
+    let peak = (0..nbins)
+        .map(|b| spread(&acc.bin_means(nbins, b, TOTAL, per)))
+        .max_by(|a, b| a.mean.total_cmp(&b.mean));
+    peak.is_some_and(|p| p.mean > 0.0 && p.stderr <= target * p.mean)
 }
 
 /// The metrics of the shot's mean waveform, and their standard errors from the replicates.
@@ -725,22 +731,15 @@ fn shot_metrics(
     };
     let full = of(None)?;
     let each: Vec<Option<Metrics>> = (0..reps).map(|r| of(Some(r))).collect();
-    let spread = |get: &dyn Fn(&Metrics) -> f64| -> f64 {
+    let err_of = |get: &dyn Fn(&Metrics) -> f64| -> f64 {
         let vals: Option<Vec<f64>> = each.iter().map(|m| m.as_ref().map(get)).collect();
-        match vals {
-            Some(v) => {
-                let n = v.len() as f64;
-                let mean = v.iter().sum::<f64>() / n;
-                (v.iter().map(|x| (x - mean) * (x - mean)).sum::<f64>() / (n - 1.0) / n).sqrt()
-            }
-            None => f64::NAN,
-        }
+        vals.map_or(f64::NAN, |v| spread(&v).stderr)
     };
     let err = Metrics {
-        ground: spread(&|m| m.ground),
-        rh: (0..full.rh.len()).map(|i| spread(&|m| m.rh[i])).collect(),
-        top: spread(&|m| m.top),
-        cover: spread(&|m| m.cover),
+        ground: err_of(&|m| m.ground),
+        rh: (0..full.rh.len()).map(|i| err_of(&|m| m.rh[i])).collect(),
+        top: err_of(&|m| m.top),
+        cover: err_of(&|m| m.cover),
     };
     Some((full, err))
 }
