@@ -32,6 +32,7 @@ pub mod accum;
 pub mod atmosphere;
 pub mod blocks;
 pub mod bsdf;
+pub mod clouds;
 /// The scene-bundle format, its own crate (`bundle/`); re-exported so that `engine::bundle::…`
 /// and `crate::bundle::…` name it.
 pub use bundle;
