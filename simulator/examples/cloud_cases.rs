@@ -212,7 +212,17 @@ fn main() -> anyhow::Result<()> {
     if runs("1") {
         for (k, &(sza, w)) in exps.iter().enumerate() {
             let g = kit::i3rc_case1(&kit_dir, w)?;
-            i3rc(&mut rows, "1", k as u32 + 1, &g, 250.0, sza, 0.0, true, n(CASE1_PHOTONS))?;
+            i3rc(
+                &mut rows,
+                "1",
+                k as u32 + 1,
+                &g,
+                250.0,
+                sza,
+                0.0,
+                true,
+                n(CASE1_PHOTONS),
+            )?;
         }
     }
     if runs("2") {
@@ -228,13 +238,33 @@ fn main() -> anyhow::Result<()> {
         ];
         for (k, &(sza, w, alb, pf)) in c2.iter().enumerate() {
             let g = kit::i3rc_case2(&kit_dir, w, pf)?;
-            i3rc(&mut rows, "2", k as u32 + 1, &g, 2430.0, sza, alb, false, n(CASE2_PHOTONS))?;
+            i3rc(
+                &mut rows,
+                "2",
+                k as u32 + 1,
+                &g,
+                2430.0,
+                sza,
+                alb,
+                false,
+                n(CASE2_PHOTONS),
+            )?;
         }
     }
     if runs("3") {
         for (k, &(sza, w)) in exps.iter().enumerate() {
             let g = kit::i3rc_case3(&kit_dir, w, 200.0)?;
-            i3rc(&mut rows, "3", k as u32 + 1, &g, 2580.0, sza, 0.0, false, n(CASE3_PHOTONS))?;
+            i3rc(
+                &mut rows,
+                "3",
+                k as u32 + 1,
+                &g,
+                2580.0,
+                sza,
+                0.0,
+                false,
+                n(CASE3_PHOTONS),
+            )?;
         }
     }
     if runs("iprt_c2") {

@@ -7,6 +7,7 @@ use crate::config::resolve::Experiment;
 use crate::integrator::backward::{Adjoint, AtSensor};
 use crate::integrator::forward::{self, ForwardTargets, Photon};
 use crate::integrator::geometry::layers::Layers;
+use crate::integrator::geometry::scene_clouds::SceneCloudsInLayers;
 use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
@@ -188,6 +189,23 @@ pub(super) fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     range,
                     stream,
                     |rng| sensor::scene_start_sph(&g, m, cell, rng).map(|(p, l, d)| ((p, l), d)),
+                    |_, d0| at_sensor(d0),
+                    |_, _| {},
+                )
+            } else if let Some(clouds) = &exp.clouds {
+                let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| SceneCloudsInLayers {
+                    base: scene_in_layers(exp, sun, &opt.atmosphere, opt, None),
+                    clouds,
+                    phases: &clouds.phases[iw],
+                });
+                backward_block::<_, B>(
+                    &g,
+                    moon.as_ref(),
+                    settings,
+                    1,
+                    range,
+                    stream,
+                    |rng| Some(sensor::scene_start(&g.base, m, cell, rng)),
                     |_, d0| at_sensor(d0),
                     |_, _| {},
                 )

@@ -96,6 +96,10 @@ pub(super) fn scene_in_layers<'a>(
         wavelength: opt.wavelength,
         emission,
         shines: exp.sun_shines,
+        clouds_top: exp
+            .clouds
+            .as_ref()
+            .map_or(f64::NEG_INFINITY, |c| c.grid.z_range().1 + c.origin.z),
     }
 }
 

@@ -192,10 +192,16 @@ fn check(grid: &CloudGrid, s: &ColumnSetup) -> Result<(), ColumnError> {
         ));
     }
     if !(0.0..=1.0).contains(&s.surface_albedo) {
-        return bad(format!("surface albedo {} must lie in [0, 1]", s.surface_albedo));
+        return bad(format!(
+            "surface albedo {} must lie in [0, 1]",
+            s.surface_albedo
+        ));
     }
     if !(s.sun.is_finite() && (s.sun.length() - 1.0).abs() < 1e-9 && s.sun.z < -1e-9) {
-        return bad(format!("the solar direction {} must be a unit vector going down", s.sun));
+        return bad(format!(
+            "the solar direction {} must be a unit vector going down",
+            s.sun
+        ));
     }
     for (k, w) in s.radiances.iter().enumerate() {
         if !(w.is_finite() && (w.length() - 1.0).abs() < 1e-9 && w.z.abs() > 1e-9) {
@@ -379,13 +385,21 @@ mod tests {
         let want = (-tau / sza.to_radians().cos()).exp();
         for k in 0..8 {
             let z = (r.t.value[k] - want) / r.t.stderr[k];
-            assert!(z.abs() < 4.5, "pixel {k}: {} ± {} vs {want}", r.t.value[k], r.t.stderr[k]);
+            assert!(
+                z.abs() < 4.5,
+                "pixel {k}: {} ± {} vs {want}",
+                r.t.value[k],
+                r.t.stderr[k]
+            );
             assert_eq!(r.radiance[0].value[k], 0.0);
         }
         // Per photon, A + T = 1 (absorbed on the way or at the ground), so in the domain too.
         assert!((r.domain[1].0 + r.domain[2].0 - 1.0).abs() < 1e-12);
         // Thread count does not matter.
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         let one = pool.install(|| run(&slab(tau, 0.0), &setup(sza, 20_000)).unwrap());
         assert_eq!(one.t.value, r.t.value);
     }
@@ -399,18 +413,26 @@ mod tests {
         let mu0 = sza.to_radians().cos();
         let s = setup(sza, 200_000);
         let r = run(&slab(tau, 1.0), &s).unwrap();
-        let p = HenyeyGreenstein::new(0.85).unwrap().eval(s.sun.dot(DVec3::Z));
+        let p = HenyeyGreenstein::new(0.85)
+            .unwrap()
+            .eval(s.sun.dot(DVec3::Z));
         let want = p / (4.0 * (mu0 + 1.0)) * (1.0 - (-tau * (1.0 / mu0 + 1.0)).exp());
         let iu = &r.radiance[0];
         let m = iu.mean();
         let se = (iu.stderr.iter().map(|e| e * e).sum::<f64>()).sqrt() / 8.0;
-        assert!((m - want).abs() < 4.5 * se + 0.01 * want, "{m} ± {se} vs {want}");
+        assert!(
+            (m - want).abs() < 4.5 * se + 0.01 * want,
+            "{m} ± {se} vs {want}"
+        );
     }
 
     #[test]
     fn open_fields_are_refused() {
         let mut g = slab(1.0, 1.0);
         g.lateral = Lateral::Open;
-        assert_eq!(run(&g, &setup(0.0, 100)).unwrap_err(), ColumnError::NotPeriodic);
+        assert_eq!(
+            run(&g, &setup(0.0, 100)).unwrap_err(),
+            ColumnError::NotPeriodic
+        );
     }
 }

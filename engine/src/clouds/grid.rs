@@ -117,7 +117,9 @@ impl CloudGrid {
             return shape(format!("{nx} × {ny} columns: need at least one"));
         }
         if !(dx.is_finite() && dx > 0.0 && dy.is_finite() && dy > 0.0) {
-            return shape(format!("column size {dx} × {dy} m must be positive and finite"));
+            return shape(format!(
+                "column size {dx} × {dy} m must be positive and finite"
+            ));
         }
         let (nz, z_lo, z_hi) = match &vertical {
             Vertical::Levels(z) => {
@@ -284,9 +286,7 @@ impl CloudGrid {
         let c = iy * self.nx + ix;
         match &self.vertical {
             Vertical::Levels(z) => (0..z.len() - 1)
-                .map(|k| {
-                    f64::from(self.extinction[k * self.nx * self.ny + c]) * (z[k + 1] - z[k])
-                })
+                .map(|k| f64::from(self.extinction[k * self.nx * self.ny + c]) * (z[k + 1] - z[k]))
                 .sum(),
             Vertical::Boxes { base, top } => f64::from(self.extinction[c]) * (top[c] - base[c]),
         }
@@ -396,8 +396,7 @@ impl CloudGrid {
                 iy += sy;
                 ty += dty;
             }
-            if self.lateral == Lateral::Open && (!(0..nx).contains(&ix) || !(0..ny).contains(&iy))
-            {
+            if self.lateral == Lateral::Open && (!(0..nx).contains(&ix) || !(0..ny).contains(&iy)) {
                 return;
             }
         }
@@ -477,7 +476,11 @@ impl CloudGrid {
 #[inline]
 fn wrap1(x: f64, l: f64) -> f64 {
     let w = x.rem_euclid(l);
-    if w >= l { 0.0 } else { w }
+    if w >= l {
+        0.0
+    } else {
+        w
+    }
 }
 
 /// Clip `[ta, tb]` to the part of `o + t·dir` inside `[lo, hi]`; whether anything is left.
@@ -585,7 +588,10 @@ mod tests {
         let d = DVec3::new(1.0, 0.0, 1.0).normalize();
         let tau = g.optical_depth(DVec3::new(0.0, 1.5, 0.0), d, 100.0);
         assert!((tau - 2f64.sqrt()).abs() < 1e-9, "{tau}");
-        assert_eq!(g.wrap(DVec3::new(-0.5, 7.25, 1.0)), DVec3::new(2.5, 1.25, 1.0));
+        assert_eq!(
+            g.wrap(DVec3::new(-0.5, 7.25, 1.0)),
+            DVec3::new(2.5, 1.25, 1.0)
+        );
     }
 
     #[test]
@@ -652,7 +658,11 @@ mod tests {
             hg(),
         )
         .unwrap_err();
-        assert!(e.to_string().contains("extinction of cell (ix 1, iy 0, iz 0)"), "{e}");
+        assert!(
+            e.to_string()
+                .contains("extinction of cell (ix 1, iy 0, iz 0)"),
+            "{e}"
+        );
         let e = CloudGrid::new(
             (1, 1),
             (1.0, 1.0),

@@ -226,9 +226,14 @@ mod tests {
         let g = i3rc_case2(&k, 1.0, CasePhase::Hg).unwrap();
         let taus: Vec<f64> = (0..640).map(|i| g.column_optical_depth(i, 0)).collect();
         let mean = taus.iter().sum::<f64>() / 640.0;
-        let (lo, hi) = taus.iter().fold((f64::MAX, 0.0f64), |a, &t| (a.0.min(t), a.1.max(t)));
+        let (lo, hi) = taus
+            .iter()
+            .fold((f64::MAX, 0.0f64), |a, &t| (a.0.min(t), a.1.max(t)));
         assert!((mean - 19.5).abs() < 0.05, "{mean}");
-        assert!((lo - 6.5).abs() < 0.05 && (hi - 51.5).abs() < 0.05, "{lo} {hi}");
+        assert!(
+            (lo - 6.5).abs() < 0.05 && (hi - 51.5).abs() < 0.05,
+            "{lo} {hi}"
+        );
         // The lowest 14 layers are empty: nothing below 630 m.
         let below = g.optical_depth(glam::DVec3::new(10.0, 0.0, 630.0), -glam::DVec3::Z, 1e9);
         assert_eq!(below, 0.0);
@@ -248,7 +253,11 @@ mod tests {
         let c1 = c1_phase(&k).unwrap();
         assert!((c1.asymmetry() - 0.848).abs() < 2e-3, "{}", c1.asymmetry());
         let (c2, _) = iprt_c2(&k).unwrap();
-        let tau = c2.optical_depth(glam::DVec3::new(3500.0, 3500.0, 5000.0), -glam::DVec3::Z, 1e9);
+        let tau = c2.optical_depth(
+            glam::DVec3::new(3500.0, 3500.0, 5000.0),
+            -glam::DVec3::Z,
+            1e9,
+        );
         assert!((tau - 10.0).abs() < 1e-5, "{tau}");
     }
 

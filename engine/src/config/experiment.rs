@@ -41,6 +41,8 @@ pub struct Experiment {
     pub planet_radius: Option<f64>,
     /// The 3D scene, when the experiment renders one (shared: it can be large).
     pub scene: Option<Arc<Scene>>,
+    /// A gridded cloud field in the scene's frame (`[[clouds]]`).
+    pub clouds: Option<Arc<crate::clouds::config::PlacedClouds>>,
     /// Thermal emission (`emission = true`): radiances then carry brightness temperatures.
     pub emission: bool,
     /// Whether a Sun shines (`illumination.type = "none"`: false, no BRF).

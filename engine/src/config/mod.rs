@@ -61,6 +61,9 @@ pub struct ExperimentConfig {
     /// A 3D scene (bundle or canopy) instead of the 1D surface.
     #[serde(default)]
     pub scene: Option<scene::SceneConfig>,
+    /// Gridded cloud fields among the layers over the scene (`clouds/config.rs`).
+    #[serde(default)]
+    pub clouds: Vec<crate::clouds::config::CloudConfig>,
     pub illumination: IlluminationConfig,
     pub measures: Vec<MeasureConfig>,
     #[serde(default)]

@@ -322,12 +322,19 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         check_scene_temperatures(&ctx, sc)?;
     }
 
+    let clouds = crate::clouds::config::resolve(&ctx, &cfg.clouds, &wavelengths)?;
+    if let Some(c) = &clouds {
+        check_clouds(&cfg, &ctx, c, scene.as_deref(), planet_radius)?;
+    }
+
     let mut measures = resolve_measures(&cfg, &ctx, ground, toa, scene.as_deref())?;
     let lidars = resolve_lidars(&cfg, &ctx, ground, scene.as_deref())?;
     if let Some(l) = lidars.first() {
         // The lidar flies through plane-parallel layers at one wavelength.
         let why = if ckd {
             Some("`mode = \"ckd\"` (use monochromatic wavelengths)")
+        } else if clouds.is_some() {
+            Some("`[[clouds]]` fields (the lidar flies through the layers only)")
         } else {
             None
         };
@@ -398,6 +405,16 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             return Err(e);
         }
     }
+    if clouds.is_some() && (integrator.alis || integrator.spectral_alis.is_some()) {
+        // The spectral walks' geometries (`scene_alis.rs`, `backward_alis.rs`) do not cross
+        // cloud fields: `"auto"` falls back to independent walks, an explicit choice is refused.
+        if !integrator.drop_auto_alis() || integrator.alis {
+            return Err(ctx.err(
+                "integrator.spectral_walk",
+                "spectral (ALIS) walks do not cross `[[clouds]]` fields yet: use spectral_walk = \"independent\" (or \"auto\")",
+            ));
+        }
+    }
     // After every check that may turn off the walks that `"auto"` chose.
     check_above_scene(&ctx, &integrator, scene.as_deref(), &sun)?;
     if let Some(b) = &band {
@@ -433,11 +450,56 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         moon: sun.moon.clone(),
         planet_radius,
         scene,
+        clouds,
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
     };
     super::memory::check(&exp, super::memory::total_memory())?;
     Ok(exp)
+}
+
+/// `[[clouds]]` needs a 3D scene in plane-parallel layers, without thermal emission; in a
+/// periodic scene the field repeats with a period that divides the scene's.
+fn check_clouds(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    c: &crate::clouds::config::PlacedClouds,
+    scene: Option<&Scene>,
+    planet_radius: Option<f64>,
+) -> Result<(), ConfigError> {
+    let Some(scene) = scene else {
+        return Err(ctx.err(
+            "clouds",
+            "cloud fields are crossed by the 3D scene walks: add a `[scene]` (for a flat ground, a `canopy` scene with only a `ground`, and `periodic_m` for a periodic domain)",
+        ));
+    };
+    if planet_radius.is_some() {
+        return Err(ctx.err(
+            "clouds",
+            "cloud fields are not supported in spherical shells yet (use plane-parallel layers)",
+        ));
+    }
+    if cfg.emission {
+        return Err(ctx.err(
+            "clouds",
+            "cloud fields do not emit yet: thermal runs (`emission = true`) cannot have `[[clouds]]`",
+        ));
+    }
+    if let Some(cell) = scene.periodic {
+        let (w, h) = (cell[2] - cell[0], cell[3] - cell[1]);
+        let (lx, ly) = c.grid.size();
+        let whole =
+            |a: f64, b: f64| (a / b - (a / b).round()).abs() < 1e-9 && a >= b * (1.0 - 1e-12);
+        if c.grid.lateral != crate::clouds::Lateral::Periodic || !whole(w, lx) || !whole(h, ly) {
+            return Err(ctx.err(
+                "clouds[0].lateral",
+                format!(
+                    "the scene repeats every {w} × {h} m: the cloud field must be periodic (`lateral = \"periodic\"`) with a size ({lx} × {ly} m) that divides that period"
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// The surface per wavelength: `[surface]`, or a black placeholder under a 3D scene.

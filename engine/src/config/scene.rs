@@ -325,10 +325,11 @@ pub fn build_scene(
                     ));
                 }
             }
-            if objects.is_empty() && cone_trees.is_empty() {
+            // A ground alone is a flat (periodic) scene: the floor of cloud-field runs.
+            if objects.is_empty() && cone_trees.is_empty() && ground.is_none() {
                 return Err((
                     "scene.objects".into(),
-                    "a canopy needs at least one leaf cloud (`objects`) or `cone_trees`".into(),
+                    "a canopy needs at least one leaf cloud (`objects`), `cone_trees` or a `ground`".into(),
                 ));
             }
             let mut trees = Vec::new();

@@ -350,17 +350,20 @@ impl Scene {
     ) {
         let (zlo, zhi) = (self.z_range[0], self.z_range[1]);
         let mut t = 0.0;
-        // Come down (or up) to the geometry's slab first.
+        // Come down (or up) to the geometry's slab first, stopping a hair short of it: a
+        // piece must not start on a surface lying in the slab's boundary plane (a flat ground
+        // alone makes a slab of zero thickness, which a piece starting on it would never hit).
+        let margin = 1e-6 * (1.0 + zhi.abs().max(zlo.abs()));
         if o.z > zhi {
             if d.z >= 0.0 {
                 return;
             }
-            t = (o.z - zhi) / -d.z;
+            t = ((o.z - zhi - margin) / -d.z).max(0.0);
         } else if o.z < zlo {
             if d.z <= 0.0 {
                 return;
             }
-            t = (zlo - o.z) / d.z;
+            t = ((zlo - margin - o.z) / d.z).max(0.0);
         }
         let mut p = self.wrap(cell, o + d * t);
         let (w, h) = (cell[2] - cell[0], cell[3] - cell[1]);
@@ -392,7 +395,7 @@ impl Scene {
             }
             t += exit;
             p += d * exit;
-            if (d.z >= 0.0 && p.z > zhi) || (d.z <= 0.0 && p.z < zlo) {
+            if (d.z >= 0.0 && p.z > zhi + margin) || (d.z <= 0.0 && p.z < zlo - margin) {
                 return;
             }
             // Re-enter through the opposite wall.

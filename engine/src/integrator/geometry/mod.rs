@@ -6,6 +6,7 @@
 //! | [`layers::Layers`] | optical depth τ from TOA (plane-parallel layers) | flat [`Bsdf`](crate::bsdf::Bsdf) |
 //! | [`shells::Shells`] | planet-centred point and shell index (spherical shells) | the ground sphere's BRDF in the local vertical's frame |
 //! | [`scene_layers::SceneInLayers`] | scene point (m) under plane-parallel layers | scene materials at BVH hits |
+//! | [`scene_clouds::SceneCloudsInLayers`] | scene point (m) under layers with a gridded cloud field | scene materials at BVH hits |
 //! | [`scene_shells::SceneInShells`] | planet-centred point and shell of a scene bent onto the planet | scene materials at BVH hits |
 //!
 //! A geometry samples flights exactly (optical depths summed layer by layer or shell by shell),
@@ -15,6 +16,7 @@
 //! collision points with their shadow rays (unbiased either way).
 
 pub mod layers;
+pub mod scene_clouds;
 pub mod scene_layers;
 pub mod scene_shells;
 pub mod shells;

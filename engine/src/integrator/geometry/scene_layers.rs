@@ -59,6 +59,8 @@ pub struct SceneInLayers<'a> {
     pub emission: Option<&'a crate::scene::emission::SceneEmission>,
     /// Whether the Sun shines (false: thermal emission only).
     pub shines: bool,
+    /// The top of a cloud field among the layers (m; −∞ without one): paths start above it.
+    pub clouds_top: f64,
 }
 
 impl SceneInLayers<'_> {
@@ -70,7 +72,10 @@ impl SceneInLayers<'_> {
 
     /// Altitude above which a path starts so that it sees the whole scene and atmosphere.
     pub fn start_altitude(&self) -> f64 {
-        self.atmosphere.toa().max(self.scene.z_range[1] + 1.0)
+        self.atmosphere
+            .toa()
+            .max(self.scene.z_range[1] + 1.0)
+            .max(self.clouds_top + 1.0)
     }
 }
 

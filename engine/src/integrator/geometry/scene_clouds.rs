@@ -1,0 +1,194 @@
+//! A 3D scene inside plane-parallel layers with a gridded cloud field
+//! ([`PlacedClouds`](crate::clouds::config::PlacedClouds)) among them.
+//!
+//! The medium's extinction is the layers' plus the cloud's. A flight's collision is sampled by
+//! *competing risks*: one free path through the layers (their exact march, up to the first
+//! surface hit) and one through the cloud grid (its exact DDA march, up to the layers'
+//! collision or the hit); the nearer wins and the collision takes that medium's albedo and
+//! phase function. For independent exponential optical paths this is exact: the first of two
+//! Poisson processes is a Poisson process of the summed rate, and each wins in proportion to
+//! its local extinction.
+//!
+//! Next-event estimates carry the cloud's transmittance to the Sun (one DDA per shadow ray) on
+//! top of the layers' and the scene's visibility. A flight's expected next-event estimate is the
+//! collision estimate at its sampled collision (unbiased): the exact layer integrals and forced
+//! points of [`SceneInLayers`] assume a cloud-free path to the Sun, which no flight can promise
+//! once a cloud may shadow it. (A field without any extinction runs [`SceneInLayers`] itself,
+//! random numbers included, so it gives the clear run bit for bit.) Costlier than the clear
+//! geometry's estimate in thin air, where few flights collide: the clear-sky path radiance of a
+//! cloudy scene is noisier per sample than a clear one's.
+
+use glam::DVec3;
+
+use super::scene_layers::SceneInLayers;
+use super::{Event, Geometry, Light};
+use crate::clouds::config::PlacedClouds;
+use crate::integrator::surface::SurfaceAt;
+use crate::integrator::weight::Weight;
+use crate::phase::PhaseFunction;
+use crate::rng::Stream;
+use crate::scene::SurfaceHit;
+
+pub struct SceneCloudsInLayers<'a> {
+    pub base: SceneInLayers<'a>,
+    pub clouds: &'a PlacedClouds,
+    /// The cloud's phase functions at this wavelength.
+    pub phases: &'a [PhaseFunction],
+}
+
+impl SceneCloudsInLayers<'_> {
+    /// The cloud's transmittance from scene point `p` along `d` (unbounded).
+    #[inline]
+    fn cloud_t(&self, p: DVec3, d: DVec3) -> f64 {
+        let tau = self
+            .clouds
+            .grid
+            .optical_depth(self.clouds.local(p), d, f64::INFINITY);
+        (-tau).exp()
+    }
+
+    /// A collision in cloud cell `cell` at scene point `q`.
+    #[inline]
+    fn cloud_collision(&self, q: DVec3, cell: usize) -> Event<'_, DVec3, SurfaceHit> {
+        let g = &self.clouds.grid;
+        Event::Collision {
+            pos: self.base.scene.wrap_point(q),
+            omega: f64::from(g.albedo.at(cell)),
+            phase: &self.phases[usize::from(g.phase_index.at(cell))],
+        }
+    }
+}
+
+impl<W: Weight> Geometry<W> for SceneCloudsInLayers<'_> {
+    type Pos = DVec3;
+    type Hit = SurfaceHit;
+
+    fn light(&self) -> Light {
+        Geometry::<W>::light(&self.base)
+    }
+
+    #[inline]
+    fn sun_shines(&self) -> bool {
+        self.base.shines
+    }
+
+    fn flight(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        w: &mut W,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Event<'_, DVec3, SurfaceHit> {
+        // A field without extinction is the clear run's, random numbers included.
+        if !self.clouds.any_extinction {
+            return Geometry::<W>::flight(&self.base, p, d, w, acc, rng);
+        }
+        let (_, hit) = self.base.first_hit(p, d);
+        let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
+        let local = self.clouds.local(p);
+        let grid = &self.clouds.grid;
+        let atm = self.base.atmosphere;
+        let s_layers = -rng.next_f64_open0().ln();
+        let t_layers = if atm.total_tau() > 0.0 {
+            atm.march(p.z, d.z, s_layers, t_hit)
+        } else {
+            None
+        };
+        let s_cloud = -rng.next_f64_open0().ln();
+        let t_lim = t_layers.unwrap_or(t_hit);
+        let event = match grid.march(local, d, s_cloud, t_lim) {
+            Some((t, cell)) => self.cloud_collision(p + d * t, cell),
+            None => match (t_layers, hit) {
+                (Some(t), _) => self.base.collision_at(p + d * t),
+                (None, Some(h)) => Event::Surface(h),
+                (None, None) => Event::Escape,
+            },
+        };
+        if let (Some(acc), Event::Collision { pos, omega, phase }) = (acc, &event) {
+            if *omega > 0.0 {
+                let t = Geometry::<W>::sun_at(self, *pos);
+                if t > 0.0 {
+                    W::accumulate(acc, phase, self.base.sun.dot(d), *omega, t);
+                }
+            }
+        }
+        event
+    }
+
+    /// The layers' own split where the field has no extinction (no split otherwise: the
+    /// competing-risk flight has no closed-form collision probability to split on).
+    fn flight_split(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        w: &mut W,
+        acc: Option<&mut W::Phase>,
+        rng: &mut Stream,
+    ) -> Option<super::Split<'_, DVec3, SurfaceHit>> {
+        if self.clouds.any_extinction {
+            None
+        } else {
+            Geometry::<W>::flight_split(&self.base, p, d, w, acc, rng)
+        }
+    }
+
+    #[inline]
+    fn sun_at(&self, p: DVec3) -> f64 {
+        let t = Geometry::<W>::sun_at(&self.base, p);
+        if t > 0.0 {
+            t * self.cloud_t(p, self.base.sun)
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    fn surface(&self, h: &SurfaceHit) -> SurfaceAt<'_> {
+        Geometry::<W>::surface(&self.base, h)
+    }
+
+    #[inline]
+    fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {
+        let t = Geometry::<W>::sun_at_surface(&self.base, h);
+        if t > 0.0 {
+            t * self.cloud_t(h.point, self.base.sun)
+        } else {
+            0.0
+        }
+    }
+
+    #[inline]
+    fn leave(&self, h: &SurfaceHit, d: DVec3) -> DVec3 {
+        Geometry::<W>::leave(&self.base, h, d)
+    }
+
+    #[inline]
+    fn solver(&self, h: &Self::Hit) -> crate::integrator::solver::SolverSpec {
+        Geometry::<W>::solver(&self.base, h)
+    }
+
+    #[inline]
+    fn mirror_count(&self) -> usize {
+        Geometry::<W>::mirror_count(&self.base)
+    }
+
+    fn mirror_image(&self, k: usize) -> Option<DVec3> {
+        Geometry::<W>::mirror_image(&self.base, k)
+    }
+
+    /// The layers' relay times the cloud's transmittance along both legs: from the hit to the
+    /// mirror point and from there to the Sun.
+    fn sun_via_mirror(&self, h: &SurfaceHit, k: usize, image: DVec3) -> f64 {
+        let t = Geometry::<W>::sun_via_mirror(&self.base, h, k, image);
+        if t <= 0.0 {
+            return 0.0;
+        }
+        let Some(m) = self.base.scene.mirror_seen(h, k, image, self.base.sun) else {
+            return 0.0;
+        };
+        let grid = &self.clouds.grid;
+        let leg1 = grid.optical_depth(self.clouds.local(m.start), image, m.distance);
+        t * (-leg1).exp() * self.cloud_t(m.hit.point, self.base.sun)
+    }
+}
