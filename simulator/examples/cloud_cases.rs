@@ -84,6 +84,7 @@ fn i3rc(
         photons,
         batches: BATCHES,
         seed: 2026 + u64::from(exp) * 17 + case.len() as u64,
+        ddis: columns::DDIS_SHARE,
     };
     let t0 = Instant::now();
     let r = columns::run(grid, &setup)?;
@@ -156,6 +157,7 @@ fn iprt(rows: &mut Vec<Row>, kit_dir: &Path, photons: u64) -> anyhow::Result<()>
             photons,
             batches: BATCHES,
             seed: 77 + sza as u64,
+            ddis: columns::DDIS_SHARE,
         };
         let t0 = Instant::now();
         let r = columns::run(&grid, &setup)?;

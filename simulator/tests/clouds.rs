@@ -288,6 +288,7 @@ fn backward_images_equal_forward_columns() {
             photons: 400_000,
             batches: 32,
             seed: 4,
+            ddis: columns::DDIS_SHARE,
         },
     )
     .unwrap();
@@ -388,4 +389,82 @@ fn bad_cloud_inputs_are_named() {
         &dir.join("e.toml"),
     )
     .unwrap();
+}
+
+/// Standard errors of the forward column estimator are honest where the phase function is
+/// most peaked: the I3RC MMCR cloud with the Deirmendjian C.1 function (forward peak 1713),
+/// SZA 60, ϖ 1 (case 2, experiment 7), whose local estimates of the zenith radiance Id meet
+/// that peak. Over 24 seeds, the scatter of each pixel's value about the seeds' mean, in units
+/// of each run's own standard error, must have an RMS near 1 (R, T, Iu, Id; 16 pixels of 40
+/// columns, 1 500 photons per pixel as in the I3RC runs' per-column budgets; `NPX=64` shows the
+/// small-sample regime: 375 photons per pixel, Iu RMS 1.29 with detector-directional sampling,
+/// 3.66 without): heavy
+/// tails would show as an RMS well above 1 (small batch means then under-report rare large
+/// scores). Needs `shared/clouds`.
+#[test]
+fn column_errors_are_honest_over_seeds() {
+    use engine::clouds::columns::{self, ColumnSetup};
+    use engine::clouds::kit;
+    let kit_dir = std::env::var_os("CLOUDS_KIT")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/clouds"));
+    if !kit_dir.exists() {
+        eprintln!("skipping: {} not found", kit_dir.display());
+        return;
+    }
+    let grid = kit::i3rc_case2(&kit_dir, 1.0, kit::CasePhase::C1).unwrap();
+    let s = 60f64.to_radians();
+    let seeds = 24;
+    let npx: usize = std::env::var("NPX")
+        .ok()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or(16);
+    let runs: Vec<columns::ColumnResult> = (0..seeds)
+        .map(|seed| {
+            columns::run(
+                &grid,
+                &ColumnSetup {
+                    top: 2430.0,
+                    surface_albedo: 0.0,
+                    sun: glam::DVec3::new(s.sin(), 0.0, -s.cos()),
+                    // Pixels of 40 columns: each batch's mean then holds enough photons for
+                    // its spread to estimate the error (with ~1 photon per pixel and batch,
+                    // skewed Poisson counts alone put the RMS at 1.16).
+                    flux_pixels: (npx, 1),
+                    radiance_pixels: (npx, 1),
+                    radiances: vec![glam::DVec3::Z, -glam::DVec3::Z],
+                    photons: 24_000,
+                    batches: 32,
+                    seed,
+                    ddis: columns::DDIS_SHARE,
+                },
+            )
+            .unwrap()
+        })
+        .collect();
+    let quantities: [(&str, fn(&columns::ColumnResult) -> &columns::Estimate); 4] = [
+        ("R", |r| &r.r),
+        ("T", |r| &r.t),
+        ("Iu", |r| &r.radiance[0]),
+        ("Id", |r| &r.radiance[1]),
+    ];
+    for (name, get) in quantities {
+        let (mut sum, mut n) = (0.0, 0);
+        for k in 0..npx {
+            let mean = runs.iter().map(|r| get(r).value[k]).sum::<f64>() / seeds as f64;
+            for r in &runs {
+                let e = get(r);
+                if e.stderr[k] > 0.0 {
+                    // Deviation from the mean of the others' estimates has variance
+                    // σ²·(1 + 1/(n−1)) about the leave-one-out mean; from the full mean σ²·(1 − 1/n).
+                    let z = (e.value[k] - mean) / (e.stderr[k] * (1.0 - 1.0 / seeds as f64).sqrt());
+                    sum += z * z;
+                    n += 1;
+                }
+            }
+        }
+        let rms = (sum / n as f64).sqrt();
+        eprintln!("{name}: z RMS {rms:.3} over {n} column-runs");
+        assert!((0.9..1.15).contains(&rms), "{name}: z RMS {rms:.3}");
+    }
 }
