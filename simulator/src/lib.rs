@@ -19,6 +19,7 @@
 pub const BUILD_ID: &str = env!("SIMULATOR_BUILD_ID");
 
 pub mod bench;
+pub mod cloud_field;
 pub mod cluster;
 pub mod error;
 pub mod heavy_tail;

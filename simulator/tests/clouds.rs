@@ -259,6 +259,43 @@ fn uniform_field_equals_the_plane_parallel_layer() {
     }
 }
 
+/// The same with air around the cloud: a uniform cloud field in 0–1 km (τ 2, HG 0.85, ϖ 0.95)
+/// under a Rayleigh layer in 1–10 km (τ 0.25) of a `layered` atmosphere, against the 1D
+/// `layered` atmosphere with the cloud as its lowest layer. Exercises the layers' forced
+/// next-event points with the cloud's transmittance on their shadow rays and the competing-risk
+/// flights across both media.
+#[test]
+fn uniform_field_under_air_equals_the_layered_atmosphere() {
+    let dir = tmp("uniform_air");
+    let f = dir.join("uniform.nc");
+    write_field(&f, (2, 2), (250.0, 250.0), &[0.0, 1000.0], &[2.0; 4]);
+    let dirs = "[[measures]]\nid = \"toa\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0, 45.0, 45.0]\nazimuths = [0.0, 90.0, 270.0]\nspp = 160000\n";
+    let rayleigh = "[[atmosphere.layers]]\nbottom = 1.0\ntop = 10.0\noptical_thickness = 0.25\nsingle_scattering_albedo = 1.0\nphase = { type = \"rayleigh\" }\n";
+    let three_d = experiment(&format!(
+        "seed = 31\n[spectral]\nwavelengths = [550.0]\n[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 10.0\n{}[atmosphere]\ntype = \"layered\"\n[[atmosphere.layers]]\nbottom = 0.0\ntop = 1.0\noptical_thickness = 0.0\n{rayleigh}{}{}{dirs}target_m = [0.0, 0.0, 500.0, 500.0]\n",
+        sun_az_270(30.0),
+        flat_scene(500.0, 0.2),
+        clouds_toml(&f, 0.95, "{ type = \"hg\", g = 0.85 }")
+    ));
+    let one_d = experiment(&format!(
+        "seed = 32\n[spectral]\nwavelengths = [550.0]\n[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 10.0\n{}[atmosphere]\ntype = \"layered\"\n[[atmosphere.layers]]\nbottom = 0.0\ntop = 1.0\noptical_thickness = 2.0\nsingle_scattering_albedo = 0.95\nphase = {{ type = \"hg\", g = 0.85 }}\n{rayleigh}[surface]\ntype = \"lambertian\"\nreflectance = 0.2\n{dirs}",
+        sun_az_270(30.0)
+    ));
+    let a = run_rows(&three_d);
+    let b = run_rows(&one_d);
+    assert_eq!(a.len(), b.len());
+    for (x, y) in a.iter().zip(&b) {
+        let ((xa, xs), (ya, ys)) = (x.brf.unwrap(), y.brf.unwrap());
+        assert!(
+            close(xa, xs, ya, ys, 1e-4),
+            "vza {:?} vaa {:?}: 3D {xa} ± {xs} vs 1D {ya} ± {ys}",
+            x.vza,
+            x.vaa,
+        );
+        assert!(xs < 0.01 * xa, "{xs}");
+    }
+}
+
 #[test]
 fn backward_images_equal_forward_columns() {
     use engine::clouds::columns::{self, ColumnSetup};

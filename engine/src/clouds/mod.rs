@@ -9,6 +9,7 @@
 //! * [`config`]: `[[clouds]]` of the experiment file and its field placed in the scene's frame,
 //!   which the backward scene walks cross (`integrator/geometry/scene_clouds.rs`); [`netcdf`]:
 //!   the field's file format.
+//! * [`cumulus`]: a generated field of fair-weather cumulus (`simulate cloud-field`).
 //! * [`kit`]: the I3RC Phase 1 and IPRT phase B C2 input files (`shared/clouds`) read into
 //!   grids.
 //!
@@ -16,6 +17,7 @@
 //! horizontal, z up). Conventions of the outputs: `columns.rs`.
 pub mod columns;
 pub mod config;
+pub mod cumulus;
 pub mod grid;
 pub mod kit;
 pub mod netcdf;

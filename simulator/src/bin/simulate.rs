@@ -119,6 +119,47 @@ enum Command {
         /// Plan folder (from `simulate plan`).
         plan: PathBuf,
     },
+    /// Write a generated field of fair-weather cumulus (netCDF, the `[[clouds]] file` format;
+    /// model in engine/src/clouds/cumulus.rs) covering a rectangle of the scene's frame.
+    CloudField {
+        /// Output netCDF file.
+        #[arg(short, long)]
+        output: PathBuf,
+        /// The rectangle, xmin,ymin,xmax,ymax (m, the scene's frame: a bundle's working CRS).
+        #[arg(
+            long,
+            value_delimiter = ',',
+            allow_negative_numbers = true,
+            required = true
+        )]
+        extent: Vec<f64>,
+        /// Column size (m).
+        #[arg(long, default_value_t = 200.0)]
+        dx: f64,
+        /// Level spacing (m).
+        #[arg(long, default_value_t = 100.0)]
+        dz: f64,
+        /// Cloud base altitude (m).
+        #[arg(long, default_value_t = 3000.0)]
+        base: f64,
+        /// Number of clouds.
+        #[arg(long, default_value_t = 60)]
+        count: usize,
+        /// Smallest and largest cloud radius (m).
+        #[arg(long, value_delimiter = ',', default_values_t = [400.0, 1500.0])]
+        radius: Vec<f64>,
+        /// Cloud depth over radius.
+        #[arg(long, default_value_t = 1.0)]
+        aspect: f64,
+        /// Fraction of the adiabatic liquid water content.
+        #[arg(long, default_value_t = 0.5)]
+        adiabatic_fraction: f64,
+        /// Droplet effective radius (µm).
+        #[arg(long, default_value_t = 10.0)]
+        r_eff_um: f64,
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+    },
     /// Simulated TOA reflectance of a calibration site for a list of acquisitions
     /// (columns time_utc,vza,vaa,srf and optionally sza,saa); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
     Pics {
@@ -304,6 +345,79 @@ fn set_threads(threads: Option<usize>) -> anyhow::Result<()> {
 fn dispatch(cli: Cli) -> anyhow::Result<()> {
     let quiet = cli.verbosity.quiet;
     match cli.command {
+        Command::CloudField {
+            output,
+            extent,
+            dx,
+            dz,
+            base,
+            count,
+            radius,
+            aspect,
+            adiabatic_fraction,
+            r_eff_um,
+            seed,
+        } => {
+            let [x0, y0, x1, y1] = extent[..] else {
+                anyhow::bail!("--extent takes four numbers: xmin,ymin,xmax,ymax");
+            };
+            let checks = [
+                (
+                    x1 > x0 && y1 > y0 && [x0, y0, x1, y1].iter().all(|v| v.is_finite()),
+                    "--extent must have xmin < xmax and ymin < ymax",
+                ),
+                (dx.is_finite() && dx > 0.0, "--dx must be positive"),
+                (dz.is_finite() && dz > 0.0, "--dz must be positive"),
+                (base.is_finite(), "--base must be finite"),
+                (
+                    radius.len() == 2
+                        && radius[0] > 0.0
+                        && radius[0] <= radius[1]
+                        && radius[1].is_finite(),
+                    "--radius must be min,max with 0 < min ≤ max",
+                ),
+                (
+                    aspect.is_finite() && aspect > 0.0,
+                    "--aspect must be positive",
+                ),
+                (
+                    (0.0..=1.0).contains(&adiabatic_fraction),
+                    "--adiabatic-fraction must lie in [0, 1]",
+                ),
+                (
+                    r_eff_um.is_finite() && r_eff_um > 0.0,
+                    "--r-eff-um must be positive",
+                ),
+            ];
+            if let Some((_, m)) = checks.iter().find(|(ok, _)| !ok) {
+                anyhow::bail!("{m}");
+            }
+            let nx = ((x1 - x0) / dx).ceil() as usize;
+            let ny = ((y1 - y0) / dx).ceil() as usize;
+            if nx * ny * ((radius[1] * aspect / dz).ceil() as usize) > 500_000_000 {
+                anyhow::bail!("{nx} × {ny} columns at --dx {dx} m is too large a field (over 2 GB): raise --dx or --dz");
+            }
+            let c = engine::clouds::cumulus::Cumulus {
+                nx,
+                ny,
+                dx,
+                base_m: base,
+                dz,
+                count,
+                radius_m: [radius[0], radius[1]],
+                aspect,
+                adiabatic_fraction,
+                r_eff_m: r_eff_um * 1e-6,
+                seed,
+            };
+            let (cells, cover) = simulator::cloud_field::write(&output, &c, [x0, y0])?;
+            println!(
+                "wrote {} ({nx} × {ny} columns of {dx} m, {cells} cells, cloud cover {:.1} %)",
+                output.display(),
+                100.0 * cover
+            );
+            Ok(())
+        }
         Command::Preview {
             experiment,
             output,

@@ -10,13 +10,14 @@
 //! its local extinction.
 //!
 //! Next-event estimates carry the cloud's transmittance to the Sun (one DDA per shadow ray) on
-//! top of the layers' and the scene's visibility. A flight's expected next-event estimate is the
-//! collision estimate at its sampled collision (unbiased): the exact layer integrals and forced
-//! points of [`SceneInLayers`] assume a cloud-free path to the Sun, which no flight can promise
-//! once a cloud may shadow it. (A field without any extinction runs [`SceneInLayers`] itself,
-//! random numbers included, so it gives the clear run bit for bit.) Costlier than the clear
-//! geometry's estimate in thin air, where few flights collide: the clear-sky path radiance of a
-//! cloudy scene is noisier per sample than a clear one's.
+//! top of the layers' and the scene's visibility. A flight's expected next-event estimate has
+//! two parts, each unbiased: for the layers' collisions, one point forced from their collision
+//! density along the whole flight (as [`SceneInLayers`] does below the scene's top), weighted by
+//! the probability of a layer collision and by the cloud's transmittance up to the point; for
+//! the cloud's collisions, the collision estimate at the sampled one. (The exact layer integrals
+//! [`SceneInLayers`] uses above the scene's top assume a cloud-free path to the Sun.) A field
+//! without any extinction runs [`SceneInLayers`] itself, random numbers included, so it gives
+//! the clear run bit for bit.
 
 use glam::DVec3;
 
@@ -77,18 +78,46 @@ impl<W: Weight> Geometry<W> for SceneCloudsInLayers<'_> {
         p: DVec3,
         d: DVec3,
         w: &mut W,
-        acc: Option<&mut W::Phase>,
+        mut acc: Option<&mut W::Phase>,
         rng: &mut Stream,
     ) -> Event<'_, DVec3, SurfaceHit> {
         // A field without extinction is the clear run's, random numbers included.
         if !self.clouds.any_extinction {
             return Geometry::<W>::flight(&self.base, p, d, w, acc, rng);
         }
-        let (_, hit) = self.base.first_hit(p, d);
+        let (reach, hit) = self.base.first_hit(p, d);
         let t_hit = hit.map_or(f64::INFINITY, |h| h.t);
         let local = self.clouds.local(p);
         let grid = &self.clouds.grid;
         let atm = self.base.atmosphere;
+        let cos = self.base.sun.dot(d);
+        // Expected estimate of the layers' collisions: one point forced from their collision
+        // density along the whole flight, weighted by the probability of a layer collision
+        // there and by the cloud's transmittance up to it (the layers' collision density in
+        // the combined medium).
+        if let Some(acc) = acc.as_deref_mut() {
+            if self.base.can_split(d) {
+                if let Some(f) = self.base.split_ending(p, d, reach, hit, t_hit) {
+                    let t = self.base.forced_distance(p, d, &f, rng);
+                    let q = p + d * t;
+                    let l = atm.layer_at_altitude(q.z);
+                    let omega = atm.albedo(l);
+                    if omega > 0.0 {
+                        let sun = Geometry::<W>::sun_at(self, q);
+                        if sun > 0.0 {
+                            let survive = (-grid.optical_depth(local, d, t)).exp();
+                            W::accumulate(
+                                acc,
+                                atm.phase(l),
+                                cos,
+                                omega,
+                                sun * f.p_collision * survive,
+                            );
+                        }
+                    }
+                }
+            }
+        }
         let s_layers = -rng.next_f64_open0().ln();
         let t_layers = if atm.total_tau() > 0.0 {
             atm.march(p.z, d.z, s_layers, t_hit)
@@ -97,23 +126,27 @@ impl<W: Weight> Geometry<W> for SceneCloudsInLayers<'_> {
         };
         let s_cloud = -rng.next_f64_open0().ln();
         let t_lim = t_layers.unwrap_or(t_hit);
-        let event = match grid.march(local, d, s_cloud, t_lim) {
-            Some((t, cell)) => self.cloud_collision(p + d * t, cell),
+        match grid.march(local, d, s_cloud, t_lim) {
+            Some((t, cell)) => {
+                let event = self.cloud_collision(p + d * t, cell);
+                // Expected estimate of the cloud's collisions: the collision estimate at the
+                // sampled one.
+                if let (Some(acc), Event::Collision { pos, omega, phase }) = (acc, &event) {
+                    if *omega > 0.0 {
+                        let sun = Geometry::<W>::sun_at(self, *pos);
+                        if sun > 0.0 {
+                            W::accumulate(acc, phase, cos, *omega, sun);
+                        }
+                    }
+                }
+                event
+            }
             None => match (t_layers, hit) {
                 (Some(t), _) => self.base.collision_at(p + d * t),
                 (None, Some(h)) => Event::Surface(h),
                 (None, None) => Event::Escape,
             },
-        };
-        if let (Some(acc), Event::Collision { pos, omega, phase }) = (acc, &event) {
-            if *omega > 0.0 {
-                let t = Geometry::<W>::sun_at(self, *pos);
-                if t > 0.0 {
-                    W::accumulate(acc, phase, self.base.sun.dot(d), *omega, t);
-                }
-            }
         }
-        event
     }
 
     /// The layers' own split where the field has no extinction (no split otherwise: the
