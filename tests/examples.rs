@@ -2,7 +2,8 @@
 //!
 //! Discovers every `examples/**/*.toml` (region files, experiment files, `simulate pics` site
 //! files) and reads the commands its header states (`scenegen build …`, `simulate run …`,
-//! `simulate pics …`); each file must state at least one command that names the file itself.
+//! `simulate pics …`, `simulate cloud-field …`); each file must state at least one command
+//! that names the file itself.
 //! The examples folder is copied verbatim into a temporary tree `T/repo/examples`, beside links
 //! to the repository's other folders, with `T/shared` linked to the shared data folder, so the files' relative paths
 //! (`../../../shared/data/…`, `../../out/…`) resolve exactly as in a fresh clone, and the
@@ -26,7 +27,7 @@ const QUICK_SPP: &str = "8";
 /// The order in which commands run: bundles before the experiments that read them.
 fn stage(words: &[String]) -> u8 {
     match words[1].as_str() {
-        "build" => 0,
+        "build" | "cloud-field" => 0,
         "run" => 1,
         _ => 2,
     }
@@ -36,6 +37,8 @@ fn stage(words: &[String]) -> u8 {
 fn products(words: &[String]) -> &'static [&'static str] {
     match words[1].as_str() {
         "build" => &["manifest.toml"],
+        // `-o` names the field file itself.
+        "cloud-field" => &[""],
         "run" => &["results.nc", "results.csv"],
         _ => &["pics.csv", "pics.nc"],
     }
@@ -130,7 +133,12 @@ fn every_example_runs_as_its_header_says() {
             continue;
         };
         for p in products(words) {
-            if !Path::new(&repo).join(out).join(p).is_file() {
+            let product = if p.is_empty() {
+                Path::new(&repo).join(out)
+            } else {
+                Path::new(&repo).join(out).join(p)
+            };
+            if !product.is_file() {
                 problems.push(format!("{file}: `{}` wrote no {out}/{p}", words.join(" ")));
             }
         }

@@ -479,7 +479,8 @@ fn column_errors_are_honest_over_seeds() {
             .unwrap()
         })
         .collect();
-    let quantities: [(&str, fn(&columns::ColumnResult) -> &columns::Estimate); 4] = [
+    type Pick = fn(&columns::ColumnResult) -> &columns::Estimate;
+    let quantities: [(&str, Pick); 4] = [
         ("R", |r| &r.r),
         ("T", |r| &r.t),
         ("Iu", |r| &r.radiance[0]),

@@ -110,6 +110,7 @@ pub fn header_commands(text: &str) -> Vec<Vec<String>> {
                 (Some("scenegen"), Some("build"))
                     | (Some("simulate"), Some("run"))
                     | (Some("simulate"), Some("pics"))
+                    | (Some("simulate"), Some("cloud-field"))
             );
             ok.then_some(words)
         })

@@ -41,18 +41,23 @@ const GAMMA_AD: f64 = 2e-6;
 const RHO_W: f64 = 1000.0;
 
 impl Cumulus {
-    /// The levels (m) and the extinction (1/m) per cell, `(iz·ny + iy)·nx + ix`.
-    pub fn generate(&self) -> (Vec<f64>, Vec<f32>) {
+    /// The clouds: centre x, y, radius and depth (m), drawn from the seed.
+    pub fn clouds(&self) -> Vec<(f64, f64, f64, f64)> {
         let mut rng = Stream::new(self.seed, [0xC0_u64, 0, 0, 0]);
         let (lx, ly) = (self.nx as f64 * self.dx, self.ny as f64 * self.dx);
-        let clouds: Vec<(f64, f64, f64, f64)> = (0..self.count)
+        (0..self.count)
             .map(|_| {
                 let x = rng.next_f64() * lx;
                 let y = rng.next_f64() * ly;
                 let r = self.radius_m[0] + (self.radius_m[1] - self.radius_m[0]) * rng.next_f64();
                 (x, y, r, self.aspect * r)
             })
-            .collect();
+            .collect()
+    }
+
+    /// The levels (m) and the extinction (1/m) per cell, `(iz·ny + iy)·nx + ix`.
+    pub fn generate(&self) -> (Vec<f64>, Vec<f32>) {
+        let clouds = self.clouds();
         let top = clouds.iter().map(|c| c.3).fold(0.0, f64::max);
         let nz = ((top / self.dz).ceil() as usize).max(1);
         let levels: Vec<f64> = (0..=nz).map(|k| self.base_m + k as f64 * self.dz).collect();
@@ -111,10 +116,17 @@ mod tests {
         };
         let (levels, ext) = c.generate();
         assert_eq!(levels.len(), 11);
-        let covered = (0..1600).filter(|&k| ext[k] > 0.0).count() as f64;
-        // The base covers π r² (± the pixelation of a 10-cell radius).
-        let want = std::f64::consts::PI * 100.0;
-        assert!((covered - want).abs() < 0.06 * want, "{covered} vs {want}");
+        // Covered columns: exactly those whose centre lies within the dome at the lowest
+        // level's centre (25 m above the base: ρ² < 1 − (25/h)²), from the drawn centre.
+        let (cx, cy, r, h) = c.clouds()[0];
+        for j in 0..40 {
+            for i in 0..40 {
+                let (x, y) = ((i as f64 + 0.5) * 50.0, (j as f64 + 0.5) * 50.0);
+                let rho2 = ((x - cx).powi(2) + (y - cy).powi(2)) / (r * r);
+                let inside = 1.0 - rho2 >= (25.0 / h).powi(2);
+                assert_eq!(ext[j * 40 + i] > 0.0, inside, "column ({i}, {j})");
+            }
+        }
         // σ at the centre column, level k: 1.5·0.5·2e-6·(k + ½)·50 / (1000·1e-5).
         let max = ext.iter().cloned().fold(0.0_f32, f32::max) as f64;
         let top_cell = 0.5 * 2e-6 * 475.0 * 1.5 / 1e-2;

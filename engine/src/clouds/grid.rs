@@ -126,7 +126,8 @@ impl CloudGrid {
                 if z.len() < 2 {
                     return shape(format!("{} levels: need at least 2", z.len()));
                 }
-                if let Some(k) = (0..z.len() - 1).find(|&k| !(z[k] < z[k + 1]) || !z[k].is_finite())
+                if let Some(k) = (0..z.len() - 1)
+                    .find(|&k| z[k] >= z[k + 1] || !z[k].is_finite() || !z[k + 1].is_finite())
                 {
                     return shape(format!(
                         "levels must ascend strictly: level {k} = {} m, level {} = {} m",
@@ -559,7 +560,7 @@ mod tests {
             let d = crate::frame::rotate_about(
                 DVec3::Z,
                 2.0 * rng.next_f64() - 1.0,
-                6.283 * rng.next_f64(),
+                std::f64::consts::TAU * rng.next_f64(),
             );
             let want = 2.5 * chord(p, d);
             let got = g.optical_depth(p, d, 10.0);
