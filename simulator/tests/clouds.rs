@@ -6,7 +6,8 @@
 //! * `absorbing_cube_shadow_has_the_closed_form`: a purely absorbing cube over a Lambertian
 //!   ground in vacuum: every pixel of a nadir ortho image is ρ·mean(T_sun·T_view) over its
 //!   square, computed here by slab clipping of the cube (not the DDA); pixels inside or outside
-//!   the shadow exactly, edge pixels by the z-test.
+//!   the shadow exactly, edge pixels by the z-test; the image's cloud bands (optical thickness
+//!   0.5 and fraction 1 under the cube, 0 elsewhere).
 //! * `uniform_field_equals_the_plane_parallel_layer`: a horizontally uniform periodic field
 //!   (τ 3, HG 0.85, ϖ 0.9) over a Lambertian ground equals the 1D homogeneous layer (validated
 //!   against DISORT elsewhere), multiple scattering included (z-test, BRFs in 5 directions).
@@ -221,6 +222,24 @@ fn absorbing_cube_shadow_has_the_closed_form() {
         shadowed >= 30 && exact > 300 && edges > 0,
         "{shadowed} {exact} {edges}"
     );
+    // The cloud bands: nadir lines of sight through the cube (x, y in 200–300 m) see τ 0.5,
+    // the others none.
+    let (cot, frac) = img.clouds.as_ref().expect("cloud bands");
+    for row in 0..20 {
+        for col in 0..20 {
+            let k = row * 20 + col;
+            let (x, y) = (col as f64 * 25.0 + 12.5, (19 - row) as f64 * 25.0 + 12.5);
+            let under = (200.0..300.0).contains(&x) && (200.0..300.0).contains(&y);
+            let want = if under { 0.5 } else { 0.0 };
+            // (Extinction is stored in f32: 1e-8 relative.)
+            assert!(
+                (cot[k] - want).abs() < 1e-6,
+                "pixel ({row}, {col}): COT {}",
+                cot[k]
+            );
+            assert_eq!(frac[k], if under { 1.0 } else { 0.0 });
+        }
+    }
 }
 
 #[test]

@@ -14,6 +14,9 @@
 //! * thermal runs (`emission = true`), ortho measures also: `ID_brightness_temperature.tif` and
 //!   `ID_brightness_temperature_stderr.tif` (K, inverse Planck of each pixel's radiance at the
 //!   band's wavelength, delta-method error);
+//! * ortho measures over a `[[clouds]]` field also: `ID_clouds.tif`, two bands: the cloud
+//!   optical thickness along each pixel's lines of sight (times cos VZA) and the cloud fraction
+//!   (`cloud_bands.rs`);
 //! * both: `ID.png`, a quicklook of the BRF (true colour when wavelengths near 660/550/440 nm
 //!   were simulated, grey otherwise; see `products::image`), or in thermal runs of the first
 //!   wavelength's brightness temperature (grey from its 1st to its 99th percentile), or without
@@ -68,6 +71,9 @@ pub struct ImageProduct {
     /// Thermal runs (`emission = true`): per wavelength and pixel, the brightness temperature
     /// (K, inverse Planck of the radiance) and its delta-method standard error.
     pub brightness_temperature: Option<(Image, Image)>,
+    /// Ortho images over a `[[clouds]]` field: per pixel, the cloud optical thickness seen and
+    /// the cloud fraction (`cloud_bands.rs`).
+    pub clouds: Option<(Vec<f64>, Vec<f64>)>,
 }
 
 /// The polarization images of a polarized run, `[wavelength][pixel]`.
@@ -139,6 +145,10 @@ pub fn image_products(exp: &Experiment, results: &[MeasureResult]) -> Vec<ImageP
                         dolp_stderr: blank.clone(),
                     }),
                     brightness_temperature: exp.emission.then(|| (blank.clone(), blank.clone())),
+                    clouds: match &m.kind {
+                        MeasureKind::Ortho(g) => super::cloud_bands::ortho_cloud_bands(exp, g),
+                        _ => None,
+                    },
                 });
                 out.len() - 1
             }
@@ -214,6 +224,12 @@ fn mask_to_area(exp: &Experiment, images: &mut [ImageProduct]) {
                 for &c in &outside {
                     band[c] = f64::NAN;
                 }
+            }
+        }
+        if let Some((cot, frac)) = p.clouds.as_mut() {
+            for &c in &outside {
+                cot[c] = f64::NAN;
+                frac[c] = f64::NAN;
             }
         }
     }
@@ -340,6 +356,41 @@ pub fn write_files(
             write_geotiff(&path, p.width, p.height, gt, &p.wkt, &bands, &md)?;
             written.push(path);
         }
+    }
+    if let (Some(gt), Some((cot, frac))) = (p.geotransform, &p.clouds) {
+        let band = |name: &str, description: &str, values| ImageBand {
+            name: name.into(),
+            description: description.into(),
+            values,
+            unit: "1".into(),
+            wavelength_nm: None,
+            fwhm_nm: None,
+        };
+        let bands = [
+            band(
+                "cloud_optical_thickness",
+                "cloud optical thickness along the line of sight times cos VZA, pixel mean",
+                cot,
+            ),
+            band(
+                "cloud_fraction",
+                "share of the pixel's lines of sight with cloud optical thickness >= 0.1",
+                frac,
+            ),
+        ];
+        let md = vec![
+            (
+                "software".to_string(),
+                format!("simulator {}", crate::BUILD_ID),
+            ),
+            (
+                "quantity".to_string(),
+                "cloud optical thickness; cloud fraction".to_string(),
+            ),
+        ];
+        let path = dir.join(format!("{}_clouds.tif", p.id));
+        write_geotiff(&path, p.width, p.height, gt, &p.wkt, &bands, &md)?;
+        written.push(path);
     }
     let path = dir.join(format!("{}.png", p.id));
     if let Some((bt, _)) = &p.brightness_temperature {

@@ -21,6 +21,7 @@
 //!
 //! Every quantity carries the Monte Carlo standard error of its mean.
 
+pub mod cloud_bands;
 pub mod csv;
 pub mod image;
 pub mod imagery;

@@ -131,6 +131,28 @@ pub(super) fn write(f: &mut netcdf::FileMut, p: &ImageProduct) -> Result<(), net
         }
         v.put_values(&flat, ..)?;
     }
+    if let Some((cot, frac)) = &p.clouds {
+        for (name, data, long) in [
+            (
+                "cloud_optical_thickness",
+                cot,
+                "cloud optical thickness along the line of sight times cos VZA, pixel mean",
+            ),
+            (
+                "cloud_fraction",
+                frac,
+                "share of the pixel's lines of sight with cloud optical thickness >= 0.1",
+            ),
+        ] {
+            let mut v = f.add_variable::<f64>(&format!("{id}_{name}"), &[&dy, &dx])?;
+            v.put_attribute("units", "1")?;
+            v.put_attribute("long_name", long)?;
+            if georeferenced {
+                v.put_attribute("grid_mapping", mapping.as_str())?;
+            }
+            v.put_values(data, ..)?;
+        }
+    }
     let n: Vec<i64> = p.n_samples.iter().map(|&x| x as i64).collect();
     let mut v = f.add_variable::<i64>(&format!("{id}_n_samples"), &["wavelength"])?;
     v.put_attribute("long_name", "fewest Monte Carlo samples of any pixel")?;
