@@ -290,8 +290,21 @@ fn uniform_field_under_air_equals_the_layered_atmosphere() {
     write_field(&f, (2, 2), (250.0, 250.0), &[0.0, 1000.0], &[2.0; 4]);
     let dirs = "[[measures]]\nid = \"toa\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0, 45.0, 45.0]\nazimuths = [0.0, 90.0, 270.0]\nspp = 160000\n";
     let rayleigh = "[[atmosphere.layers]]\nbottom = 1.0\ntop = 10.0\noptical_thickness = 0.25\nsingle_scattering_albedo = 1.0\nphase = { type = \"rayleigh\" }\n";
+    // One 1 mm leaf at 2 km puts the scene's top there (its area, 3e-6 of a 500 m cell's,
+    // changes nothing measurable), so flights from the top of the atmosphere reach the scene's
+    // top inside the Rayleigh layer: both forced points (above the scene's top, and below it
+    // after the flight gets there) and the deferred closest-hit query are exercised.
+    std::fs::write(
+        dir.join("leaf.txt"),
+        "# x y z nx ny nz r\n250 250 2000 0 0 1 0.001\n",
+    )
+    .unwrap();
+    let leaf = format!(
+        "[[scene.objects]]\nleaves = \"{}\"\nreflectance = 0.5\ntransmittance = 0.0\n",
+        dir.join("leaf.txt").display()
+    );
     let three_d = experiment(&format!(
-        "seed = 31\n[spectral]\nwavelengths = [550.0]\n[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 10.0\n{}[atmosphere]\ntype = \"layered\"\n[[atmosphere.layers]]\nbottom = 0.0\ntop = 1.0\noptical_thickness = 0.0\n{rayleigh}{}{}{dirs}target_m = [0.0, 0.0, 500.0, 500.0]\n",
+        "seed = 31\n[spectral]\nwavelengths = [550.0]\n[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 10.0\n{}[atmosphere]\ntype = \"layered\"\n[[atmosphere.layers]]\nbottom = 0.0\ntop = 1.0\noptical_thickness = 0.0\n{rayleigh}{}{leaf}{}{dirs}target_m = [0.0, 0.0, 500.0, 500.0]\n",
         sun_az_270(30.0),
         flat_scene(500.0, 0.2),
         clouds_toml(&f, 0.95, "{ type = \"hg\", g = 0.85 }")
