@@ -1,5 +1,5 @@
 //! A 3D scene inside plane-parallel layers with a gridded cloud field
-//! ([`PlacedClouds`](crate::clouds::config::PlacedClouds)) among them.
+//! ([`PlacedClouds`]) among them.
 //!
 //! The medium's extinction is the layers' plus the cloud's. A flight's collision is sampled by
 //! *competing risks*: one free path through the layers (their exact march, up to the first
