@@ -578,3 +578,46 @@ fn edited_checkpoints_are_refused_naming_the_file() {
     let o = run(&["--fresh"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
 }
+
+/// `simulate cloud-field`: writes a field the `[[clouds]]` reader accepts (read back through an
+/// experiment: columns, levels, extinction units), and names the bad argument otherwise.
+#[test]
+fn cloud_field_writes_a_readable_field_and_refuses_bad_arguments() {
+    let dir = tmpdir("cloud_field");
+    let f = dir.join("cu.nc");
+    let o = bin()
+        .args(["cloud-field", "-o"])
+        .arg(&f)
+        .args(["--extent=0,0,4000,3000", "--dx", "250", "--count", "5", "--seed", "2"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8_lossy(&o.stdout);
+    assert!(text.contains("16 × 12 columns of 250 m"), "{text}");
+    let exp = format!(
+        "[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n[scene]\ntype = \"canopy\"\n[scene.ground]\nbrdf = {{ type = \"lambertian\", reflectance = 0.2 }}\n[[clouds]]\nfile = \"{}\"\nsingle_scattering_albedo = 1.0\nphases = [{{ type = \"hg\", g = 0.85 }}]\n[[measures]]\nid = \"m\"\ntype = \"mdistant\"\nconstruct = \"directions\"\nzeniths = [0.0]\nazimuths = [0.0]\nspp = 10\n",
+        f.display()
+    );
+    let e = engine::config::Experiment::from_str(&exp, &dir.join("e.toml")).unwrap();
+    let c = e.clouds.as_ref().unwrap();
+    assert_eq!((c.grid.nx, c.grid.ny), (16, 12));
+    assert_eq!(c.grid.z_range().0, 3000.0);
+    assert!(c.any_extinction);
+    for (args, key) in [
+        (vec!["--extent=0,0,-5,3000"], "--extent"),
+        (vec!["--extent=0,0,4000"], "--extent"),
+        (vec!["--extent=0,0,4000,3000", "--dx", "0"], "--dx"),
+        (vec!["--extent=0,0,4000,3000", "--radius", "500,100"], "--radius"),
+        (vec!["--extent=0,0,4000,3000", "--adiabatic-fraction", "2"], "--adiabatic-fraction"),
+    ] {
+        let o = bin()
+            .args(["cloud-field", "-o"])
+            .arg(dir.join("bad.nc"))
+            .args(&args)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(!o.status.success() && err.contains(key), "{args:?}: {err}");
+        assert!(!dir.join("bad.nc").exists());
+    }
+}

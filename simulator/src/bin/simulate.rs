@@ -157,6 +157,7 @@ enum Command {
         /// Droplet effective radius (µm).
         #[arg(long, default_value_t = 10.0)]
         r_eff_um: f64,
+        /// Seed of the clouds' positions and sizes.
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
