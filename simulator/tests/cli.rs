@@ -588,7 +588,15 @@ fn cloud_field_writes_a_readable_field_and_refuses_bad_arguments() {
     let o = bin()
         .args(["cloud-field", "-o"])
         .arg(&f)
-        .args(["--extent=0,0,4000,3000", "--dx", "250", "--count", "5", "--seed", "2"])
+        .args([
+            "--extent=0,0,4000,3000",
+            "--dx",
+            "250",
+            "--count",
+            "5",
+            "--seed",
+            "2",
+        ])
         .output()
         .unwrap();
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -607,8 +615,14 @@ fn cloud_field_writes_a_readable_field_and_refuses_bad_arguments() {
         (vec!["--extent=0,0,-5,3000"], "--extent"),
         (vec!["--extent=0,0,4000"], "--extent"),
         (vec!["--extent=0,0,4000,3000", "--dx", "0"], "--dx"),
-        (vec!["--extent=0,0,4000,3000", "--radius", "500,100"], "--radius"),
-        (vec!["--extent=0,0,4000,3000", "--adiabatic-fraction", "2"], "--adiabatic-fraction"),
+        (
+            vec!["--extent=0,0,4000,3000", "--radius", "500,100"],
+            "--radius",
+        ),
+        (
+            vec!["--extent=0,0,4000,3000", "--adiabatic-fraction", "2"],
+            "--adiabatic-fraction",
+        ),
     ] {
         let o = bin()
             .args(["cloud-field", "-o"])
