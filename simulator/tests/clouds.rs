@@ -15,6 +15,10 @@
 //!   ϖ 0.99, SZA 60) — per-column nadir reflectivity from the backward scene walk's ortho image
 //!   equals the forward column estimator's local estimates (`clouds::columns`): two independent
 //!   estimators, one per direction of time.
+//! * `uniform_field_under_air_equals_the_layered_atmosphere`: the same with a Rayleigh layer
+//!   above the cloud, against the 1D `layered` atmosphere.
+//! * `column_errors_are_honest_over_seeds`: the forward estimator's errors over 24 seeds.
+//! * `cloudy_images_do_not_depend_on_threads`: 1 and 2 threads, bit-identical.
 //! * `bad_cloud_inputs_are_named`: missing file, NaN cell, misspelt key, no scene, a field that
 //!   does not tile a periodic scene.
 //!
@@ -537,4 +541,24 @@ fn column_errors_are_honest_over_seeds() {
         eprintln!("{name}: z RMS {rms:.3} over {n} column-runs");
         assert!((0.9..1.15).contains(&rms), "{name}: z RMS {rms:.3}");
     }
+}
+
+/// Cloudy scene results do not depend on the thread count: the step cloud under a Rayleigh
+/// layer, an ortho image, 1 and 2 threads, bit-identical values and errors.
+#[test]
+fn cloudy_images_do_not_depend_on_threads() {
+    let dir = tmp("threads");
+    let f = dir.join("step.nc");
+    let ext: Vec<f64> = (0..8).map(|i| if i < 4 { 8.0 } else { 72.0 }).collect();
+    write_field(&f, (8, 1), (62.5, 500.0), &[0.0, 250.0], &ext);
+    let e = experiment(&format!(
+        "seed = 23\n[spectral]\nwavelengths = [550.0]\n{}[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2\n{}{}[[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 62.5\nwindow_m = [0.0, 218.75, 500.0, 281.25]\nspp = 256\n",
+        sun_az_270(40.0),
+        flat_scene(500.0, 0.3),
+        clouds_toml(&f, 0.99, "{ type = \"hg\", g = 0.85 }")
+    ));
+    let one = common::with_threads(1, || image(&e));
+    let two = common::with_threads(2, || image(&e));
+    assert_eq!(one.brf, two.brf);
+    assert_eq!(one.brf_stderr, two.brf_stderr);
 }
