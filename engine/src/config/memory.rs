@@ -71,7 +71,9 @@ pub fn estimate(exp: &Experiment) -> MemoryEstimate {
     }
     MemoryEstimate {
         results_bytes: results,
-        scene_bytes: exp.scene.as_ref().map_or(0, |s| s.memory_bytes as u64),
+        // The scene's own figure plus a cloud field's cells (`[[clouds]]`).
+        scene_bytes: exp.scene.as_ref().map_or(0, |s| s.memory_bytes as u64)
+            + exp.clouds.as_ref().map_or(0, |c| c.bytes as u64),
         heaviest,
     }
 }
