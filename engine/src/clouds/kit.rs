@@ -91,6 +91,27 @@ pub fn read_table(path: &Path, rows: usize, cols: usize) -> Result<Vec<Vec<f64>>
     Ok(out)
 }
 
+/// A periodic grid of uniform albedo `omega` and one phase function (every kit case).
+fn periodic(
+    columns: (usize, usize),
+    size: (f64, f64),
+    vertical: Vertical,
+    ext: Vec<f32>,
+    omega: f64,
+    phase: PhaseFunction,
+) -> Result<CloudGrid, KitError> {
+    Ok(CloudGrid::new(
+        columns,
+        size,
+        vertical,
+        Lateral::Periodic,
+        ext,
+        PerCell::Uniform(omega as f32),
+        PerCell::Uniform(0),
+        vec![phase],
+    )?)
+}
+
 fn hg() -> PhaseFunction {
     PhaseFunction::Hg(HenyeyGreenstein::new(0.85).expect("g = 0.85 is valid"))
 }
@@ -113,16 +134,14 @@ pub fn i3rc_case1(kit: &Path, omega: f64) -> Result<CloudGrid, KitError> {
     let t = read_table(&kit.join("i3rc_phase1/case1/step_cloud_tau_32.txt"), 32, 2)?;
     let h = 250.0;
     let ext: Vec<f32> = t.iter().map(|r| (r[1] / h) as f32).collect();
-    Ok(CloudGrid::new(
+    periodic(
         (32, 1),
         (500.0 / 32.0, 500.0 / 32.0),
         Vertical::Levels(vec![0.0, h]),
-        Lateral::Periodic,
         ext,
-        PerCell::Uniform(omega as f32),
-        PerCell::Uniform(0),
-        vec![hg()],
-    )?)
+        omega,
+        hg(),
+    )
 }
 
 /// I3RC case 2 with single-scattering albedo `omega` and phase function `phase`.
@@ -142,16 +161,7 @@ pub fn i3rc_case2(kit: &Path, omega: f64, phase: CasePhase) -> Result<CloudGrid,
         CasePhase::Hg => hg(),
         CasePhase::C1 => c1_phase(kit)?,
     };
-    Ok(CloudGrid::new(
-        (nx, 1),
-        (dx, dx),
-        Vertical::Levels(levels),
-        Lateral::Periodic,
-        ext,
-        PerCell::Uniform(omega as f32),
-        PerCell::Uniform(0),
-        vec![pf],
-    )?)
+    periodic((nx, 1), (dx, dx), Vertical::Levels(levels), ext, omega, pf)
 }
 
 /// I3RC case 3 with single-scattering albedo `omega` and the cloud base at `base_m`.
@@ -174,16 +184,14 @@ pub fn i3rc_case3(kit: &Path, omega: f64, base_m: f64) -> Result<CloudGrid, KitE
             }
         }
     }
-    Ok(CloudGrid::new(
+    periodic(
         (n, n),
         (30.0, 30.0),
         Vertical::Boxes { base, top },
-        Lateral::Periodic,
         ext,
-        PerCell::Uniform(omega as f32),
-        PerCell::Uniform(0),
-        vec![hg()],
-    )?)
+        omega,
+        hg(),
+    )
 }
 
 /// IPRT phase B C2: the cube, on 1 km cells (7 × 7 × 5), with the phase function and albedo of
@@ -198,15 +206,13 @@ pub fn iprt_c2(kit: &Path) -> Result<(CloudGrid, f64), KitError> {
     let n = 7;
     let mut ext = vec![0.0_f32; n * n * 5];
     ext[(2 * n + 3) * n + 3] = 10.0e-3;
-    let grid = CloudGrid::new(
+    let grid = periodic(
         (n, n),
         (1000.0, 1000.0),
         Vertical::Levels((0..=5).map(|k| k as f64 * 1000.0).collect()),
-        Lateral::Periodic,
         ext,
-        PerCell::Uniform(omega as f32),
-        PerCell::Uniform(0),
-        vec![PhaseFunction::Tabulated(std::sync::Arc::new(table))],
+        omega,
+        PhaseFunction::Tabulated(std::sync::Arc::new(table)),
     )?;
     Ok((grid, omega))
 }

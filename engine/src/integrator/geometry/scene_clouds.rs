@@ -130,7 +130,6 @@ impl<W: Weight> Geometry<W> for SceneCloudsInLayers<'_> {
             return Geometry::<W>::flight(&self.base, p, d, w, acc, rng);
         }
         let scene = self.base.scene;
-        let top = scene.z_range[1];
         let local = self.clouds.local(p);
         let grid = &self.clouds.grid;
         let atm = self.base.atmosphere;
@@ -139,13 +138,7 @@ impl<W: Weight> Geometry<W> for SceneCloudsInLayers<'_> {
         // the top nothing can be hit, so a flight that collides there (in a cloud above the
         // terrain, most of them) never needs the scene's closest hit: it is asked for only
         // when the flight starts below the top or gets there.
-        let reach = if p.z <= top {
-            0.0
-        } else if d.z < 0.0 {
-            (p.z - top) / -d.z
-        } else {
-            f64::INFINITY
-        };
+        let reach = self.base.reach(p, d);
         let mut hit = if reach == 0.0 {
             scene.intersect(p, d, f64::INFINITY)
         } else {

@@ -349,20 +349,27 @@ impl SceneInLayers<'_> {
     /// the scene).
     #[inline]
     pub(crate) fn first_hit(&self, p: DVec3, d: DVec3) -> (f64, Option<SurfaceHit>) {
-        let top = self.scene.z_range[1];
-        let reach = if p.z <= top {
-            0.0
-        } else if d.z < 0.0 {
-            (p.z - top) / -d.z
-        } else {
-            f64::INFINITY
-        };
+        let reach = self.reach(p, d);
         let hit = if reach.is_finite() {
             self.scene.intersect(p, d, f64::INFINITY)
         } else {
             None
         };
         (reach, hit)
+    }
+
+    /// The distance at which the flight from `p` along `d` comes down to the scene's top (0 if
+    /// it starts below, ∞ if it never does).
+    #[inline]
+    pub(crate) fn reach(&self, p: DVec3, d: DVec3) -> f64 {
+        let top = self.scene.z_range[1];
+        if p.z <= top {
+            0.0
+        } else if d.z < 0.0 {
+            (p.z - top) / -d.z
+        } else {
+            f64::INFINITY
+        }
     }
 
     /// A collision at point `q` (wrapped into a periodic scene's cell), with its layer's optics.
