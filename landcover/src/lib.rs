@@ -2,7 +2,8 @@
 //! bundle with its parameters and source) and the default tile population rules — and the
 //! mapping of a class-code raster to the bundle's 8-bit material-index raster.
 //!
-//! Shipped schemes (`data/`): `esa_worldcover` (codes 10–100, no data 0) and `corine` (CLC
+//! Shipped schemes (`data/`): `esa_worldcover` (codes 10–100, no data 0), `nlcd` (USGS NLCD codes
+//! 11–95, no data 0) and `corine` (CLC
 //! raster grid codes 1–44, no data 48). Materials live in `data/materials.toml`, shared by the
 //! schemes; each states its source (RAMI-V measured spectra for soil, leaves and bark; values
 //! marked "illustrative" elsewhere). Spectra: wavelengths in nm, reflectances in [0, 1].
@@ -27,6 +28,7 @@ const BUILTIN: &[(&str, &str)] = &[
         include_str!("../data/esa_worldcover.toml"),
     ),
     ("corine", include_str!("../data/corine.toml")),
+    ("nlcd", include_str!("../data/nlcd.toml")),
 ];
 
 /// Errors naming the scheme file (or built-in name) and the key.
@@ -491,6 +493,7 @@ mod tests {
         }
         assert_eq!(Scheme::load("corine").unwrap().classes.len(), 44);
         assert_eq!(Scheme::load("esa_worldcover").unwrap().classes.len(), 11);
+        assert_eq!(Scheme::load("nlcd").unwrap().classes.len(), 20);
     }
 
     /// Rationale: the material raster must equal the scheme's mapping pixel by pixel on a

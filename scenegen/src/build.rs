@@ -235,6 +235,10 @@ pub fn build(
     let lc_name = match &region.landcover {
         LandcoverInput::File(p) => p.clone(),
         LandcoverInput::Uniform(_) => region.path.clone(),
+        LandcoverInput::None => region
+            .landcover_vectors
+            .first()
+            .map_or_else(|| region.path.clone(), |v| v.file.clone()),
     };
     let material_raster = materials.map_raster(&codes, &lc_name, &scheme.name)?;
     pb.finish_and_clear();
@@ -313,6 +317,9 @@ pub fn build(
     }
     if let LandcoverInput::File(p) = &region.landcover {
         add_input("landcover", p)?;
+    }
+    for v in &region.landcover_vectors {
+        add_input("landcover_vector", &v.file)?;
     }
     if region.scheme.ends_with(".toml") {
         add_input("scheme", Path::new(&region.scheme))?;

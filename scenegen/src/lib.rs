@@ -16,12 +16,14 @@ pub mod dem_values;
 pub mod error;
 pub mod gltf_export;
 pub mod info;
+pub mod landcover_vector;
 pub mod mesh_dem;
 pub mod mesh_region;
 pub mod raster;
 pub mod region;
 pub mod synth;
 pub mod tin;
+pub mod vector;
 
 pub use build::{build, BuildOptions, BuildReport};
 pub use error::ScenegenError;

@@ -183,6 +183,12 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             let lc = match &r.landcover {
                 scenegen::region::LandcoverInput::File(p) => p.display().to_string(),
                 scenegen::region::LandcoverInput::Uniform(c) => format!("class {c} everywhere"),
+                scenegen::region::LandcoverInput::None => "from polygons only".into(),
+            };
+            let lc = if r.landcover_vectors.is_empty() {
+                lc
+            } else {
+                format!("{lc} + {} polygon layer(s)", r.landcover_vectors.len())
             };
             println!(
                 "{}: valid ({dem}, land cover {lc}, scheme {})",

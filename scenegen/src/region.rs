@@ -126,6 +126,25 @@ struct LandcoverConfig {
     fallback_material: Option<String>,
     #[serde(default)]
     class_materials: BTreeMap<String, String>,
+    /// Polygon layers burnt over the raster (or alone).
+    #[serde(default)]
+    vector: Vec<VectorConfig>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct VectorConfig {
+    file: PathBuf,
+    #[serde(default)]
+    layer: Option<String>,
+    #[serde(default)]
+    crs: Option<String>,
+    #[serde(default)]
+    attribute: Option<String>,
+    #[serde(default)]
+    class: Option<i64>,
+    #[serde(default)]
+    values: BTreeMap<String, i64>,
 }
 
 fn default_lc_tile() -> f64 {
@@ -179,6 +198,8 @@ pub enum LandcoverInput {
     File(PathBuf),
     /// One class code over the whole area (`landcover.class`).
     Uniform(i64),
+    /// No raster: only `[[landcover.vector]]` polygons (no data elsewhere).
+    None,
 }
 
 /// A gridded terrain mesh given as the DEM (`dem.mesh`), rasterised at build time.
@@ -206,6 +227,8 @@ pub struct Region {
     pub tolerance_m: f64,
     pub terrain_tile_m: f64,
     pub landcover: LandcoverInput,
+    /// Polygon layers burnt over `landcover`, in order.
+    pub landcover_vectors: Vec<crate::landcover_vector::VectorLandcover>,
     pub scheme: String,
     pub lc_tile_m: f64,
     pub resampling: Resampling,
@@ -381,12 +404,42 @@ impl Region {
         let landcover = match (&lc.file, lc.class) {
             (Some(f), None) => LandcoverInput::File(base.join(f)),
             (None, Some(c)) => LandcoverInput::Uniform(c),
+            (None, None) if !lc.vector.is_empty() => LandcoverInput::None,
             _ => return Err(inv(
                 "landcover",
-                "give either `file` (a land-cover raster) or `class` (one class code everywhere)"
+                "give either `file` (a land-cover raster), `class` (one class code everywhere) or `[[landcover.vector]]` polygon layers"
                     .into(),
             )),
         };
+        let mut landcover_vectors = Vec::with_capacity(lc.vector.len());
+        for (i, v) in lc.vector.iter().enumerate() {
+            use crate::landcover_vector::{CodeSource, VectorLandcover};
+            let key = |k: &str| format!("landcover.vector[{i}].{k}");
+            let code = match (&v.attribute, v.class) {
+                (Some(a), None) => CodeSource::Attribute {
+                    name: a.clone(),
+                    values: v.values.clone(),
+                },
+                (None, Some(c)) => {
+                    if !v.values.is_empty() {
+                        return Err(inv(&key("values"), "only with `attribute`".into()));
+                    }
+                    CodeSource::Class(c)
+                }
+                _ => {
+                    return Err(inv(
+                        &format!("landcover.vector[{i}]"),
+                        "give either `attribute` (the field holding each polygon's class) or `class` (one code for the layer)".into(),
+                    ))
+                }
+            };
+            landcover_vectors.push(VectorLandcover {
+                file: base.join(&v.file),
+                layer: v.layer.clone(),
+                crs: v.crs.clone(),
+                code,
+            });
+        }
         let mut class_materials = BTreeMap::new();
         for (k, v) in &lc.class_materials {
             let code: i64 = k.parse().map_err(|_| {
@@ -427,6 +480,7 @@ impl Region {
             tolerance_m: t.tolerance_m,
             terrain_tile_m: t.tile_size_m,
             landcover,
+            landcover_vectors,
             scheme: if lc.scheme.ends_with(".toml") {
                 base.join(&lc.scheme).display().to_string()
             } else {

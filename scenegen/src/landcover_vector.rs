@@ -1,0 +1,240 @@
+//! Vector land cover (`[[landcover.vector]]`): polygons with a class attribute (or one class per
+//! layer) burnt onto the material grid by GDAL's rasteriser, over the raster land cover (or over
+//! no data when there is none). Layers are burnt in the order given: a later layer wins where
+//! polygons overlap.
+//!
+//! Rule per material cell. With `resampling = "nearest"` the class is the one whose polygon
+//! contains the cell centre. Otherwise (`"mode"`, and `"auto"`, since polygons have no source
+//! pixel size) the cell is sampled at the centres of a 4 × 4 sub-grid (fewer when the grid is
+//! very large: at most 2²⁶ samples) and takes the most frequent class; samples in no polygon
+//! vote for the raster's class beneath (or no data), and a tie goes to the polygon class with the
+//! smallest code. Holes (courtyards, lakes) and multipolygons are GDAL's: a sample inside a hole
+//! is outside the polygon.
+//!
+//! Class codes come from an integer attribute (`attribute`), from a text attribute through
+//! `values = { "text" = code }`, or are one code for the layer (`class`); a feature whose
+//! attribute is null or has no mapping is an error naming the file, layer, feature id and value
+//! (nothing is dropped). The codes then go through the scheme like a raster's.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use gdal::DriverManager;
+
+use crate::error::{gdal_err, ScenegenError};
+use crate::raster::{Grid, WorkingFrame};
+use crate::vector::{as_code, as_text, read_layer};
+
+/// One `[[landcover.vector]]` entry, paths resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct VectorLandcover {
+    pub file: PathBuf,
+    pub layer: Option<String>,
+    pub crs: Option<String>,
+    pub code: CodeSource,
+}
+
+/// Where a feature's class code comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CodeSource {
+    /// One code for every feature of the layer.
+    Class(i64),
+    /// An attribute holding integer codes, or text mapped by `values`.
+    Attribute {
+        name: String,
+        values: BTreeMap<String, i64>,
+    },
+}
+
+/// What a burn did, for the log and `scenegen info`.
+#[derive(Clone, Debug, Default)]
+pub struct BurnReport {
+    /// Per layer: label, features burnt, features skipped (empty), invalid polygons kept.
+    pub layers: Vec<(String, usize, usize, Vec<u64>)>,
+    /// Cells whose class came from a polygon.
+    pub cells_from_polygons: usize,
+    /// Samples per cell side.
+    pub oversampling: usize,
+}
+
+const NONE: i32 = i32::MIN;
+
+/// Sub-samples per cell side for `mode`: 4, or fewer so that the sample grid stays ≤ 2²⁶.
+pub fn oversampling(grid: &Grid, mode: bool) -> usize {
+    if !mode {
+        return 1;
+    }
+    let cells = (grid.width * grid.height).max(1);
+    let mut k = 4;
+    while k > 1 && cells * k * k > 1 << 26 {
+        k -= 1;
+    }
+    k
+}
+
+/// Burn `layers` over `codes` (the raster's classes on `grid`, `None` = no data). `region_path`
+/// names the region file in errors about its keys.
+pub fn burn(
+    layers: &[VectorLandcover],
+    frame: &WorkingFrame,
+    grid: &Grid,
+    mode: bool,
+    codes: &mut [Option<i64>],
+) -> Result<BurnReport, ScenegenError> {
+    let k = oversampling(grid, mode);
+    let (w, h) = (grid.width * k, grid.height * k);
+    let driver = DriverManager::get_driver_by_name("MEM").map_err(gdal_err("MEM driver"))?;
+    let mut ds = driver
+        .create_with_band_type::<i32, _>("", w, h, 1)
+        .map_err(gdal_err(format!("in-memory raster {w} × {h}")))?;
+    let gt = grid.geotransform();
+    let sub = grid.dx / k as f64;
+    ds.set_geo_transform(&[gt[0], sub, 0.0, gt[3], 0.0, -sub])
+        .map_err(gdal_err("set geotransform"))?;
+    ds.set_projection(&frame.wkt)
+        .map_err(gdal_err("set projection"))?;
+    ds.rasterband(1)
+        .map_err(gdal_err("band"))?
+        .fill(NONE as f64, None)
+        .map_err(gdal_err("fill"))?;
+
+    let mut report = BurnReport {
+        oversampling: k,
+        ..Default::default()
+    };
+    for l in layers {
+        let attrs: Vec<&str> = match &l.code {
+            CodeSource::Class(_) => vec![],
+            CodeSource::Attribute { name, .. } => vec![name.as_str()],
+        };
+        let layer = read_layer(&l.file, l.layer.as_deref(), l.crs.as_deref(), &attrs, frame)?;
+        let mut geoms = Vec::with_capacity(layer.features.len());
+        let mut burn = Vec::with_capacity(layer.features.len());
+        for f in &layer.features {
+            let code = match &l.code {
+                CodeSource::Class(c) => *c,
+                CodeSource::Attribute { name, values } => {
+                    let v = f.values[0].as_ref().ok_or_else(|| ScenegenError::Input {
+                        path: l.file.clone(),
+                        message: format!(
+                            "{}, feature {}: attribute `{name}` is null (no class)",
+                            layer.label, f.id
+                        ),
+                    })?;
+                    let text = as_text(v);
+                    match values.get(&text).copied().or_else(|| {
+                        if values.is_empty() {
+                            as_code(v)
+                        } else {
+                            None
+                        }
+                    }) {
+                        Some(c) => c,
+                        None => {
+                            return Err(ScenegenError::Input {
+                                path: l.file.clone(),
+                                message: if values.is_empty() {
+                                    format!(
+                                        "{}, feature {}: attribute `{name}` = \"{text}\" is not an integer class code; map its text values with `values = {{ \"{text}\" = CODE, … }}`",
+                                        layer.label, f.id
+                                    )
+                                } else {
+                                    format!(
+                                        "{}, feature {}: attribute `{name}` = \"{text}\" has no entry in `values` ({})",
+                                        layer.label,
+                                        f.id,
+                                        values.keys().map(|k| format!("\"{k}\"")).collect::<Vec<_>>().join(", ")
+                                    )
+                                },
+                            })
+                        }
+                    }
+                }
+            };
+            if code < i32::MIN as i64 + 1 || code > i32::MAX as i64 {
+                return Err(ScenegenError::Input {
+                    path: l.file.clone(),
+                    message: format!(
+                        "{}, feature {}: class code {code} is outside the 32-bit range",
+                        layer.label, f.id
+                    ),
+                });
+            }
+            geoms.push(f.geometry.clone());
+            burn.push(code as f64);
+        }
+        if !geoms.is_empty() {
+            gdal::raster::rasterize(&mut ds, &[1], &geoms, &burn, None)
+                .map_err(gdal_err(format!("rasterise {}", layer.label)))?;
+        }
+        tracing::info!(
+            "land cover: {} polygons from {} ({} empty skipped, {} invalid kept)",
+            geoms.len(),
+            layer.label,
+            layer.empty,
+            layer.invalid.len()
+        );
+        report
+            .layers
+            .push((layer.label, geoms.len(), layer.empty, layer.invalid));
+    }
+    let samples: Vec<i32> = ds
+        .rasterband(1)
+        .map_err(gdal_err("band"))?
+        .read_band_as::<i32>()
+        .map_err(gdal_err("read rasterised band"))?
+        .into_shape_and_vec()
+        .1;
+
+    let mut votes: Vec<(i32, usize)> = Vec::with_capacity(k * k);
+    for row in 0..grid.height {
+        for col in 0..grid.width {
+            votes.clear();
+            let mut outside = 0;
+            for sr in 0..k {
+                let base = (row * k + sr) * w + col * k;
+                for &c in &samples[base..base + k] {
+                    if c == NONE {
+                        outside += 1;
+                    } else if let Some(v) = votes.iter_mut().find(|v| v.0 == c) {
+                        v.1 += 1;
+                    } else {
+                        votes.push((c, 1));
+                    }
+                }
+            }
+            // Most votes; ties to the smallest code.
+            let best = votes
+                .iter()
+                .copied()
+                .max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)));
+            if let Some((c, n)) = best {
+                if n >= outside {
+                    codes[row * grid.width + col] = Some(c as i64);
+                    report.cells_from_polygons += 1;
+                }
+            }
+        }
+    }
+    Ok(report)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn oversampling_shrinks_for_huge_grids() {
+        let g = |w, h| Grid {
+            x0: 0.0,
+            y0: 0.0,
+            dx: 1.0,
+            width: w,
+            height: h,
+        };
+        assert_eq!(oversampling(&g(100, 100), true), 4);
+        assert_eq!(oversampling(&g(100, 100), false), 1);
+        assert_eq!(oversampling(&g(4096, 4096), true), 2);
+        assert_eq!(oversampling(&g(10000, 10000), true), 1);
+    }
+}

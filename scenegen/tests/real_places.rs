@@ -1,0 +1,446 @@
+//! Real places from observed data (`../shared/data/real_regions`, MANIFEST §14): the Zion example
+//! (SRTM + NLCD through the built-in `nlcd` scheme), vector land cover (the Slovenian land-use
+//! polygons against the raster made from the same map), and the errors of bad vector inputs.
+//! Tests that read the shared data skip, saying so, when it is absent.
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+use bundle::Bundle;
+use gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
+
+fn shared_data() -> Option<PathBuf> {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
+    if p.is_dir() {
+        Some(p)
+    } else {
+        eprintln!(
+            "shared data not found at {}; real-data test skipped",
+            p.display()
+        );
+        None
+    }
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("scenegen-real-{name}-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn scenegen(args: &[&str]) -> (i32, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_scenegen"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.code().unwrap_or(-1),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+fn build(region: &Path, out: &Path) -> (Bundle, String) {
+    let (code, stdout, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "--force",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "stdout {stdout}\nstderr {stderr}");
+    (Bundle::open(out).unwrap(), stderr)
+}
+
+/// Rationale: the README's main job uses observed land cover only. Every material cell of the
+/// Zion bundle must hold the material that the `nlcd` scheme gives to the NLCD 2011 class found
+/// by an independent lookup: the cell centre transformed by PROJ into the NLCD's CRS (UTM 12N)
+/// and the source pixel containing it read directly (no warper). Cells whose centre lies within
+/// a few metres of an NLCD pixel edge may go either way (GDAL's warper approximates the
+/// transformation to 1/8 pixel), so the agreement must be ≥ 99 %, and the classes present must
+/// all be mapped (the build has no fallback material).
+#[test]
+fn zion_example_cells_hold_the_nlcd_class_material() {
+    let Some(shared) = shared_data() else { return };
+    let dir = tmp("zion");
+    let region = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/zion/region.toml");
+    let (b, _) = build(&region, &dir.join("bundle"));
+    let m = &b.manifest;
+    assert_eq!(m.material_raster.resampling, "nearest");
+
+    let nlcd = gdal::Dataset::open(shared.join("real_regions/zion/nlcd2011.tif")).unwrap();
+    let ngt = nlcd.geo_transform().unwrap();
+    let (nw, nh) = nlcd.raster_size();
+    let codes: Vec<u8> = nlcd
+        .rasterband(1)
+        .unwrap()
+        .read_band_as::<u8>()
+        .unwrap()
+        .into_shape_and_vec()
+        .1;
+    let mut src = SpatialRef::from_wkt(&m.crs.wkt).unwrap();
+    src.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+    let mut dst = nlcd.spatial_ref().unwrap();
+    dst.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+    let t = CoordTransform::new(&src, &dst).unwrap();
+
+    let scheme = landcover::Scheme::load("nlcd").unwrap();
+    let index_of = |name: &str| m.materials.iter().find(|x| x.name == name).unwrap().index;
+    let (w, h) = (
+        m.material_raster.width as usize,
+        m.material_raster.height as usize,
+    );
+    let gt = m.material_raster.geotransform;
+    let (mut xs, mut ys) = (Vec::with_capacity(w * h), Vec::with_capacity(w * h));
+    for r in 0..h {
+        for c in 0..w {
+            xs.push(gt[0] + (c as f64 + 0.5) * gt[1]);
+            ys.push(gt[3] + (r as f64 + 0.5) * gt[5]);
+        }
+    }
+    t.transform_coords(&mut xs, &mut ys, &mut []).unwrap();
+    let (mut agree, mut total) = (0usize, 0usize);
+    let mut unmapped = std::collections::BTreeSet::new();
+    for k in 0..w * h {
+        let col = ((xs[k] - ngt[0]) / ngt[1]).floor();
+        let row = ((ys[k] - ngt[3]) / ngt[5]).floor();
+        assert!(
+            col >= 0.0 && row >= 0.0 && (col as usize) < nw && (row as usize) < nh,
+            "cell {k} outside the NLCD raster"
+        );
+        let code = codes[row as usize * nw + col as usize] as i64;
+        let Some(class) = scheme.classes.iter().find(|c| c.code == code) else {
+            unmapped.insert(code);
+            continue;
+        };
+        total += 1;
+        if b.material_raster[k] == index_of(&class.material) {
+            agree += 1;
+        }
+    }
+    assert!(
+        unmapped.is_empty(),
+        "NLCD codes not in the scheme: {unmapped:?}"
+    );
+    let share = agree as f64 / total as f64;
+    eprintln!("zion: {agree} of {total} cells agree with a direct NLCD lookup ({share:.4})");
+    assert!(share >= 0.99, "agreement {share}");
+    // Zion's cover: pinyon-juniper forest and shrub dominate, sandstone is the rest.
+    let share_of = |name: &str| {
+        let i = index_of(name);
+        b.material_raster.iter().filter(|&&v| v == i).count() as f64 / (w * h) as f64
+    };
+    assert!(share_of("forest_floor") + share_of("shrub") > 0.8);
+    assert!(share_of("rock") > 0.05);
+    assert!(m.instances.per_template.iter().sum::<u64>() > 100_000);
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Region text for the Slovenian patch; `landcover` is the body of its `[landcover]` table.
+fn slovenia_region(shared: &Path, landcover: &str) -> String {
+    let scheme =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/slovenia/lulc_scheme.toml");
+    format!(
+        "seed = 3\ncrs = \"EPSG:32633\"\n[area]\ncentre = [14.55775, 45.8704]\nsize_km = 0.9\n[dem]\nfiles = [\"{}\"]\n[terrain]\ntolerance_m = 0.5\ntile_size_m = 500\n[landcover]\nscheme = \"{}\"\ntile_size_m = 10\nfallback_material = \"grass\"\n{landcover}\n",
+        shared.join("real_regions/slovenia/DEM_32633.tif").display(),
+        scheme.display()
+    )
+}
+
+/// Rationale: the Slovenian land-use map exists both as 88 polygons (`LULC.gpkg`) and as the
+/// 10 m raster eo-learn rasterised from them (`LULC_32633.tif`, on a grid offset from ours by a
+/// fraction of a cell). Burnt by our vector path at the cell centres, the polygons must give the
+/// raster's class in ≥ 95 % of the cells, and every other cell's class must occur among the
+/// raster build's 3 × 3 neighbours (a boundary moved by less than a cell) except for ≤ 0.1 %.
+/// The example (mode of 4 × 4 samples) builds too.
+#[test]
+fn slovenia_polygons_match_their_raster() {
+    let Some(shared) = shared_data() else { return };
+    let dir = tmp("slovenia");
+    let gpkg = shared.join("real_regions/slovenia/vector_timeless/LULC.gpkg");
+    let rv = dir.join("vector.toml");
+    std::fs::write(
+        &rv,
+        slovenia_region(
+            &shared,
+            &format!(
+                "resampling = \"nearest\"\n[[landcover.vector]]\nfile = \"{}\"\nattribute = \"LULC_ID\"\n",
+                gpkg.display()
+            ),
+        ),
+    )
+    .unwrap();
+    let rr = dir.join("raster.toml");
+    std::fs::write(
+        &rr,
+        slovenia_region(
+            &shared,
+            &format!(
+                "resampling = \"nearest\"\nfile = \"{}\"\n",
+                shared
+                    .join("real_regions/slovenia/LULC_32633.tif")
+                    .display()
+            ),
+        ),
+    )
+    .unwrap();
+    let (bv, _) = build(&rv, &dir.join("bv"));
+    let (br, _) = build(&rr, &dir.join("br"));
+    assert_eq!(
+        bv.manifest.material_raster.resampling,
+        "polygons: cell centre"
+    );
+    let w = bv.manifest.material_raster.width as usize;
+    let h = bv.manifest.material_raster.height as usize;
+    assert_eq!(
+        bv.manifest.material_raster.geotransform,
+        br.manifest.material_raster.geotransform
+    );
+    let (v, r) = (&bv.material_raster, &br.material_raster);
+    let (mut diff, mut unexplained) = (0, 0);
+    for k in 0..w * h {
+        if v[k] != r[k] {
+            diff += 1;
+            let (y, x) = ((k / w) as i64, (k % w) as i64);
+            let near = (-1..=1).any(|dy| {
+                (-1..=1).any(|dx| {
+                    let (yy, xx) = (y + dy, x + dx);
+                    yy >= 0
+                        && xx >= 0
+                        && (yy as usize) < h
+                        && (xx as usize) < w
+                        && r[yy as usize * w + xx as usize] == v[k]
+                })
+            });
+            if !near {
+                unexplained += 1;
+            }
+        }
+    }
+    eprintln!(
+        "slovenia: {diff} of {} cells differ, {unexplained} not at a boundary",
+        w * h
+    );
+    assert!(diff as f64 <= 0.05 * (w * h) as f64);
+    assert!(unexplained as f64 <= 0.001 * (w * h) as f64);
+
+    let example = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/slovenia/region.toml");
+    let (b, _) = build(&example, &dir.join("example"));
+    assert_eq!(
+        b.manifest.material_raster.resampling,
+        "polygons: mode of 4 × 4 samples"
+    );
+    assert!(b
+        .manifest
+        .provenance
+        .inputs
+        .iter()
+        .any(|i| i.role == "landcover_vector" && i.path.ends_with("LULC.gpkg")));
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// A synthetic DEM (flat, 1 km around 5° E 45° N) for the vector tests that need no shared data.
+fn flat_dem(dir: &Path) -> PathBuf {
+    let p = dir.join("dem.tif");
+    let (w, h) = (40, 40);
+    scenegen::synth::write_geotiff(
+        &p,
+        w,
+        h,
+        Some([4.98, 0.001, 0.0, 45.02, 0.0, -0.001]),
+        Some("EPSG:4326"),
+        None,
+        vec![300f32; w * h],
+    )
+    .unwrap();
+    p
+}
+
+fn geojson(features: &[(&str, &str)]) -> String {
+    let f: Vec<String> = features
+        .iter()
+        .map(|(props, coords)| {
+            format!(
+                "{{\"type\":\"Feature\",\"properties\":{{{props}}},\"geometry\":{{\"type\":\"Polygon\",\"coordinates\":{coords}}}}}"
+            )
+        })
+        .collect();
+    format!(
+        "{{\"type\":\"FeatureCollection\",\"features\":[{}]}}",
+        f.join(",")
+    )
+}
+
+const WEST: &str = "[[[4.99,44.99],[5.0,44.99],[5.0,45.01],[4.99,45.01],[4.99,44.99]]]";
+const EAST: &str = "[[[5.0,44.99],[5.01,44.99],[5.01,45.01],[5.0,45.01],[5.0,44.99]]]";
+/// A bow tie: its two edges cross at (5.0, 45.0).
+const BOWTIE: &str = "[[[4.99,44.99],[5.01,45.01],[5.01,44.99],[4.99,45.01],[4.99,44.99]]]";
+
+fn vector_region(dir: &Path, vector: &str) -> PathBuf {
+    flat_dem(dir);
+    let p = dir.join("region.toml");
+    std::fs::write(
+        &p,
+        format!("[area]\nbbox = [4.995, 44.995, 5.005, 45.005]\n[dem]\nfiles = [\"dem.tif\"]\n[landcover]\nscheme = \"nlcd\"\ntile_size_m = 20\n{vector}"),
+    )
+    .unwrap();
+    p
+}
+
+/// Rationale: the two halves of a synthetic area, burnt from text classes mapped by `values`,
+/// must split the material raster in two equal halves of grass and water (the boundary at 5° E
+/// is the frame's centre meridian).
+#[test]
+fn text_classes_through_values_split_the_area() {
+    let dir = tmp("halves");
+    std::fs::write(
+        dir.join("lc.geojson"),
+        geojson(&[("\"kind\":\"meadow\"", WEST), ("\"kind\":\"pond\"", EAST)]),
+    )
+    .unwrap();
+    let region = vector_region(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nattribute = \"kind\"\nvalues = { meadow = 71, pond = 11 }\n",
+    );
+    let (b, _) = build(&region, &dir.join("bundle"));
+    let m = &b.manifest;
+    let idx = |n: &str| m.materials.iter().find(|x| x.name == n).unwrap().index;
+    let w = m.material_raster.width as usize;
+    let (g, water) = (idx("grass"), idx("water"));
+    for (k, &v) in b.material_raster.iter().enumerate() {
+        let x = k % w;
+        let want = if x < w / 2 { g } else { water };
+        assert_eq!(v, want, "cell {k} (column {x} of {w})");
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+fn expect_error(dir: &Path, vector: &str, needles: &[&str]) {
+    let region = vector_region(dir, vector);
+    let out = dir.join("bundle");
+    let (code, _, stderr) = scenegen(&[
+        "build",
+        "--quiet",
+        "--force",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 2, "{vector}: {stderr}");
+    for n in needles {
+        assert!(stderr.contains(n), "{vector}: `{n}` not in: {stderr}");
+    }
+    assert!(!stderr.contains("panicked"), "{stderr}");
+}
+
+/// Rationale: bad vector land cover is refused naming the file, the layer, the feature id, the
+/// key or the value; an invalid (self-intersecting) polygon and uncovered cells are named, never
+/// silently dropped.
+#[test]
+fn bad_vector_landcover_is_named() {
+    let dir = tmp("badvec");
+    std::fs::write(
+        dir.join("lc.geojson"),
+        geojson(&[
+            ("\"kind\":\"meadow\",\"code\":71", WEST),
+            ("\"kind\":\"pond\",\"code\":null", EAST),
+        ]),
+    )
+    .unwrap();
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"missing.gpkg\"\nclass = 71\n",
+        &["missing.gpkg", "no such file"],
+    );
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nattribute = \"typ\"\n",
+        &["lc.geojson", "no attribute `typ`", "kind, code"],
+    );
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nlayer = \"roads\"\nclass = 1\n",
+        &["no layer `roads`"],
+    );
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nattribute = \"kind\"\n",
+        &[
+            "feature 0",
+            "\"meadow\" is not an integer class code",
+            "values =",
+        ],
+    );
+    expect_error(&dir, "[[landcover.vector]]\nfile = \"lc.geojson\"\nattribute = \"kind\"\nvalues = { meadow = 71 }\n", &["feature 1", "\"pond\" has no entry in `values`"]);
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nattribute = \"code\"\n",
+        &["feature 1", "`code` is null"],
+    );
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\n",
+        &["landcover.vector[0]", "`attribute`", "`class`"],
+    );
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nclass = 3\nvalues = { a = 1 }\n",
+        &["landcover.vector[0].values"],
+    );
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nclas = 3\n",
+        &["landcover.vector[0]", "clas"],
+    );
+    // A class code the scheme does not know, with its cell count.
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"lc.geojson\"\nclass = 77\n",
+        &["77"],
+    );
+    // Only the west half covered: the east half is no data, an error without a fallback.
+    std::fs::write(dir.join("west.geojson"), geojson(&[("\"code\":71", WEST)])).unwrap();
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"west.geojson\"\nattribute = \"code\"\n",
+        &["west.geojson", "no data"],
+    );
+    // A line where polygons are expected.
+    std::fs::write(
+        dir.join("line.geojson"),
+        "{\"type\":\"FeatureCollection\",\"features\":[{\"type\":\"Feature\",\"properties\":{},\"geometry\":{\"type\":\"LineString\",\"coordinates\":[[4.99,45.0],[5.01,45.0]]}}]}",
+    )
+    .unwrap();
+    expect_error(
+        &dir,
+        "[[landcover.vector]]\nfile = \"line.geojson\"\nclass = 71\n",
+        &["feature 0", "LINESTRING", "polygons are expected"],
+    );
+
+    // A bow tie is kept with a warning naming it.
+    std::fs::write(
+        dir.join("bowtie.geojson"),
+        geojson(&[("\"code\":11", BOWTIE)]),
+    )
+    .unwrap();
+    let region = vector_region(
+        &dir,
+        "fallback_material = \"grass\"\n[[landcover.vector]]\nfile = \"bowtie.geojson\"\nattribute = \"code\"\n",
+    );
+    let out = dir.join("bundle");
+    let (code, _, stderr) = scenegen(&[
+        "build",
+        "--force",
+        "-o",
+        out.to_str().unwrap(),
+        region.to_str().unwrap(),
+    ]);
+    assert_eq!(code, 0, "{stderr}");
+    assert!(
+        stderr.contains("feature 0 is not a valid polygon"),
+        "{stderr}"
+    );
+    std::fs::remove_dir_all(&dir).unwrap();
+}
