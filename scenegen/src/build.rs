@@ -42,6 +42,10 @@ pub struct BuildReport {
     pub dem_height: usize,
     pub filled_pixels: u64,
     pub stages: Vec<(&'static str, Duration)>,
+    /// The buildings extruded from footprints, one record per prism.
+    pub buildings: Vec<crate::buildings::BuildingRecord>,
+    /// Footprints skipped (id, reason).
+    pub buildings_skipped: Vec<(String, String)>,
 }
 
 fn bar(opts: &BuildOptions, msg: &str) -> ProgressBar {
@@ -221,10 +225,43 @@ pub fn build(
     pb.finish_and_clear();
     stage("templates", &mut t);
 
+    let lidar = match &region.lidar {
+        Some(l) => {
+            let pb = bar(opts, "lidar: reading points");
+            let pc = crate::pointcloud::read(&l.files, l.crs.as_deref(), &frame)?;
+            pb.finish_and_clear();
+            stage("lidar", &mut t);
+            Some(pc)
+        }
+        None => None,
+    };
     let pb = bar(opts, "DEM: reading and warping");
-    // A mesh DEM becomes a temporary GeoTIFF, removed when `_mesh_dem` drops.
-    let (rasterised, _mesh_dem) = crate::mesh_region::with_rasterised_mesh(region)?;
-    let dem = raster::load_dem(&rasterised, &frame)?;
+    let dem = if region.dem_from_lidar {
+        let (l, pc) = (
+            region.lidar.as_ref().expect("checked"),
+            lidar.as_ref().expect("read"),
+        );
+        let grid = Grid::dem_nodes(frame.extent, region.dem_spacing_m.expect("checked"));
+        let (heights, filled) =
+            crate::pointcloud::grid_heights(pc, &l.ground_classes, &grid, &l.files[0])?;
+        tracing::info!(
+            "DEM from {} lidar ground points (classes {:?}): {} × {} nodes at {} m, {filled} empty cells filled",
+            pc.class.iter().filter(|c| l.ground_classes.contains(c)).count(),
+            l.ground_classes,
+            grid.width,
+            grid.height,
+            grid.dx
+        );
+        raster::DemData {
+            grid,
+            heights,
+            filled: filled as u64,
+        }
+    } else {
+        // A mesh DEM becomes a temporary GeoTIFF, removed when `_mesh_dem` drops.
+        let (rasterised, _mesh_dem) = crate::mesh_region::with_rasterised_mesh(region)?;
+        raster::load_dem(&rasterised, &frame)?
+    };
     pb.finish_and_clear();
     let grid = dem.grid;
     stage("dem", &mut t);
@@ -295,6 +332,49 @@ pub fn build(
     pb.finish_and_clear();
     stage("instances", &mut t);
 
+    let mut templates = population.templates;
+    let mut building_inputs = Vec::new();
+    let (mut building_records, mut buildings_skipped) = (Vec::new(), Vec::new());
+    if !region.buildings.is_empty() {
+        let pb = bar(opts, "buildings: extruding footprints");
+        let mut library: BTreeMap<String, MaterialDef> = scheme.materials.clone();
+        library.extend(region.materials.clone());
+        let out = crate::buildings::build(
+            &region.buildings,
+            &crate::buildings::Ground {
+                frame: &frame,
+                grid: &grid,
+                heights: &dem.heights,
+                lidar: lidar.as_ref(),
+                tile_m: region.terrain_tile_m,
+            },
+            |name| {
+                let def = library.get(name).ok_or_else(|| ScenegenError::Region {
+                    path: region.path.clone(),
+                    key: "buildings.roof_material / wall_material".into(),
+                    message: format!(
+                        "unknown material `{name}` (library: {})",
+                        library.keys().cloned().collect::<Vec<_>>().join(", ")
+                    ),
+                })?;
+                Ok(materials.add_material(name, def)?)
+            },
+        )?;
+        for (mesh, o) in out.templates.into_iter().zip(out.origins) {
+            instances.push(bundle::Instance {
+                translation: [o[0] - origin[0], o[1] - origin[1], 0.0],
+                linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                template: templates.len() as u32,
+            });
+            templates.push(mesh);
+        }
+        building_inputs = out.inputs;
+        building_records = out.records;
+        buildings_skipped = out.skipped;
+        pb.finish_and_clear();
+        stage("buildings", &mut t);
+    }
+
     // Provenance.
     let mut inputs = Vec::new();
     let mut add_input = |role: &str, p: &Path| -> Result<(), ScenegenError> {
@@ -320,6 +400,14 @@ pub fn build(
     }
     for v in &region.landcover_vectors {
         add_input("landcover_vector", &v.file)?;
+    }
+    for p in &building_inputs {
+        add_input("buildings", p)?;
+    }
+    if let Some(l) = &region.lidar {
+        for p in &l.files {
+            add_input("lidar", p)?;
+        }
     }
     if region.scheme.ends_with(".toml") {
         add_input("scheme", Path::new(&region.scheme))?;
@@ -407,7 +495,7 @@ pub fn build(
                 indices: m.indices,
             })
             .collect(),
-        templates: population.templates,
+        templates,
         instances,
         material_raster,
     };
@@ -422,6 +510,8 @@ pub fn build(
         dem_height: grid.height,
         filled_pixels: dem.filled,
         stages,
+        buildings: building_records,
+        buildings_skipped,
     })
 }
 

@@ -12,6 +12,7 @@
 pub mod area_polygon;
 pub mod bench;
 pub mod build;
+pub mod buildings;
 pub mod dem_values;
 pub mod error;
 pub mod gltf_export;
@@ -19,6 +20,7 @@ pub mod info;
 pub mod landcover_vector;
 pub mod mesh_dem;
 pub mod mesh_region;
+pub mod pointcloud;
 pub mod raster;
 pub mod region;
 pub mod synth;

@@ -30,6 +30,63 @@ struct RegionFile {
     templates: Vec<TemplateSpec>,
     #[serde(default)]
     population: Option<Vec<PopulationRule>>,
+    #[serde(default)]
+    lidar: Option<LidarConfig>,
+    #[serde(default)]
+    buildings: Vec<BuildingsConfig>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LidarConfig {
+    files: Vec<PathBuf>,
+    #[serde(default)]
+    crs: Option<String>,
+    #[serde(default = "default_ground_classes")]
+    ground_classes: Vec<u8>,
+}
+
+fn default_ground_classes() -> Vec<u8> {
+    vec![2, 9]
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BuildingsConfig {
+    file: PathBuf,
+    #[serde(default)]
+    layer: Option<String>,
+    #[serde(default)]
+    crs: Option<String>,
+    #[serde(default)]
+    id_attribute: Option<String>,
+    #[serde(default)]
+    height_attribute: Option<String>,
+    #[serde(default)]
+    levels_attribute: Option<String>,
+    #[serde(default)]
+    storey_height_m: Option<f64>,
+    #[serde(default)]
+    height_m: Option<f64>,
+    #[serde(default)]
+    height_from_lidar: bool,
+    #[serde(default)]
+    roof_classes: Option<Vec<u8>>,
+    #[serde(default)]
+    roof_percentile: Option<f64>,
+    #[serde(default)]
+    default_height_m: Option<f64>,
+    #[serde(default = "default_roof")]
+    roof_material: String,
+    #[serde(default = "default_wall")]
+    wall_material: String,
+}
+
+fn default_roof() -> String {
+    "roof".into()
+}
+fn default_wall() -> String {
+    "wall".into()
 }
 
 fn local() -> String {
@@ -78,6 +135,9 @@ struct DemConfig {
     spacing_m: Option<f64>,
     #[serde(default = "default_fill")]
     max_fill_pixels: u64,
+    /// The DEM is the `[lidar]` ground points gridded at `spacing_m`.
+    #[serde(default)]
+    from_lidar: bool,
 }
 
 fn default_fill() -> u64 {
@@ -237,6 +297,19 @@ pub struct Region {
     pub materials: BTreeMap<String, MaterialDef>,
     pub templates: Vec<TemplateSpec>,
     pub population: Option<Vec<PopulationRule>>,
+    /// The region's airborne lidar (`[lidar]`).
+    pub lidar: Option<LidarSpec>,
+    /// The DEM is gridded from the lidar's ground points (`dem.from_lidar`).
+    pub dem_from_lidar: bool,
+    pub buildings: Vec<crate::buildings::BuildingsSpec>,
+}
+
+/// `[lidar]`: point-cloud files (LAS/LAZ), paths resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LidarSpec {
+    pub files: Vec<PathBuf>,
+    pub crs: Option<String>,
+    pub ground_classes: Vec<u8>,
 }
 
 impl Region {
@@ -335,11 +408,45 @@ impl Region {
                 ))
             }
         };
+        let lidar = match &raw.lidar {
+            Some(l) => {
+                if l.files.is_empty() {
+                    return Err(inv("lidar.files", "give at least one LAS/LAZ file".into()));
+                }
+                Some(LidarSpec {
+                    files: l.files.iter().map(|f| base.join(f)).collect(),
+                    crs: l.crs.clone(),
+                    ground_classes: l.ground_classes.clone(),
+                })
+            }
+            None => None,
+        };
+        if raw.dem.from_lidar {
+            if lidar.is_none() {
+                return Err(inv(
+                    "dem.from_lidar",
+                    "needs a `[lidar]` table with the point-cloud files".into(),
+                ));
+            }
+            if !raw.dem.files.is_empty() || raw.dem.mesh.is_some() {
+                return Err(inv(
+                    "dem.from_lidar",
+                    "give either `files`, `mesh` or `from_lidar`".into(),
+                ));
+            }
+            if raw.dem.spacing_m.is_none() {
+                return Err(inv(
+                    "dem.spacing_m",
+                    "required with `from_lidar` (the DTM's cell size, e.g. 1.0)".into(),
+                ));
+            }
+        }
         let dem_mesh = match (&raw.dem.mesh, raw.dem.mesh_origin, raw.dem.files.is_empty()) {
+            (None, None, _) if raw.dem.from_lidar => None,
             (None, None, false) => None,
             (None, None, true) => return Err(inv(
                 "dem",
-                "give `files` (DEM rasters) or `mesh` and `mesh_origin` (a gridded terrain mesh)"
+                "give `files` (DEM rasters), `mesh` and `mesh_origin` (a gridded terrain mesh), or `from_lidar = true`"
                     .into(),
             )),
             (Some(_), _, false) => {
@@ -395,10 +502,10 @@ impl Region {
             ));
         }
         let lc = &raw.landcover;
-        if !(lc.tile_size_m.is_finite() && (1.0..=10_000.0).contains(&lc.tile_size_m)) {
+        if !(lc.tile_size_m.is_finite() && (0.1..=10_000.0).contains(&lc.tile_size_m)) {
             return Err(inv(
                 "landcover.tile_size_m",
-                format!("{} must be in [1, 10000] m", lc.tile_size_m),
+                format!("{} must be in [0.1, 10000] m", lc.tile_size_m),
             ));
         }
         let landcover = match (&lc.file, lc.class) {
@@ -467,6 +574,86 @@ impl Region {
                     .map_err(|(k, m)| inv(&format!("population[{i}].{k}"), m))?;
             }
         }
+        let mut buildings = Vec::with_capacity(raw.buildings.len());
+        for (i, b) in raw.buildings.iter().enumerate() {
+            use crate::buildings::{BuildingsSpec, HeightSource};
+            let key = |k: &str| format!("buildings[{i}].{k}");
+            let positive = |k: &str, v: Option<f64>| -> Result<(), ScenegenError> {
+                match v {
+                    Some(x) if !(x.is_finite() && x > 0.0 && x <= 1000.0) => {
+                        Err(inv(&key(k), format!("{x} must be in (0, 1000] m")))
+                    }
+                    _ => Ok(()),
+                }
+            };
+            positive("storey_height_m", b.storey_height_m)?;
+            positive("height_m", b.height_m)?;
+            positive("default_height_m", b.default_height_m)?;
+            let given = [
+                b.height_attribute.is_some(),
+                b.levels_attribute.is_some(),
+                b.height_m.is_some(),
+                b.height_from_lidar,
+            ];
+            if given.iter().filter(|&&g| g).count() != 1 {
+                return Err(inv(
+                    &format!("buildings[{i}]"),
+                    "give exactly one height source: `height_attribute`, `levels_attribute`, `height_m` or `height_from_lidar = true`".into(),
+                ));
+            }
+            if b.storey_height_m.is_some() && b.levels_attribute.is_none() {
+                return Err(inv(
+                    &key("storey_height_m"),
+                    "only with `levels_attribute`".into(),
+                ));
+            }
+            if (b.roof_classes.is_some() || b.roof_percentile.is_some()) && !b.height_from_lidar {
+                let k = if b.roof_classes.is_some() {
+                    "roof_classes"
+                } else {
+                    "roof_percentile"
+                };
+                return Err(inv(&key(k), "only with `height_from_lidar = true`".into()));
+            }
+            if b.height_from_lidar && lidar.is_none() {
+                return Err(inv(
+                    &key("height_from_lidar"),
+                    "needs a `[lidar]` table with the point-cloud files".into(),
+                ));
+            }
+            let percentile = b.roof_percentile.unwrap_or(50.0);
+            if !(0.0..=100.0).contains(&percentile) {
+                return Err(inv(
+                    &key("roof_percentile"),
+                    format!("{percentile} must be in [0, 100]"),
+                ));
+            }
+            let height = if let Some(a) = &b.height_attribute {
+                HeightSource::Attribute(a.clone())
+            } else if let Some(a) = &b.levels_attribute {
+                HeightSource::Levels {
+                    attribute: a.clone(),
+                    storey_m: b.storey_height_m.unwrap_or(3.0),
+                }
+            } else if let Some(h) = b.height_m {
+                HeightSource::Constant(h)
+            } else {
+                HeightSource::Lidar {
+                    classes: b.roof_classes.clone().unwrap_or_else(|| vec![6]),
+                    percentile,
+                }
+            };
+            buildings.push(BuildingsSpec {
+                file: base.join(&b.file),
+                layer: b.layer.clone(),
+                crs: b.crs.clone(),
+                id_attribute: b.id_attribute.clone(),
+                height,
+                default_height_m: b.default_height_m,
+                roof_material: b.roof_material.clone(),
+                wall_material: b.wall_material.clone(),
+            });
+        }
         Ok(Region {
             path: path.into(),
             text: text.into(),
@@ -493,6 +680,9 @@ impl Region {
             materials: raw.materials,
             templates: raw.templates,
             population: raw.population,
+            lidar,
+            dem_from_lidar: raw.dem.from_lidar,
+            buildings,
         })
     }
 

@@ -1,0 +1,608 @@
+//! Buildings from footprints (`[[buildings]]`): footprint polygons of a vector layer become
+//! closed, watertight prisms (LoD1: flat roof, vertical walls, a floor) standing on the terrain,
+//! with a roof and a wall material. Keys: docs/region.md, "[[buildings]]".
+//!
+//! * **Footprint**: each polygon of a feature (multipolygons give one prism per part), holes
+//!   (courtyards) kept; rings cleaned of repeated and collinear-duplicate vertices, the exterior
+//!   made counter-clockwise and holes clockwise, so every face's normal points outwards.
+//! * **Roof and floor**: a constrained Delaunay triangulation (`spade`) of the rings, keeping the
+//!   triangles whose centroid lies inside the polygon. Rings that cross themselves or each other
+//!   (spade refuses the constraint) make the footprint invalid: it is skipped with a warning
+//!   naming the feature; so is a footprint that triangulates with extra vertices on its rings.
+//! * **Walls**: two triangles per ring edge between the floor and roof copies of its vertices.
+//!   Roof, floor and walls share the ring vertices, so every edge belongs to exactly two
+//!   triangles of opposite orientation (tested: `closed_mesh` below and the ray-parity test).
+//! * **Heights**: the floor is at the lowest terrain (DEM, bilinear) under the footprint's
+//!   vertices minus [`SINK_M`] (the wall meets sloping ground and the terrain TIN's tolerance
+//!   without a gap); the roof at that lowest ground plus the building height (OpenStreetMap's
+//!   `height`: from the lowest ground point to the top), where the height comes from an
+//!   attribute (m), a storey count × `storey_height_m`, one value for the layer, or the
+//!   `roof_percentile` (default the median) of the lidar points of `roof_classes` inside the
+//!   footprint (absolute heights, as the DEM). A null or non-numeric height uses
+//!   `default_height_m` with a warning naming the features, else is an error naming the feature;
+//!   a footprint partly outside the DEM (cut by the area's edge) is skipped with a warning naming
+//!   it, and footprints wholly outside are counted in the log.
+//! * **Placement**: the buildings of each square of `terrain.tile_size_m` form one template
+//!   (`buildings_<col>_<row>`) with a single instance, so a city of 10⁵ buildings is a few hundred
+//!   templates, each with its own BVH in `simulate`.
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+
+use geo::{Contains, Coord, LineString, Polygon};
+use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
+
+use crate::error::ScenegenError;
+use crate::pointcloud::{PointCloud, PointIndex};
+use crate::raster::{Grid, WorkingFrame};
+use crate::vector::{as_f64, as_text, read_layer};
+
+/// How far the floor is sunk below the lowest ground under the footprint, m.
+pub const SINK_M: f64 = 0.5;
+
+/// Where a building's height comes from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum HeightSource {
+    /// An attribute in metres.
+    Attribute(String),
+    /// A storey-count attribute times a storey height (m).
+    Levels { attribute: String, storey_m: f64 },
+    /// One height for every footprint, m.
+    Constant(f64),
+    /// A percentile of the region's lidar points of these classes inside the footprint.
+    Lidar { classes: Vec<u8>, percentile: f64 },
+}
+
+/// One `[[buildings]]` entry, paths resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct BuildingsSpec {
+    pub file: PathBuf,
+    pub layer: Option<String>,
+    pub crs: Option<String>,
+    /// Attribute naming the buildings in messages (default: the feature id).
+    pub id_attribute: Option<String>,
+    pub height: HeightSource,
+    pub default_height_m: Option<f64>,
+    pub roof_material: String,
+    pub wall_material: String,
+}
+
+/// A closed triangle mesh in working-CRS metres.
+#[derive(Clone, Debug, Default)]
+pub struct Prism {
+    pub positions: Vec<[f64; 3]>,
+    pub triangles: Vec<[u32; 3]>,
+    /// Per triangle: true for the roof, false for walls and floor.
+    pub roof: Vec<bool>,
+}
+
+/// One building as built, for reports and tests.
+#[derive(Clone, Debug)]
+pub struct BuildingRecord {
+    /// The id attribute's value, else the feature id.
+    pub id: String,
+    /// Footprint area, m².
+    pub area_m2: f64,
+    /// Floor and roof heights, m (as the DEM).
+    pub floor: f64,
+    pub roof: f64,
+    /// Lidar points the height came from (0 for other sources).
+    pub points: usize,
+    /// The building's centre (x, y) in the working CRS.
+    pub centre: [f64; 2],
+}
+
+/// What the buildings stage produced.
+#[derive(Default)]
+pub struct BuildingsOutput {
+    pub templates: Vec<bundle::TemplateMesh>,
+    /// Working-CRS (x, y) of each template's origin (its instance sits there, z = 0).
+    pub origins: Vec<[f64; 2]>,
+    pub records: Vec<BuildingRecord>,
+    /// Footprints skipped, with the reason, by id.
+    pub skipped: Vec<(String, String)>,
+    /// Footprints wholly outside the DEM (not part of the scene).
+    pub outside: usize,
+    pub inputs: Vec<PathBuf>,
+}
+
+fn signed_area(r: &[[f64; 2]]) -> f64 {
+    let n = r.len();
+    (0..n)
+        .map(|i| {
+            let (a, b) = (r[i], r[(i + 1) % n]);
+            a[0] * b[1] - b[0] * a[1]
+        })
+        .sum::<f64>()
+        * 0.5
+}
+
+/// A ring without its closing vertex, repeated vertices or spikes, oriented as asked.
+fn clean_ring(ls: &LineString<f64>, ccw: bool) -> Vec<[f64; 2]> {
+    let mut r: Vec<[f64; 2]> = Vec::with_capacity(ls.0.len());
+    for c in &ls.0 {
+        let p = [c.x, c.y];
+        if r.last() != Some(&p) {
+            r.push(p);
+        }
+    }
+    while r.len() > 1 && r.first() == r.last() {
+        r.pop();
+    }
+    if (signed_area(&r) > 0.0) != ccw {
+        r.reverse();
+    }
+    r
+}
+
+/// Extrude `poly` (working CRS) between `floor` and `roof` into a closed prism.
+pub fn extrude(poly: &Polygon<f64>, floor: f64, roof: f64) -> Result<Prism, String> {
+    let mut rings = vec![clean_ring(poly.exterior(), true)];
+    rings.extend(poly.interiors().iter().map(|h| clean_ring(h, false)));
+    for (i, r) in rings.iter().enumerate() {
+        if r.len() < 3 || signed_area(r).abs() < 1e-6 {
+            return Err(if i == 0 {
+                "the exterior ring has no area".into()
+            } else {
+                format!("hole {i} has no area")
+            });
+        }
+    }
+    if roof.partial_cmp(&floor) != Some(std::cmp::Ordering::Greater) {
+        return Err(format!(
+            "roof at {roof:.2} m is not above the floor at {floor:.2} m"
+        ));
+    }
+    // Coordinates relative to the first vertex keep spade's predicates well conditioned.
+    let o = rings[0][0];
+    let mut cdt: ConstrainedDelaunayTriangulation<Point2<f64>> =
+        ConstrainedDelaunayTriangulation::new();
+    let mut handles: Vec<Vec<spade::handles::FixedVertexHandle>> = Vec::new();
+    for r in &rings {
+        let mut hs = Vec::with_capacity(r.len());
+        for p in r {
+            let h = cdt
+                .insert(Point2::new(p[0] - o[0], p[1] - o[1]))
+                .map_err(|e| format!("vertex ({:.3}, {:.3}): {e:?}", p[0], p[1]))?;
+            hs.push(h);
+        }
+        handles.push(hs);
+    }
+    if cdt.num_vertices() != rings.iter().map(Vec::len).sum::<usize>() {
+        return Err("a vertex is repeated (rings touch)".into());
+    }
+    for hs in &handles {
+        for i in 0..hs.len() {
+            let (a, b) = (hs[i], hs[(i + 1) % hs.len()]);
+            if cdt.try_add_constraint(a, b).is_empty() && !cdt.exists_constraint(a, b) {
+                return Err("its rings cross (self-intersection)".into());
+            }
+        }
+    }
+    if cdt.num_vertices() != rings.iter().map(Vec::len).sum::<usize>() {
+        return Err("its rings cross (self-intersection)".into());
+    }
+    // Ring vertex k ↔ CDT vertex index.
+    let nv = cdt.num_vertices();
+    let mut pos2 = vec![[0f64; 2]; nv];
+    for v in cdt.vertices() {
+        let p = v.position();
+        pos2[v.fix().index()] = [p.x + o[0], p.y + o[1]];
+    }
+    let mut prism = Prism::default();
+    for p in &pos2 {
+        prism.positions.push([p[0], p[1], floor]);
+    }
+    for p in &pos2 {
+        prism.positions.push([p[0], p[1], roof]);
+    }
+    let top = nv as u32;
+    let mut roof_tris = 0;
+    for f in cdt.inner_faces() {
+        let vs = f.vertices();
+        let idx = vs.map(|v| v.fix().index() as u32);
+        let c = vs.iter().fold([0.0, 0.0], |a, v| {
+            let p = v.position();
+            [a[0] + p.x / 3.0 + o[0] / 3.0, a[1] + p.y / 3.0 + o[1] / 3.0]
+        });
+        if !poly.contains(&Coord { x: c[0], y: c[1] }) {
+            continue;
+        }
+        // spade's faces are counter-clockwise: the roof faces up, the floor (reversed) down.
+        prism
+            .triangles
+            .push([idx[0] + top, idx[1] + top, idx[2] + top]);
+        prism.roof.push(true);
+        prism.triangles.push([idx[0], idx[2], idx[1]]);
+        prism.roof.push(false);
+        roof_tris += 1;
+    }
+    if roof_tris == 0 {
+        return Err("it triangulates to nothing".into());
+    }
+    for hs in &handles {
+        for i in 0..hs.len() {
+            let (a, b) = (hs[i].index() as u32, hs[(i + 1) % hs.len()].index() as u32);
+            prism.triangles.push([a, b, b + top]);
+            prism.triangles.push([a, b + top, a + top]);
+            prism.roof.extend([false, false]);
+        }
+    }
+    if !closed_mesh(&prism.triangles) {
+        return Err("its triangulation is not closed (a ring vertex lies on another ring)".into());
+    }
+    Ok(prism)
+}
+
+/// True when every directed edge appears once and its reverse once: a closed, consistently
+/// oriented (watertight) surface.
+pub fn closed_mesh(tris: &[[u32; 3]]) -> bool {
+    let mut edges: BTreeMap<(u32, u32), i32> = BTreeMap::new();
+    for t in tris {
+        for k in 0..3 {
+            *edges.entry((t[k], t[(k + 1) % 3])).or_default() += 1;
+        }
+    }
+    edges
+        .iter()
+        .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1))
+}
+
+/// Bilinear height of the DEM node grid at (x, y), `None` outside it.
+pub fn ground_at(grid: &Grid, h: &[f32], x: f64, y: f64) -> Option<f64> {
+    let fc = (x - grid.x0) / grid.dx;
+    let fr = (grid.y0 - y) / grid.dx;
+    let (w, hh) = (grid.width as f64, grid.height as f64);
+    if !(fc >= 0.0 && fr >= 0.0 && fc <= w - 1.0 && fr <= hh - 1.0) {
+        return None;
+    }
+    let c0 = (fc.floor() as usize).min(grid.width.saturating_sub(2));
+    let r0 = (fr.floor() as usize).min(grid.height.saturating_sub(2));
+    let (tx, ty) = (fc - c0 as f64, fr - r0 as f64);
+    let at =
+        |r: usize, c: usize| h[r.min(grid.height - 1) * grid.width + c.min(grid.width - 1)] as f64;
+    Some(
+        at(r0, c0) * (1.0 - tx) * (1.0 - ty)
+            + at(r0, c0 + 1) * tx * (1.0 - ty)
+            + at(r0 + 1, c0) * (1.0 - tx) * ty
+            + at(r0 + 1, c0 + 1) * tx * ty,
+    )
+}
+
+/// The `p`-th percentile (0–100, linear between order statistics) of `v` (sorted here).
+pub fn percentile(v: &mut [f64], p: f64) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let f = p / 100.0 * (v.len() - 1) as f64;
+    let (i, t) = (f.floor() as usize, f.fract());
+    if i + 1 < v.len() {
+        v[i] * (1.0 - t) + v[i + 1] * t
+    } else {
+        v[i]
+    }
+}
+
+/// Everything the buildings stage needs from the build.
+pub struct Ground<'a> {
+    pub frame: &'a WorkingFrame,
+    pub grid: &'a Grid,
+    pub heights: &'a [f32],
+    pub lidar: Option<&'a PointCloud>,
+    /// Square side grouping buildings into templates, m.
+    pub tile_m: f64,
+}
+
+/// Build the prisms of every `[[buildings]]` entry. `material` maps a library material name to
+/// its bundle index (adding it to the table).
+pub fn build(
+    specs: &[BuildingsSpec],
+    ground: &Ground,
+    mut material: impl FnMut(&str) -> Result<u8, ScenegenError>,
+) -> Result<BuildingsOutput, ScenegenError> {
+    let mut out = BuildingsOutput::default();
+    // Square (col, row) → (template positions, indices, materials).
+    type Group = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<u8>, usize);
+    let mut groups: BTreeMap<(i64, i64), Group> = BTreeMap::new();
+    let mut sources: BTreeMap<(i64, i64), String> = BTreeMap::new();
+    let mut index_cache: BTreeMap<Vec<u8>, PointIndex> = BTreeMap::new();
+    for (si, spec) in specs.iter().enumerate() {
+        let (roof_m, wall_m) = (
+            material(&spec.roof_material)?,
+            material(&spec.wall_material)?,
+        );
+        let mut attrs: Vec<&str> = Vec::new();
+        match &spec.height {
+            HeightSource::Attribute(a) | HeightSource::Levels { attribute: a, .. } => attrs.push(a),
+            _ => {}
+        }
+        if let Some(a) = &spec.id_attribute {
+            attrs.push(a);
+        }
+        let layer = read_layer(
+            &spec.file,
+            spec.layer.as_deref(),
+            spec.crs.as_deref(),
+            &attrs,
+            ground.frame,
+        )?;
+        out.inputs.push(spec.file.clone());
+        for id in &layer.invalid {
+            tracing::warn!("{}: building {id}: invalid footprint polygon", layer.label);
+        }
+        let err = |id: &str, message: String| ScenegenError::Input {
+            path: spec.file.clone(),
+            message: format!("{}, building {id}: {message}", layer.label),
+        };
+        let index = match &spec.height {
+            HeightSource::Lidar { classes, .. } => {
+                let pc = ground.lidar.ok_or_else(|| ScenegenError::Region {
+                    path: spec.file.clone(),
+                    key: format!("buildings[{si}].height_from_lidar"),
+                    message: "needs the region's [lidar] point cloud".into(),
+                })?;
+                if !index_cache.contains_key(classes) {
+                    index_cache.insert(classes.clone(), PointIndex::new(pc, classes, 4.0));
+                }
+                Some((pc, &index_cache[classes]))
+            }
+            _ => None,
+        };
+        let mut defaulted = Vec::new();
+        let mut cand = Vec::new();
+        for f in &layer.features {
+            let id = match spec
+                .id_attribute
+                .as_ref()
+                .and(f.values.last().cloned().flatten())
+            {
+                Some(v) => as_text(&v),
+                None => f.id.to_string(),
+            };
+            let g: geo::Geometry<f64> = geo::Geometry::try_from(&f.geometry)
+                .map_err(|e| err(&id, format!("unsupported geometry: {e}")))?;
+            let polys: Vec<Polygon<f64>> = match g {
+                geo::Geometry::Polygon(p) => vec![p],
+                geo::Geometry::MultiPolygon(m) => m.0,
+                other => return Err(err(&id, format!("not a polygon: {other:?}"))),
+            };
+            for (pi, poly) in polys.iter().enumerate() {
+                let pid = if polys.len() > 1 {
+                    format!("{id} (part {pi})")
+                } else {
+                    id.clone()
+                };
+                // Lowest ground under the footprint's vertices.
+                let mut low = f64::INFINITY;
+                let mut bb = [f64::MAX, f64::MAX, f64::MIN, f64::MIN];
+                let mut outside = 0;
+                let ring = &poly.exterior().0;
+                for c in ring {
+                    match ground_at(ground.grid, ground.heights, c.x, c.y) {
+                        Some(z) => low = low.min(z),
+                        None => outside += 1,
+                    }
+                    bb = [
+                        bb[0].min(c.x),
+                        bb[1].min(c.y),
+                        bb[2].max(c.x),
+                        bb[3].max(c.y),
+                    ];
+                }
+                if outside == ring.len() {
+                    out.outside += 1;
+                    continue;
+                }
+                if outside > 0 {
+                    let why = "the footprint reaches outside the DEM (cut by the area's edge)";
+                    tracing::warn!("{}, building {pid}: skipped: {why}", layer.label);
+                    out.skipped.push((pid, why.into()));
+                    continue;
+                }
+                let mut npts = 0;
+                let height = match &spec.height {
+                    HeightSource::Constant(h) => Some(*h),
+                    HeightSource::Attribute(_) => f.values[0].as_ref().and_then(as_f64),
+                    HeightSource::Levels { storey_m, .. } => {
+                        f.values[0].as_ref().and_then(as_f64).map(|l| l * storey_m)
+                    }
+                    HeightSource::Lidar { percentile: p, .. } => {
+                        let (pc, idx) = index.expect("lidar index");
+                        idx.candidates(bb, &mut cand);
+                        let mut zs: Vec<f64> = cand
+                            .iter()
+                            .filter(|&&i| {
+                                poly.contains(&Coord {
+                                    x: pc.x[i as usize],
+                                    y: pc.y[i as usize],
+                                })
+                            })
+                            .map(|&i| pc.z[i as usize])
+                            .collect();
+                        npts = zs.len();
+                        (!zs.is_empty()).then(|| percentile(&mut zs, *p) - low)
+                    }
+                };
+                let height = match (height, spec.default_height_m) {
+                    (Some(h), _) if h.is_finite() && h > 0.0 => h,
+                    (_, Some(d)) => {
+                        defaulted.push(pid.clone());
+                        d
+                    }
+                    (h, None) => {
+                        let what = match (&spec.height, h) {
+                            (HeightSource::Lidar { .. }, None) => {
+                                "no lidar point of the roof classes inside the footprint"
+                                    .to_string()
+                            }
+                            (_, Some(h)) => format!("height {h:.2} m is not positive"),
+                            (_, None) => "the height attribute is null or not a number".into(),
+                        };
+                        return Err(err(
+                            &pid,
+                            format!("{what}; set `default_height_m` to use a default"),
+                        ));
+                    }
+                };
+                let floor = low - SINK_M;
+                let roof = low + height;
+                let prism = match extrude(poly, floor, roof) {
+                    Ok(p) => p,
+                    Err(why) => {
+                        tracing::warn!("{}, building {pid}: skipped: {why}", layer.label);
+                        out.skipped.push((pid, why));
+                        continue;
+                    }
+                };
+                let cx = 0.5 * (bb[0] + bb[2]);
+                let cy = 0.5 * (bb[1] + bb[3]);
+                let key = (
+                    (cx / ground.tile_m).floor() as i64,
+                    (cy / ground.tile_m).floor() as i64,
+                );
+                let gr = groups.entry(key).or_default();
+                let base = gr.0.len() as u32;
+                gr.0.extend(prism.positions.iter().copied());
+                gr.1.extend(prism.triangles.iter().map(|t| t.map(|v| v + base)));
+                gr.2.extend(prism.roof.iter().map(|&r| if r { roof_m } else { wall_m }));
+                gr.3 += 1;
+                sources
+                    .entry(key)
+                    .or_default()
+                    .push_str(&format!("{};", layer.label));
+                out.records.push(BuildingRecord {
+                    id: pid,
+                    area_m2: geo::Area::unsigned_area(poly),
+                    floor,
+                    roof,
+                    points: npts,
+                    centre: [cx, cy],
+                });
+            }
+        }
+        if !defaulted.is_empty() {
+            tracing::warn!(
+                "{}: {} building(s) without a usable height got default_height_m = {} m: {}",
+                layer.label,
+                defaulted.len(),
+                spec.default_height_m.unwrap_or_default(),
+                defaulted
+                    .iter()
+                    .take(20)
+                    .cloned()
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            );
+        }
+        tracing::info!(
+            "buildings: {} footprints in {}: {} built, {} skipped (named above), {} outside the area",
+            layer.features.len(),
+            layer.label,
+            out.records.len(),
+            out.skipped.len(),
+            out.outside
+        );
+    }
+    for (key, (pos, tris, mats, n)) in groups {
+        let ox = (key.0 as f64 + 0.5) * ground.tile_m;
+        let oy = (key.1 as f64 + 0.5) * ground.tile_m;
+        let mut labels: Vec<&str> = sources[&key].split(';').filter(|s| !s.is_empty()).collect();
+        labels.sort();
+        labels.dedup();
+        out.templates.push(bundle::TemplateMesh {
+            name: format!("buildings_{}_{}", key.0, key.1),
+            source: format!(
+                "{n} building(s) extruded from footprints: {}",
+                labels.join(", ")
+            ),
+            positions: pos
+                .iter()
+                .map(|p| [(p[0] - ox) as f32, (p[1] - oy) as f32, p[2] as f32])
+                .collect(),
+            indices: tris,
+            materials: mats,
+        });
+        out.origins.push([ox, oy]);
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn square(x0: f64, y0: f64, s: f64) -> LineString<f64> {
+        LineString::from(vec![
+            (x0, y0),
+            (x0 + s, y0),
+            (x0 + s, y0 + s),
+            (x0, y0 + s),
+            (x0, y0),
+        ])
+    }
+
+    #[test]
+    fn a_courtyard_block_is_closed_with_the_right_volume() {
+        // 20 m square with a 6 m courtyard, clockwise exterior on input (reoriented).
+        let mut ext = square(0.0, 0.0, 20.0);
+        ext.0.reverse();
+        let poly = Polygon::new(ext, vec![square(7.0, 7.0, 6.0)]);
+        let p = extrude(&poly, 10.0, 22.0).unwrap();
+        assert!(closed_mesh(&p.triangles));
+        // Divergence theorem: V = Σ (a · (b × c)) / 6 over outward triangles.
+        let v: f64 = p
+            .triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| glam::DVec3::from(p.positions[i as usize]));
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum();
+        assert!((v - (400.0 - 36.0) * 12.0).abs() < 1e-6, "volume {v}");
+        let roof_area: f64 = p
+            .triangles
+            .iter()
+            .zip(&p.roof)
+            .filter(|(_, r)| **r)
+            .map(|(t, _)| {
+                let [a, b, c] = t.map(|i| glam::DVec3::from(p.positions[i as usize]));
+                0.5 * (b - a).cross(c - a).z
+            })
+            .sum();
+        assert!(
+            (roof_area - 364.0).abs() < 1e-9,
+            "roof faces up: {roof_area}"
+        );
+    }
+
+    #[test]
+    fn bad_footprints_are_refused() {
+        let bowtie = Polygon::new(
+            LineString::from(vec![
+                (0.0, 0.0),
+                (10.0, 10.0),
+                (10.0, 0.0),
+                (0.0, 4.0),
+                (0.0, 0.0),
+            ]),
+            vec![],
+        );
+        assert!(extrude(&bowtie, 0.0, 5.0).unwrap_err().contains("cross"));
+        let flat = Polygon::new(
+            LineString::from(vec![(0.0, 0.0), (10.0, 0.0), (20.0, 0.0), (0.0, 0.0)]),
+            vec![],
+        );
+        assert!(extrude(&flat, 0.0, 5.0).is_err());
+        let sq = Polygon::new(square(0.0, 0.0, 5.0), vec![]);
+        assert!(extrude(&sq, 5.0, 5.0).unwrap_err().contains("not above"));
+        // A hole crossing the exterior.
+        let p = Polygon::new(square(0.0, 0.0, 10.0), vec![square(8.0, 2.0, 4.0)]);
+        assert!(extrude(&p, 0.0, 5.0).is_err());
+    }
+
+    #[test]
+    fn percentiles_interpolate() {
+        let mut v = vec![4.0, 1.0, 3.0, 2.0];
+        assert_eq!(percentile(&mut v, 50.0), 2.5);
+        assert_eq!(percentile(&mut v, 100.0), 4.0);
+        assert_eq!(percentile(&mut v, 0.0), 1.0);
+    }
+}
