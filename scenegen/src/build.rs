@@ -46,6 +46,8 @@ pub struct BuildReport {
     pub buildings: Vec<crate::buildings::BuildingRecord>,
     /// Footprints skipped (id, reason).
     pub buildings_skipped: Vec<(String, String)>,
+    /// The city objects read from CityJSON models.
+    pub city_objects: Vec<crate::cityjson::CityObjectRecord>,
 }
 
 fn bar(opts: &BuildOptions, msg: &str) -> ProgressBar {
@@ -335,10 +337,22 @@ pub fn build(
     let mut templates = population.templates;
     let mut building_inputs = Vec::new();
     let (mut building_records, mut buildings_skipped) = (Vec::new(), Vec::new());
+    let mut city_records = Vec::new();
+    let mut library: BTreeMap<String, MaterialDef> = scheme.materials.clone();
+    library.extend(region.materials.clone());
+    let mut material_index = |name: &str| -> Result<u8, ScenegenError> {
+        let def = library.get(name).ok_or_else(|| ScenegenError::Region {
+            path: region.path.clone(),
+            key: "roof_material / wall_material".into(),
+            message: format!(
+                "unknown material `{name}` (library: {})",
+                library.keys().cloned().collect::<Vec<_>>().join(", ")
+            ),
+        })?;
+        Ok(materials.add_material(name, def)?)
+    };
     if !region.buildings.is_empty() {
         let pb = bar(opts, "buildings: extruding footprints");
-        let mut library: BTreeMap<String, MaterialDef> = scheme.materials.clone();
-        library.extend(region.materials.clone());
         let out = crate::buildings::build(
             &region.buildings,
             &crate::buildings::Ground {
@@ -348,17 +362,7 @@ pub fn build(
                 lidar: lidar.as_ref(),
                 tile_m: region.terrain_tile_m,
             },
-            |name| {
-                let def = library.get(name).ok_or_else(|| ScenegenError::Region {
-                    path: region.path.clone(),
-                    key: "buildings.roof_material / wall_material".into(),
-                    message: format!(
-                        "unknown material `{name}` (library: {})",
-                        library.keys().cloned().collect::<Vec<_>>().join(", ")
-                    ),
-                })?;
-                Ok(materials.add_material(name, def)?)
-            },
+            &mut material_index,
         )?;
         for (mesh, o) in out.templates.into_iter().zip(out.origins) {
             instances.push(bundle::Instance {
@@ -373,6 +377,27 @@ pub fn build(
         buildings_skipped = out.skipped;
         pb.finish_and_clear();
         stage("buildings", &mut t);
+    }
+    if !region.city_models.is_empty() {
+        let pb = bar(opts, "city models: reading CityJSON");
+        let out = crate::cityjson::build(
+            &region.city_models,
+            &frame,
+            region.terrain_tile_m,
+            &mut material_index,
+        )?;
+        for (mesh, o) in out.templates.into_iter().zip(out.origins) {
+            instances.push(bundle::Instance {
+                translation: [o[0] - origin[0], o[1] - origin[1], 0.0],
+                linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+                template: templates.len() as u32,
+            });
+            templates.push(mesh);
+        }
+        building_inputs.extend(out.inputs);
+        city_records = out.records;
+        pb.finish_and_clear();
+        stage("city models", &mut t);
     }
 
     // Provenance.
@@ -512,6 +537,7 @@ pub fn build(
         stages,
         buildings: building_records,
         buildings_skipped,
+        city_objects: city_records,
     })
 }
 

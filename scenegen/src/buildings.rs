@@ -300,9 +300,7 @@ pub fn build(
 ) -> Result<BuildingsOutput, ScenegenError> {
     let mut out = BuildingsOutput::default();
     // Square (col, row) → (template positions, indices, materials).
-    type Group = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<u8>, usize);
-    let mut groups: BTreeMap<(i64, i64), Group> = BTreeMap::new();
-    let mut sources: BTreeMap<(i64, i64), String> = BTreeMap::new();
+    let mut groups = TemplateGroups::new(ground.tile_m);
     let mut index_cache: BTreeMap<Vec<u8>, PointIndex> = BTreeMap::new();
     for (si, spec) in specs.iter().enumerate() {
         let (roof_m, wall_m) = (
@@ -454,20 +452,18 @@ pub fn build(
                 };
                 let cx = 0.5 * (bb[0] + bb[2]);
                 let cy = 0.5 * (bb[1] + bb[3]);
-                let key = (
-                    (cx / ground.tile_m).floor() as i64,
-                    (cy / ground.tile_m).floor() as i64,
+                let mats: Vec<u8> = prism
+                    .roof
+                    .iter()
+                    .map(|&r| if r { roof_m } else { wall_m })
+                    .collect();
+                groups.add(
+                    [cx, cy],
+                    &prism.positions,
+                    &prism.triangles,
+                    &mats,
+                    &layer.label,
                 );
-                let gr = groups.entry(key).or_default();
-                let base = gr.0.len() as u32;
-                gr.0.extend(prism.positions.iter().copied());
-                gr.1.extend(prism.triangles.iter().map(|t| t.map(|v| v + base)));
-                gr.2.extend(prism.roof.iter().map(|&r| if r { roof_m } else { wall_m }));
-                gr.3 += 1;
-                sources
-                    .entry(key)
-                    .or_default()
-                    .push_str(&format!("{};", layer.label));
                 out.records.push(BuildingRecord {
                     id: pid,
                     area_m2: geo::Area::unsigned_area(poly),
@@ -501,28 +497,74 @@ pub fn build(
             out.outside
         );
     }
-    for (key, (pos, tris, mats, n)) in groups {
-        let ox = (key.0 as f64 + 0.5) * ground.tile_m;
-        let oy = (key.1 as f64 + 0.5) * ground.tile_m;
-        let mut labels: Vec<&str> = sources[&key].split(';').filter(|s| !s.is_empty()).collect();
-        labels.sort();
-        labels.dedup();
-        out.templates.push(bundle::TemplateMesh {
-            name: format!("buildings_{}_{}", key.0, key.1),
-            source: format!(
-                "{n} building(s) extruded from footprints: {}",
-                labels.join(", ")
-            ),
-            positions: pos
-                .iter()
-                .map(|p| [(p[0] - ox) as f32, (p[1] - oy) as f32, p[2] as f32])
-                .collect(),
-            indices: tris,
-            materials: mats,
-        });
-        out.origins.push([ox, oy]);
-    }
+    (out.templates, out.origins) = groups.finish("buildings");
     Ok(out)
+}
+
+/// Meshes gathered into one template per square of `tile_m` (by each mesh's centre), with the
+/// labels of their sources; the template's origin is the square's centre (z = 0, heights as the
+/// DEM), where its single instance sits.
+pub struct TemplateGroups {
+    tile_m: f64,
+    groups: BTreeMap<(i64, i64), Group>,
+}
+
+/// Positions in the working CRS, triangles, materials, mesh count, source labels.
+type Group = (Vec<[f64; 3]>, Vec<[u32; 3]>, Vec<u8>, usize, Vec<String>);
+
+impl TemplateGroups {
+    pub fn new(tile_m: f64) -> TemplateGroups {
+        TemplateGroups {
+            tile_m,
+            groups: BTreeMap::new(),
+        }
+    }
+
+    /// Add one closed mesh (working-CRS positions) centred at `centre`.
+    pub fn add(
+        &mut self,
+        centre: [f64; 2],
+        positions: &[[f64; 3]],
+        triangles: &[[u32; 3]],
+        materials: &[u8],
+        label: &str,
+    ) {
+        let key = (
+            (centre[0] / self.tile_m).floor() as i64,
+            (centre[1] / self.tile_m).floor() as i64,
+        );
+        let g = self.groups.entry(key).or_default();
+        let base = g.0.len() as u32;
+        g.0.extend_from_slice(positions);
+        g.1.extend(triangles.iter().map(|t| t.map(|v| v + base)));
+        g.2.extend_from_slice(materials);
+        g.3 += 1;
+        if !g.4.iter().any(|l| l == label) {
+            g.4.push(label.to_string());
+        }
+    }
+
+    /// Templates named `<prefix>_<col>_<row>` and their origins (working CRS).
+    pub fn finish(self, prefix: &str) -> (Vec<bundle::TemplateMesh>, Vec<[f64; 2]>) {
+        let mut templates = Vec::with_capacity(self.groups.len());
+        let mut origins = Vec::with_capacity(self.groups.len());
+        for (key, (pos, tris, mats, n, labels)) in self.groups {
+            let ox = (key.0 as f64 + 0.5) * self.tile_m;
+            let oy = (key.1 as f64 + 0.5) * self.tile_m;
+            templates.push(bundle::TemplateMesh {
+                name: format!("{prefix}_{}_{}", key.0, key.1),
+                source: format!("{n} {prefix} mesh(es) from {}", labels.join(", ")),
+                positions: pos
+                    .iter()
+                    .map(|p| [(p[0] - ox) as f32, (p[1] - oy) as f32, p[2] as f32])
+                    .collect(),
+                indices: tris,
+                materials: mats,
+            });
+            origins.push([ox, oy]);
+        }
+        (templates, origins)
+    }
 }
 
 #[cfg(test)]

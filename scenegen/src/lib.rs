@@ -13,6 +13,7 @@ pub mod area_polygon;
 pub mod bench;
 pub mod build;
 pub mod buildings;
+pub mod cityjson;
 pub mod dem_values;
 pub mod error;
 pub mod gltf_export;

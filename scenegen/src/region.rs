@@ -34,6 +34,28 @@ struct RegionFile {
     lidar: Option<LidarConfig>,
     #[serde(default)]
     buildings: Vec<BuildingsConfig>,
+    #[serde(default)]
+    city_models: Vec<CityModelConfig>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct CityModelConfig {
+    file: PathBuf,
+    #[serde(default)]
+    crs: Option<String>,
+    #[serde(default = "default_city_types")]
+    types: Vec<String>,
+    #[serde(default)]
+    lod: Option<String>,
+    #[serde(default = "default_roof")]
+    roof_material: String,
+    #[serde(default = "default_wall")]
+    wall_material: String,
+}
+
+fn default_city_types() -> Vec<String> {
+    vec!["Building".into(), "BuildingPart".into()]
 }
 
 #[derive(Debug, Deserialize)]
@@ -302,6 +324,7 @@ pub struct Region {
     /// The DEM is gridded from the lidar's ground points (`dem.from_lidar`).
     pub dem_from_lidar: bool,
     pub buildings: Vec<crate::buildings::BuildingsSpec>,
+    pub city_models: Vec<crate::cityjson::CityModelSpec>,
 }
 
 /// `[lidar]`: point-cloud files (LAS/LAZ), paths resolved.
@@ -683,6 +706,18 @@ impl Region {
             lidar,
             dem_from_lidar: raw.dem.from_lidar,
             buildings,
+            city_models: raw
+                .city_models
+                .iter()
+                .map(|c| crate::cityjson::CityModelSpec {
+                    file: base.join(&c.file),
+                    crs: c.crs.clone(),
+                    types: c.types.clone(),
+                    lod: c.lod.clone(),
+                    roof_material: c.roof_material.clone(),
+                    wall_material: c.wall_material.clone(),
+                })
+                .collect(),
         })
     }
 
