@@ -48,6 +48,96 @@ pub struct BuildReport {
     pub buildings_skipped: Vec<(String, String)>,
     /// The city objects read from CityJSON models.
     pub city_objects: Vec<crate::cityjson::CityObjectRecord>,
+    /// Trees detected from canopy height, per `[[trees]]` entry.
+    pub trees: Vec<Vec<crate::trees::TreeTop>>,
+}
+
+/// Detect the trees of every `[[trees]]` entry and add their instances (on the terrain TIN,
+/// scaled to height and crown, random yaw keyed by the region's seed and the entry).
+#[allow(clippy::too_many_arguments)]
+fn place_trees(
+    region: &Region,
+    frame: &WorkingFrame,
+    lidar: Option<&crate::pointcloud::PointCloud>,
+    dem: &raster::DemData,
+    tin: &tin::Tin,
+    population: &Population,
+    origin: [f64; 3],
+    instances: &mut Vec<bundle::Instance>,
+) -> Result<Vec<Vec<crate::trees::TreeTop>>, ScenegenError> {
+    let mut all = Vec::new();
+    let grid = &dem.grid;
+    for (i, spec) in region.trees.iter().enumerate() {
+        let (chm, cgrid, src) = crate::trees::load_chm(spec, frame, lidar, |x, y| {
+            crate::buildings::ground_at(grid, &dem.heights, x, y)
+        })?;
+        let tops = crate::trees::detect(&chm, &cgrid, spec.min_height_m, spec.window_m);
+        if tops.is_empty() {
+            return Err(input(
+                &src,
+                format!(
+                    "no tree of at least {} m in the canopy heights (trees[{i}].min_height_m)",
+                    spec.min_height_m
+                ),
+            ));
+        }
+        let id = population.ids[&spec.template];
+        let tm = &population.templates[id as usize];
+        let (mut lo, mut hi) = ([f32::MAX; 3], [f32::MIN; 3]);
+        for p in &tm.positions {
+            for k in 0..3 {
+                lo[k] = lo[k].min(p[k]);
+                hi[k] = hi[k].max(p[k]);
+            }
+        }
+        let th = hi[2] as f64;
+        let tw = ((hi[0] - lo[0]).max(hi[1] - lo[1])) as f64;
+        let surf = SurfaceHeight::new(tin, grid);
+        let mut rng = tiles::SplitMix64::keyed(region.seed, 0x7EE5_0000 + i as u64);
+        let mut placed = Vec::with_capacity(tops.len());
+        let mut outside = 0;
+        for top in tops {
+            let Some(z) = surf.at(top.x, top.y) else {
+                outside += 1;
+                continue;
+            };
+            let sz = top.height / th;
+            let sxy = if spec.keep_proportions {
+                sz
+            } else {
+                spec.crown_scale * top.crown / tw
+            };
+            let yaw = rng.uniform() * std::f64::consts::TAU;
+            let (sn, cs) = yaw.sin_cos();
+            instances.push(bundle::Instance {
+                translation: [top.x - origin[0], top.y - origin[1], z],
+                linear: [
+                    (cs * sxy) as f32,
+                    (sn * sxy) as f32,
+                    0.0,
+                    (-sn * sxy) as f32,
+                    (cs * sxy) as f32,
+                    0.0,
+                    0.0,
+                    0.0,
+                    sz as f32,
+                ],
+                template: id,
+            });
+            placed.push(top);
+        }
+        tracing::info!(
+            "trees[{i}]: {} trees of `{}` from {} ({} × {} cells of {} m; {outside} tops beyond the terrain skipped)",
+            placed.len(),
+            spec.template,
+            src.display(),
+            cgrid.width,
+            cgrid.height,
+            cgrid.dx
+        );
+        all.push(placed);
+    }
+    Ok(all)
 }
 
 fn bar(opts: &BuildOptions, msg: &str) -> ProgressBar {
@@ -89,6 +179,66 @@ struct Population {
     template_files: Vec<PathBuf>,
     /// Class code → rules.
     rules: BTreeMap<i64, Vec<PlacementRule>>,
+    /// Template name → id, for every template built.
+    ids: BTreeMap<String, u32>,
+}
+
+/// Build catalogue template `name` into `pop` (once) and return its id; `key` names the region
+/// key that asked for it.
+fn template_id(
+    name: &str,
+    key: (&Path, String),
+    region: &Region,
+    catalogue: &Catalogue,
+    library: &BTreeMap<String, MaterialDef>,
+    materials: &mut MaterialMap,
+    pop: &mut Population,
+) -> Result<u32, ScenegenError> {
+    if let Some(&id) = pop.ids.get(name) {
+        return Ok(id);
+    }
+    let (spec, dir) = catalogue.get(name).ok_or_else(|| ScenegenError::Region {
+        path: key.0.into(),
+        key: key.1.clone(),
+        message: format!(
+            "unknown template `{name}` (known: {})",
+            catalogue.names().join(", ")
+        ),
+    })?;
+    let t = spec.build(dir)?;
+    let mut mats = Vec::with_capacity(t.material_names.len());
+    for m in &t.material_names {
+        let lib_name = spec.library_material(m).ok_or_else(|| ScenegenError::Region {
+            path: region.path.clone(),
+            key: format!("templates.{}.materials", spec.name),
+            message: format!("template material `{m}` maps to no library material (add it to `materials` or set `default_material`)"),
+        })?;
+        let def = library.get(lib_name).ok_or_else(|| ScenegenError::Region {
+            path: region.path.clone(),
+            key: format!("templates.{}.materials.{m}", spec.name),
+            message: format!("unknown library material `{lib_name}`"),
+        })?;
+        mats.push(materials.add_material(lib_name, def)?);
+    }
+    if let Some(f) = &spec.file {
+        pop.template_files.push(dir.join(f));
+        pop.template_files
+            .extend(spec.parts.iter().map(|p| dir.join(p)));
+    }
+    pop.templates.push(TemplateMesh {
+        name: spec.name.clone(),
+        source: t.source.clone(),
+        materials: t
+            .triangle_materials
+            .iter()
+            .map(|&m| mats[m as usize])
+            .collect(),
+        positions: t.positions,
+        indices: t.indices,
+    });
+    let id = (pop.templates.len() - 1) as u32;
+    pop.ids.insert(name.to_string(), id);
+    Ok(id)
 }
 
 fn resolve_population(
@@ -109,62 +259,24 @@ fn resolve_population(
         };
     let mut library: BTreeMap<String, MaterialDef> = scheme.materials.clone();
     library.extend(region.materials.clone());
-    let mut names: Vec<String> = Vec::new();
-    let mut templates = Vec::new();
-    let mut template_files = Vec::new();
-    let mut rules: BTreeMap<i64, Vec<PlacementRule>> = BTreeMap::new();
+    let mut pop = Population {
+        templates: Vec::new(),
+        template_files: Vec::new(),
+        rules: BTreeMap::new(),
+        ids: BTreeMap::new(),
+    };
     for (i, r) in rules_src.iter().enumerate() {
-        let id = match names.iter().position(|n| *n == r.template) {
-            Some(id) => id as u32,
-            None => {
-                let (spec, dir) =
-                    catalogue
-                        .get(&r.template)
-                        .ok_or_else(|| ScenegenError::Region {
-                            path: rules_file.clone(),
-                            key: format!("{key_root}[{i}].template"),
-                            message: format!(
-                                "unknown template `{}` (known: {})",
-                                r.template,
-                                catalogue.names().join(", ")
-                            ),
-                        })?;
-                let t = spec.build(dir)?;
-                let mut mats = Vec::with_capacity(t.material_names.len());
-                for m in &t.material_names {
-                    let lib_name = spec.library_material(m).ok_or_else(|| ScenegenError::Region {
-                        path: region.path.clone(),
-                        key: format!("templates.{}.materials", spec.name),
-                        message: format!("template material `{m}` maps to no library material (add it to `materials` or set `default_material`)"),
-                    })?;
-                    let def = library.get(lib_name).ok_or_else(|| ScenegenError::Region {
-                        path: region.path.clone(),
-                        key: format!("templates.{}.materials.{m}", spec.name),
-                        message: format!("unknown library material `{lib_name}`"),
-                    })?;
-                    mats.push(materials.add_material(lib_name, def)?);
-                }
-                if let Some(f) = &spec.file {
-                    template_files.push(dir.join(f));
-                    template_files.extend(spec.parts.iter().map(|p| dir.join(p)));
-                }
-                templates.push(TemplateMesh {
-                    name: spec.name.clone(),
-                    source: t.source.clone(),
-                    materials: t
-                        .triangle_materials
-                        .iter()
-                        .map(|&m| mats[m as usize])
-                        .collect(),
-                    positions: t.positions,
-                    indices: t.indices,
-                });
-                names.push(r.template.clone());
-                (names.len() - 1) as u32
-            }
-        };
+        let id = template_id(
+            &r.template,
+            (&rules_file, format!("{key_root}[{i}].template")),
+            region,
+            &catalogue,
+            &library,
+            materials,
+            &mut pop,
+        )?;
         for &c in &r.classes {
-            rules.entry(c).or_default().push(PlacementRule {
+            pop.rules.entry(c).or_default().push(PlacementRule {
                 template: id,
                 density_per_ha: r.density_per_ha,
                 scale: r.scale,
@@ -172,11 +284,18 @@ fn resolve_population(
             });
         }
     }
-    Ok(Population {
-        templates,
-        template_files,
-        rules,
-    })
+    for (i, t) in region.trees.iter().enumerate() {
+        template_id(
+            &t.template,
+            (&region.path, format!("trees[{i}].template")),
+            region,
+            &catalogue,
+            &library,
+            materials,
+            &mut pop,
+        )?;
+    }
+    Ok(pop)
 }
 
 /// Build the bundle of `region` into `out`.
@@ -326,6 +445,16 @@ pub fn build(
         region.seed,
         origin,
     );
+    let trees = place_trees(
+        region,
+        &frame,
+        lidar.as_ref(),
+        &dem,
+        &tin,
+        &population,
+        origin,
+        &mut instances,
+    )?;
     // A polygonal area: instances only inside it (the terrain covers its bounding box).
     if let Some(m) = &frame.mask {
         instances
@@ -334,7 +463,7 @@ pub fn build(
     pb.finish_and_clear();
     stage("instances", &mut t);
 
-    let mut templates = population.templates;
+    let mut templates = population.templates.clone();
     let mut building_inputs = Vec::new();
     let (mut building_records, mut buildings_skipped) = (Vec::new(), Vec::new());
     let mut city_records = Vec::new();
@@ -428,6 +557,16 @@ pub fn build(
     }
     for p in &building_inputs {
         add_input("buildings", p)?;
+    }
+    for t in &region.trees {
+        match &t.source {
+            crate::trees::ChmSource::Chm(p) => add_input("canopy_height", p)?,
+            crate::trees::ChmSource::DsmMinusDtm { dsm, dtm } => {
+                add_input("dsm", dsm)?;
+                add_input("dtm", dtm)?;
+            }
+            crate::trees::ChmSource::Lidar { .. } => {}
+        }
     }
     if let Some(l) = &region.lidar {
         for p in &l.files {
@@ -538,6 +677,7 @@ pub fn build(
         buildings: building_records,
         buildings_skipped,
         city_objects: city_records,
+        trees,
     })
 }
 

@@ -26,6 +26,7 @@ pub mod raster;
 pub mod region;
 pub mod synth;
 pub mod tin;
+pub mod trees;
 pub mod vector;
 
 pub use build::{build, BuildOptions, BuildReport};

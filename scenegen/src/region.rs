@@ -36,6 +36,43 @@ struct RegionFile {
     buildings: Vec<BuildingsConfig>,
     #[serde(default)]
     city_models: Vec<CityModelConfig>,
+    #[serde(default)]
+    trees: Vec<TreesConfig>,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TreesConfig {
+    #[serde(default)]
+    chm: Option<PathBuf>,
+    #[serde(default)]
+    dsm: Option<PathBuf>,
+    #[serde(default)]
+    dtm: Option<PathBuf>,
+    #[serde(default)]
+    from_lidar: bool,
+    #[serde(default)]
+    vegetation_classes: Option<Vec<u8>>,
+    #[serde(default)]
+    exclude_classes: Option<Vec<u8>>,
+    template: String,
+    #[serde(default = "default_min_tree")]
+    min_height_m: f64,
+    #[serde(default)]
+    window_m: Option<f64>,
+    #[serde(default)]
+    cell_m: Option<f64>,
+    #[serde(default = "one")]
+    crown_scale: f64,
+    #[serde(default)]
+    keep_proportions: bool,
+}
+
+fn default_min_tree() -> f64 {
+    2.0
+}
+fn one() -> f64 {
+    1.0
 }
 
 #[derive(Debug, Deserialize)]
@@ -325,6 +362,7 @@ pub struct Region {
     pub dem_from_lidar: bool,
     pub buildings: Vec<crate::buildings::BuildingsSpec>,
     pub city_models: Vec<crate::cityjson::CityModelSpec>,
+    pub trees: Vec<crate::trees::TreesSpec>,
 }
 
 /// `[lidar]`: point-cloud files (LAS/LAZ), paths resolved.
@@ -677,6 +715,69 @@ impl Region {
                 wall_material: b.wall_material.clone(),
             });
         }
+        let mut trees = Vec::with_capacity(raw.trees.len());
+        for (i, t) in raw.trees.iter().enumerate() {
+            use crate::trees::{ChmSource, TreesSpec};
+            let key = |k: &str| format!("trees[{i}].{k}");
+            let source = match (&t.chm, &t.dsm, &t.dtm, t.from_lidar) {
+                (Some(c), None, None, false) => ChmSource::Chm(base.join(c)),
+                (None, Some(s), Some(d), false) => ChmSource::DsmMinusDtm {
+                    dsm: base.join(s),
+                    dtm: base.join(d),
+                },
+                (None, None, None, true) => {
+                    if lidar.is_none() {
+                        return Err(inv(
+                            &key("from_lidar"),
+                            "needs a `[lidar]` table with the point-cloud files".into(),
+                        ));
+                    }
+                    ChmSource::Lidar {
+                        classes: t.vegetation_classes.clone().unwrap_or_else(|| vec![3, 4, 5]),
+                        exclude: t.exclude_classes.clone().unwrap_or_else(|| vec![6]),
+                    }
+                }
+                _ => {
+                    return Err(inv(
+                        &format!("trees[{i}]"),
+                        "give the canopy heights as `chm`, as `dsm` and `dtm`, or as `from_lidar = true`".into(),
+                    ))
+                }
+            };
+            if t.vegetation_classes.is_some() && !t.from_lidar {
+                return Err(inv(
+                    &key("vegetation_classes"),
+                    "only with `from_lidar = true`".into(),
+                ));
+            }
+            if t.exclude_classes.is_some() && !t.from_lidar {
+                return Err(inv(
+                    &key("exclude_classes"),
+                    "only with `from_lidar = true`".into(),
+                ));
+            }
+            for (k, v, lo, hi) in [
+                ("min_height_m", Some(t.min_height_m), 0.0, 200.0),
+                ("window_m", t.window_m, 0.1, 100.0),
+                ("cell_m", t.cell_m, 0.05, 100.0),
+                ("crown_scale", Some(t.crown_scale), 0.01, 100.0),
+            ] {
+                if let Some(v) = v {
+                    if !(v.is_finite() && v >= lo && v <= hi) {
+                        return Err(inv(&key(k), format!("{v} must be in [{lo}, {hi}]")));
+                    }
+                }
+            }
+            trees.push(TreesSpec {
+                source,
+                template: t.template.clone(),
+                min_height_m: t.min_height_m.max(1e-3),
+                window_m: t.window_m,
+                cell_m: t.cell_m,
+                crown_scale: t.crown_scale,
+                keep_proportions: t.keep_proportions,
+            });
+        }
         Ok(Region {
             path: path.into(),
             text: text.into(),
@@ -718,6 +819,7 @@ impl Region {
                     wall_material: c.wall_material.clone(),
                 })
                 .collect(),
+            trees,
         })
     }
 

@@ -739,3 +739,155 @@ fn bad_city_models_are_named() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Rationale: three cone-shaped crowns in a synthetic canopy-height raster (EPSG:4326, 0.5 m
+/// cells warped to the working frame) give exactly three tree instances, at their apexes, whose
+/// scaled template reaches the apex height above the terrain (to 1 cm) and whose crown spans
+/// the Popescu–Wynne width of that height.
+#[test]
+fn trees_stand_on_their_canopy_maxima() {
+    let dir = tmp("trees");
+    flat_dem(&dir);
+    // Cones in metres around (5.0° E, 45.0° N); the raster in degrees at ≈ 0.5 m.
+    let (dlon, dlat) = (0.5 / 78_846.8, 0.5 / 111_132.0);
+    let (w, h) = (400usize, 300usize);
+    let (lon0, lat0) = (5.0 - 200.0 * dlon, 45.0 + 150.0 * dlat);
+    let cones = [(-40.0, 10.0, 18.0), (0.0, -20.0, 9.0), (45.0, 30.0, 25.0)];
+    let chm: Vec<f32> = (0..w * h)
+        .map(|k| {
+            let (c, r) = ((k % w) as f64 + 0.5, (k / w) as f64 + 0.5);
+            let (x, y) = ((c - 200.0) * 0.5, (150.0 - r) * 0.5);
+            cones
+                .iter()
+                .map(|&(cx, cy, top)| top - 1.2 * ((x - cx).powi(2) + (y - cy).powi(2)).sqrt())
+                .fold(0.0f64, f64::max) as f32
+        })
+        .collect();
+    scenegen::synth::write_geotiff(
+        &dir.join("chm.tif"),
+        w,
+        h,
+        Some([lon0, dlon, 0.0, lat0, 0.0, -dlat]),
+        Some("EPSG:4326"),
+        None,
+        chm,
+    )
+    .unwrap();
+    let region = dir.join("region.toml");
+    std::fs::write(
+        &region,
+        "population = []\n[area]\nbbox = [4.9988, 44.9994, 5.0012, 45.0006]\n[dem]\nfiles = [\"dem.tif\"]\nspacing_m = 5\n[landcover]\nscheme = \"nlcd\"\nclass = 71\ntile_size_m = 10\n[[trees]]\nchm = \"chm.tif\"\ntemplate = \"conifer\"\nmin_height_m = 3\ncell_m = 0.5\n",
+    )
+    .unwrap();
+    let report = build_lib(&region, &dir.join("bundle"));
+    let b = Bundle::open(&dir.join("bundle")).unwrap();
+    let tops = &report.trees[0];
+    assert_eq!(tops.len(), 3, "{tops:?}");
+    let t = b
+        .templates
+        .iter()
+        .position(|t| t.name == "conifer")
+        .unwrap();
+    let tm = &b.templates[t];
+    let th = tm.positions.iter().map(|p| p[2]).fold(f32::MIN, f32::max) as f64;
+    let insts: Vec<_> = b
+        .instances
+        .iter()
+        .filter(|i| i.template == t as u32)
+        .collect();
+    assert_eq!(insts.len(), 3);
+    for &(cx, cy, top) in &cones {
+        let tt = tops
+            .iter()
+            .min_by(|a, b| {
+                let d = |p: &&scenegen::trees::TreeTop| (p.height - top).abs();
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        // The apexes sit on pixel corners: the highest samples are 1.2 × 0.354 m lower.
+        assert!(
+            (tt.height - (top - 0.424)).abs() < 0.05,
+            "{tt:?} vs apex {top}"
+        );
+        let i = insts
+            .iter()
+            .min_by(|a, b| {
+                let d = |i: &&&bundle::Instance| {
+                    (i.translation[0] - cx).powi(2) + (i.translation[1] - cy).powi(2)
+                };
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        assert!(
+            (i.translation[0] - cx).abs() < 0.75 && (i.translation[1] - cy).abs() < 0.75,
+            "instance at {:?}, apex at ({cx}, {cy})",
+            i.translation
+        );
+        let sz = i.linear[8] as f64;
+        assert!(
+            (sz * th - tt.height).abs() < 0.01,
+            "top {} vs {}",
+            sz * th,
+            tt.height
+        );
+        let sxy = (i.linear[0] as f64).hypot(i.linear[1] as f64);
+        assert!(
+            sxy > 0.0 && (sz / sxy - 1.0).abs() > 1e-3,
+            "crown scaled apart from height"
+        );
+        assert!((scenegen::trees::crown_width(tt.height) - tt.crown).abs() < 1e-9);
+    }
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Rationale: trees from the Delft lidar (the highest unclassified point per 1 m cell above the
+/// DTM, cells with building points excluded): each detected tree's height must be within 1 m of
+/// the canopy maximum computed here independently (highest class-1 point in its cell, minus the
+/// terrain under the instance), and its instance must reach that height.
+#[test]
+fn delft_trees_from_lidar_match_their_canopy_maxima() {
+    let Some(shared) = shared_data() else { return };
+    let dir = tmp("delft-trees");
+    let region = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/delft/region.toml");
+    let report = build_lib(&region, &dir.join("bundle"));
+    let b = Bundle::open(&dir.join("bundle")).unwrap();
+    let tops = &report.trees[0];
+    assert!(tops.len() > 100, "{}", tops.len());
+    let mut pts: Vec<[f64; 3]> = Vec::new();
+    for f in ["ahn3_cropped_1.laz", "ahn3_cropped_2.laz"] {
+        let mut r = las::Reader::from_path(shared.join("real_regions/delft/ahn3").join(f)).unwrap();
+        for p in r.read_all().unwrap().points() {
+            let p = p.unwrap();
+            if u8::from(p.classification) == 1 {
+                pts.push([p.x, p.y, p.z]);
+            }
+        }
+    }
+    let t = b.templates.iter().position(|t| t.name == "tree").unwrap() as u32;
+    let o = b.manifest.frame.origin;
+    let insts: Vec<_> = b.instances.iter().filter(|i| i.template == t).collect();
+    assert_eq!(insts.len(), tops.len());
+    let th = b.templates[t as usize]
+        .positions
+        .iter()
+        .map(|p| p[2])
+        .fold(f32::MIN, f32::max) as f64;
+    let mut worst: f64 = 0.0;
+    for (top, inst) in tops.iter().zip(&insts) {
+        assert!((inst.translation[0] + o[0] - top.x).abs() < 1e-6);
+        let zmax = pts
+            .iter()
+            .filter(|p| (p[0] - top.x).abs() <= 0.5 && (p[1] - top.y).abs() <= 0.5)
+            .map(|p| p[2])
+            .fold(f64::MIN, f64::max);
+        let canopy = zmax - inst.translation[2];
+        worst = worst.max((canopy - top.height).abs());
+        assert!(((inst.linear[8] as f64) * th - top.height).abs() < 0.01);
+    }
+    eprintln!(
+        "delft trees: {} from lidar, heights within {worst:.3} m of the independent canopy maxima",
+        tops.len()
+    );
+    assert!(worst <= 1.0, "{worst}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}

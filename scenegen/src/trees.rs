@@ -1,0 +1,266 @@
+//! Trees from canopy height (`[[trees]]`): individual trees detected as local maxima of a
+//! canopy-height model (CHM), each placed as an instance of a template scaled to its height and
+//! crown. Keys: docs/region.md, "[[trees]]".
+//!
+//! **The CHM**: a raster of heights above ground (`chm`), or a surface model minus a terrain model
+//! (`dsm` − `dtm`, the two rasters warped onto one grid), or the region's lidar (`from_lidar`:
+//! the highest point of `vegetation_classes` in each cell minus the DEM there; cells that hold a
+//! point of `exclude_classes`, buildings by default, are not canopy). It is read on a
+//! grid of the working CRS at `cell_m` (default: the raster's pixel size; 1 m from lidar), by
+//! nearest-neighbour warping so that maxima are the source's own values.
+//!
+//! **Detection rule** (a variable-window local-maximum filter, Popescu & Wynne 2004,
+//! Photogramm. Eng. Remote Sens. 70(5), 589–604): a cell of height h ≥ `min_height_m` is a tree
+//! top when no other cell within the circle of radius CW(h)/2 around it is higher (equal heights:
+//! the first in row-major order wins), where CW is the crown width predicted from the height by
+//! Popescu & Wynne's deciduous/mixed-forest regression, CW(h) = 3.09632 + 0.00895·h² (m, h in m),
+//! or a fixed `window_m` diameter when given. No smoothing is applied.
+//!
+//! **Instances**: at the cell centre on the terrain surface; the template is scaled vertically to
+//! the tree's height and horizontally to CW(h) (`crown_scale` × the regression's width, or the
+//! template's own proportions with `keep_proportions`), rotated by a random yaw from the region's
+//! seed. A CHM that does not cover the area, or holds no cell above `min_height_m`, is an error
+//! naming the file.
+
+use std::path::PathBuf;
+
+use crate::error::ScenegenError;
+use crate::raster::{Grid, WorkingFrame};
+
+/// Where the canopy heights come from.
+#[derive(Clone, Debug, PartialEq)]
+pub enum ChmSource {
+    Chm(PathBuf),
+    DsmMinusDtm {
+        dsm: PathBuf,
+        dtm: PathBuf,
+    },
+    /// Highest point of `classes` per cell minus the DEM; cells holding any point of `exclude`
+    /// (buildings) are not canopy.
+    Lidar {
+        classes: Vec<u8>,
+        exclude: Vec<u8>,
+    },
+}
+
+/// One `[[trees]]` entry, paths resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TreesSpec {
+    pub source: ChmSource,
+    pub template: String,
+    pub min_height_m: f64,
+    /// Fixed detection window diameter, m (default: the crown-width regression).
+    pub window_m: Option<f64>,
+    /// Cell of the CHM grid, m (default: the raster's pixel size, 1 m for lidar).
+    pub cell_m: Option<f64>,
+    pub crown_scale: f64,
+    pub keep_proportions: bool,
+}
+
+/// Popescu & Wynne (2004) crown width of a deciduous/mixed-forest tree of height `h` (m).
+pub fn crown_width(h: f64) -> f64 {
+    3.09632 + 0.00895 * h * h
+}
+
+/// One detected tree top.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TreeTop {
+    /// Working-CRS position of the cell centre.
+    pub x: f64,
+    pub y: f64,
+    /// CHM height there, m.
+    pub height: f64,
+    /// Crown width used for the window and the instance, m.
+    pub crown: f64,
+}
+
+/// Tree tops of `chm` on `grid` (row-major, row 0 north; NaN = no data) by the rule above.
+pub fn detect(chm: &[f32], grid: &Grid, min_height: f64, window_m: Option<f64>) -> Vec<TreeTop> {
+    let (w, h) = (grid.width, grid.height);
+    let mut tops = Vec::new();
+    for r in 0..h {
+        for c in 0..w {
+            let k = r * w + c;
+            let v = chm[k] as f64;
+            if v.is_nan() || v < min_height {
+                continue;
+            }
+            let cw = window_m.unwrap_or_else(|| crown_width(v));
+            let rad = 0.5 * cw;
+            let n = (rad / grid.dx).floor() as i64;
+            let mut top = true;
+            'win: for dr in -n..=n {
+                for dc in -n..=n {
+                    if (dr == 0 && dc == 0)
+                        || ((dr * dr + dc * dc) as f64) * grid.dx * grid.dx > rad * rad
+                    {
+                        continue;
+                    }
+                    let (rr, cc) = (r as i64 + dr, c as i64 + dc);
+                    if rr < 0 || cc < 0 || rr >= h as i64 || cc >= w as i64 {
+                        continue;
+                    }
+                    let kk = rr as usize * w + cc as usize;
+                    let u = chm[kk] as f64;
+                    if u > v || (u == v && kk < k) {
+                        top = false;
+                        break 'win;
+                    }
+                }
+            }
+            if top {
+                tops.push(TreeTop {
+                    x: grid.x(c),
+                    y: grid.y(r),
+                    height: v,
+                    crown: cw,
+                });
+            }
+        }
+    }
+    tops
+}
+
+/// The CHM of `spec` on a grid over `extent` (working CRS); `dem` gives terrain heights for the
+/// lidar source.
+pub fn load_chm(
+    spec: &TreesSpec,
+    frame: &WorkingFrame,
+    lidar: Option<&crate::pointcloud::PointCloud>,
+    dem_at: impl Fn(f64, f64) -> Option<f64>,
+) -> Result<(Vec<f32>, Grid, PathBuf), ScenegenError> {
+    use crate::raster::{check_coverage, open_georeferenced, pixel_size_m, warp};
+    let e = frame.extent;
+    let read = |path: &PathBuf,
+                role: &str,
+                cell: Option<f64>|
+     -> Result<(Vec<f32>, Grid), ScenegenError> {
+        let ds = open_georeferenced(path, role)?;
+        check_coverage(&ds, path, role, frame, e)?;
+        let dx = match cell {
+            Some(c) => c,
+            None => pixel_size_m(&ds, path, frame)?,
+        };
+        let grid = Grid::dem_nodes(e, dx);
+        let band_nodata = ds
+            .rasterband(1)
+            .map_err(|err| crate::error::input(path, err.to_string()))?
+            .no_data_value();
+        let mut v: Vec<f32> = warp(
+            &ds,
+            path,
+            frame,
+            &grid,
+            gdal_sys::GDALResampleAlg::GRA_NearestNeighbour,
+            -1.0e30,
+        )?;
+        for x in v.iter_mut() {
+            if *x <= -1.0e29 || Some(*x as f64) == band_nodata {
+                *x = f32::NAN;
+            }
+        }
+        Ok((v, grid))
+    };
+    match &spec.source {
+        ChmSource::Chm(p) => {
+            let (v, g) = read(p, "canopy-height raster", spec.cell_m)?;
+            Ok((v, g, p.clone()))
+        }
+        ChmSource::DsmMinusDtm { dsm, dtm } => {
+            let (s, g) = read(dsm, "surface model (DSM)", spec.cell_m)?;
+            let (t, g2) = read(dtm, "terrain model (DTM)", Some(g.dx))?;
+            debug_assert_eq!(g, g2);
+            let v = s.iter().zip(&t).map(|(a, b)| a - b).collect();
+            Ok((v, g, dsm.clone()))
+        }
+        ChmSource::Lidar { classes, exclude } => {
+            let pc = lidar.expect("checked by the region");
+            let grid = Grid::dem_nodes(e, spec.cell_m.unwrap_or(1.0));
+            let mut top = vec![f32::NAN; grid.width * grid.height];
+            let x_left = grid.x0 - 0.5 * grid.dx;
+            let y_top = grid.y0 + 0.5 * grid.dx;
+            for i in 0..pc.len() {
+                if !classes.contains(&pc.class[i]) {
+                    continue;
+                }
+                let c = ((pc.x[i] - x_left) / grid.dx).floor();
+                let r = ((y_top - pc.y[i]) / grid.dx).floor();
+                if c < 0.0 || r < 0.0 || c >= grid.width as f64 || r >= grid.height as f64 {
+                    continue;
+                }
+                let k = r as usize * grid.width + c as usize;
+                let z = pc.z[i] as f32;
+                if top[k].is_nan() || z > top[k] {
+                    top[k] = z;
+                }
+            }
+            let mut excluded = vec![false; top.len()];
+            for i in 0..pc.len() {
+                if !exclude.contains(&pc.class[i]) {
+                    continue;
+                }
+                let c = ((pc.x[i] - x_left) / grid.dx).floor();
+                let r = ((y_top - pc.y[i]) / grid.dx).floor();
+                if c >= 0.0 && r >= 0.0 && c < grid.width as f64 && r < grid.height as f64 {
+                    excluded[r as usize * grid.width + c as usize] = true;
+                }
+            }
+            for r in 0..grid.height {
+                for c in 0..grid.width {
+                    let k = r * grid.width + c;
+                    if excluded[k] {
+                        top[k] = f32::NAN;
+                    } else if !top[k].is_nan() {
+                        top[k] = match dem_at(grid.x(c), grid.y(r)) {
+                            Some(g) => top[k] - g as f32,
+                            None => f32::NAN,
+                        };
+                    }
+                }
+            }
+            Ok((top, grid, PathBuf::from("[lidar]")))
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid(n: usize) -> Grid {
+        Grid {
+            x0: 0.0,
+            y0: 0.0,
+            dx: 1.0,
+            width: n,
+            height: n,
+        }
+    }
+
+    /// Two cone-shaped crowns (10 m and 20 m tall, 12 m apart) on a 40 × 40 m grid: exactly their
+    /// apexes are found, with their heights; a third cone 2 m from the taller one is absorbed
+    /// (inside its window), and a plateau gives one top.
+    #[test]
+    fn cones_give_their_apexes() {
+        let g = grid(40);
+        let cone = |cx: f64, cy: f64, h: f64, x: f64, y: f64| {
+            (h - 1.5 * ((x - cx).powi(2) + (y - cy).powi(2)).sqrt()).max(0.0)
+        };
+        let chm: Vec<f32> = (0..1600)
+            .map(|k| {
+                let (x, y) = ((k % 40) as f64, -((k / 40) as f64));
+                cone(10.0, -10.0, 10.0, x, y)
+                    .max(cone(22.0, -10.0, 20.0, x, y))
+                    .max(cone(24.0, -10.0, 12.0, x, y)) as f32
+            })
+            .collect();
+        let tops = detect(&chm, &g, 2.0, None);
+        assert_eq!(tops.len(), 2, "{tops:?}");
+        assert_eq!((tops[0].x, tops[0].y, tops[0].height), (10.0, -10.0, 10.0));
+        assert_eq!((tops[1].x, tops[1].y, tops[1].height), (22.0, -10.0, 20.0));
+        assert!((tops[1].crown - crown_width(20.0)).abs() < 1e-12);
+        let flat = vec![5.0f32; 100];
+        assert_eq!(detect(&flat, &grid(10), 2.0, Some(30.0)).len(), 1);
+        assert!(detect(&flat, &grid(10), 6.0, None).is_empty());
+    }
+}
