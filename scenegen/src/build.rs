@@ -357,7 +357,14 @@ pub fn build(
         None => None,
     };
     let pb = bar(opts, "DEM: reading and warping");
-    let dem = if region.dem_from_lidar {
+    let dem = if let Some(h) = region.dem_flat_m {
+        let grid = Grid::dem_nodes(frame.extent, region.dem_spacing_m.expect("checked"));
+        raster::DemData {
+            grid,
+            heights: vec![h as f32; grid.width * grid.height],
+            filled: 0,
+        }
+    } else if region.dem_from_lidar {
         let (l, pc) = (
             region.lidar.as_ref().expect("checked"),
             lidar.as_ref().expect("read"),

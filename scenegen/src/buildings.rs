@@ -59,6 +59,8 @@ pub struct BuildingsSpec {
     pub file: PathBuf,
     pub layer: Option<String>,
     pub crs: Option<String>,
+    /// OGR SQL attribute filter (`WHERE` clause), e.g. `building IS NOT NULL`.
+    pub filter: Option<String>,
     /// Attribute naming the buildings in messages (default: the feature id).
     pub id_attribute: Option<String>,
     pub height: HeightSource,
@@ -269,6 +271,26 @@ pub fn ground_at(grid: &Grid, h: &[f32], x: f64, y: f64) -> Option<f64> {
     )
 }
 
+/// A length as OpenStreetMap writes it: metres (`12`, `12.5 m`, `12.5m`) or feet and inches
+/// (`40'`, `40'6"`); `None` for anything else.
+pub fn parse_length(t: &str) -> Option<f64> {
+    let t = t.trim();
+    let v = if let Some(m) = t.strip_suffix('m') {
+        m.trim().parse::<f64>().ok()
+    } else if let Some((ft, rest)) = t.split_once('\'') {
+        let inches = rest.trim().trim_end_matches('"').trim();
+        let inches = if inches.is_empty() {
+            0.0
+        } else {
+            inches.parse::<f64>().ok()?
+        };
+        Some((ft.trim().parse::<f64>().ok()? * 12.0 + inches) * 0.0254)
+    } else {
+        t.parse::<f64>().ok()
+    };
+    v.filter(|x| x.is_finite())
+}
+
 /// The `p`-th percentile (0–100, linear between order statistics) of `v` (sorted here).
 pub fn percentile(v: &mut [f64], p: f64) -> f64 {
     v.sort_by(|a, b| a.total_cmp(b));
@@ -319,9 +341,15 @@ pub fn build(
             &spec.file,
             spec.layer.as_deref(),
             spec.crs.as_deref(),
+            spec.filter.as_deref(),
             &attrs,
             ground.frame,
         )?;
+        for (id, ty) in &layer.not_polygons {
+            let why = format!("a {ty}, not a footprint polygon");
+            tracing::warn!("{}, feature {id}: skipped: {why}", layer.label);
+            out.skipped.push((id.to_string(), why));
+        }
         out.inputs.push(spec.file.clone());
         for id in &layer.invalid {
             tracing::warn!("{}: building {id}: invalid footprint polygon", layer.label);
@@ -344,6 +372,7 @@ pub fn build(
             }
             _ => None,
         };
+        let (built0, skipped0, outside0) = (out.records.len(), out.skipped.len(), out.outside);
         let mut defaulted = Vec::new();
         let mut cand = Vec::new();
         for f in &layer.features {
@@ -353,7 +382,7 @@ pub fn build(
                 .and(f.values.last().cloned().flatten())
             {
                 Some(v) => as_text(&v),
-                None => f.id.to_string(),
+                None => f.osm.clone().unwrap_or_else(|| f.id.to_string()),
             };
             let g: geo::Geometry<f64> = geo::Geometry::try_from(&f.geometry)
                 .map_err(|e| err(&id, format!("unsupported geometry: {e}")))?;
@@ -398,7 +427,10 @@ pub fn build(
                 let mut npts = 0;
                 let height = match &spec.height {
                     HeightSource::Constant(h) => Some(*h),
-                    HeightSource::Attribute(_) => f.values[0].as_ref().and_then(as_f64),
+                    HeightSource::Attribute(_) => f.values[0].as_ref().and_then(|v| match v {
+                        gdal::vector::FieldValue::StringValue(t) => parse_length(t),
+                        other => as_f64(other),
+                    }),
                     HeightSource::Levels { storey_m, .. } => {
                         f.values[0].as_ref().and_then(as_f64).map(|l| l * storey_m)
                     }
@@ -490,11 +522,11 @@ pub fn build(
         }
         tracing::info!(
             "buildings: {} footprints in {}: {} built, {} skipped (named above), {} outside the area",
-            layer.features.len(),
+            layer.features.len() + layer.not_polygons.len(),
             layer.label,
-            out.records.len(),
-            out.skipped.len(),
-            out.outside
+            out.records.len() - built0,
+            out.skipped.len() - skipped0,
+            out.outside - outside0
         );
     }
     (out.templates, out.origins) = groups.finish("buildings");
@@ -638,6 +670,17 @@ mod tests {
         // A hole crossing the exterior.
         let p = Polygon::new(square(0.0, 0.0, 10.0), vec![square(8.0, 2.0, 4.0)]);
         assert!(extrude(&p, 0.0, 5.0).is_err());
+    }
+
+    #[test]
+    fn osm_lengths_parse() {
+        assert_eq!(parse_length("12"), Some(12.0));
+        assert_eq!(parse_length("12.13 m"), Some(12.13));
+        assert_eq!(parse_length("7m"), Some(7.0));
+        assert!((parse_length("40'6\"").unwrap() - 12.3444).abs() < 1e-9);
+        assert!((parse_length("10'").unwrap() - 3.048).abs() < 1e-9);
+        assert_eq!(parse_length("tall"), None);
+        assert_eq!(parse_length("12;15"), None);
     }
 
     #[test]

@@ -31,6 +31,8 @@ pub struct VectorLandcover {
     pub file: PathBuf,
     pub layer: Option<String>,
     pub crs: Option<String>,
+    /// OGR SQL attribute filter (`WHERE` clause).
+    pub filter: Option<String>,
     pub code: CodeSource,
 }
 
@@ -107,7 +109,24 @@ pub fn burn(
             CodeSource::Class(_) => vec![],
             CodeSource::Attribute { name, .. } => vec![name.as_str()],
         };
-        let layer = read_layer(&l.file, l.layer.as_deref(), l.crs.as_deref(), &attrs, frame)?;
+        let layer = read_layer(
+            &l.file,
+            l.layer.as_deref(),
+            l.crs.as_deref(),
+            l.filter.as_deref(),
+            &attrs,
+            frame,
+        )?;
+        if let Some((id, ty)) = layer.not_polygons.first() {
+            return Err(ScenegenError::Input {
+                path: l.file.clone(),
+                message: format!(
+                    "{}, feature {id}: a {ty} where polygons are expected ({} such feature(s); select the polygons with `filter`)",
+                    layer.label,
+                    layer.not_polygons.len()
+                ),
+            });
+        }
         let mut geoms = Vec::with_capacity(layer.features.len());
         let mut burn = Vec::with_capacity(layer.features.len());
         for f in &layer.features {

@@ -116,6 +116,8 @@ struct BuildingsConfig {
     #[serde(default)]
     layer: Option<String>,
     #[serde(default)]
+    filter: Option<String>,
+    #[serde(default)]
     crs: Option<String>,
     #[serde(default)]
     id_attribute: Option<String>,
@@ -197,6 +199,9 @@ struct DemConfig {
     /// The DEM is the `[lidar]` ground points gridded at `spacing_m`.
     #[serde(default)]
     from_lidar: bool,
+    /// A flat terrain at this height (m) where no DEM exists.
+    #[serde(default)]
+    flat_m: Option<f64>,
 }
 
 fn default_fill() -> u64 {
@@ -256,6 +261,8 @@ struct VectorConfig {
     file: PathBuf,
     #[serde(default)]
     layer: Option<String>,
+    #[serde(default)]
+    filter: Option<String>,
     #[serde(default)]
     crs: Option<String>,
     #[serde(default)]
@@ -360,6 +367,8 @@ pub struct Region {
     pub lidar: Option<LidarSpec>,
     /// The DEM is gridded from the lidar's ground points (`dem.from_lidar`).
     pub dem_from_lidar: bool,
+    /// A flat terrain at this height (`dem.flat_m`).
+    pub dem_flat_m: Option<f64>,
     pub buildings: Vec<crate::buildings::BuildingsSpec>,
     pub city_models: Vec<crate::cityjson::CityModelSpec>,
     pub trees: Vec<crate::trees::TreesSpec>,
@@ -482,6 +491,23 @@ impl Region {
             }
             None => None,
         };
+        if let Some(h) = raw.dem.flat_m {
+            if !(h.is_finite() && (-500.0..=9000.0).contains(&h)) {
+                return Err(inv("dem.flat_m", format!("{h} must be in [-500, 9000] m")));
+            }
+            if !raw.dem.files.is_empty() || raw.dem.mesh.is_some() || raw.dem.from_lidar {
+                return Err(inv(
+                    "dem.flat_m",
+                    "give either `files`, `mesh`, `from_lidar` or `flat_m`".into(),
+                ));
+            }
+            if raw.dem.spacing_m.is_none() {
+                return Err(inv(
+                    "dem.spacing_m",
+                    "required with `flat_m` (the terrain grid's step, e.g. 10)".into(),
+                ));
+            }
+        }
         if raw.dem.from_lidar {
             if lidar.is_none() {
                 return Err(inv(
@@ -503,11 +529,11 @@ impl Region {
             }
         }
         let dem_mesh = match (&raw.dem.mesh, raw.dem.mesh_origin, raw.dem.files.is_empty()) {
-            (None, None, _) if raw.dem.from_lidar => None,
+            (None, None, _) if raw.dem.from_lidar || raw.dem.flat_m.is_some() => None,
             (None, None, false) => None,
             (None, None, true) => return Err(inv(
                 "dem",
-                "give `files` (DEM rasters), `mesh` and `mesh_origin` (a gridded terrain mesh), or `from_lidar = true`"
+                "give `files` (DEM rasters), `mesh` and `mesh_origin` (a gridded terrain mesh), `from_lidar = true` or `flat_m`"
                     .into(),
             )),
             (Some(_), _, false) => {
@@ -605,6 +631,7 @@ impl Region {
                 file: base.join(&v.file),
                 layer: v.layer.clone(),
                 crs: v.crs.clone(),
+                filter: v.filter.clone(),
                 code,
             });
         }
@@ -708,6 +735,7 @@ impl Region {
                 file: base.join(&b.file),
                 layer: b.layer.clone(),
                 crs: b.crs.clone(),
+                filter: b.filter.clone(),
                 id_attribute: b.id_attribute.clone(),
                 height,
                 default_height_m: b.default_height_m,
@@ -806,6 +834,7 @@ impl Region {
             population: raw.population,
             lidar,
             dem_from_lidar: raw.dem.from_lidar,
+            dem_flat_m: raw.dem.flat_m,
             buildings,
             city_models: raw
                 .city_models

@@ -21,6 +21,8 @@ use crate::raster::WorkingFrame;
 pub struct VectorFeature {
     /// The layer's feature id (FID), else the feature's position in the layer.
     pub id: u64,
+    /// OpenStreetMap layers: "way N" or "relation N" (GDAL's OSM driver gives no stable FIDs).
+    pub osm: Option<String>,
     pub geometry: Geometry,
     pub values: Vec<Option<FieldValue>>,
 }
@@ -34,6 +36,8 @@ pub struct VectorLayer {
     pub empty: usize,
     /// Ids of features whose polygon is invalid (kept).
     pub invalid: Vec<u64>,
+    /// Features whose geometry is not polygonal (id, geometry type): not in `features`.
+    pub not_polygons: Vec<(u64, String)>,
 }
 
 fn bad(path: &Path, message: impl Into<String>) -> ScenegenError {
@@ -59,6 +63,7 @@ pub fn read_layer(
     path: &Path,
     layer: Option<&str>,
     crs: Option<&str>,
+    filter: Option<&str>,
     attributes: &[&str],
     frame: &WorkingFrame,
 ) -> Result<VectorLayer, ScenegenError> {
@@ -110,26 +115,41 @@ pub fn read_layer(
         )
     })?;
 
+    if let Some(w) = filter {
+        lyr.set_attribute_filter(w)
+            .map_err(|e| bad(path, format!("{label}: GDAL refuses the filter `{w}`: {e}")))?;
+    }
     let fields: Vec<String> = lyr.defn().fields().map(|f| f.name()).collect();
+    // OpenStreetMap (GDAL's OSM driver) keeps most keys in the `other_tags` hstore text.
+    let other_tags = fields.iter().position(|f| f == "other_tags");
     let mut idx = Vec::with_capacity(attributes.len());
     for a in attributes {
-        let i = fields.iter().position(|f| f == a).ok_or_else(|| {
-            bad(
-                path,
-                format!(
-                    "{label} has no attribute `{a}` (attributes: {})",
-                    fields.join(", ")
-                ),
-            )
-        })?;
+        let i = match (fields.iter().position(|f| f == a), other_tags) {
+            (Some(i), _) => Field::Column(i),
+            (None, Some(o)) => Field::Tag(o, (*a).to_string()),
+            (None, None) => {
+                return Err(bad(
+                    path,
+                    format!(
+                        "{label} has no attribute `{a}` (attributes: {})",
+                        fields.join(", ")
+                    ),
+                ))
+            }
+        };
         idx.push(i);
     }
 
+    let osm_cols = (
+        fields.iter().position(|f| f == "osm_way_id"),
+        fields.iter().position(|f| f == "osm_id"),
+    );
     let mut out = VectorLayer {
         label: format!("{} {label}", path.display()),
         features: Vec::new(),
         empty: 0,
         invalid: Vec::new(),
+        not_polygons: Vec::new(),
     };
     for (k, f) in lyr.features().enumerate() {
         let id = f.fid().unwrap_or(k as u64);
@@ -144,13 +164,8 @@ pub fn read_layer(
             continue;
         }
         if !is_polygonal(g) {
-            return Err(bad(
-                path,
-                format!(
-                    "{label}, feature {id}: a {} where polygons are expected",
-                    g.geometry_name()
-                ),
-            ));
+            out.not_polygons.push((id, g.geometry_name()));
+            continue;
         }
         if !g.is_valid() {
             tracing::warn!(
@@ -166,8 +181,12 @@ pub fn read_layer(
             )
         })?;
         let mut values = Vec::with_capacity(idx.len());
-        for &i in &idx {
-            values.push(f.field(i).map_err(|e| {
+        for field in &idx {
+            let (i, tag) = match field {
+                Field::Column(i) => (*i, None),
+                Field::Tag(o, key) => (*o, Some(key)),
+            };
+            let v = f.field(i).map_err(|e| {
                 bad(
                     path,
                     format!(
@@ -175,15 +194,70 @@ pub fn read_layer(
                         fields[i]
                     ),
                 )
-            })?);
+            })?;
+            values.push(match (tag, v) {
+                (None, v) => v,
+                (Some(key), Some(FieldValue::StringValue(h))) => {
+                    hstore_get(&h, key).map(FieldValue::StringValue)
+                }
+                (Some(_), _) => None,
+            });
         }
+        let text = |i: Option<usize>| {
+            i.and_then(|i| f.field_as_string(i).ok().flatten())
+                .filter(|t| !t.is_empty())
+        };
+        let osm = match (text(osm_cols.0), text(osm_cols.1)) {
+            (Some(w), _) => Some(format!("way {w}")),
+            (None, Some(r)) if osm_cols.0.is_some() => Some(format!("relation {r}")),
+            (None, Some(n)) => Some(format!("osm {n}")),
+            _ => None,
+        };
         out.features.push(VectorFeature {
             id,
+            osm,
             geometry,
             values,
         });
     }
     Ok(out)
+}
+
+/// Where an attribute is read: a column, or a key of the `other_tags` hstore column.
+enum Field {
+    Column(usize),
+    Tag(usize, String),
+}
+
+/// The value of `key` in an hstore text (`"k"=>"v","k2"=>"v2"`, as GDAL's OSM driver writes
+/// `other_tags`).
+pub fn hstore_get(h: &str, key: &str) -> Option<String> {
+    let mut rest = h;
+    while let Some(start) = rest.find('"') {
+        let (k, after) = quoted(&rest[start..])?;
+        let after = after.trim_start().strip_prefix("=>")?.trim_start();
+        let (v, tail) = quoted(after)?;
+        if k == key {
+            return Some(v);
+        }
+        rest = tail.trim_start().strip_prefix(',').unwrap_or(tail);
+    }
+    None
+}
+
+/// A leading `"…"` string (backslash escapes) and what follows it.
+fn quoted(s: &str) -> Option<(String, &str)> {
+    let s = s.strip_prefix('"')?;
+    let mut out = String::new();
+    let mut chars = s.char_indices();
+    while let Some((i, c)) = chars.next() {
+        match c {
+            '\\' => out.push(chars.next()?.1),
+            '"' => return Some((out, &s[i + 1..])),
+            c => out.push(c),
+        }
+    }
+    None
 }
 
 /// A field value as an integer class code, if it is one (integers, integral reals, or text
@@ -218,5 +292,20 @@ pub fn as_text(v: &FieldValue) -> String {
         FieldValue::Integer64Value(i) => i.to_string(),
         FieldValue::RealValue(x) => x.to_string(),
         other => format!("{other:?}"),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn osm_other_tags_are_read() {
+        let h = r#""building:levels"=>"6","height"=>"17.5","name"=>"Caf\"e, \\ bar""#;
+        assert_eq!(hstore_get(h, "building:levels").as_deref(), Some("6"));
+        assert_eq!(hstore_get(h, "height").as_deref(), Some("17.5"));
+        assert_eq!(hstore_get(h, "name").as_deref(), Some("Caf\"e, \\ bar"));
+        assert_eq!(hstore_get(h, "roof:shape"), None);
+        assert_eq!(hstore_get("", "x"), None);
     }
 }

@@ -891,3 +891,80 @@ fn delft_trees_from_lidar_match_their_canopy_maxima() {
     assert!(worst <= 1.0, "{worst}");
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Rationale: OpenStreetMap buildings (GDAL's OSM driver, keys from `other_tags`) extruded to
+/// their `height`, else `building:levels` × 3.2 m, else 12 m on a flat terrain: every built
+/// prism's height is recomputed here from the feature's own tags (read through GDAL with its own
+/// hstore parsing), every feature is accounted for (built, skipped with a warning, or outside
+/// the area), and the prisms are watertight.
+#[test]
+fn helsinki_osm_buildings_take_their_tagged_heights() {
+    let Some(shared) = shared_data() else { return };
+    let dir = tmp("helsinki");
+    let region = Path::new(env!("CARGO_MANIFEST_DIR")).join("../examples/helsinki/region.toml");
+    let report = build_lib(&region, &dir.join("bundle"));
+    let b = Bundle::open(&dir.join("bundle")).unwrap();
+    // The oracle reads each entry's filtered layer as the region file says (GDAL's OSM driver
+    // assembles multipolygons per reading, so each filter is read on its own).
+    let text = std::fs::read_to_string(&region).unwrap();
+    let doc: toml::Value = toml::from_str(&text).unwrap();
+    let mut expected = std::collections::HashMap::new();
+    use gdal::vector::LayerAccess;
+    for e in doc["buildings"].as_array().unwrap() {
+        let ds =
+            gdal::Dataset::open(shared.join("real_regions/helsinki_osm/Helsinki.osm.pbf")).unwrap();
+        let mut layer = ds.layer_by_name("multipolygons").unwrap();
+        layer
+            .set_attribute_filter(e["filter"].as_str().unwrap())
+            .unwrap();
+        let col = |n: &str| layer.defn().field_index(n).unwrap();
+        let (oi, wi, ri) = (col("other_tags"), col("osm_way_id"), col("osm_id"));
+        let tag = |tags: &str, key: &str| -> Option<f64> {
+            let pat = format!("\"{key}\"=>\"");
+            let s = tags.find(&pat)? + pat.len();
+            let v = tags[s..].split('"').next()?;
+            v.trim_end_matches('m').trim().parse().ok()
+        };
+        for f in layer.features() {
+            let tags = f.field_as_string(oi).unwrap().unwrap_or_default();
+            let h = if e.get("height_attribute").is_some() {
+                tag(&tags, "height").unwrap_or_else(|| panic!("no height in {tags}"))
+            } else if e.get("levels_attribute").is_some() {
+                tag(&tags, "building:levels").unwrap() * 3.2
+            } else {
+                e["height_m"].as_float().unwrap()
+            };
+            let id = match f.field_as_string(wi).unwrap().filter(|w| !w.is_empty()) {
+                Some(w) => format!("way {w}"),
+                None => format!("relation {}", f.field_as_string(ri).unwrap().unwrap()),
+            };
+            expected.insert(id, h);
+        }
+    }
+    assert!(report.buildings.len() > 200, "{}", report.buildings.len());
+    for r in &report.buildings {
+        let id = r.id.split(" (part").next().unwrap();
+        let h = *expected
+            .get(id)
+            .unwrap_or_else(|| panic!("{id} not among the tagged features"));
+        let got = r.roof - r.floor - scenegen::buildings::SINK_M;
+        assert!((got - h).abs() < 1e-6, "{}: {got} vs tags {h}", r.id);
+    }
+    for (id, why) in &report.buildings_skipped {
+        assert!(
+            why.contains("outside the DEM")
+                || why.contains("not a footprint")
+                || why.contains("cross")
+                || why.contains("touch"),
+            "{id}: {why}"
+        );
+    }
+    eprintln!(
+        "helsinki: {} OSM buildings built, {} skipped (named), of {} tagged features",
+        report.buildings.len(),
+        report.buildings_skipped.len(),
+        expected.len()
+    );
+    assert_watertight(&b, "buildings_");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
