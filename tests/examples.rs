@@ -79,6 +79,10 @@ fn every_example_runs_as_its_header_says() {
     );
     for f in &files {
         let rel = f.strip_prefix(&repo).unwrap().display().to_string();
+        // Land-cover scheme files (`*_scheme.toml`) are data read by a region, not run.
+        if rel.ends_with("_scheme.toml") {
+            continue;
+        }
         let text = std::fs::read_to_string(f).unwrap();
         let cmds = header_commands(&text);
         if !cmds.iter().any(|c| c.contains(&rel)) {
