@@ -1,6 +1,6 @@
 //! Buildings from footprints (`[[buildings]]`): footprint polygons of a vector layer become
 //! closed, watertight prisms (LoD1: flat roof, vertical walls, a floor) standing on the terrain,
-//! with a roof and a wall material. Keys: docs/region.md, "[[buildings]]".
+//! with a roof and a wall material. Keys: docs/region.md, "`[[buildings]]`".
 //!
 //! * **Footprint**: each polygon of a feature (multipolygons give one prism per part), holes
 //!   (courtyards) kept; rings cleaned of repeated and collinear-duplicate vertices, the exterior

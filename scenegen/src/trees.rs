@@ -1,6 +1,6 @@
 //! Trees from canopy height (`[[trees]]`): individual trees detected as local maxima of a
 //! canopy-height model (CHM), each placed as an instance of a template scaled to its height and
-//! crown. Keys: docs/region.md, "[[trees]]".
+//! crown. Keys: docs/region.md, "`[[trees]]`".
 //!
 //! **The CHM**: a raster of heights above ground (`chm`), or a surface model minus a terrain model
 //! (`dsm` − `dtm`, the two rasters warped onto one grid), or the region's lidar (`from_lidar`:
