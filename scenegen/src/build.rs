@@ -396,7 +396,7 @@ pub fn build(
 
     let pb = bar(opts, "land cover: reading, warping, mapping");
     let mgrid = Grid::cells_over(&grid, region.lc_tile_m);
-    let (codes, resampling) = raster::load_landcover(region, &frame, &mgrid, scheme.nodata)?;
+    let (codes, resampling) = crate::landcover_vector::load(region, &frame, &mgrid, scheme.nodata)?;
     let lc_name = match &region.landcover {
         LandcoverInput::File(p) => p.clone(),
         LandcoverInput::Uniform(_) => region.path.clone(),

@@ -26,6 +26,7 @@
 //!   (`buildings_<col>_<row>`) with a single instance, so a city of 10⁵ buildings is a few hundred
 //!   templates, each with its own BVH in `simulate`.
 
+pub use crate::inputs::{BuildingsSpec, HeightSource};
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
@@ -39,35 +40,6 @@ use crate::vector::{as_f64, as_text, read_layer};
 
 /// How far the floor is sunk below the lowest ground under the footprint, m.
 pub const SINK_M: f64 = 0.5;
-
-/// Where a building's height comes from.
-#[derive(Clone, Debug, PartialEq)]
-pub enum HeightSource {
-    /// An attribute in metres.
-    Attribute(String),
-    /// A storey-count attribute times a storey height (m).
-    Levels { attribute: String, storey_m: f64 },
-    /// One height for every footprint, m.
-    Constant(f64),
-    /// A percentile of the region's lidar points of these classes inside the footprint.
-    Lidar { classes: Vec<u8>, percentile: f64 },
-}
-
-/// One `[[buildings]]` entry, paths resolved.
-#[derive(Clone, Debug, PartialEq)]
-pub struct BuildingsSpec {
-    pub file: PathBuf,
-    pub layer: Option<String>,
-    pub crs: Option<String>,
-    /// OGR SQL attribute filter (`WHERE` clause), e.g. `building IS NOT NULL`.
-    pub filter: Option<String>,
-    /// Attribute naming the buildings in messages (default: the feature id).
-    pub id_attribute: Option<String>,
-    pub height: HeightSource,
-    pub default_height_m: Option<f64>,
-    pub roof_material: String,
-    pub wall_material: String,
-}
 
 /// A closed triangle mesh in working-CRS metres.
 #[derive(Clone, Debug, Default)]

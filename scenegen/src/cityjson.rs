@@ -18,6 +18,7 @@
 //!   of range, an unknown CRS. A surface that cannot be triangulated (fewer than three distinct
 //!   vertices, crossing rings) is skipped with a warning naming the object.
 
+pub use crate::inputs::CityModelSpec;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -28,19 +29,6 @@ use spade::{ConstrainedDelaunayTriangulation, Point2, Triangulation};
 use crate::buildings::TemplateGroups;
 use crate::error::ScenegenError;
 use crate::raster::WorkingFrame;
-
-/// One `[[city_models]]` entry, paths resolved.
-#[derive(Clone, Debug, PartialEq)]
-pub struct CityModelSpec {
-    pub file: PathBuf,
-    pub crs: Option<String>,
-    /// City object types to take.
-    pub types: Vec<String>,
-    /// Level of detail to take (default: each object's highest).
-    pub lod: Option<String>,
-    pub roof_material: String,
-    pub wall_material: String,
-}
 
 /// One city object as placed.
 #[derive(Clone, Debug)]

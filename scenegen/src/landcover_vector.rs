@@ -16,37 +16,13 @@
 //! attribute is null or has no mapping is an error naming the file, layer, feature id and value
 //! (nothing is dropped). The codes then go through the scheme like a raster's.
 
-use std::collections::BTreeMap;
-use std::path::PathBuf;
+pub use crate::inputs::{CodeSource, VectorLandcover};
 
 use gdal::DriverManager;
 
 use crate::error::{gdal_err, ScenegenError};
 use crate::raster::{Grid, WorkingFrame};
 use crate::vector::{as_code, as_text, read_layer};
-
-/// One `[[landcover.vector]]` entry, paths resolved.
-#[derive(Clone, Debug, PartialEq)]
-pub struct VectorLandcover {
-    pub file: PathBuf,
-    pub layer: Option<String>,
-    pub crs: Option<String>,
-    /// OGR SQL attribute filter (`WHERE` clause).
-    pub filter: Option<String>,
-    pub code: CodeSource,
-}
-
-/// Where a feature's class code comes from.
-#[derive(Clone, Debug, PartialEq)]
-pub enum CodeSource {
-    /// One code for every feature of the layer.
-    Class(i64),
-    /// An attribute holding integer codes, or text mapped by `values`.
-    Attribute {
-        name: String,
-        values: BTreeMap<String, i64>,
-    },
-}
 
 /// What a burn did, for the log and `scenegen info`.
 #[derive(Clone, Debug, Default)]
@@ -236,6 +212,46 @@ pub fn burn(
         }
     }
     Ok(report)
+}
+
+/// Land-cover class codes on `grid` (`None` = no data) and the resampling used: the raster (or
+/// uniform class, `raster::load_landcover_raster`), then the `[[landcover.vector]]` polygons
+/// burnt over it.
+pub fn load(
+    region: &crate::region::Region,
+    frame: &WorkingFrame,
+    grid: &Grid,
+    scheme_nodata: Option<i64>,
+) -> Result<(Vec<Option<i64>>, &'static str), ScenegenError> {
+    let (mut codes, how) =
+        crate::raster::load_landcover_raster(region, frame, grid, scheme_nodata)?;
+    if region.landcover_vectors.is_empty() {
+        return Ok((codes, how));
+    }
+    use crate::region::Resampling;
+    let mode = region.resampling != Resampling::Nearest;
+    let report = burn(&region.landcover_vectors, frame, grid, mode, &mut codes)?;
+    if let Some(nd) = scheme_nodata {
+        for c in codes.iter_mut() {
+            if *c == Some(nd) {
+                *c = None;
+            }
+        }
+    }
+    let how = match (how, mode) {
+        ("uniform", true) | ("none", true) => "polygons: mode of 4 × 4 samples",
+        ("uniform", false) | ("none", false) => "polygons: cell centre",
+        (_, true) => "raster and polygons: mode",
+        (_, false) => "raster and polygons: nearest",
+    };
+    tracing::info!(
+        "land cover: {} of {} cells from polygons ({} × {} samples per cell)",
+        report.cells_from_polygons,
+        codes.len(),
+        report.oversampling,
+        report.oversampling
+    );
+    Ok((codes, how))
 }
 
 #[cfg(test)]

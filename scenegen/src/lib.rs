@@ -18,6 +18,7 @@ pub mod dem_values;
 pub mod error;
 pub mod gltf_export;
 pub mod info;
+pub mod inputs;
 pub mod landcover_vector;
 pub mod mesh_dem;
 pub mod mesh_region;

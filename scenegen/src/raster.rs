@@ -656,47 +656,9 @@ pub fn to_lon_lat(frame: &WorkingFrame, x: f64, y: f64) -> Option<(f64, f64)> {
     Some((xs[0], ys[0]))
 }
 
-/// Land-cover class codes on `grid` (`None` = no data) and the resampling used: the raster (or
-/// uniform class), then the `[[landcover.vector]]` polygons burnt over it
-/// (`landcover_vector.rs`).
-pub fn load_landcover(
-    region: &Region,
-    frame: &WorkingFrame,
-    grid: &Grid,
-    scheme_nodata: Option<i64>,
-) -> Result<(Vec<Option<i64>>, &'static str), ScenegenError> {
-    let (mut codes, how) = load_landcover_raster(region, frame, grid, scheme_nodata)?;
-    if region.landcover_vectors.is_empty() {
-        return Ok((codes, how));
-    }
-    use crate::region::Resampling;
-    let mode = region.resampling != Resampling::Nearest;
-    let report =
-        crate::landcover_vector::burn(&region.landcover_vectors, frame, grid, mode, &mut codes)?;
-    if let Some(nd) = scheme_nodata {
-        for c in codes.iter_mut() {
-            if *c == Some(nd) {
-                *c = None;
-            }
-        }
-    }
-    let how = match (how, mode) {
-        ("uniform", true) | ("none", true) => "polygons: mode of 4 × 4 samples",
-        ("uniform", false) | ("none", false) => "polygons: cell centre",
-        (_, true) => "raster and polygons: mode",
-        (_, false) => "raster and polygons: nearest",
-    };
-    tracing::info!(
-        "land cover: {} of {} cells from polygons ({} × {} samples per cell)",
-        report.cells_from_polygons,
-        codes.len(),
-        report.oversampling,
-        report.oversampling
-    );
-    Ok((codes, how))
-}
-
-fn load_landcover_raster(
+/// Land-cover class codes of the raster (or uniform class) on `grid` (`None` = no data) and the
+/// resampling used; `landcover_vector::load` burns the polygons over them.
+pub fn load_landcover_raster(
     region: &Region,
     frame: &WorkingFrame,
     grid: &Grid,

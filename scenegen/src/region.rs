@@ -354,7 +354,7 @@ pub struct Region {
     pub terrain_tile_m: f64,
     pub landcover: LandcoverInput,
     /// Polygon layers burnt over `landcover`, in order.
-    pub landcover_vectors: Vec<crate::landcover_vector::VectorLandcover>,
+    pub landcover_vectors: Vec<crate::inputs::VectorLandcover>,
     pub scheme: String,
     pub lc_tile_m: f64,
     pub resampling: Resampling,
@@ -369,9 +369,9 @@ pub struct Region {
     pub dem_from_lidar: bool,
     /// A flat terrain at this height (`dem.flat_m`).
     pub dem_flat_m: Option<f64>,
-    pub buildings: Vec<crate::buildings::BuildingsSpec>,
-    pub city_models: Vec<crate::cityjson::CityModelSpec>,
-    pub trees: Vec<crate::trees::TreesSpec>,
+    pub buildings: Vec<crate::inputs::BuildingsSpec>,
+    pub city_models: Vec<crate::inputs::CityModelSpec>,
+    pub trees: Vec<crate::inputs::TreesSpec>,
 }
 
 /// `[lidar]`: point-cloud files (LAS/LAZ), paths resolved.
@@ -607,7 +607,7 @@ impl Region {
         };
         let mut landcover_vectors = Vec::with_capacity(lc.vector.len());
         for (i, v) in lc.vector.iter().enumerate() {
-            use crate::landcover_vector::{CodeSource, VectorLandcover};
+            use crate::inputs::{CodeSource, VectorLandcover};
             let key = |k: &str| format!("landcover.vector[{i}].{k}");
             let code = match (&v.attribute, v.class) {
                 (Some(a), None) => CodeSource::Attribute {
@@ -664,7 +664,7 @@ impl Region {
         }
         let mut buildings = Vec::with_capacity(raw.buildings.len());
         for (i, b) in raw.buildings.iter().enumerate() {
-            use crate::buildings::{BuildingsSpec, HeightSource};
+            use crate::inputs::{BuildingsSpec, HeightSource};
             let key = |k: &str| format!("buildings[{i}].{k}");
             let positive = |k: &str, v: Option<f64>| -> Result<(), ScenegenError> {
                 match v {
@@ -745,7 +745,7 @@ impl Region {
         }
         let mut trees = Vec::with_capacity(raw.trees.len());
         for (i, t) in raw.trees.iter().enumerate() {
-            use crate::trees::{ChmSource, TreesSpec};
+            use crate::inputs::{ChmSource, TreesSpec};
             let key = |k: &str| format!("trees[{i}].{k}");
             let source = match (&t.chm, &t.dsm, &t.dtm, t.from_lidar) {
                 (Some(c), None, None, false) => ChmSource::Chm(base.join(c)),
@@ -839,7 +839,7 @@ impl Region {
             city_models: raw
                 .city_models
                 .iter()
-                .map(|c| crate::cityjson::CityModelSpec {
+                .map(|c| crate::inputs::CityModelSpec {
                     file: base.join(&c.file),
                     crs: c.crs.clone(),
                     types: c.types.clone(),

@@ -22,40 +22,11 @@
 //! seed. A CHM that does not cover the area, or holds no cell above `min_height_m`, is an error
 //! naming the file.
 
+pub use crate::inputs::{ChmSource, TreesSpec};
 use std::path::PathBuf;
 
 use crate::error::ScenegenError;
 use crate::raster::{Grid, WorkingFrame};
-
-/// Where the canopy heights come from.
-#[derive(Clone, Debug, PartialEq)]
-pub enum ChmSource {
-    Chm(PathBuf),
-    DsmMinusDtm {
-        dsm: PathBuf,
-        dtm: PathBuf,
-    },
-    /// Highest point of `classes` per cell minus the DEM; cells holding any point of `exclude`
-    /// (buildings) are not canopy.
-    Lidar {
-        classes: Vec<u8>,
-        exclude: Vec<u8>,
-    },
-}
-
-/// One `[[trees]]` entry, paths resolved.
-#[derive(Clone, Debug, PartialEq)]
-pub struct TreesSpec {
-    pub source: ChmSource,
-    pub template: String,
-    pub min_height_m: f64,
-    /// Fixed detection window diameter, m (default: the crown-width regression).
-    pub window_m: Option<f64>,
-    /// Cell of the CHM grid, m (default: the raster's pixel size, 1 m for lidar).
-    pub cell_m: Option<f64>,
-    pub crown_scale: f64,
-    pub keep_proportions: bool,
-}
 
 /// Popescu & Wynne (2004) crown width of a deciduous/mixed-forest tree of height `h` (m).
 pub fn crown_width(h: f64) -> f64 {
