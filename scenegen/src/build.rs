@@ -497,6 +497,7 @@ pub fn build(
                 heights: &dem.heights,
                 lidar: lidar.as_ref(),
                 tile_m: region.terrain_tile_m,
+                tolerance_m: region.tolerance_m,
             },
             &mut material_index,
         )?;

@@ -3,7 +3,7 @@
 //! with a roof and a wall material. Keys: docs/region.md, "`[[buildings]]`".
 //!
 //! * **Footprint**: each polygon of a feature (multipolygons give one prism per part), holes
-//!   (courtyards) kept; rings cleaned of repeated and collinear-duplicate vertices, the exterior
+//!   (courtyards) kept; rings cleaned of repeated consecutive vertices, the exterior
 //!   made counter-clockwise and holes clockwise, so every face's normal points outwards.
 //! * **Roof and floor**: a constrained Delaunay triangulation (`spade`) of the rings, keeping the
 //!   triangles whose centroid lies inside the polygon. Rings that cross themselves or each other
@@ -12,9 +12,11 @@
 //! * **Walls**: two triangles per ring edge between the floor and roof copies of its vertices.
 //!   Roof, floor and walls share the ring vertices, so every edge belongs to exactly two
 //!   triangles of opposite orientation (tested: `closed_mesh` below and the ray-parity test).
-//! * **Heights**: the floor is at the lowest terrain (DEM, bilinear) under the footprint's
-//!   vertices minus [`SINK_M`] (the wall meets sloping ground and the terrain TIN's tolerance
-//!   without a gap); the roof at that lowest ground plus the building height (OpenStreetMap's
+//! * **Heights**: the lowest ground is the lowest DEM height (bilinear) at the footprint's
+//!   vertices, along its exterior edges every DEM step, and at the DEM nodes inside it; the floor
+//!   lies [`SINK_M`] plus the terrain tolerance below it, so the walls reach under the terrain
+//!   TIN (within the tolerance of the DEM) everywhere; the roof at the lowest ground plus the
+//!   building height (OpenStreetMap's
 //!   `height`: from the lowest ground point to the top), where the height comes from an
 //!   attribute (m), a storey count × `storey_height_m`, one value for the layer, or the
 //!   `roof_percentile` (default the median) of the lidar points of `roof_classes` inside the
@@ -57,6 +59,8 @@ pub struct BuildingRecord {
     pub id: String,
     /// Footprint area, m².
     pub area_m2: f64,
+    /// The lowest ground under the footprint, m (as the DEM).
+    pub ground: f64,
     /// Floor and roof heights, m (as the DEM).
     pub floor: f64,
     pub roof: f64,
@@ -91,7 +95,7 @@ fn signed_area(r: &[[f64; 2]]) -> f64 {
         * 0.5
 }
 
-/// A ring without its closing vertex, repeated vertices or spikes, oriented as asked.
+/// A ring without its closing vertex, repeated consecutive vertices, oriented as asked.
 fn clean_ring(ls: &LineString<f64>, ccw: bool) -> Vec<[f64; 2]> {
     let mut r: Vec<[f64; 2]> = Vec::with_capacity(ls.0.len());
     for c in &ls.0 {
@@ -203,7 +207,9 @@ pub fn extrude(poly: &Polygon<f64>, floor: f64, roof: f64) -> Result<Prism, Stri
         }
     }
     if !closed_mesh(&prism.triangles) {
-        return Err("its triangulation is not closed (a ring vertex lies on another ring)".into());
+        return Err(
+            "its triangulation is not closed (a ring touches itself or another ring)".into(),
+        );
     }
     Ok(prism)
 }
@@ -283,6 +289,8 @@ pub struct Ground<'a> {
     pub lidar: Option<&'a PointCloud>,
     /// Square side grouping buildings into templates, m.
     pub tile_m: f64,
+    /// The terrain TIN's vertical tolerance, m: the floor goes that much deeper.
+    pub tolerance_m: f64,
 }
 
 /// Build the prisms of every `[[buildings]]` entry. `material` maps a library material name to
@@ -338,7 +346,9 @@ pub fn build(
                     message: "needs the region's [lidar] point cloud".into(),
                 })?;
                 if !index_cache.contains_key(classes) {
-                    index_cache.insert(classes.clone(), PointIndex::new(pc, classes, 4.0));
+                    let g = ground.grid;
+                    let within = [g.x0, g.y(g.height - 1), g.x(g.width - 1), g.y0];
+                    index_cache.insert(classes.clone(), PointIndex::new(pc, classes, 4.0, within));
                 }
                 Some((pc, &index_cache[classes]))
             }
@@ -396,6 +406,34 @@ pub fn build(
                     out.skipped.push((pid, why.into()));
                     continue;
                 }
+                // Along the edges every DEM step, and at the DEM nodes inside.
+                for w in ring.windows(2) {
+                    let (a, b) = (w[0], w[1]);
+                    let len = ((b.x - a.x).powi(2) + (b.y - a.y).powi(2)).sqrt();
+                    let n = ((len / ground.grid.dx).ceil() as usize).min(100_000);
+                    for k in 1..n {
+                        let t = k as f64 / n as f64;
+                        let (x, y) = (a.x + t * (b.x - a.x), a.y + t * (b.y - a.y));
+                        if let Some(z) = ground_at(ground.grid, ground.heights, x, y) {
+                            low = low.min(z);
+                        }
+                    }
+                }
+                let g = ground.grid;
+                let c0 = ((bb[0] - g.x0) / g.dx).ceil().max(0.0) as usize;
+                let c1 = (((bb[2] - g.x0) / g.dx).floor().max(-1.0) + 1.0) as usize;
+                let r0 = ((g.y0 - bb[3]) / g.dx).ceil().max(0.0) as usize;
+                let r1 = (((g.y0 - bb[1]) / g.dx).floor().max(-1.0) + 1.0) as usize;
+                for r in r0..r1.min(g.height) {
+                    for c in c0..c1.min(g.width) {
+                        if poly.contains(&Coord {
+                            x: g.x(c),
+                            y: g.y(r),
+                        }) {
+                            low = low.min(ground.heights[r * g.width + c] as f64);
+                        }
+                    }
+                }
                 let mut npts = 0;
                 let height = match &spec.height {
                     HeightSource::Constant(h) => Some(*h),
@@ -444,7 +482,7 @@ pub fn build(
                         ));
                     }
                 };
-                let floor = low - SINK_M;
+                let floor = low - SINK_M - ground.tolerance_m;
                 let roof = low + height;
                 let prism = match extrude(poly, floor, roof) {
                     Ok(p) => p,
@@ -471,6 +509,7 @@ pub fn build(
                 out.records.push(BuildingRecord {
                     id: pid,
                     area_m2: geo::Area::unsigned_area(poly),
+                    ground: low,
                     floor,
                     roof,
                     points: npts,

@@ -16,7 +16,10 @@
 //!   up (n_z > 0.5) are roofs and the rest walls.
 //! * Bad input is named: unreadable JSON, a missing `CityObjects`/`vertices`, a vertex index out
 //!   of range, an unknown CRS. A surface that cannot be triangulated (fewer than three distinct
-//!   vertices, crossing rings) is skipped with a warning naming the object.
+//!   vertices, crossing rings), and a geometry without surfaces (`MultiPoint`,
+//!   `GeometryInstance`, …), are skipped with a warning naming the object.
+//! * An object whose `children` are taken too (a 3DBAG `Building` above its `BuildingPart`s) is
+//!   left out: its parts carry its geometry.
 
 pub use crate::inputs::CityModelSpec;
 use std::collections::BTreeMap;
@@ -198,8 +201,8 @@ fn surfaces(g: &Value) -> Result<Vec<Surface>, String> {
             .iter()
             .map(|i| {
                 i.as_u64()
-                    .map(|i| i as u32)
-                    .ok_or_else(|| "a vertex index is not an integer".to_string())
+                    .and_then(|i| u32::try_from(i).ok())
+                    .ok_or_else(|| "a vertex index is not an integer below 2³²".to_string())
             })
             .collect()
     };
@@ -342,6 +345,19 @@ pub fn build(
             if !spec.types.iter().any(|t| t == ty) {
                 continue;
             }
+            // A parent whose parts are taken too (3DBAG: a Building's LoD0 outline above its
+            // BuildingParts' solids) would be placed twice.
+            let taken_child = o["children"].as_array().is_some_and(|c| {
+                c.iter().filter_map(Value::as_str).any(|k| {
+                    objects
+                        .get(k)
+                        .and_then(|x| x["type"].as_str())
+                        .is_some_and(|t| spec.types.iter().any(|s| s == t))
+                })
+            });
+            if taken_child {
+                continue;
+            }
             let geoms = o["geometry"].as_array().cloned().unwrap_or_default();
             let g = match &spec.lod {
                 Some(l) => geoms.iter().find(|g| lod_of(g) == *l),
@@ -363,7 +379,15 @@ pub fn build(
                 out.skipped.push((id.clone(), "no geometry".into()));
                 continue;
             };
-            let surfs = surfaces(g).map_err(|e| bad(path, format!("city object {id}: {e}")))?;
+            let surfs = match surfaces(g) {
+                Ok(s) => s,
+                Err(e) if e.contains("has no surfaces") => {
+                    tracing::warn!("{label}: city object {id}: skipped: {e}");
+                    out.skipped.push((id.clone(), e));
+                    continue;
+                }
+                Err(e) => return Err(bad(path, format!("city object {id}: {e}"))),
+            };
             let sem = g["semantics"]["surfaces"]
                 .as_array()
                 .cloned()

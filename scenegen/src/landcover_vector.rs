@@ -5,10 +5,10 @@
 //!
 //! Rule per material cell. With `resampling = "nearest"` the class is the one whose polygon
 //! contains the cell centre. Otherwise (`"mode"`, and `"auto"`, since polygons have no source
-//! pixel size) the cell is sampled at the centres of a 4 × 4 sub-grid (fewer when the grid is
-//! very large: at most 2²⁶ samples) and takes the most frequent class; samples in no polygon
-//! vote for the raster's class beneath (or no data), and a tie goes to the polygon class with the
-//! smallest code. Holes (courtyards, lakes) and multipolygons are GDAL's: a sample inside a hole
+//! pixel size) the cell is sampled at the centres of a 4 × 4 sub-grid (3 × 3 or 2 × 2 when that
+//! would exceed 2²⁶ samples, one sample per cell beyond) and takes the most frequent class;
+//! samples in no polygon vote for the raster's class beneath (or no data), and ties go to the
+//! polygons, then to the smallest code. Holes (courtyards, lakes) and multipolygons are GDAL's: a sample inside a hole
 //! is outside the polygon.
 //!
 //! Class codes come from an integer attribute (`attribute`), from a text attribute through
@@ -182,36 +182,49 @@ pub fn burn(
         .1;
 
     let mut votes: Vec<(i32, usize)> = Vec::with_capacity(k * k);
+    let mut cell: Vec<i32> = Vec::with_capacity(k * k);
     for row in 0..grid.height {
         for col in 0..grid.width {
-            votes.clear();
-            let mut outside = 0;
+            cell.clear();
             for sr in 0..k {
                 let base = (row * k + sr) * w + col * k;
-                for &c in &samples[base..base + k] {
-                    if c == NONE {
-                        outside += 1;
-                    } else if let Some(v) = votes.iter_mut().find(|v| v.0 == c) {
-                        v.1 += 1;
-                    } else {
-                        votes.push((c, 1));
-                    }
-                }
+                cell.extend_from_slice(&samples[base..base + k]);
             }
-            // Most votes; ties to the smallest code.
-            let best = votes
-                .iter()
-                .copied()
-                .max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)));
-            if let Some((c, n)) = best {
-                if n >= outside {
-                    codes[row * grid.width + col] = Some(c as i64);
-                    report.cells_from_polygons += 1;
-                }
+            let at = row * grid.width + col;
+            if let Some(c) = cell_class(&cell, codes[at], &mut votes) {
+                codes[at] = Some(c);
+                report.cells_from_polygons += 1;
             }
         }
     }
     Ok(report)
+}
+
+/// The class a cell takes from its polygon samples (`NONE` = in no polygon) over the class
+/// `beneath` (the raster's): samples in no polygon vote for the class beneath, together with the
+/// polygon samples of that class; the most votes win, ties going to the polygons, then to the
+/// smallest code. `None`: the class beneath stays.
+fn cell_class(samples: &[i32], beneath: Option<i64>, votes: &mut Vec<(i32, usize)>) -> Option<i64> {
+    votes.clear();
+    let mut outside = 0;
+    for &c in samples {
+        if c == NONE {
+            outside += 1;
+        } else if let Some(v) = votes.iter_mut().find(|v| v.0 == c) {
+            v.1 += 1;
+        } else {
+            votes.push((c, 1));
+        }
+    }
+    if let Some(v) = beneath.and_then(|b| votes.iter_mut().find(|v| v.0 as i64 == b)) {
+        v.1 += outside;
+        outside = 0;
+    }
+    let (c, n) = votes
+        .iter()
+        .copied()
+        .max_by(|a, b| a.1.cmp(&b.1).then(b.0.cmp(&a.0)))?;
+    (n >= outside).then_some(c as i64)
 }
 
 /// Land-cover class codes on `grid` (`None` = no data) and the resampling used: the raster (or
@@ -257,6 +270,24 @@ pub fn load(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn the_class_beneath_counts_its_uncovered_samples() {
+        let mut v = Vec::new();
+        // 6 samples of polygon class 3, 4 of polygon class 5, 6 in no polygon over raster 5:
+        // class 5 has 10 votes.
+        let mut s = vec![3; 6];
+        s.extend([5; 4]);
+        s.extend([NONE; 6]);
+        assert_eq!(cell_class(&s, Some(5), &mut v), Some(5));
+        // Over raster 7 the uncovered samples (6) tie with class 3 (6): the polygon wins.
+        assert_eq!(cell_class(&s, Some(7), &mut v), Some(3));
+        // Mostly uncovered: the raster's class stays.
+        let s = [NONE, NONE, NONE, 4];
+        assert_eq!(cell_class(&s, Some(1), &mut v), None);
+        // Polygon tie: the smaller code.
+        assert_eq!(cell_class(&[9, 9, 2, 2], None, &mut v), Some(2));
+    }
 
     #[test]
     fn oversampling_shrinks_for_huge_grids() {

@@ -3,7 +3,8 @@
 //! queries, and gridding of chosen classes into a raster (ground → DTM, first returns → DSM).
 //!
 //! CRS: the file's OGC WKT VLR, else its GeoTIFF projected-CRS key (an EPSG code), else the
-//! region's `crs` key for the point cloud; none of these is an error naming the file. A file
+//! region's `crs` key for the point cloud; none of these is an error naming the file, and so is
+//! a projected CRS not in metres (heights are taken in the file's unit, which must be metres). A file
 //! without points is an error; so is a point outside the working CRS's domain.
 
 use std::path::{Path, PathBuf};
@@ -89,6 +90,15 @@ pub fn read(
             })?,
         };
         src.set_axis_mapping_strategy(AxisMappingStrategy::TraditionalGisOrder);
+        let unit = src.linear_units();
+        if src.is_projected() && (unit - 1.0).abs() > 1e-9 {
+            return Err(bad(
+                path,
+                format!(
+                    "its CRS counts {unit} m per unit (feet?): heights would be read in the wrong unit; reproject the points to a metric CRS first"
+                ),
+            ));
+        }
         let n = reader.header().number_of_points();
         if n == 0 {
             return Err(bad(path, "the point cloud holds no points"));
@@ -142,10 +152,18 @@ pub struct PointIndex {
 }
 
 impl PointIndex {
-    /// Index the points of `pc` whose class is in `classes`.
-    pub fn new(pc: &PointCloud, classes: &[u8], cell: f64) -> PointIndex {
+    /// Index the points of `pc` whose class is in `classes` and that lie in `within` (xmin,
+    /// ymin, xmax, ymax: the area, so that a stray point far away cannot blow up the grid).
+    pub fn new(pc: &PointCloud, classes: &[u8], cell: f64, within: [f64; 4]) -> PointIndex {
         let keep: Vec<u32> = (0..pc.len() as u32)
-            .filter(|&i| classes.contains(&pc.class[i as usize]))
+            .filter(|&i| {
+                let (x, y) = (pc.x[i as usize], pc.y[i as usize]);
+                classes.contains(&pc.class[i as usize])
+                    && x >= within[0]
+                    && x <= within[2]
+                    && y >= within[1]
+                    && y <= within[3]
+            })
             .collect();
         let (mut x0, mut y0, mut x1, mut y1) = (f64::MAX, f64::MAX, f64::MIN, f64::MIN);
         for &i in &keep {

@@ -20,13 +20,17 @@
 //! the tree's height and horizontally to CW(h) (`crown_scale` × the regression's width, or the
 //! template's own proportions with `keep_proportions`), rotated by a random yaw from the region's
 //! seed. A CHM that does not cover the area, or holds no cell above `min_height_m`, is an error
-//! naming the file.
+//! naming the file; heights above [`MAX_TREE_M`] are no data, with a warning giving their count.
 
 pub use crate::inputs::{ChmSource, TreesSpec};
 use std::path::PathBuf;
 
 use crate::error::ScenegenError;
 use crate::raster::{Grid, WorkingFrame};
+
+/// Canopy heights above this (m) are taken as no data (an undeclared fill value, a CHM in
+/// centimetres, a bird in the lidar): the tallest trees are about 116 m.
+pub const MAX_TREE_M: f32 = 150.0;
 
 /// Popescu & Wynne (2004) crown width of a deciduous/mixed-forest tree of height `h` (m).
 pub fn crown_width(h: f64) -> f64 {
@@ -56,19 +60,18 @@ pub fn detect(chm: &[f32], grid: &Grid, min_height: f64, window_m: Option<f64>) 
             if v.is_nan() || v < min_height {
                 continue;
             }
-            let cw = window_m.unwrap_or_else(|| crown_width(v));
-            let rad = 0.5 * cw;
+            let cw = crown_width(v);
+            let rad = 0.5 * window_m.unwrap_or(cw);
             let n = (rad / grid.dx).floor() as i64;
+            let (r0, r1) = ((r as i64 - n).max(0), (r as i64 + n).min(h as i64 - 1));
+            let (c0, c1) = ((c as i64 - n).max(0), (c as i64 + n).min(w as i64 - 1));
             let mut top = true;
-            'win: for dr in -n..=n {
-                for dc in -n..=n {
+            'win: for rr in r0..=r1 {
+                for cc in c0..=c1 {
+                    let (dr, dc) = (rr - r as i64, cc - c as i64);
                     if (dr == 0 && dc == 0)
                         || ((dr * dr + dc * dc) as f64) * grid.dx * grid.dx > rad * rad
                     {
-                        continue;
-                    }
-                    let (rr, cc) = (r as i64 + dr, c as i64 + dc);
-                    if rr < 0 || cc < 0 || rr >= h as i64 || cc >= w as i64 {
                         continue;
                     }
                     let kk = rr as usize * w + cc as usize;
@@ -132,17 +135,17 @@ pub fn load_chm(
         }
         Ok((v, grid))
     };
-    match &spec.source {
+    let (mut v, g, src) = match &spec.source {
         ChmSource::Chm(p) => {
             let (v, g) = read(p, "canopy-height raster", spec.cell_m)?;
-            Ok((v, g, p.clone()))
+            (v, g, p.clone())
         }
         ChmSource::DsmMinusDtm { dsm, dtm } => {
             let (s, g) = read(dsm, "surface model (DSM)", spec.cell_m)?;
             let (t, g2) = read(dtm, "terrain model (DTM)", Some(g.dx))?;
             debug_assert_eq!(g, g2);
             let v = s.iter().zip(&t).map(|(a, b)| a - b).collect();
-            Ok((v, g, dsm.clone()))
+            (v, g, dsm.clone())
         }
         ChmSource::Lidar { classes, exclude } => {
             let pc = lidar.expect("checked by the region");
@@ -189,9 +192,23 @@ pub fn load_chm(
                     }
                 }
             }
-            Ok((top, grid, PathBuf::from("[lidar]")))
+            (top, grid, PathBuf::from("[lidar]"))
+        }
+    };
+    let mut high = 0;
+    for x in v.iter_mut() {
+        if *x > MAX_TREE_M {
+            *x = f32::NAN;
+            high += 1;
         }
     }
+    if high > 0 {
+        tracing::warn!(
+            "{}: {high} canopy height(s) above {MAX_TREE_M} m taken as no data (fill values, units or outliers)",
+            src.display()
+        );
+    }
+    Ok((v, g, src))
 }
 
 #[cfg(test)]

@@ -3,10 +3,16 @@
 //! attributes a caller asks for. Used by vector land cover (`landcover_vector.rs`).
 //!
 //! Every feature is accounted for: a missing file, layer or attribute, a layer without a CRS
-//! (unless the region names one), a non-polygonal or unprojectable geometry is an error naming
-//! the file, the layer and the feature id; an empty geometry is skipped with a warning that names
-//! it; an invalid polygon (self-intersection, GEOS's `IsValid`) is kept with a warning naming it
-//! (GDAL's rasteriser burns it by its rings' scanline parity, so its pixels are still decided).
+//! (unless the region names one), or an unprojectable geometry is an error naming the file, the
+//! layer and the feature id; non-polygonal features are returned apart (`not_polygons`) for the
+//! caller to refuse (land cover) or skip with a warning (buildings); an empty geometry is
+//! skipped with a warning that names it; an invalid polygon (self-intersection, GEOS's
+//! `IsValid`) is kept with a warning naming it (GDAL's rasteriser burns it by its rings'
+//! scanline parity, so its pixels are still decided). Geometries come back as plain 2D polygons
+//! or multipolygons: Z and M values are dropped and curves (`CurvePolygon`, `MultiSurface`)
+//! approximated by line segments (GDAL's default step). An attribute read from OpenStreetMap's
+//! `other_tags` that no feature of the layer carries is an error (a misspelt key would otherwise
+//! read as null everywhere).
 
 use std::path::Path;
 
@@ -174,12 +180,13 @@ pub fn read_layer(
             );
             out.invalid.push(id);
         }
-        let geometry = g.transform(&to_work).map_err(|e| {
+        let mut geometry = linear(g).and_then(|l| l.transform(&to_work)).map_err(|e| {
             bad(
                 path,
                 format!("{label}, feature {id}: cannot transform it to the working CRS: {e}"),
             )
         })?;
+        geometry.flatten_to_2d();
         let mut values = Vec::with_capacity(idx.len());
         for field in &idx {
             let (i, tag) = match field {
@@ -220,7 +227,43 @@ pub fn read_layer(
             values,
         });
     }
+    for (k, field) in idx.iter().enumerate() {
+        if let Field::Tag(_, key) = field {
+            if !out.features.is_empty() && out.features.iter().all(|f| f.values[k].is_none()) {
+                return Err(bad(
+                    path,
+                    format!(
+                        "{label}: no feature carries the key `{key}` (neither a column, {} nor in `other_tags`)",
+                        fields.join(", ")
+                    ),
+                ));
+            }
+        }
+    }
     Ok(out)
+}
+
+/// `g` with its curves replaced by line segments (a copy of `g` when it has none).
+fn linear(g: &Geometry) -> gdal::errors::Result<Geometry> {
+    let t = gdal::vector::geometry_type_flatten(g.geometry_type());
+    if t == OGRwkbGeometryType::wkbPolygon || t == OGRwkbGeometryType::wkbMultiPolygon {
+        return Ok(g.clone());
+    }
+    // SAFETY: `g` is a valid geometry; the linear copy is owned here, exported to WKB and
+    // destroyed before returning.
+    unsafe {
+        let h = gdal_sys::OGR_G_GetLinearGeometry(g.c_geometry(), 0.0, std::ptr::null_mut());
+        if h.is_null() {
+            return Err(gdal::errors::GdalError::BadArgument(
+                "GDAL cannot approximate its curves".into(),
+            ));
+        }
+        let n = gdal_sys::OGR_G_WkbSize(h).max(0) as usize;
+        let mut buf = vec![0u8; n];
+        gdal_sys::OGR_G_ExportToWkb(h, gdal_sys::OGRwkbByteOrder::wkbNDR, buf.as_mut_ptr());
+        gdal_sys::OGR_G_DestroyGeometry(h);
+        Geometry::from_wkb(&buf)
+    }
 }
 
 /// Where an attribute is read: a column, or a key of the `other_tags` hstore column.

@@ -947,7 +947,7 @@ fn helsinki_osm_buildings_take_their_tagged_heights() {
         let h = *expected
             .get(id)
             .unwrap_or_else(|| panic!("{id} not among the tagged features"));
-        let got = r.roof - r.floor - scenegen::buildings::SINK_M;
+        let got = r.roof - r.ground;
         assert!((got - h).abs() < 1e-6, "{}: {got} vs tags {h}", r.id);
     }
     for (id, why) in &report.buildings_skipped {
@@ -966,5 +966,42 @@ fn helsinki_osm_buildings_take_their_tagged_heights() {
         expected.len()
     );
     assert_watertight(&b, "buildings_");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+/// Rationale: footprints with Z coordinates (GeoJSON 3-value positions, a shapefile PolygonZ)
+/// and a courtyard are extruded like 2D ones: one closed prism of the footprint's area with the
+/// hole, its roof at the lowest ground plus the attribute's height given as "9.5 m" text, its
+/// floor below the terrain by at least the sink and the terrain tolerance.
+#[test]
+fn footprints_with_z_and_a_courtyard_build() {
+    let dir = tmp("zfoot");
+    std::fs::write(
+        dir.join("b.geojson"),
+        "{\"type\":\"FeatureCollection\",\"features\":[{\"type\":\"Feature\",\"properties\":{\"h\":\"9.5 m\"},\"geometry\":{\"type\":\"Polygon\",\"coordinates\":[[[4.9995,44.9996,7],[5.0005,44.9996,7],[5.0005,45.0004,7],[4.9995,45.0004,7],[4.9995,44.9996,7]],[[4.9999,44.9999,7],[4.9999,45.0001,7],[5.0001,45.0001,7],[5.0001,44.9999,7],[4.9999,44.9999,7]]]}}]}",
+    )
+    .unwrap();
+    let region = vector_region(
+        &dir,
+        "class = 71\n[[buildings]]\nfile = \"b.geojson\"\nheight_attribute = \"h\"\n",
+    );
+    let report = build_lib(&region, &dir.join("bundle"));
+    assert_eq!(report.buildings.len(), 1, "{:?}", report.buildings_skipped);
+    let r = &report.buildings[0];
+    assert!((r.roof - r.ground - 9.5).abs() < 1e-9, "{r:?}");
+    assert!(
+        r.ground - r.floor >= scenegen::buildings::SINK_M + 1.0 - 1e-9,
+        "{r:?}"
+    );
+    // ≈ 79 m × 89 m minus ≈ 16 m × 22 m.
+    assert!(r.area_m2 > 6000.0 && r.area_m2 < 6700.0, "{}", r.area_m2);
+    let b = Bundle::open(&dir.join("bundle")).unwrap();
+    for t in b
+        .templates
+        .iter()
+        .filter(|t| t.name.starts_with("buildings_"))
+    {
+        assert!(scenegen::buildings::closed_mesh(&t.indices));
+    }
     std::fs::remove_dir_all(&dir).unwrap();
 }
