@@ -20,7 +20,7 @@
 //!   `height`: from the lowest ground point to the top), where the height comes from an
 //!   attribute (m), a storey count × `storey_height_m`, one value for the layer, or the
 //!   `roof_percentile` (default the median) of the lidar points of `roof_classes` inside the
-//!   footprint (absolute heights, as the DEM). A null or non-numeric height uses
+//!   footprint, or of a surface model's pixel centres inside it (absolute heights, as the DEM). A null or non-numeric height uses
 //!   `default_height_m` with a warning naming the features, else is an error naming the feature;
 //!   a footprint partly outside the DEM (cut by the area's edge) is skipped with a warning naming
 //!   it, and footprints wholly outside are counted in the log.
@@ -228,6 +228,42 @@ pub fn closed_mesh(tris: &[[u32; 3]]) -> bool {
         .all(|(&(a, b), &n)| n == 1 && edges.get(&(b, a)) == Some(&1))
 }
 
+/// The pixels of a surface model (DSM) as points (class 0) at their centres in the working CRS,
+/// read on a grid of its own pixel size over the area by nearest-neighbour warping (no data
+/// skipped).
+fn dsm_points(path: &std::path::Path, frame: &WorkingFrame) -> Result<PointCloud, ScenegenError> {
+    use crate::raster::{check_coverage, open_georeferenced, pixel_size_m, warp};
+    let role = "surface model (DSM)";
+    let ds = open_georeferenced(path, role)?;
+    check_coverage(&ds, path, role, frame, frame.extent)?;
+    let grid = Grid::dem_nodes(frame.extent, pixel_size_m(&ds, path, frame)?);
+    let nodata = ds
+        .rasterband(1)
+        .map_err(|e| crate::error::input(path, e.to_string()))?
+        .no_data_value();
+    let v: Vec<f32> = warp(
+        &ds,
+        path,
+        frame,
+        &grid,
+        gdal_sys::GDALResampleAlg::GRA_NearestNeighbour,
+        -1.0e30,
+    )?;
+    let mut pc = PointCloud::default();
+    for r in 0..grid.height {
+        for c in 0..grid.width {
+            let z = v[r * grid.width + c];
+            if z > -1.0e29 && z.is_finite() && Some(z as f64) != nodata {
+                pc.x.push(grid.x(c));
+                pc.y.push(grid.y(r));
+                pc.z.push(z as f64);
+                pc.class.push(0);
+            }
+        }
+    }
+    Ok(pc)
+}
+
 /// Bilinear height of the DEM node grid at (x, y), `None` outside it.
 pub fn ground_at(grid: &Grid, h: &[f32], x: f64, y: f64) -> Option<f64> {
     let fc = (x - grid.x0) / grid.dx;
@@ -304,6 +340,7 @@ pub fn build(
     // Square (col, row) → (template positions, indices, materials).
     let mut groups = TemplateGroups::new(ground.tile_m);
     let mut index_cache: BTreeMap<Vec<u8>, PointIndex> = BTreeMap::new();
+    let mut dsm_cache: BTreeMap<PathBuf, (PointCloud, PointIndex)> = BTreeMap::new();
     for (si, spec) in specs.iter().enumerate() {
         let (roof_m, wall_m) = (
             material(&spec.roof_material)?,
@@ -351,6 +388,17 @@ pub fn build(
                     index_cache.insert(classes.clone(), PointIndex::new(pc, classes, 4.0, within));
                 }
                 Some((pc, &index_cache[classes]))
+            }
+            HeightSource::Dsm { path, .. } => {
+                if !dsm_cache.contains_key(path) {
+                    let pc = dsm_points(path, ground.frame)?;
+                    let g = ground.grid;
+                    let within = [g.x0, g.y(g.height - 1), g.x(g.width - 1), g.y0];
+                    let idx = PointIndex::new(&pc, &[0], 4.0, within);
+                    dsm_cache.insert(path.clone(), (pc, idx));
+                }
+                let (pc, idx) = &dsm_cache[path];
+                Some((pc, idx))
             }
             _ => None,
         };
@@ -444,7 +492,8 @@ pub fn build(
                     HeightSource::Levels { storey_m, .. } => {
                         f.values[0].as_ref().and_then(as_f64).map(|l| l * storey_m)
                     }
-                    HeightSource::Lidar { percentile: p, .. } => {
+                    HeightSource::Lidar { percentile: p, .. }
+                    | HeightSource::Dsm { percentile: p, .. } => {
                         let (pc, idx) = index.expect("lidar index");
                         idx.candidates(bb, &mut cand);
                         let mut zs: Vec<f64> = cand
@@ -472,6 +521,9 @@ pub fn build(
                             (HeightSource::Lidar { .. }, None) => {
                                 "no lidar point of the roof classes inside the footprint"
                                     .to_string()
+                            }
+                            (HeightSource::Dsm { .. }, None) => {
+                                "no surface-model pixel centre inside the footprint".to_string()
                             }
                             (_, Some(h)) => format!("height {h:.2} m is not positive"),
                             (_, None) => "the height attribute is null or not a number".into(),

@@ -41,6 +41,8 @@ pub enum HeightSource {
     Constant(f64),
     /// A percentile of the region's lidar points of these classes inside the footprint.
     Lidar { classes: Vec<u8>, percentile: f64 },
+    /// A percentile of the heights of a surface model's pixels inside the footprint.
+    Dsm { path: PathBuf, percentile: f64 },
 }
 
 /// One `[[buildings]]` entry, paths resolved.

@@ -132,6 +132,8 @@ struct BuildingsConfig {
     #[serde(default)]
     height_from_lidar: bool,
     #[serde(default)]
+    height_from_dsm: Option<PathBuf>,
+    #[serde(default)]
     roof_classes: Option<Vec<u8>>,
     #[serde(default)]
     roof_percentile: Option<f64>,
@@ -682,11 +684,12 @@ impl Region {
                 b.levels_attribute.is_some(),
                 b.height_m.is_some(),
                 b.height_from_lidar,
+                b.height_from_dsm.is_some(),
             ];
             if given.iter().filter(|&&g| g).count() != 1 {
                 return Err(inv(
                     &format!("buildings[{i}]"),
-                    "give exactly one height source: `height_attribute`, `levels_attribute`, `height_m` or `height_from_lidar = true`".into(),
+                    "give exactly one height source: `height_attribute`, `levels_attribute`, `height_m`, `height_from_lidar = true` or `height_from_dsm`".into(),
                 ));
             }
             if b.storey_height_m.is_some() && b.levels_attribute.is_none() {
@@ -695,13 +698,17 @@ impl Region {
                     "only with `levels_attribute`".into(),
                 ));
             }
-            if (b.roof_classes.is_some() || b.roof_percentile.is_some()) && !b.height_from_lidar {
-                let k = if b.roof_classes.is_some() {
-                    "roof_classes"
-                } else {
-                    "roof_percentile"
-                };
-                return Err(inv(&key(k), "only with `height_from_lidar = true`".into()));
+            if b.roof_classes.is_some() && !b.height_from_lidar {
+                return Err(inv(
+                    &key("roof_classes"),
+                    "only with `height_from_lidar = true`".into(),
+                ));
+            }
+            if b.roof_percentile.is_some() && !b.height_from_lidar && b.height_from_dsm.is_none() {
+                return Err(inv(
+                    &key("roof_percentile"),
+                    "only with `height_from_lidar = true` or `height_from_dsm`".into(),
+                ));
             }
             if b.height_from_lidar && lidar.is_none() {
                 return Err(inv(
@@ -725,6 +732,11 @@ impl Region {
                 }
             } else if let Some(h) = b.height_m {
                 HeightSource::Constant(h)
+            } else if let Some(p) = &b.height_from_dsm {
+                HeightSource::Dsm {
+                    path: base.join(p),
+                    percentile,
+                }
             } else {
                 HeightSource::Lidar {
                     classes: b.roof_classes.clone().unwrap_or_else(|| vec![6]),
