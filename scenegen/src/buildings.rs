@@ -24,6 +24,10 @@
 //!   `default_height_m` with a warning naming the features, else is an error naming the feature;
 //!   a footprint partly outside the DEM (cut by the area's edge) is skipped with a warning naming
 //!   it, and footprints wholly outside are counted in the log.
+//! * **Gabled roofs** (`roof_shape`, `roof_shape_attribute`): the ridge along the long axis of the
+//!   footprint's minimum rotated rectangle at the building's height, slopes at `roof_pitch_deg`
+//!   (rise at most half the height); ring edges split where they cross the ridge and the ridge
+//!   constrained inside, so roof triangles are planar and the walls' tops follow the slopes.
 //! * **Placement**: the buildings of each square of `terrain.tile_size_m` form one template
 //!   (`buildings_<col>_<row>`) with a single instance, so a city of 10⁵ buildings is a few hundred
 //!   templates, each with its own BVH in `simulate`.
@@ -113,10 +117,121 @@ fn clean_ring(ls: &LineString<f64>, ccw: bool) -> Vec<[f64; 2]> {
     r
 }
 
-/// Extrude `poly` (working CRS) between `floor` and `roof` into a closed prism.
+/// A gabled roof: the ridge along the long axis of the footprint's minimum rotated rectangle,
+/// at `top`, falling by `rise` to the rectangle's long sides (the eaves).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Gable {
+    /// A point of the ridge line and the unit normal across it (working CRS).
+    pub origin: [f64; 2],
+    pub normal: [f64; 2],
+    /// Half the rectangle's short side, m.
+    pub half_width: f64,
+    pub top: f64,
+    pub rise: f64,
+}
+
+impl Gable {
+    /// The gable of `poly` with its ridge at `top` and the given `rise` (m), `None` for a
+    /// degenerate footprint.
+    pub fn over(poly: &Polygon<f64>, top: f64, rise: f64) -> Option<Gable> {
+        use geo::MinimumRotatedRect;
+        let r = poly.minimum_rotated_rect()?;
+        let c: Vec<[f64; 2]> = r.exterior().0.iter().map(|c| [c.x, c.y]).collect();
+        if c.len() < 4 {
+            return None;
+        }
+        let e = |a: usize, b: usize| [c[b][0] - c[a][0], c[b][1] - c[a][1]];
+        let (e1, e2) = (e(0, 1), e(1, 2));
+        let (l1, l2) = (e1[0].hypot(e1[1]), e2[0].hypot(e2[1]));
+        let (long, short) = if l1 >= l2 { (e1, l2) } else { (e2, l1) };
+        let ll = long[0].hypot(long[1]);
+        if !(ll > 0.0 && short > 0.0) {
+            return None;
+        }
+        let centre = [
+            0.25 * (c[0][0] + c[1][0] + c[2][0] + c[3][0]),
+            0.25 * (c[0][1] + c[1][1] + c[2][1] + c[3][1]),
+        ];
+        Some(Gable {
+            origin: centre,
+            normal: [-long[1] / ll, long[0] / ll],
+            half_width: 0.5 * short,
+            top,
+            rise,
+        })
+    }
+
+    /// Signed distance from the ridge line, m.
+    pub fn across(&self, x: f64, y: f64) -> f64 {
+        (x - self.origin[0]) * self.normal[0] + (y - self.origin[1]) * self.normal[1]
+    }
+
+    /// The roof's height at (x, y).
+    pub fn z(&self, x: f64, y: f64) -> f64 {
+        self.top - self.rise * (self.across(x, y).abs() / self.half_width).min(1.0)
+    }
+}
+
+/// The roof of a prism: flat at a height, or gabled.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Roof {
+    Flat(f64),
+    Gabled(Gable),
+}
+
+impl Roof {
+    fn z(&self, x: f64, y: f64) -> f64 {
+        match self {
+            Roof::Flat(h) => *h,
+            Roof::Gabled(g) => g.z(x, y),
+        }
+    }
+    fn lowest(&self) -> f64 {
+        match self {
+            Roof::Flat(h) => *h,
+            Roof::Gabled(g) => g.top - g.rise,
+        }
+    }
+}
+
+/// Extrude `poly` (working CRS) between `floor` and a flat `roof` into a closed prism.
 pub fn extrude(poly: &Polygon<f64>, floor: f64, roof: f64) -> Result<Prism, String> {
+    extrude_roof(poly, floor, &Roof::Flat(roof))
+}
+
+/// Extrude `poly` between `floor` and `roof`. A gabled roof splits the ring edges where they
+/// cross the ridge line and constrains the ridge's segments inside the footprint, so every roof
+/// triangle lies on one slope (planar) and the walls' tops follow the slopes exactly.
+pub fn extrude_roof(poly: &Polygon<f64>, floor: f64, roof_shape: &Roof) -> Result<Prism, String> {
+    let roof = roof_shape.lowest();
     let mut rings = vec![clean_ring(poly.exterior(), true)];
     rings.extend(poly.interiors().iter().map(|h| clean_ring(h, false)));
+    if let Roof::Gabled(g) = roof_shape {
+        for r in rings.iter_mut() {
+            let mut split = Vec::with_capacity(r.len() + 4);
+            for i in 0..r.len() {
+                let (a, b) = (r[i], r[(i + 1) % r.len()]);
+                split.push(a);
+                let (da, db) = (g.across(a[0], a[1]), g.across(b[0], b[1]));
+                if da * db < 0.0 {
+                    let t = da / (da - db);
+                    let q = [a[0] + t * (b[0] - a[0]), a[1] + t * (b[1] - a[1])];
+                    if q != a && q != b {
+                        split.push(q);
+                    }
+                }
+            }
+            *r = split;
+        }
+    }
+    // Inside tests use the rings as triangulated (a split point lies a rounding error off the
+    // original edge: the original polygon could keep a sliver outside them).
+    let to_ls = |r: &Vec<[f64; 2]>| {
+        let mut c: Vec<Coord<f64>> = r.iter().map(|p| Coord { x: p[0], y: p[1] }).collect();
+        c.extend(c.first().copied());
+        LineString::new(c)
+    };
+    let poly = &Polygon::new(to_ls(&rings[0]), rings[1..].iter().map(to_ls).collect());
     for (i, r) in rings.iter().enumerate() {
         if r.len() < 3 || signed_area(r).abs() < 1e-6 {
             return Err(if i == 0 {
@@ -128,7 +243,7 @@ pub fn extrude(poly: &Polygon<f64>, floor: f64, roof: f64) -> Result<Prism, Stri
     }
     if roof.partial_cmp(&floor) != Some(std::cmp::Ordering::Greater) {
         return Err(format!(
-            "roof at {roof:.2} m is not above the floor at {floor:.2} m"
+            "roof (eaves) at {roof:.2} m is not above the floor at {floor:.2} m"
         ));
     }
     // Coordinates relative to the first vertex keep spade's predicates well conditioned.
@@ -160,6 +275,37 @@ pub fn extrude(poly: &Polygon<f64>, floor: f64, roof: f64) -> Result<Prism, Stri
     if cdt.num_vertices() != rings.iter().map(Vec::len).sum::<usize>() {
         return Err("its rings cross (self-intersection)".into());
     }
+    if let Roof::Gabled(g) = roof_shape {
+        // Ring vertices on the ridge line, in order along it; the stretches between consecutive
+        // ones that lie inside the footprint are ridge segments.
+        let along = [g.normal[1], -g.normal[0]];
+        let mut on: Vec<(f64, spade::handles::FixedVertexHandle)> = Vec::new();
+        for (r, hs) in rings.iter().zip(&handles) {
+            for (p, &h) in r.iter().zip(hs) {
+                if g.across(p[0], p[1]).abs() < 1e-7 {
+                    on.push((p[0] * along[0] + p[1] * along[1], h));
+                }
+            }
+        }
+        on.sort_by(|a, b| a.0.total_cmp(&b.0));
+        for w in on.windows(2) {
+            let (pa, pb) = (cdt.vertex(w[0].1).position(), cdt.vertex(w[1].1).position());
+            let mid = Coord {
+                x: 0.5 * (pa.x + pb.x) + o[0],
+                y: 0.5 * (pa.y + pb.y) + o[1],
+            };
+            if w[0].1 != w[1].1
+                && poly.contains(&mid)
+                && cdt.try_add_constraint(w[0].1, w[1].1).is_empty()
+                && !cdt.exists_constraint(w[0].1, w[1].1)
+            {
+                return Err("its ridge crosses a ring".into());
+            }
+        }
+        if cdt.num_vertices() != rings.iter().map(Vec::len).sum::<usize>() {
+            return Err("its ridge crosses a ring".into());
+        }
+    }
     // Ring vertex k ↔ CDT vertex index.
     let nv = cdt.num_vertices();
     let mut pos2 = vec![[0f64; 2]; nv];
@@ -172,7 +318,7 @@ pub fn extrude(poly: &Polygon<f64>, floor: f64, roof: f64) -> Result<Prism, Stri
         prism.positions.push([p[0], p[1], floor]);
     }
     for p in &pos2 {
-        prism.positions.push([p[0], p[1], roof]);
+        prism.positions.push([p[0], p[1], roof_shape.z(p[0], p[1])]);
     }
     let top = nv as u32;
     let mut roof_tris = 0;
@@ -347,13 +493,21 @@ pub fn build(
             material(&spec.wall_material)?,
         );
         let mut attrs: Vec<&str> = Vec::new();
-        match &spec.height {
-            HeightSource::Attribute(a) | HeightSource::Levels { attribute: a, .. } => attrs.push(a),
-            _ => {}
-        }
-        if let Some(a) = &spec.id_attribute {
+        let h_at = match &spec.height {
+            HeightSource::Attribute(a) | HeightSource::Levels { attribute: a, .. } => {
+                attrs.push(a);
+                Some(attrs.len() - 1)
+            }
+            _ => None,
+        };
+        let id_at = spec.id_attribute.as_deref().map(|a| {
             attrs.push(a);
-        }
+            attrs.len() - 1
+        });
+        let roof_at = spec.roof.attribute.as_deref().map(|a| {
+            attrs.push(a);
+            attrs.len() - 1
+        });
         let layer = read_layer(
             &spec.file,
             spec.layer.as_deref(),
@@ -406,11 +560,7 @@ pub fn build(
         let mut defaulted = Vec::new();
         let mut cand = Vec::new();
         for f in &layer.features {
-            let id = match spec
-                .id_attribute
-                .as_ref()
-                .and(f.values.last().cloned().flatten())
-            {
+            let id = match id_at.and_then(|k| f.values[k].clone()) {
                 Some(v) => as_text(&v),
                 None => f.osm.clone().unwrap_or_else(|| f.id.to_string()),
             };
@@ -483,33 +633,37 @@ pub fn build(
                     }
                 }
                 let mut npts = 0;
-                let height = match &spec.height {
-                    HeightSource::Constant(h) => Some(*h),
-                    HeightSource::Attribute(_) => f.values[0].as_ref().and_then(|v| match v {
-                        gdal::vector::FieldValue::StringValue(t) => parse_length(t),
-                        other => as_f64(other),
-                    }),
-                    HeightSource::Levels { storey_m, .. } => {
-                        f.values[0].as_ref().and_then(as_f64).map(|l| l * storey_m)
-                    }
-                    HeightSource::Lidar { percentile: p, .. }
-                    | HeightSource::Dsm { percentile: p, .. } => {
-                        let (pc, idx) = index.expect("lidar index");
-                        idx.candidates(bb, &mut cand);
-                        let mut zs: Vec<f64> = cand
-                            .iter()
-                            .filter(|&&i| {
-                                poly.contains(&Coord {
-                                    x: pc.x[i as usize],
-                                    y: pc.y[i as usize],
+                let height =
+                    match &spec.height {
+                        HeightSource::Constant(h) => Some(*h),
+                        HeightSource::Attribute(_) => f.values[h_at.expect("slot")]
+                            .as_ref()
+                            .and_then(|v| match v {
+                                gdal::vector::FieldValue::StringValue(t) => parse_length(t),
+                                other => as_f64(other),
+                            }),
+                        HeightSource::Levels { storey_m, .. } => f.values[h_at.expect("slot")]
+                            .as_ref()
+                            .and_then(as_f64)
+                            .map(|l| l * storey_m),
+                        HeightSource::Lidar { percentile: p, .. }
+                        | HeightSource::Dsm { percentile: p, .. } => {
+                            let (pc, idx) = index.expect("lidar index");
+                            idx.candidates(bb, &mut cand);
+                            let mut zs: Vec<f64> = cand
+                                .iter()
+                                .filter(|&&i| {
+                                    poly.contains(&Coord {
+                                        x: pc.x[i as usize],
+                                        y: pc.y[i as usize],
+                                    })
                                 })
-                            })
-                            .map(|&i| pc.z[i as usize])
-                            .collect();
-                        npts = zs.len();
-                        (!zs.is_empty()).then(|| percentile(&mut zs, *p) - low)
-                    }
-                };
+                                .map(|&i| pc.z[i as usize])
+                                .collect();
+                            npts = zs.len();
+                            (!zs.is_empty()).then(|| percentile(&mut zs, *p) - low)
+                        }
+                    };
                 let height = match (height, spec.default_height_m) {
                     (Some(h), _) if h.is_finite() && h > 0.0 => h,
                     (_, Some(d)) => {
@@ -536,7 +690,27 @@ pub fn build(
                 };
                 let floor = low - SINK_M - ground.tolerance_m;
                 let roof = low + height;
-                let prism = match extrude(poly, floor, roof) {
+                let gabled = spec.roof.gabled
+                    || roof_at.is_some_and(|k| {
+                        f.values[k]
+                            .as_ref()
+                            .is_some_and(|v| as_text(v).trim().eq_ignore_ascii_case("gabled"))
+                    });
+                let shape = match gabled {
+                    true => {
+                        let rise =
+                            |w: f64| (w * spec.roof.pitch_deg.to_radians().tan()).min(0.5 * height);
+                        match Gable::over(poly, roof, 0.0) {
+                            Some(g) => Roof::Gabled(Gable {
+                                rise: rise(g.half_width),
+                                ..g
+                            }),
+                            None => Roof::Flat(roof),
+                        }
+                    }
+                    false => Roof::Flat(roof),
+                };
+                let prism = match extrude_roof(poly, floor, &shape) {
                     Ok(p) => p,
                     Err(why) => {
                         tracing::warn!("{}, building {pid}: skipped: {why}", layer.label);
@@ -707,6 +881,103 @@ mod tests {
         assert!(
             (roof_area - 364.0).abs() < 1e-9,
             "roof faces up: {roof_area}"
+        );
+    }
+
+    fn volume(p: &Prism) -> f64 {
+        p.triangles
+            .iter()
+            .map(|t| {
+                let [a, b, c] = t.map(|i| glam::DVec3::from(p.positions[i as usize]));
+                a.dot(b.cross(c)) / 6.0
+            })
+            .sum()
+    }
+
+    #[test]
+    fn gabled_roofs_are_closed_and_hold_the_prism_plus_half_the_rise() {
+        // A 20 m × 10 m block turned by 30°: ridge along the long side, 10 m eaves, 14 m ridge.
+        let (s, c) = 30f64.to_radians().sin_cos();
+        let rot = |x: f64, y: f64| (100.0 + c * x - s * y, 50.0 + s * x + c * y);
+        let ring: Vec<(f64, f64)> = [
+            (0.0, 0.0),
+            (20.0, 0.0),
+            (20.0, 10.0),
+            (0.0, 10.0),
+            (0.0, 0.0),
+        ]
+        .iter()
+        .map(|&(x, y)| rot(x, y))
+        .collect();
+        let poly = Polygon::new(LineString::from(ring), vec![]);
+        let g = Gable::over(&poly, 14.0, 4.0).unwrap();
+        assert!((g.half_width - 5.0).abs() < 1e-9, "{g:?}");
+        let p = extrude_roof(&poly, 0.0, &Roof::Gabled(g)).unwrap();
+        assert!(closed_mesh(&p.triangles));
+        let v = volume(&p);
+        assert!(
+            (v - (200.0 * 10.0 + 200.0 * 2.0)).abs() < 1e-6,
+            "volume {v}"
+        );
+        // Every roof vertex lies on the roof's surface, and the ridge reaches 14 m.
+        let top = p.positions.iter().map(|q| q[2]).fold(f64::MIN, f64::max);
+        assert!((top - 14.0).abs() < 1e-9);
+        // An L-shaped block and a courtyard block: still closed, volumes between flat bounds.
+        let l = Polygon::new(
+            LineString::from(vec![
+                (0.0, 0.0),
+                (30.0, 0.0),
+                (30.0, 8.0),
+                (8.0, 8.0),
+                (8.0, 20.0),
+                (0.0, 20.0),
+                (0.0, 0.0),
+            ]),
+            vec![],
+        );
+        let court = Polygon::new(square(0.0, 0.0, 20.0), vec![square(7.0, 7.0, 6.0)]);
+        for poly in [l, court] {
+            let g = Gable::over(&poly, 12.0, 3.0).unwrap();
+            let p = extrude_roof(&poly, 0.0, &Roof::Gabled(g)).unwrap();
+            assert!(closed_mesh(&p.triangles));
+            let a = geo::Area::unsigned_area(&poly);
+            let v = volume(&p);
+            assert!(
+                v > a * 9.0 + 1e-9 && v < a * 12.0 - 1e-9,
+                "volume {v}, area {a}"
+            );
+            for (t, &r) in p.triangles.iter().zip(&p.roof) {
+                if r {
+                    for &i in t {
+                        let q = p.positions[i as usize];
+                        assert!((q[2] - g.z(q[0], q[1])).abs() < 1e-9);
+                    }
+                }
+            }
+        }
+    }
+
+    /// A nearly square footprint from a real reprojection: the ridge's split points lie a
+    /// rounding error off their edges, which once left a sliver on the roof (not closed).
+    #[test]
+    fn split_points_off_their_edges_leave_no_sliver() {
+        let poly = Polygon::new(
+            LineString::from(vec![
+                (-315.40928384603245, -444.51916871506023),
+                (-78.85232096139855, -444.5264667809543),
+                (-78.84957807604188, -222.2630292068019),
+                (-315.39831230458907, -222.2557311387835),
+                (-315.40928384603245, -444.51916871506023),
+            ]),
+            vec![],
+        );
+        let g = Gable::over(&poly, 310.0, 5.0).unwrap();
+        let p = extrude_roof(&poly, 298.5, &Roof::Gabled(g)).unwrap();
+        assert!(closed_mesh(&p.triangles));
+        assert_eq!(
+            p.positions.len(),
+            12,
+            "four corners and two ridge ends, floor and roof"
         );
     }
 

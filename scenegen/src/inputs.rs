@@ -59,6 +59,18 @@ pub struct BuildingsSpec {
     pub default_height_m: Option<f64>,
     pub roof_material: String,
     pub wall_material: String,
+    pub roof: RoofSpec,
+}
+
+/// Roof shapes of a `[[buildings]]` entry.
+#[derive(Clone, Debug, PartialEq)]
+pub struct RoofSpec {
+    /// Every footprint gabled (else flat, unless `attribute` says gabled).
+    pub gabled: bool,
+    /// Attribute whose value `gabled` makes a footprint's roof gabled (OSM `roof:shape`).
+    pub attribute: Option<String>,
+    /// Slope of the gables, degrees.
+    pub pitch_deg: f64,
 }
 
 /// One `[[city_models]]` entry, paths resolved.

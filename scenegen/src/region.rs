@@ -134,6 +134,12 @@ struct BuildingsConfig {
     #[serde(default)]
     height_from_dsm: Option<PathBuf>,
     #[serde(default)]
+    roof_shape: Option<String>,
+    #[serde(default)]
+    roof_shape_attribute: Option<String>,
+    #[serde(default)]
+    roof_pitch_deg: Option<f64>,
+    #[serde(default)]
     roof_classes: Option<Vec<u8>>,
     #[serde(default)]
     roof_percentile: Option<f64>,
@@ -743,7 +749,35 @@ impl Region {
                     percentile,
                 }
             };
+            let gabled = match b.roof_shape.as_deref() {
+                None | Some("flat") => false,
+                Some("gabled") => true,
+                Some(other) => {
+                    return Err(inv(
+                        &key("roof_shape"),
+                        format!("`{other}`: the shapes are \"flat\" and \"gabled\""),
+                    ))
+                }
+            };
+            let pitch = b.roof_pitch_deg.unwrap_or(30.0);
+            if !(pitch.is_finite() && pitch > 0.0 && pitch <= 75.0) {
+                return Err(inv(
+                    &key("roof_pitch_deg"),
+                    format!("{pitch} must be in (0, 75] degrees"),
+                ));
+            }
+            if b.roof_pitch_deg.is_some() && !gabled && b.roof_shape_attribute.is_none() {
+                return Err(inv(
+                    &key("roof_pitch_deg"),
+                    "only with `roof_shape = \"gabled\"` or `roof_shape_attribute`".into(),
+                ));
+            }
             buildings.push(BuildingsSpec {
+                roof: crate::inputs::RoofSpec {
+                    gabled,
+                    attribute: b.roof_shape_attribute.clone(),
+                    pitch_deg: pitch,
+                },
                 file: base.join(&b.file),
                 layer: b.layer.clone(),
                 crs: b.crs.clone(),

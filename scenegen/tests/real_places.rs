@@ -1137,3 +1137,61 @@ fn bad_lidar_and_building_inputs_are_named() {
     );
     std::fs::remove_dir_all(&dir).unwrap();
 }
+
+/// Rationale: `roof_shape_attribute` makes the footprints tagged `gabled` gabled (ridge at the
+/// building's height, eaves lower) and leaves the others flat; every prism stays closed.
+#[test]
+fn gabled_roofs_from_an_attribute() {
+    let dir = tmp("gable");
+    std::fs::write(
+        dir.join("b.geojson"),
+        geojson(&[
+            (
+                "\"h\":10,\"roof\":\"gabled\"",
+                "[[[4.996,44.996],[4.999,44.996],[4.999,44.998],[4.996,44.998],[4.996,44.996]]]",
+            ),
+            (
+                "\"h\":10,\"roof\":\"flat\"",
+                "[[[5.001,45.001],[5.004,45.001],[5.004,45.004],[5.001,45.004],[5.001,45.001]]]",
+            ),
+        ]),
+    )
+    .unwrap();
+    let region = vector_region(
+        &dir,
+        "class = 71\n[[buildings]]\nfile = \"b.geojson\"\nheight_attribute = \"h\"\nroof_shape_attribute = \"roof\"\nroof_pitch_deg = 20\n",
+    );
+    let report = build_lib(&region, &dir.join("bundle"));
+    assert_eq!(report.buildings.len(), 2, "{:?}", report.buildings_skipped);
+    let b = Bundle::open(&dir.join("bundle")).unwrap();
+    let roof = b
+        .manifest
+        .materials
+        .iter()
+        .find(|m| m.name == "roof")
+        .unwrap()
+        .index;
+    let mut heights: Vec<f32> = Vec::new();
+    for t in b
+        .templates
+        .iter()
+        .filter(|t| t.name.starts_with("buildings_"))
+    {
+        assert!(scenegen::buildings::closed_mesh(&t.indices));
+        for (tri, &m) in t.indices.iter().zip(&t.materials) {
+            if m == roof {
+                heights.extend(tri.iter().map(|&i| t.positions[i as usize][2]));
+            }
+        }
+    }
+    heights.sort_by(|a, b| a.total_cmp(b));
+    heights.dedup_by(|a, b| (*a - *b).abs() < 1e-3);
+    // The flat roof and the ridge at 310 m, the gabled eaves lower.
+    assert!(heights.len() >= 2, "{heights:?}");
+    assert!(
+        (heights.last().unwrap() - 310.0).abs() < 1e-3,
+        "{heights:?}"
+    );
+    assert!(heights[0] < 309.0, "{heights:?}");
+    std::fs::remove_dir_all(&dir).unwrap();
+}
