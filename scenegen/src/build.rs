@@ -52,6 +52,25 @@ pub struct BuildReport {
     pub trees: Vec<Vec<crate::trees::TreeTop>>,
 }
 
+/// Add `meshes` as templates, each with one unrotated instance at its origin (working-CRS
+/// x, y; the meshes' heights are absolute).
+fn place_once(
+    meshes: Vec<TemplateMesh>,
+    origins: &[[f64; 2]],
+    origin: [f64; 3],
+    templates: &mut Vec<TemplateMesh>,
+    instances: &mut Vec<bundle::Instance>,
+) {
+    for (mesh, o) in meshes.into_iter().zip(origins) {
+        instances.push(bundle::Instance {
+            translation: [o[0] - origin[0], o[1] - origin[1], 0.0],
+            linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            template: templates.len() as u32,
+        });
+        templates.push(mesh);
+    }
+}
+
 /// Detect the trees of every `[[trees]]` entry and add their instances (on the terrain TIN,
 /// scaled to height and crown, random yaw keyed by the region's seed and the entry).
 #[allow(clippy::too_many_arguments)]
@@ -501,14 +520,13 @@ pub fn build(
             },
             &mut material_index,
         )?;
-        for (mesh, o) in out.templates.into_iter().zip(out.origins) {
-            instances.push(bundle::Instance {
-                translation: [o[0] - origin[0], o[1] - origin[1], 0.0],
-                linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-                template: templates.len() as u32,
-            });
-            templates.push(mesh);
-        }
+        place_once(
+            out.templates,
+            &out.origins,
+            origin,
+            &mut templates,
+            &mut instances,
+        );
         building_inputs = out.inputs;
         building_records = out.records;
         buildings_skipped = out.skipped;
@@ -523,14 +541,13 @@ pub fn build(
             region.terrain_tile_m,
             &mut material_index,
         )?;
-        for (mesh, o) in out.templates.into_iter().zip(out.origins) {
-            instances.push(bundle::Instance {
-                translation: [o[0] - origin[0], o[1] - origin[1], 0.0],
-                linear: [1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-                template: templates.len() as u32,
-            });
-            templates.push(mesh);
-        }
+        place_once(
+            out.templates,
+            &out.origins,
+            origin,
+            &mut templates,
+            &mut instances,
+        );
         building_inputs.extend(out.inputs);
         city_records = out.records;
         pb.finish_and_clear();

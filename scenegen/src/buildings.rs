@@ -378,28 +378,12 @@ pub fn closed_mesh(tris: &[[u32; 3]]) -> bool {
 /// read on a grid of its own pixel size over the area by nearest-neighbour warping (no data
 /// skipped).
 fn dsm_points(path: &std::path::Path, frame: &WorkingFrame) -> Result<PointCloud, ScenegenError> {
-    use crate::raster::{check_coverage, open_georeferenced, pixel_size_m, warp};
-    let role = "surface model (DSM)";
-    let ds = open_georeferenced(path, role)?;
-    check_coverage(&ds, path, role, frame, frame.extent)?;
-    let grid = Grid::dem_nodes(frame.extent, pixel_size_m(&ds, path, frame)?);
-    let nodata = ds
-        .rasterband(1)
-        .map_err(|e| crate::error::input(path, e.to_string()))?
-        .no_data_value();
-    let v: Vec<f32> = warp(
-        &ds,
-        path,
-        frame,
-        &grid,
-        gdal_sys::GDALResampleAlg::GRA_NearestNeighbour,
-        -1.0e30,
-    )?;
+    let (v, grid) = crate::raster::read_nearest(path, "surface model (DSM)", frame, None)?;
     let mut pc = PointCloud::default();
     for r in 0..grid.height {
         for c in 0..grid.width {
             let z = v[r * grid.width + c];
-            if z > -1.0e29 && z.is_finite() && Some(z as f64) != nodata {
+            if z.is_finite() {
                 pc.x.push(grid.x(c));
                 pc.y.push(grid.y(r));
                 pc.z.push(z as f64);

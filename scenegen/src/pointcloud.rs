@@ -278,18 +278,13 @@ pub fn grid_heights(
     }
     let mut sum = vec![0f64; w * h];
     let mut n = vec![0u32; w * h];
-    let x_left = grid.x0 - 0.5 * grid.dx;
-    let y_top = grid.y0 + 0.5 * grid.dx;
     for i in 0..pc.len() {
         if !classes.contains(&pc.class[i]) {
             continue;
         }
-        let c = ((pc.x[i] - x_left) / grid.dx).floor();
-        let r = ((y_top - pc.y[i]) / grid.dx).floor();
-        if c < 0.0 || r < 0.0 || c >= w as f64 || r >= h as f64 {
+        let Some(k) = grid.cell_index(pc.x[i], pc.y[i]) else {
             continue;
-        }
-        let k = r as usize * w + c as usize;
+        };
         sum[k] += pc.z[i];
         n[k] += 1;
     }

@@ -187,6 +187,13 @@ impl Grid {
     pub fn x(&self, col: usize) -> f64 {
         self.x0 + col as f64 * self.dx
     }
+    /// Row-major index of the pixel whose area holds (x, y), `None` outside the grid.
+    pub fn cell_index(&self, x: f64, y: f64) -> Option<usize> {
+        let c = ((x - (self.x0 - 0.5 * self.dx)) / self.dx).floor();
+        let r = ((self.y0 + 0.5 * self.dx - y) / self.dx).floor();
+        (c >= 0.0 && r >= 0.0 && c < self.width as f64 && r < self.height as f64)
+            .then(|| r as usize * self.width + c as usize)
+    }
     pub fn y(&self, row: usize) -> f64 {
         self.y0 - row as f64 * self.dx
     }
@@ -418,6 +425,43 @@ pub fn warp<T: GdalType + Copy + Default>(
         .read_band_as::<T>()
         .map_err(gdal_err("read warped band"))?;
     Ok(buf.into_shape_and_vec().1)
+}
+
+/// Band 1 of the raster at `path` on a grid of the working CRS over the area (`frame.extent`),
+/// with cells of `cell` m (default: the raster's own pixel size there), warped by nearest
+/// neighbour so that every value is one of the source's; no data (the band's, or no source
+/// pixel) is NaN. A raster that does not cover the area is refused, naming `role`.
+pub fn read_nearest(
+    path: &Path,
+    role: &str,
+    frame: &WorkingFrame,
+    cell: Option<f64>,
+) -> Result<(Vec<f32>, Grid), ScenegenError> {
+    let ds = open_georeferenced(path, role)?;
+    check_coverage(&ds, path, role, frame, frame.extent)?;
+    let dx = match cell {
+        Some(c) => c,
+        None => pixel_size_m(&ds, path, frame)?,
+    };
+    let grid = Grid::dem_nodes(frame.extent, dx);
+    let band_nodata = ds
+        .rasterband(1)
+        .map_err(|e| input(path, e.to_string()))?
+        .no_data_value();
+    let mut v: Vec<f32> = warp(
+        &ds,
+        path,
+        frame,
+        &grid,
+        GDALResampleAlg::GRA_NearestNeighbour,
+        -1.0e30,
+    )?;
+    for x in v.iter_mut() {
+        if *x <= -1.0e29 || Some(*x as f64) == band_nodata {
+            *x = f32::NAN;
+        }
+    }
+    Ok((v, grid))
 }
 
 /// Heights on the DEM node grid and the description of where they came from.

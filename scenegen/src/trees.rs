@@ -103,46 +103,16 @@ pub fn load_chm(
     lidar: Option<&crate::pointcloud::PointCloud>,
     dem_at: impl Fn(f64, f64) -> Option<f64>,
 ) -> Result<(Vec<f32>, Grid, PathBuf), ScenegenError> {
-    use crate::raster::{check_coverage, open_georeferenced, pixel_size_m, warp};
+    use crate::raster::read_nearest as read;
     let e = frame.extent;
-    let read = |path: &PathBuf,
-                role: &str,
-                cell: Option<f64>|
-     -> Result<(Vec<f32>, Grid), ScenegenError> {
-        let ds = open_georeferenced(path, role)?;
-        check_coverage(&ds, path, role, frame, e)?;
-        let dx = match cell {
-            Some(c) => c,
-            None => pixel_size_m(&ds, path, frame)?,
-        };
-        let grid = Grid::dem_nodes(e, dx);
-        let band_nodata = ds
-            .rasterband(1)
-            .map_err(|err| crate::error::input(path, err.to_string()))?
-            .no_data_value();
-        let mut v: Vec<f32> = warp(
-            &ds,
-            path,
-            frame,
-            &grid,
-            gdal_sys::GDALResampleAlg::GRA_NearestNeighbour,
-            -1.0e30,
-        )?;
-        for x in v.iter_mut() {
-            if *x <= -1.0e29 || Some(*x as f64) == band_nodata {
-                *x = f32::NAN;
-            }
-        }
-        Ok((v, grid))
-    };
     let (mut v, g, src) = match &spec.source {
         ChmSource::Chm(p) => {
-            let (v, g) = read(p, "canopy-height raster", spec.cell_m)?;
+            let (v, g) = read(p, "canopy-height raster", frame, spec.cell_m)?;
             (v, g, p.clone())
         }
         ChmSource::DsmMinusDtm { dsm, dtm } => {
-            let (s, g) = read(dsm, "surface model (DSM)", spec.cell_m)?;
-            let (t, g2) = read(dtm, "terrain model (DTM)", Some(g.dx))?;
+            let (s, g) = read(dsm, "surface model (DSM)", frame, spec.cell_m)?;
+            let (t, g2) = read(dtm, "terrain model (DTM)", frame, Some(g.dx))?;
             debug_assert_eq!(g, g2);
             let v = s.iter().zip(&t).map(|(a, b)| a - b).collect();
             (v, g, dsm.clone())
@@ -151,32 +121,22 @@ pub fn load_chm(
             let pc = lidar.expect("checked by the region");
             let grid = Grid::dem_nodes(e, spec.cell_m.unwrap_or(1.0));
             let mut top = vec![f32::NAN; grid.width * grid.height];
-            let x_left = grid.x0 - 0.5 * grid.dx;
-            let y_top = grid.y0 + 0.5 * grid.dx;
-            for i in 0..pc.len() {
-                if !classes.contains(&pc.class[i]) {
-                    continue;
-                }
-                let c = ((pc.x[i] - x_left) / grid.dx).floor();
-                let r = ((y_top - pc.y[i]) / grid.dx).floor();
-                if c < 0.0 || r < 0.0 || c >= grid.width as f64 || r >= grid.height as f64 {
-                    continue;
-                }
-                let k = r as usize * grid.width + c as usize;
-                let z = pc.z[i] as f32;
-                if top[k].is_nan() || z > top[k] {
-                    top[k] = z;
-                }
-            }
             let mut excluded = vec![false; top.len()];
             for i in 0..pc.len() {
-                if !exclude.contains(&pc.class[i]) {
+                let (veg, excl) = (
+                    classes.contains(&pc.class[i]),
+                    exclude.contains(&pc.class[i]),
+                );
+                if !(veg || excl) {
                     continue;
                 }
-                let c = ((pc.x[i] - x_left) / grid.dx).floor();
-                let r = ((y_top - pc.y[i]) / grid.dx).floor();
-                if c >= 0.0 && r >= 0.0 && c < grid.width as f64 && r < grid.height as f64 {
-                    excluded[r as usize * grid.width + c as usize] = true;
+                let Some(k) = grid.cell_index(pc.x[i], pc.y[i]) else {
+                    continue;
+                };
+                excluded[k] |= excl;
+                let z = pc.z[i] as f32;
+                if veg && (top[k].is_nan() || z > top[k]) {
+                    top[k] = z;
                 }
             }
             for r in 0..grid.height {
