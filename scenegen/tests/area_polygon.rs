@@ -10,7 +10,9 @@
 //! and a non-polygon are errors naming the file and the key `area.polygon`, exit code 2.
 //! Tests (1)-(5) need the shared data folder (the Copernicus DEM) and skip without it.
 
-use std::path::{Path, PathBuf};
+mod common;
+use common::tmp;
+use std::path::Path;
 use std::process::Command;
 
 use gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
@@ -23,13 +25,6 @@ const PENTAGON: [(f64, f64); 5] = [
     (5.74, 45.21),
     (5.69, 45.18),
 ];
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scenegen-poly-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 fn wkt(points: &[(f64, f64)]) -> String {
     let mut p: Vec<String> = points.iter().map(|(x, y)| format!("{x} {y}")).collect();

@@ -3,6 +3,8 @@
 //! raster = scheme mapping, deterministic instances on the terrain, and the bad-input errors
 //! with their exit codes. Each test states its rationale.
 
+mod common;
+use common::{scenegen, shared_data, tmp};
 use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -16,13 +18,6 @@ const LON: f64 = 5.7;
 const LAT: f64 = 45.2;
 const LOCAL: &str =
     "+proj=tmerc +lat_0=45.2 +lon_0=5.7 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m +no_defs";
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scenegen-test-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// A hilly DEM in EPSG:4326 (so the build reprojects), 0.0004° pixels, around (LON, LAT),
 /// covering ±0.06° — more than the 6 km area.
@@ -126,18 +121,6 @@ fn setup(name: &str, extra: &str) -> (PathBuf, PathBuf) {
     let region = dir.join("region.toml");
     std::fs::write(&region, region_text(extra)).unwrap();
     (dir, region)
-}
-
-fn scenegen(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_scenegen"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
 }
 
 fn build(region: &Path, out: &Path) -> Bundle {
@@ -681,20 +664,6 @@ fn several_dems_are_merged() {
         &["west.tif", "does not cover", "on the east"],
     );
     std::fs::remove_dir_all(&dir).unwrap();
-}
-
-/// The shared data folder beside the repository (as in CI), if present.
-fn shared_data() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!(
-            "shared data not found at {}; real-data test skipped",
-            p.display()
-        );
-        None
-    }
 }
 
 /// Rationale: real data through every other code path — the SRTM sample (EPSG:4326, int16,

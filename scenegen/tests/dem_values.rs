@@ -2,19 +2,14 @@
 //! source pixel (issue 15): an `inf` pixel, a 1e30 spike, and −32768 voids in a band without a
 //! no-data tag used to build a bundle with infinite heights or pits.
 
+mod common;
+use common::tmp;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
 use scenegen::synth::write_geotiff;
 
 const LOCAL: &str = "+proj=tmerc +lat_0=45 +lon_0=5.7 +k=1 +x_0=0 +y_0=0 +datum=WGS84 +units=m";
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scenegen-demvalues-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
 
 /// A 2 km square region over a 40 × 40 DEM at 60 m in the local frame; `damage` edits heights.
 fn setup(name: &str, nodata: Option<f64>, damage: impl Fn(&mut [f32])) -> (PathBuf, PathBuf) {

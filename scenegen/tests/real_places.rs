@@ -3,43 +3,12 @@
 //! polygons against the raster made from the same map), and the errors of bad vector inputs.
 //! Tests that read the shared data skip, saying so, when it is absent.
 
+mod common;
+use common::{scenegen, shared_data, tmp};
 use std::path::{Path, PathBuf};
-use std::process::Command;
 
 use bundle::Bundle;
 use gdal::spatial_ref::{AxisMappingStrategy, CoordTransform, SpatialRef};
-
-fn shared_data() -> Option<PathBuf> {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data");
-    if p.is_dir() {
-        Some(p)
-    } else {
-        eprintln!(
-            "shared data not found at {}; real-data test skipped",
-            p.display()
-        );
-        None
-    }
-}
-
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("scenegen-real-{name}-{}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
-fn scenegen(args: &[&str]) -> (i32, String, String) {
-    let o = Command::new(env!("CARGO_BIN_EXE_scenegen"))
-        .args(args)
-        .output()
-        .unwrap();
-    (
-        o.status.code().unwrap_or(-1),
-        String::from_utf8_lossy(&o.stdout).into_owned(),
-        String::from_utf8_lossy(&o.stderr).into_owned(),
-    )
-}
 
 fn build(region: &Path, out: &Path) -> (Bundle, String) {
     let (code, stdout, stderr) = scenegen(&[
@@ -445,6 +414,21 @@ fn bad_vector_landcover_is_named() {
     std::fs::remove_dir_all(&dir).unwrap();
 }
 
+/// The Delft AHN3 points of ASPRS class `class`, read with the `las` crate.
+fn ahn3_points(shared: &Path, class: u8) -> Vec<[f64; 3]> {
+    let mut out = Vec::new();
+    for f in ["ahn3_cropped_1.laz", "ahn3_cropped_2.laz"] {
+        let mut r = las::Reader::from_path(shared.join("real_regions/delft/ahn3").join(f)).unwrap();
+        for p in r.read_all().unwrap().points() {
+            let p = p.unwrap();
+            if u8::from(p.classification) == class {
+                out.push([p.x, p.y, p.z]);
+            }
+        }
+    }
+    out
+}
+
 /// Build `region` through the library (for the per-building records).
 fn build_lib(region: &Path, out: &Path) -> scenegen::build::BuildReport {
     let r = scenegen::region::Region::load(region).unwrap();
@@ -599,17 +583,7 @@ fn delft_buildings_from_footprints_and_lidar() {
         .any(|x| x.name == "water" && !x.class_codes.is_empty()));
 
     // Independent roof medians.
-    let mut roof_points: Vec<[f64; 3]> = Vec::new();
-    for f in ["ahn3_cropped_1.laz", "ahn3_cropped_2.laz"] {
-        let mut r = las::Reader::from_path(shared.join("real_regions/delft/ahn3").join(f)).unwrap();
-        let data = r.read_all().unwrap();
-        for p in data.points() {
-            let p = p.unwrap();
-            if u8::from(p.classification) == 6 {
-                roof_points.push([p.x, p.y, p.z]);
-            }
-        }
-    }
+    let roof_points = ahn3_points(&shared, 6);
     let ds = gdal::Dataset::open(shared.join("real_regions/delft/bgt/bgt_pand.sqlite")).unwrap();
     let mut layer = ds.layer(0).unwrap();
     use gdal::vector::LayerAccess;
@@ -853,16 +827,7 @@ fn delft_trees_from_lidar_match_their_canopy_maxima() {
     let b = Bundle::open(&dir.join("bundle")).unwrap();
     let tops = &report.trees[0];
     assert!(tops.len() > 100, "{}", tops.len());
-    let mut pts: Vec<[f64; 3]> = Vec::new();
-    for f in ["ahn3_cropped_1.laz", "ahn3_cropped_2.laz"] {
-        let mut r = las::Reader::from_path(shared.join("real_regions/delft/ahn3").join(f)).unwrap();
-        for p in r.read_all().unwrap().points() {
-            let p = p.unwrap();
-            if u8::from(p.classification) == 1 {
-                pts.push([p.x, p.y, p.z]);
-            }
-        }
-    }
+    let pts = ahn3_points(&shared, 1);
     let t = b.templates.iter().position(|t| t.name == "tree").unwrap() as u32;
     let o = b.manifest.frame.origin;
     let insts: Vec<_> = b.instances.iter().filter(|i| i.template == t).collect();
