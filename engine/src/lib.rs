@@ -50,6 +50,7 @@ pub mod sensor;
 pub mod sources;
 pub mod spectral;
 pub mod stokes;
+pub mod temperature;
 pub mod util;
 
 /// Hold the netCDF library for a whole file session (open, reads, close). The netcdf crate

@@ -1,0 +1,129 @@
+//! Surface temperatures from a heat-conduction energy balance (DIRSIG's temperature solver,
+//! issue 39): `slab.rs` conducts heat through a layered slab, `balance.rs` drives its surface
+//! through a day by sunlight, sky light, longwave sky, emission and convection and finds the
+//! periodic day. The application (`simulator/src/temperatures/`) computes the broadband
+//! irradiances through the run's atmosphere, the facets' shadows and sky views in a scene, and
+//! writes LST rasters that thermal runs read (`scene.land_surface_temperature`).
+//!
+//! Thermal properties per material come from the presets below or from the user (keys in
+//! `docs/temperatures.md`). Preset values: soils, asphalt, concrete, brick and water from Oke
+//! (1987), *Boundary Layer Climates*, Table 2.1; roof build-ups and albedos/emissivities from
+//! common handbook values (ASHRAE Fundamentals 2017, ch. 26 and 33). Not modelled: evaporation
+//! and transpiration (moist and vegetated surfaces come out warmer by day than they are; give
+//! them a higher albedo or a wetter preset), snow melt, the heat of buildings' interiors
+//! (roofs sit on insulation over an adiabatic bottom).
+
+pub mod balance;
+pub mod slab;
+
+use slab::{Bottom, Layer};
+
+/// A material's thermal description.
+#[derive(Clone, Debug, PartialEq)]
+pub struct ThermalMaterial {
+    /// Layers from the surface down.
+    pub layers: Vec<Layer>,
+    /// Broadband shortwave albedo.
+    pub albedo: f64,
+    /// Thermal emissivity.
+    pub emissivity: f64,
+    pub bottom: Bottom,
+}
+
+const fn layer(thickness_m: f64, conductivity: f64, density: f64, heat_capacity: f64) -> Layer {
+    Layer {
+        thickness_m,
+        conductivity,
+        density,
+        heat_capacity,
+    }
+}
+
+/// The preset names, with a line each for error messages and docs.
+pub const PRESETS: &[(&str, &str)] = &[
+    ("asphalt", "0.1 m asphalt over 0.9 m sandy soil"),
+    ("concrete", "1 m dense concrete"),
+    ("brick", "1 m brick"),
+    ("dry_soil", "1 m dry sandy soil"),
+    ("moist_soil", "1 m saturated sandy soil"),
+    ("clay_soil", "1 m dry clay soil"),
+    ("rock", "1 m rock (granite, limestone)"),
+    ("grass", "moist soil with a grass albedo (no evapotranspiration)"),
+    ("forest", "moist soil with a forest albedo (no evapotranspiration)"),
+    ("water", "2 m of mixed water (eddy conductivity)"),
+    ("roof_tile", "2 cm clay tiles over 10 cm insulation"),
+    ("metal_roof", "1 mm galvanised steel over 10 cm insulation"),
+    ("flat_roof", "2 cm bitumen membrane over 10 cm insulation and 15 cm concrete"),
+];
+
+/// The thermal material of preset `name`, if there is one.
+pub fn preset(name: &str) -> Option<ThermalMaterial> {
+    let sand_dry = layer(1.0, 0.30, 1600.0, 800.0);
+    let sand_wet = layer(1.0, 2.20, 2000.0, 1480.0);
+    let insulation = layer(0.10, 0.04, 30.0, 1400.0);
+    let m = |layers: Vec<Layer>, albedo: f64, emissivity: f64, bottom: Bottom| ThermalMaterial {
+        layers,
+        albedo,
+        emissivity,
+        bottom,
+    };
+    let a = Bottom::Adiabatic;
+    Some(match name {
+        "asphalt" => m(
+            vec![layer(0.1, 0.75, 2110.0, 920.0), layer(0.9, 0.30, 1600.0, 800.0)],
+            0.10,
+            0.95,
+            a,
+        ),
+        "concrete" => m(vec![layer(1.0, 1.51, 2400.0, 880.0)], 0.30, 0.92, a),
+        "brick" => m(vec![layer(1.0, 0.83, 1970.0, 750.0)], 0.30, 0.93, a),
+        "dry_soil" => m(vec![sand_dry], 0.25, 0.92, a),
+        "moist_soil" => m(vec![sand_wet], 0.15, 0.95, a),
+        "clay_soil" => m(vec![layer(1.0, 0.25, 1600.0, 890.0)], 0.20, 0.95, a),
+        "rock" => m(vec![layer(1.0, 2.5, 2650.0, 800.0)], 0.25, 0.93, a),
+        "grass" => m(vec![sand_wet], 0.23, 0.98, a),
+        "forest" => m(vec![sand_wet], 0.12, 0.98, a),
+        "water" => m(vec![layer(2.0, 50.0, 1000.0, 4186.0)], 0.06, 0.98, a),
+        "roof_tile" => m(
+            vec![layer(0.02, 0.84, 1900.0, 800.0), insulation],
+            0.25,
+            0.90,
+            a,
+        ),
+        "metal_roof" => m(
+            vec![layer(0.001, 45.0, 7850.0, 460.0), insulation],
+            0.35,
+            0.30,
+            a,
+        ),
+        "flat_roof" => m(
+            vec![
+                layer(0.02, 0.17, 1050.0, 1000.0),
+                insulation,
+                layer(0.15, 1.51, 2400.0, 880.0),
+            ],
+            0.10,
+            0.93,
+            a,
+        ),
+        _ => return None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn every_preset_builds_a_slab() {
+        for (name, _) in PRESETS {
+            let m = preset(name).unwrap();
+            assert!(
+                slab::Slab::new(&m.layers, 0.002, 1.15, m.bottom, 290.0).is_ok(),
+                "{name}"
+            );
+            assert!((0.0..1.0).contains(&m.albedo) && m.emissivity > 0.0 && m.emissivity <= 1.0);
+        }
+        assert!(preset("lava").is_none());
+    }
+}
