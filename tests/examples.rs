@@ -8,7 +8,7 @@
 //! to the repository's other folders, with `T/shared` linked to the shared data folder, so the files' relative paths
 //! (`../../../shared/data/…`, `../../out/…`) resolve exactly as in a fresh clone, and the
 //! commands run there with the release binaries: region builds first (experiments read their
-//! bundles), then experiments, then calibration sites. Expected: exit 0 and the products
+//! bundles), then surface temperatures, then experiments, then calibration sites. Expected: exit 0 and the products
 //! present (a bundle manifest; `results.nc` and `results.csv`; `pics.csv` and `pics.nc`).
 //!
 //! To stay quick, `simulate run` gets `--spp 8` (its documented override; CKD runs round up to
@@ -24,12 +24,14 @@ use e2e::{binary, copy_tree, header_commands, output_arg, repo_root, run, shared
 
 const QUICK_SPP: &str = "8";
 
-/// The order in which commands run: bundles before the experiments that read them.
+/// The order in which commands run: bundles before the surface temperatures computed on them,
+/// both before the experiments that read them.
 fn stage(words: &[String]) -> u8 {
     match words[1].as_str() {
         "build" | "cloud-field" => 0,
-        "run" => 1,
-        _ => 2,
+        "temperatures" => 1,
+        "run" => 2,
+        _ => 3,
     }
 }
 
@@ -40,6 +42,7 @@ fn products(words: &[String]) -> &'static [&'static str] {
         // `-o` names the field file itself.
         "cloud-field" => &[""],
         "run" => &["results.nc", "results.csv"],
+        "temperatures" => &["materials.csv", "diurnal.csv"],
         _ => &["pics.csv", "pics.nc"],
     }
 }

@@ -28,3 +28,4 @@ pub mod pics;
 pub mod preview;
 pub mod products;
 pub mod run;
+pub mod temperatures;

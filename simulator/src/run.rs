@@ -80,6 +80,23 @@ pub fn run_cancellable(
     bar: &ProgressBar,
     cancel: &AtomicBool,
 ) -> Option<Vec<MeasureResult>> {
+    let out = run_unchecked(exp, bar, cancel)?;
+    crate::heavy_tail::warn(exp, &out);
+    Some(out)
+}
+
+/// [`run`] without the heavy-tail warnings, for callers that judge the combined error of many
+/// small internal runs themselves (the temperature solver's sky runs).
+pub fn run_without_tail_warnings(exp: &Experiment) -> Vec<MeasureResult> {
+    run_unchecked(exp, &ProgressBar::hidden(), &NEVER)
+        .expect("a run without cancellation completes")
+}
+
+fn run_unchecked(
+    exp: &Experiment,
+    bar: &ProgressBar,
+    cancel: &AtomicBool,
+) -> Option<Vec<MeasureResult>> {
     // Tasks (a wavelength or a spectral ALIS group, and a measure) run concurrently as well as
     // their blocks: a task whose round is a single block (precise CKD/ALIS walks) would
     // otherwise leave cores idle. Each task's result depends only on its own random streams, so
@@ -108,7 +125,6 @@ pub fn run_cancellable(
         .into_iter()
         .map(|r| r.expect("every (wavelength, measure) pair has a task"))
         .collect();
-    crate::heavy_tail::warn(exp, &out);
     Some(out)
 }
 

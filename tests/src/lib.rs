@@ -78,7 +78,8 @@ pub fn run(program: &Path, args: &[String], cwd: &Path) -> Outcome {
 }
 
 /// The commands an example file's header (its leading `#` lines) states: lines that begin
-/// with `scenegen build`, `simulate run` or `simulate pics` (optionally `./target/release/`),
+/// with `scenegen build`, `simulate run`, `simulate pics`, `simulate cloud-field` or
+/// `simulate temperatures` (optionally `./target/release/`),
 /// with `\` continuations joined, split into words (program first). Prose that merely mentions
 /// a command mid-line is not a command.
 pub fn header_commands(text: &str) -> Vec<Vec<String>> {
@@ -111,6 +112,7 @@ pub fn header_commands(text: &str) -> Vec<Vec<String>> {
                     | (Some("simulate"), Some("run"))
                     | (Some("simulate"), Some("pics"))
                     | (Some("simulate"), Some("cloud-field"))
+                    | (Some("simulate"), Some("temperatures"))
             );
             ok.then_some(words)
         })

@@ -43,6 +43,10 @@ pub enum SceneConfig {
         /// A land-surface-temperature raster (K, one band, the bundle's CRS) for terrain hits.
         #[serde(default)]
         land_surface_temperature: Option<String>,
+        /// A CSV of kinetic temperatures by material (`material,temperature_k`, e.g. from
+        /// `simulate temperatures`); `temperatures` entries win over its rows.
+        #[serde(default)]
+        temperature_table: Option<String>,
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
@@ -261,6 +265,7 @@ pub fn build_scene(
             solvers,
             temperatures,
             land_surface_temperature,
+            temperature_table,
         } => {
             validate_solvers(solvers)?;
             let bg = bundle_background(background.as_ref(), base)?;
@@ -295,6 +300,18 @@ pub fn build_scene(
                     (key.into(), m)
                 })?;
             set_solvers(&mut scene, solvers)?;
+            if let Some(file) = temperature_table {
+                let table = read_temperature_table(&base.join(file))
+                    .map_err(|m| ("scene.temperature_table".to_string(), m))?;
+                for (name, t) in table {
+                    scene.set_temperature(&name, t).map_err(|m| {
+                        (
+                            "scene.temperature_table".to_string(),
+                            format!("{}: {m}", base.join(file).display()),
+                        )
+                    })?;
+                }
+            }
             set_temperatures(&mut scene, temperatures)?;
             if let Some(file) = land_surface_temperature {
                 set_land_surface_temperature(&mut scene, &base.join(file))?;
@@ -433,6 +450,43 @@ fn set_temperatures(
             .map_err(|m| (key, m.to_string()))?;
     }
     Ok(())
+}
+
+/// The rows of a `material,temperature_k` CSV (header first); errors name the file and line.
+fn read_temperature_table(file: &Path) -> Result<Vec<(String, f64)>, String> {
+    let text = std::fs::read_to_string(file)
+        .map_err(|e| format!("cannot read {}: {e}", file.display()))?;
+    let text = crate::util::without_bom(&text);
+    let mut lines = text.lines().enumerate();
+    match lines.next() {
+        Some((_, h)) if h.trim().replace(' ', "") == "material,temperature_k" => {}
+        _ => {
+            return Err(format!(
+                "{}: the first line must be the header `material,temperature_k`",
+                file.display()
+            ))
+        }
+    }
+    let mut out = Vec::new();
+    for (i, line) in lines {
+        let line = line.trim();
+        if line.is_empty() || line.starts_with('#') {
+            continue;
+        }
+        let bad = |m: &str| format!("{} line {}: {m} (\"{line}\")", file.display(), i + 1);
+        let (name, t) = line
+            .split_once(',')
+            .ok_or_else(|| bad("expected `material,temperature_k`"))?;
+        let t: f64 = t
+            .trim()
+            .parse()
+            .map_err(|_| bad("the temperature is not a number"))?;
+        if !(t > 0.0 && t <= 10_000.0) {
+            return Err(bad("the temperature must lie in (0, 10000] K"));
+        }
+        out.push((name.trim().to_string(), t));
+    }
+    Ok(out)
 }
 
 /// Read the land-surface temperature map `file` into the scene (in the bundle's frame).

@@ -5,6 +5,7 @@
 //! ```text
 //! F(T_s, t) = (1 − α)·[E_b(t)·max(0, n·s(t))·lit(t) + E_d(t)·V + α_g·E_g(t)·(1 − V)]
 //!           + ε·[V·L_sky(t) + (1 − V)·σT_a(t)⁴] − ε·σ·T_s⁴ − h(u)·(T_s − T_a(t))
+//!           − β·h(u)·(e_s(T_s) − e_a(t))/γ
 //! ```
 //!
 //! * `E_b` direct solar irradiance normal to the beam and `E_d` diffuse sky irradiance on a
@@ -20,6 +21,12 @@
 //!   body at the air temperature;
 //! * convection `h = 5.7 + 3.8 u` W m⁻² K⁻¹ for a wind speed `u` (m s⁻¹) (McAdams 1954, as in
 //!   Watmuff et al. 1977);
+//! * evaporation: the latent heat flux by the Lewis analogy with the convection (the same
+//!   transfer coefficient for vapour as for heat), scaled by the surface's wetness `β` ∈ [0, 1]
+//!   (1 open water, about 0.3 transpiring vegetation, 0 dry and sealed surfaces; Monteith &
+//!   Unsworth 2013, ch. 13): `e_s` the saturation vapour pressure at the surface (Magnus, kPa),
+//!   `e_a` the air's, `γ = c_p·p/(0.622·L_v) = 0.0665 kPa K⁻¹` the psychrometric constant at
+//!   sea-level pressure; negative (dew) where `e_s(T_s) < e_a`;
 //! * the air temperature follows a cosine between the day's minimum and maximum, highest at
 //!   `hour_of_max` local solar time.
 //!
@@ -34,12 +41,22 @@ use super::slab::{Budget, Slab};
 /// Stefan–Boltzmann constant, W m⁻² K⁻⁴ (CODATA 2018).
 pub const SIGMA: f64 = 5.670_374_419e-8;
 
+/// Psychrometric constant at sea-level pressure, kPa K⁻¹.
+pub const GAMMA: f64 = 0.0665;
+
+/// Saturation vapour pressure over water (kPa) at `t` (K), and its derivative (kPa K⁻¹)
+/// (Magnus formula, Alduchov & Eskridge 1996).
+pub fn saturation_vapour_pressure(t: f64) -> (f64, f64) {
+    let c = t - 273.15;
+    let e = 0.61094 * (17.625 * c / (c + 243.04)).exp();
+    (e, e * 17.625 * 243.04 / ((c + 243.04) * (c + 243.04)))
+}
+
 /// Clear-sky atmospheric emissivity (Brutsaert 1975) at air temperature `t_air` (K) and
 /// relative humidity `rh` (0–1).
 pub fn sky_emissivity(t_air: f64, rh: f64) -> f64 {
-    let c = t_air - 273.15;
-    let e_sat = 6.1094 * (17.625 * c / (c + 243.04)).exp();
-    let e_a = (rh * e_sat).max(1e-6);
+    // e_a in hPa.
+    let e_a = (rh * saturation_vapour_pressure(t_air).0 * 10.0).max(1e-6);
     1.24 * (e_a / t_air).powf(1.0 / 7.0)
 }
 
@@ -63,6 +80,8 @@ pub struct Drive {
     pub sky_longwave: f64,
     /// Convective coefficient, W m⁻² K⁻¹.
     pub h: f64,
+    /// The air's vapour pressure, kPa.
+    pub vapour_pressure: f64,
 }
 
 impl Drive {
@@ -77,6 +96,7 @@ impl Drive {
             t_air,
             sky_longwave: sky_emissivity(t_air, rh) * SIGMA * t_air.powi(4),
             h: convection(wind),
+            vapour_pressure: rh * saturation_vapour_pressure(t_air).0,
         }
     }
 }
@@ -98,6 +118,27 @@ pub struct SurfaceOptics {
     pub albedo: f64,
     /// Thermal emissivity, (0, 1].
     pub emissivity: f64,
+    /// Wetness β ∈ [0, 1]: the fraction of the open-water evaporation the surface sustains.
+    pub wetness: f64,
+}
+
+impl SurfaceOptics {
+    /// Net flux into the surface (W m⁻²) at temperature `ts` (K), and its derivative, for a
+    /// temperature-independent gain `gain` (absorbed shortwave and longwave) under drive `d`.
+    #[inline]
+    pub fn net_flux(&self, gain: f64, d: &Drive, ts: f64) -> (f64, f64) {
+        let ts3 = ts * ts * ts;
+        let eps = self.emissivity;
+        let mut f = gain - eps * SIGMA * ts3 * ts - d.h * (ts - d.t_air);
+        let mut df = -4.0 * eps * SIGMA * ts3 - d.h;
+        if self.wetness > 0.0 {
+            let (es, des) = saturation_vapour_pressure(ts);
+            let k = self.wetness * d.h / GAMMA;
+            f -= k * (es - d.vapour_pressure);
+            df -= k * des;
+        }
+        (f, df)
+    }
 }
 
 /// A facet: its normal, sky-view factor and whether it sees the Sun at each step.
@@ -107,9 +148,28 @@ pub struct Facet {
     pub sky_view: f64,
     /// One per step of the day (false where the Sun is down or blocked).
     pub lit: Vec<bool>,
+    /// The facet's air is this much warmer than the day's (K; a lapse rate times the height
+    /// below the reference altitude).
+    pub air_offset: f64,
 }
 
 impl Facet {
+    /// The drive of step `k` at this facet's height: the air warmer by `air_offset`, the sky's
+    /// longwave as from a sky of the same emissivity at that temperature, the vapour pressure
+    /// kept.
+    pub fn drive(&self, day: &Day, k: usize) -> Drive {
+        let d = day.steps[k];
+        if self.air_offset == 0.0 {
+            return d;
+        }
+        let t = d.t_air + self.air_offset;
+        Drive {
+            t_air: t,
+            sky_longwave: d.sky_longwave * (t / d.t_air).powi(4),
+            ..d
+        }
+    }
+
     /// Shortwave irradiance absorbed at step `k` of `day` (W m⁻²).
     pub fn absorbed_shortwave(&self, day: &Day, k: usize, optics: &SurfaceOptics) -> f64 {
         let d = &day.steps[k];
@@ -124,7 +184,7 @@ impl Facet {
 
     /// Longwave irradiance reaching the facet at step `k` (W m⁻²).
     pub fn incoming_longwave(&self, day: &Day, k: usize) -> f64 {
-        let d = &day.steps[k];
+        let d = &self.drive(day, k);
         self.sky_view * d.sky_longwave + (1.0 - self.sky_view) * SIGMA * d.t_air.powi(4)
     }
 }
@@ -152,20 +212,16 @@ pub fn periodic_day(
     max_days: usize,
 ) -> PeriodicDay {
     let n = day.steps.len();
-    let mean_air = day.steps.iter().map(|d| d.t_air).sum::<f64>() / n as f64;
-    slab.fill(mean_air);
     let eps = optics.emissivity;
-    // Per step: what the surface gains whatever its temperature, h, and the air temperature.
-    let forcing: Vec<(f64, f64, f64)> = (0..n)
-        .map(|k| {
-            let d = &day.steps[k];
-            (
-                facet.absorbed_shortwave(day, k, optics) + eps * facet.incoming_longwave(day, k),
-                d.h,
-                d.t_air,
-            )
-        })
+    // What each step gains whatever the surface temperature.
+    let gain: Vec<f64> = (0..n)
+        .map(|k| facet.absorbed_shortwave(day, k, optics) + eps * facet.incoming_longwave(day, k))
         .collect();
+    // Start at the temperature whose day-mean balance is zero (with an adiabatic bottom the
+    // periodic day's mean profile is close to uniform there): the deep nodes then need days,
+    // not weeks, to settle.
+    slab.fill(equilibrium(facet, day, &gain, optics));
+    let drives: Vec<Drive> = (0..n).map(|k| facet.drive(day, k)).collect();
     let mut surface = vec![0.0; n];
     let mut previous_end = f64::NAN;
     let mut budget = Budget::default();
@@ -173,14 +229,8 @@ pub fn periodic_day(
     let mut converged = false;
     while days < max_days.max(1) {
         budget = Budget::default();
-        for (k, &(gain, h, ta)) in forcing.iter().enumerate() {
-            budget += slab.step(day.dt, |ts| {
-                let ts3 = ts * ts * ts;
-                (
-                    gain - eps * SIGMA * ts3 * ts - h * (ts - ta),
-                    -4.0 * eps * SIGMA * ts3 - h,
-                )
-            });
+        for (k, (g, d)) in gain.iter().zip(&drives).enumerate() {
+            budget += slab.step(day.dt, |ts| optics.net_flux(*g, d, ts));
             surface[k] = slab.surface();
         }
         days += 1;
@@ -197,6 +247,27 @@ pub fn periodic_day(
         days,
         converged,
     }
+}
+
+/// The constant surface temperature (K) at which the day's mean net flux is zero (Newton from
+/// the day's mean air temperature).
+fn equilibrium(facet: &Facet, day: &Day, gain: &[f64], optics: &SurfaceOptics) -> f64 {
+    let n = gain.len() as f64;
+    let mut t = day.steps.iter().map(|d| d.t_air).sum::<f64>() / n + facet.air_offset;
+    for _ in 0..50 {
+        let (mut f, mut df) = (0.0, 0.0);
+        for (k, g) in gain.iter().enumerate() {
+            let (a, b) = optics.net_flux(*g, &facet.drive(day, k), t);
+            f += a;
+            df += b;
+        }
+        let step = f / df;
+        t = (t - step).clamp(150.0, 400.0);
+        if step.abs() < 1e-6 {
+            break;
+        }
+    }
+    t
 }
 
 #[cfg(test)]
@@ -248,6 +319,13 @@ mod tests {
         let e = sky_emissivity(293.15, 0.5);
         assert!((e - 0.784).abs() < 0.003, "{e}");
         assert_eq!(convection(0.0), 5.7);
+        // Magnus: 2.3388 kPa at 20 °C in the WMO tables (Magnus within 0.4 % over
+        // −40…50 °C), its slope 0.1448 kPa/K.
+        let (e, de) = saturation_vapour_pressure(293.15);
+        assert!(
+            (e / 2.3388 - 1.0).abs() < 0.004 && (de / 0.1448 - 1.0).abs() < 0.004,
+            "{e} {de}"
+        );
         assert!((convection(2.0) - 13.3).abs() < 1e-12);
     }
 
@@ -257,11 +335,13 @@ mod tests {
         let optics = SurfaceOptics {
             albedo: 0.1,
             emissivity: 0.95,
+            wetness: 0.0,
         };
         let lit = |on: bool| Facet {
             normal: DVec3::Z,
             sky_view: 1.0,
             lit: d.steps.iter().map(|s| on && s.sun.z > 0.0).collect(),
+            air_offset: 0.0,
         };
         let run = |f: &Facet| {
             let mut slab = Slab::new(&asphalt(), 0.002, 1.15, Bottom::Adiabatic, 290.0).unwrap();
@@ -299,11 +379,13 @@ mod tests {
         let optics = SurfaceOptics {
             albedo: 0.2,
             emissivity: 0.9,
+            wetness: 0.3,
         };
         let f = Facet {
             normal: DVec3::new(0.3, -0.2, 0.9).normalize(),
             sky_view: 0.8,
             lit: d.steps.iter().map(|s| s.sun.z > 0.0).collect(),
+            air_offset: -1.5,
         };
         let mut slab = Slab::new(&asphalt(), 0.002, 1.15, Bottom::Fixed(291.0), 290.0).unwrap();
         let p = periodic_day(&mut slab, &d, &f, &optics, 1e-4, 200);
@@ -316,6 +398,9 @@ mod tests {
             .map(|k| f.absorbed_shortwave(&d, k, &optics) * d.dt)
             .sum();
         assert!(b.stored.abs() < 1e-3 * gross, "{b:?}, gross {gross}");
-        assert!((b.surface_in + b.bottom_in - b.stored).abs() < 1e-9 * gross, "{b:?}");
+        assert!(
+            (b.surface_in + b.bottom_in - b.stored).abs() < 1e-9 * gross,
+            "{b:?}"
+        );
     }
 }

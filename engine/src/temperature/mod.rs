@@ -8,10 +8,11 @@
 //! Thermal properties per material come from the presets below or from the user (keys in
 //! `docs/temperatures.md`). Preset values: soils, asphalt, concrete, brick and water from Oke
 //! (1987), *Boundary Layer Climates*, Table 2.1; roof build-ups and albedos/emissivities from
-//! common handbook values (ASHRAE Fundamentals 2017, ch. 26 and 33). Not modelled: evaporation
-//! and transpiration (moist and vegetated surfaces come out warmer by day than they are; give
-//! them a higher albedo or a wetter preset), snow melt, the heat of buildings' interiors
-//! (roofs sit on insulation over an adiabatic bottom).
+//! common handbook values (ASHRAE Fundamentals 2017, ch. 26 and 33); wetness (the fraction of
+//! open-water evaporation) from the ranges of Monteith & Unsworth (2013). Not modelled: stomatal
+//! control (transpiration is a fixed fraction), snow melt (snow can pass 273.15 K), the heat of
+//! buildings' interiors (roofs sit on insulation over an adiabatic bottom), water's penetration
+//! by sunlight and its currents (a 2 m mixed slab).
 
 pub mod balance;
 pub mod slab;
@@ -27,6 +28,8 @@ pub struct ThermalMaterial {
     pub albedo: f64,
     /// Thermal emissivity.
     pub emissivity: f64,
+    /// Wetness β ∈ [0, 1] (the fraction of open-water evaporation; `balance.rs`).
+    pub wetness: f64,
     pub bottom: Bottom,
 }
 
@@ -48,12 +51,30 @@ pub const PRESETS: &[(&str, &str)] = &[
     ("moist_soil", "1 m saturated sandy soil"),
     ("clay_soil", "1 m dry clay soil"),
     ("rock", "1 m rock (granite, limestone)"),
-    ("grass", "moist soil with a grass albedo (no evapotranspiration)"),
-    ("forest", "moist soil with a forest albedo (no evapotranspiration)"),
+    (
+        "grass",
+        "moist soil with a grass albedo, transpiring (wetness 0.3)",
+    ),
+    (
+        "forest",
+        "moist soil with a forest albedo, transpiring (wetness 0.3)",
+    ),
     ("water", "2 m of mixed water (eddy conductivity)"),
     ("roof_tile", "2 cm clay tiles over 10 cm insulation"),
     ("metal_roof", "1 mm galvanised steel over 10 cm insulation"),
-    ("flat_roof", "2 cm bitumen membrane over 10 cm insulation and 15 cm concrete"),
+    (
+        "flat_roof",
+        "2 cm bitumen membrane over 10 cm insulation and 15 cm concrete",
+    ),
+    (
+        "snow",
+        "30 cm of settled snow over dry soil (no melting: it can pass 273.15 K)",
+    ),
+    (
+        "leaf",
+        "a 0.3 mm leaf, its back adiabatic, transpiring (wetness 0.3)",
+    ),
+    ("bark", "10 cm of wood"),
 ];
 
 /// The thermal material of preset `name`, if there is one.
@@ -61,40 +82,46 @@ pub fn preset(name: &str) -> Option<ThermalMaterial> {
     let sand_dry = layer(1.0, 0.30, 1600.0, 800.0);
     let sand_wet = layer(1.0, 2.20, 2000.0, 1480.0);
     let insulation = layer(0.10, 0.04, 30.0, 1400.0);
-    let m = |layers: Vec<Layer>, albedo: f64, emissivity: f64, bottom: Bottom| ThermalMaterial {
+    let m = |layers: Vec<Layer>, albedo: f64, emissivity: f64, wetness: f64| ThermalMaterial {
         layers,
         albedo,
         emissivity,
-        bottom,
+        wetness,
+        bottom: Bottom::Adiabatic,
     };
-    let a = Bottom::Adiabatic;
+    // Wetness: sealed and dry surfaces 0; moist soil 0.5, transpiring grass and forest 0.3,
+    // open water 1 (docs/temperatures.md).
+    let dry = 0.0;
     Some(match name {
         "asphalt" => m(
-            vec![layer(0.1, 0.75, 2110.0, 920.0), layer(0.9, 0.30, 1600.0, 800.0)],
+            vec![
+                layer(0.1, 0.75, 2110.0, 920.0),
+                layer(0.9, 0.30, 1600.0, 800.0),
+            ],
             0.10,
             0.95,
-            a,
+            dry,
         ),
-        "concrete" => m(vec![layer(1.0, 1.51, 2400.0, 880.0)], 0.30, 0.92, a),
-        "brick" => m(vec![layer(1.0, 0.83, 1970.0, 750.0)], 0.30, 0.93, a),
-        "dry_soil" => m(vec![sand_dry], 0.25, 0.92, a),
-        "moist_soil" => m(vec![sand_wet], 0.15, 0.95, a),
-        "clay_soil" => m(vec![layer(1.0, 0.25, 1600.0, 890.0)], 0.20, 0.95, a),
-        "rock" => m(vec![layer(1.0, 2.5, 2650.0, 800.0)], 0.25, 0.93, a),
-        "grass" => m(vec![sand_wet], 0.23, 0.98, a),
-        "forest" => m(vec![sand_wet], 0.12, 0.98, a),
-        "water" => m(vec![layer(2.0, 50.0, 1000.0, 4186.0)], 0.06, 0.98, a),
+        "concrete" => m(vec![layer(1.0, 1.51, 2400.0, 880.0)], 0.30, 0.92, dry),
+        "brick" => m(vec![layer(1.0, 0.83, 1970.0, 750.0)], 0.30, 0.93, dry),
+        "dry_soil" => m(vec![sand_dry], 0.25, 0.92, 0.05),
+        "moist_soil" => m(vec![sand_wet], 0.15, 0.95, 0.5),
+        "clay_soil" => m(vec![layer(1.0, 0.25, 1600.0, 890.0)], 0.20, 0.95, 0.1),
+        "rock" => m(vec![layer(1.0, 2.5, 2650.0, 800.0)], 0.25, 0.93, dry),
+        "grass" => m(vec![sand_wet], 0.23, 0.98, 0.3),
+        "forest" => m(vec![sand_wet], 0.12, 0.98, 0.3),
+        "water" => m(vec![layer(2.0, 50.0, 1000.0, 4186.0)], 0.06, 0.98, 1.0),
         "roof_tile" => m(
             vec![layer(0.02, 0.84, 1900.0, 800.0), insulation],
             0.25,
             0.90,
-            a,
+            dry,
         ),
         "metal_roof" => m(
             vec![layer(0.001, 45.0, 7850.0, 460.0), insulation],
             0.35,
             0.30,
-            a,
+            dry,
         ),
         "flat_roof" => m(
             vec![
@@ -104,8 +131,16 @@ pub fn preset(name: &str) -> Option<ThermalMaterial> {
             ],
             0.10,
             0.93,
-            a,
+            dry,
         ),
+        "snow" => m(
+            vec![layer(0.3, 0.2, 300.0, 2090.0), sand_dry],
+            0.70,
+            0.98,
+            dry,
+        ),
+        "leaf" => m(vec![layer(0.0003, 0.5, 800.0, 3500.0)], 0.30, 0.97, 0.3),
+        "bark" => m(vec![layer(0.1, 0.15, 600.0, 1700.0)], 0.20, 0.95, dry),
         _ => return None,
     })
 }
@@ -123,6 +158,7 @@ mod tests {
                 "{name}"
             );
             assert!((0.0..1.0).contains(&m.albedo) && m.emissivity > 0.0 && m.emissivity <= 1.0);
+            assert!((0.0..=1.0).contains(&m.wetness));
         }
         assert!(preset("lava").is_none());
     }

@@ -14,7 +14,8 @@
 //! conducts `G_j = k_j/h_j` (W m⁻² K⁻¹). The θ-scheme in time (`θ = 1`, backward Euler, by
 //! default: unconditionally free of the oscillations Crank–Nicolson (`θ = ½`) shows at the thin
 //! surface nodes when the forcing jumps, e.g. at a shadow's edge), the surface flux linearised
-//! and iterated (Newton) to `NEWTON_TOL` K, each step a tridiagonal solve (Thomas).
+//! and iterated (Newton) to `NEWTON_TOL` K; each step eliminates the tridiagonal system from
+//! the bottom up to one equation in the surface temperature ([`Slab::step`]).
 //!
 //! **Energy.** The scheme is conservative: over any run the heat stored
 //! (`Σ C_i ΔT_i`) equals the θ-weighted surface and bottom fluxes times the steps, to the Newton
@@ -76,6 +77,8 @@ pub struct Slab {
     pub t: Vec<f64>,
     /// The surface flux at the last state (W m⁻²), for the θ-scheme's explicit part.
     last_flux: Option<f64>,
+    /// The implicit system's elimination for the last step length.
+    elim: Elimination,
 }
 
 /// Heat budget of one step (J m⁻²): what the surface and the bottom let in, and what the slab
@@ -196,6 +199,10 @@ impl Slab {
             theta: 1.0,
             t,
             last_flux: None,
+            elim: Elimination {
+                dt: f64::NAN,
+                ..Default::default()
+            },
         })
     }
 
@@ -247,97 +254,133 @@ impl Slab {
     /// step's end (W m⁻²) and its derivative dF/dT_s (W m⁻² K⁻¹, normally ≤ 0); the θ-scheme
     /// weights it with the flux at the step's start (the last step's end value, or `flux` at
     /// the current surface temperature on the first step). Returns the step's heat budget.
+    ///
+    /// The implicit system is tridiagonal and only its first row holds the nonlinear flux, so
+    /// it is eliminated from the bottom up (`T_i = a_i + b_i·T_{i−1}`; the `b_i` depend on `dt`
+    /// only and are kept) down to one equation in the surface temperature, which Newton solves;
+    /// the other nodes follow by substitution. One sweep each way per step, however many Newton
+    /// iterations.
     pub fn step(&mut self, dt: f64, flux: impl Fn(f64) -> (f64, f64)) -> Budget {
         let n = self.t.len();
         let m = self.free_nodes();
         let th = self.theta;
-        let old = self.t.clone();
-        let f_old = self.last_flux.unwrap_or_else(|| flux(old[0]).0);
-        let fb_old = self.bottom_flux(&old);
-        // Explicit part of the right-hand side: C/dt·T + (1−θ)·R(T_old).
-        let mut rhs = vec![0.0; m];
-        for i in 0..m {
+        if self.elim.dt != dt || self.elim.theta != th {
+            self.prepare(dt);
+        }
+        let f_old = self.last_flux.unwrap_or_else(|| flux(self.t[0]).0);
+        let fb_old = self.bottom_flux(&self.t);
+        let g = &self.conductance;
+        let c = &self.capacity;
+        let t = &self.t;
+        // Right-hand side: C/dt·T + (1−θ)·R(T_old) (+ θ·G·T_b beside a fixed bottom), and the
+        // upward elimination's a_i in one sweep from the bottom.
+        let rhs = |i: usize| {
             let mut r = 0.0;
             if i > 0 {
-                r += self.conductance[i - 1] * (old[i - 1] - old[i]);
+                r += g[i - 1] * (t[i - 1] - t[i]);
             }
             if i + 1 < n {
-                r += self.conductance[i] * (old[i + 1] - old[i]);
+                r += g[i] * (t[i + 1] - t[i]);
             }
             if i == 0 {
                 r += f_old;
             }
-            rhs[i] = self.capacity[i] / dt * old[i] + (1.0 - th) * r;
-        }
-        // Implicit tridiagonal matrix (without the surface flux's linearisation).
-        let mut lower = vec![0.0; m];
-        let mut diag = vec![0.0; m];
-        let mut upper = vec![0.0; m];
-        for i in 0..m {
-            diag[i] = self.capacity[i] / dt;
-            if i > 0 {
-                diag[i] += th * self.conductance[i - 1];
-                lower[i] = -th * self.conductance[i - 1];
-            }
-            if i + 1 < n {
-                diag[i] += th * self.conductance[i];
-                if i + 1 < m {
-                    upper[i] = -th * self.conductance[i];
+            let mut v = c[i] / dt * t[i] + (1.0 - th) * r;
+            if i + 1 == m {
+                if let Bottom::Fixed(tb) = self.bottom {
+                    v += th * g[i] * tb;
                 }
             }
+            v
+        };
+        let elim = &mut self.elim;
+        // a[i] for i ≥ 1 (a[m] = 0 beyond the last free node).
+        let mut a_next = 0.0;
+        for i in (1..m).rev() {
+            let upper = if i + 1 < m { -th * g[i] } else { 0.0 };
+            let a = (rhs(i) - upper * a_next) / elim.den[i];
+            elim.a[i] = a;
+            a_next = a;
         }
-        if let Bottom::Fixed(tb) = self.bottom {
-            // The fixed node's neighbour: θ·G·T_b moves to the right-hand side.
-            rhs[m - 1] += th * self.conductance[m - 1] * tb;
-        }
-        let mut ts = old[0];
-        let mut f_new = 0.0;
-        let mut sol = vec![0.0; m];
+        // Row 0: D·T0 − R = θ·F(T0).
+        let (d0, r0) = if m > 1 {
+            let upper = -th * g[0];
+            (elim.den[0], rhs(0) - upper * elim.a[1])
+        } else {
+            (elim.den[0], rhs(0))
+        };
+        let mut ts = t[0];
         for _ in 0..NEWTON_MAX {
             let (f, df) = flux(ts);
-            // θ·(F(ts) + F'(ts)(T0 − ts)) on node 0.
-            let mut d = diag.clone();
-            let mut r = rhs.clone();
-            d[0] -= th * df;
-            r[0] += th * (f - df * ts);
-            thomas(&lower, &d, &upper, &mut r, &mut sol);
-            let moved = (sol[0] - ts).abs();
-            ts = sol[0];
-            f_new = f;
+            let next = (r0 + th * (f - df * ts)) / (d0 - th * df);
+            let moved = (next - ts).abs();
+            ts = next;
             if moved < NEWTON_TOL {
-                // The flux at the converged surface temperature.
-                f_new = flux(ts).0;
                 break;
             }
         }
-        self.t[..m].copy_from_slice(&sol);
+        let f_new = flux(ts).0;
+        let mut stored = c[0] * (ts - t[0]);
+        let mut prev = ts;
+        self.t[0] = ts;
+        for i in 1..m {
+            let v = self.elim.a[i] + self.elim.b[i] * prev;
+            stored += self.capacity[i] * (v - self.t[i]);
+            self.t[i] = v;
+            prev = v;
+        }
         self.last_flux = Some(f_new);
         let fb_new = self.bottom_flux(&self.t);
-        let stored: f64 = (0..m).map(|i| self.capacity[i] * (self.t[i] - old[i])).sum();
         Budget {
             surface_in: dt * (th * f_new + (1.0 - th) * f_old),
             bottom_in: dt * (th * fb_new + (1.0 - th) * fb_old),
             stored,
         }
     }
+
+    /// The elimination's `b_i` and pivots for step `dt` (they depend on the matrix only).
+    fn prepare(&mut self, dt: f64) {
+        let n = self.t.len();
+        let m = self.free_nodes();
+        let th = self.theta;
+        let g = &self.conductance;
+        let mut den = vec![0.0; m];
+        let mut b = vec![0.0; m];
+        let mut b_next = 0.0;
+        for i in (0..m).rev() {
+            let mut diag = self.capacity[i] / dt;
+            if i > 0 {
+                diag += th * g[i - 1];
+            }
+            if i + 1 < n {
+                diag += th * g[i];
+            }
+            let upper = if i + 1 < m { -th * g[i] } else { 0.0 };
+            den[i] = diag + upper * b_next;
+            let lower = if i > 0 { -th * g[i - 1] } else { 0.0 };
+            b[i] = -lower / den[i];
+            b_next = b[i];
+        }
+        self.elim = Elimination {
+            dt,
+            theta: th,
+            den,
+            b,
+            a: vec![0.0; m],
+        };
+    }
 }
 
-/// Solve the tridiagonal system (`lower[0]` and `upper[m−1]` unused) for `x`; `r` is destroyed.
-fn thomas(lower: &[f64], diag: &[f64], upper: &[f64], r: &mut [f64], x: &mut [f64]) {
-    let m = diag.len();
-    let mut c = vec![0.0; m];
-    let mut b = diag[0];
-    c[0] = upper[0] / b;
-    r[0] /= b;
-    for i in 1..m {
-        b = diag[i] - lower[i] * c[i - 1];
-        c[i] = upper[i] / b;
-        r[i] = (r[i] - lower[i] * r[i - 1]) / b;
-    }
-    x[m - 1] = r[m - 1];
-    for i in (0..m - 1).rev() {
-        x[i] = r[i] - c[i] * x[i + 1];
-    }
+/// The bottom-up elimination of the implicit system for one step length.
+#[derive(Clone, Debug, Default)]
+struct Elimination {
+    dt: f64,
+    theta: f64,
+    /// Pivots: row i reads den_i·T_i = (rhs_i − upper_i·a_{i+1}) − lower_i·T_{i−1}.
+    den: Vec<f64>,
+    /// T_i = a_i + b_i·T_{i−1}.
+    b: Vec<f64>,
+    a: Vec<f64>,
 }
 
 #[cfg(test)]
@@ -576,10 +619,17 @@ mod tests {
             let series: Vec<f64> = temps.iter().map(|t| t[0]).collect();
             // Complex error of the harmonic (amplitude and phase together).
             let (_, a, phi) = harmonic(&series);
-            let (re, im) = (a * phi.cos() - want * (-PI / 4.0).cos(), a * phi.sin() - want * (-PI / 4.0).sin());
+            let (re, im) = (
+                a * phi.cos() - want * (-PI / 4.0).cos(),
+                a * phi.sin() - want * (-PI / 4.0).sin(),
+            );
             re.hypot(im) / want
         };
-        let (e1, e2, e3) = (err(48, 0.002, 1.08), err(96, 0.002, 1.08), err(192, 0.002, 1.08));
+        let (e1, e2, e3) = (
+            err(48, 0.002, 1.08),
+            err(96, 0.002, 1.08),
+            err(192, 0.002, 1.08),
+        );
         assert!(e2 < 0.6 * e1 && e3 < 0.6 * e2, "time: {e1} {e2} {e3}");
         let (c1, c2) = (err(2880, 0.04, 1.3), err(2880, 0.01, 1.1));
         assert!(c2 < 0.5 * c1, "nodes: {c1} {c2}");

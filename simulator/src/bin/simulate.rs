@@ -161,6 +161,20 @@ enum Command {
         #[arg(long, default_value_t = 1)]
         seed: u64,
     },
+    /// Surface temperatures through a diurnal cycle from a heat-conduction energy balance
+    /// (keys in docs/temperatures.md): writes OUTDIR/lst_HHMM.tif for each local time (the
+    /// `scene.land_surface_temperature` of thermal runs), OUTDIR/materials.csv,
+    /// OUTDIR/diurnal.csv and OUTDIR/temperatures_HHMM.csv (a `scene.temperature_table`).
+    Temperatures {
+        /// Temperature-solver file (TOML; keys in docs/temperatures.md).
+        config: PathBuf,
+        /// Output folder (created if missing).
+        #[arg(short, long, default_value = "out")]
+        output: PathBuf,
+        /// Worker threads (default: all cores). Results do not depend on it.
+        #[arg(short = 'j', long)]
+        threads: Option<usize>,
+    },
     /// Simulated TOA reflectance of a calibration site for a list of acquisitions
     /// (columns time_utc,vza,vaa,srf and optionally sza,saa); writes OUTDIR/pics.csv and OUTDIR/pics.nc.
     Pics {
@@ -451,6 +465,34 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
                 "preview done in {:.2} s (scene loaded in {t_load:.2} s)",
                 t0.elapsed().as_secs_f64()
             );
+            Ok(())
+        }
+        Command::Temperatures {
+            config,
+            output,
+            threads,
+        } => {
+            set_threads(threads)?;
+            let t0 = Instant::now();
+            let s = simulator::temperatures::run(&config, &output, !quiet)?;
+            if s.pixels > 0 {
+                println!(
+                    "{} terrain pixel(s), {} distinct facet(s), periodic within {} day(s), in {:.1} s",
+                    s.pixels,
+                    s.distinct_facets,
+                    s.days_max,
+                    t0.elapsed().as_secs_f64()
+                );
+            } else {
+                println!(
+                    "flat facets only (no scene), periodic within {} day(s), in {:.1} s",
+                    s.days_max,
+                    t0.elapsed().as_secs_f64()
+                );
+            }
+            for f in &s.files {
+                println!("wrote {}", f.display());
+            }
             Ok(())
         }
         Command::Check {
