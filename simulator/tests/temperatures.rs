@@ -18,7 +18,8 @@
 //!   raster's temperature as brightness temperature in every open pixel, and the plate the
 //!   temperature of its material's row in `temperatures_1030.csv`.
 //! * **Thread independence**: the same files on 1 and 2 threads.
-//! * **Errors** name the key and exit with status 2.
+//! * **Errors** name the key and exit with status 2; a bad `scene.temperature_table` is named
+//!   with its file and line (or the unknown material).
 
 mod common;
 
@@ -315,4 +316,39 @@ fn errors_name_the_key_and_exit_2() {
     let f = solver_file(&dir, &dir.join("nowhere"), "");
     let e = simulator::temperatures::run(&f, &dir.join("out"), false).unwrap_err();
     assert!(format!("{e:#}").contains("scene.path"), "{e:#}");
+}
+
+#[test]
+fn bad_temperature_tables_are_named_by_file_and_line() {
+    let dir = tmp("temps-table");
+    let b = write_plane(&dir.join("bundle"), &plane(0.0));
+    let cases = [
+        ("material,temperature_k\nlot,300\nlawn,hot\n", "line 3"),
+        ("material,temperature_k\nlot,300\nlawn,-4\n", "line 3"),
+        ("name,kelvin\nlot,300\n", "header"),
+        ("material,temperature_k\nlot,300\nmoon,250\n", "moon"),
+    ];
+    for (i, (table, needle)) in cases.iter().enumerate() {
+        let t = dir.join(format!("t{i}.csv"));
+        std::fs::write(&t, table).unwrap();
+        let text = format!(
+            "emission = true\n[spectral]\nwavelengths = [10000.0]\n[illumination]\ntype = \"none\"\n\
+             [scene]\ntype = \"bundle\"\npath = \"{}\"\ntemperature_table = \"{}\"\n\
+             [[measures]]\nid = \"img\"\ntype = \"ortho\"\npixel_size_m = 100.0\nspp = 8\n",
+            b.display(),
+            t.display()
+        );
+        let p = dir.join(format!("e{i}.toml"));
+        std::fs::write(&p, &text).unwrap();
+        let e = engine::config::Experiment::load(&p)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("scene.temperature_table") && e.contains(needle),
+            "case {i}: {e}"
+        );
+        if i == 0 {
+            assert!(e.contains(&t.display().to_string()), "{e}");
+        }
+    }
 }

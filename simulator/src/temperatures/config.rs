@@ -362,7 +362,9 @@ impl TemperatureConfig {
         }
         let s = &self.shortwave;
         if s.wavelengths.len() < 2
-            || s.wavelengths.windows(2).any(|p| !(p[1] > p[0]))
+            || s.wavelengths
+                .windows(2)
+                .any(|p| p[1].partial_cmp(&p[0]) != Some(std::cmp::Ordering::Greater))
             || s.wavelengths.iter().any(|&v| !(positive(v) && v < 1e5))
         {
             return bad(
