@@ -220,7 +220,8 @@ pub fn periodic_day(
     // Start at the temperature whose day-mean balance is zero (with an adiabatic bottom the
     // periodic day's mean profile is close to uniform there): the deep nodes then need days,
     // not weeks, to settle.
-    slab.fill(equilibrium(facet, day, &gain, optics));
+    let start = equilibrium(facet, day, &gain, optics);
+    slab.fill(start.min(slab.melting_point.unwrap_or(f64::INFINITY)));
     let drives: Vec<Drive> = (0..n).map(|k| facet.drive(day, k)).collect();
     let mut surface = vec![0.0; n];
     let mut previous_end = f64::NAN;

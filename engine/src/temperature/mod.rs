@@ -10,7 +10,8 @@
 //! (1987), *Boundary Layer Climates*, Table 2.1; roof build-ups and albedos/emissivities from
 //! common handbook values (ASHRAE Fundamentals 2017, ch. 26 and 33); wetness (the fraction of
 //! open-water evaporation) from the ranges of Monteith & Unsworth (2013). Not modelled: stomatal
-//! control (transpiration is a fixed fraction), snow melt (snow can pass 273.15 K), the heat of
+//! control (transpiration is a fixed fraction), snow running out (melting snow stays at
+//! 273.15 K, its supply unlimited), the heat of
 //! buildings' interiors (roofs sit on insulation over an adiabatic bottom), water's penetration
 //! by sunlight and its currents (a 2 m mixed slab).
 
@@ -31,6 +32,17 @@ pub struct ThermalMaterial {
     /// Wetness β ∈ [0, 1] (the fraction of open-water evaporation; `balance.rs`).
     pub wetness: f64,
     pub bottom: Bottom,
+    /// K: the surface melts rather than warm past this (snow, ice; `slab.rs`).
+    pub melting_point: Option<f64>,
+}
+
+impl ThermalMaterial {
+    /// A slab of this material at `t0` (K), nodes from `first_m` growing by `growth`.
+    pub fn slab(&self, first_m: f64, growth: f64, t0: f64) -> Result<slab::Slab, slab::SlabError> {
+        let mut s = slab::Slab::new(&self.layers, first_m, growth, self.bottom, t0)?;
+        s.melting_point = self.melting_point;
+        Ok(s)
+    }
 }
 
 const fn layer(thickness_m: f64, conductivity: f64, density: f64, heat_capacity: f64) -> Layer {
@@ -88,6 +100,7 @@ pub fn preset(name: &str) -> Option<ThermalMaterial> {
         emissivity,
         wetness,
         bottom: Bottom::Adiabatic,
+        melting_point: None,
     };
     // Wetness: sealed and dry surfaces 0; moist soil 0.5, transpiring grass and forest 0.3,
     // open water 1 (docs/temperatures.md).
@@ -133,12 +146,15 @@ pub fn preset(name: &str) -> Option<ThermalMaterial> {
             0.93,
             dry,
         ),
-        "snow" => m(
-            vec![layer(0.3, 0.2, 300.0, 2090.0), sand_dry],
-            0.70,
-            0.98,
-            dry,
-        ),
+        "snow" => ThermalMaterial {
+            melting_point: Some(273.15),
+            ..m(
+                vec![layer(0.3, 0.2, 300.0, 2090.0), sand_dry],
+                0.70,
+                0.98,
+                dry,
+            )
+        },
         "leaf" => m(vec![layer(0.0003, 0.5, 800.0, 3500.0)], 0.30, 0.97, 0.3),
         "bark" => m(vec![layer(0.1, 0.15, 600.0, 1700.0)], 0.20, 0.95, dry),
         _ => return None,
@@ -153,10 +169,7 @@ mod tests {
     fn every_preset_builds_a_slab() {
         for (name, _) in PRESETS {
             let m = preset(name).unwrap();
-            assert!(
-                slab::Slab::new(&m.layers, 0.002, 1.15, m.bottom, 290.0).is_ok(),
-                "{name}"
-            );
+            assert!(m.slab(0.002, 1.15, 290.0).is_ok(), "{name}");
             assert!((0.0..1.0).contains(&m.albedo) && m.emissivity > 0.0 && m.emissivity <= 1.0);
             assert!((0.0..=1.0).contains(&m.wetness));
         }

@@ -79,6 +79,9 @@ pub struct Slab {
     last_flux: Option<f64>,
     /// The implicit system's elimination for the last step length.
     elim: Elimination,
+    /// The surface cannot warm past this (K): the heat beyond it melts (snow, ice; an
+    /// unlimited supply that stays at its melting point).
+    pub melting_point: Option<f64>,
 }
 
 /// Heat budget of one step (J m⁻²): what the surface and the bottom let in, and what the slab
@@ -88,6 +91,9 @@ pub struct Budget {
     pub surface_in: f64,
     pub bottom_in: f64,
     pub stored: f64,
+    /// Heat spent melting at the surface (a slab with a melting point), J m⁻²: stored =
+    /// surface_in + bottom_in − melted.
+    pub melted: f64,
 }
 
 impl std::ops::AddAssign for Budget {
@@ -95,6 +101,7 @@ impl std::ops::AddAssign for Budget {
         self.surface_in += o.surface_in;
         self.bottom_in += o.bottom_in;
         self.stored += o.stored;
+        self.melted += o.melted;
     }
 }
 
@@ -203,6 +210,7 @@ impl Slab {
                 dt: f64::NAN,
                 ..Default::default()
             },
+            melting_point: None,
         })
     }
 
@@ -319,7 +327,19 @@ impl Slab {
                 break;
             }
         }
-        let f_new = flux(ts).0;
+        let mut f_new = flux(ts).0;
+        // Held at the melting point: row 0 then balances with a melt flux M taken out,
+        // D·T_m − R = θ·(F(T_m) − M).
+        let mut melted = 0.0;
+        if let Some(tm) = self.melting_point {
+            if ts > tm {
+                ts = tm;
+                f_new = flux(ts).0;
+                let melt = f_new - (d0 * ts - r0) / th;
+                melted = dt * th * melt;
+                f_new -= melt;
+            }
+        }
         let mut stored = c[0] * (ts - t[0]);
         let mut prev = ts;
         self.t[0] = ts;
@@ -332,9 +352,10 @@ impl Slab {
         self.last_flux = Some(f_new);
         let fb_new = self.bottom_flux(&self.t);
         Budget {
-            surface_in: dt * (th * f_new + (1.0 - th) * f_old),
+            surface_in: dt * (th * f_new + (1.0 - th) * f_old) + melted,
             bottom_in: dt * (th * fb_new + (1.0 - th) * fb_old),
             stored,
+            melted,
         }
     }
 
@@ -633,6 +654,46 @@ mod tests {
         assert!(e2 < 0.6 * e1 && e3 < 0.6 * e2, "time: {e1} {e2} {e3}");
         let (c1, c2) = (err(2880, 0.04, 1.3), err(2880, 0.01, 1.1));
         assert!(c2 < 0.5 * c1, "nodes: {c1} {c2}");
+    }
+
+    #[test]
+    fn a_melting_surface_stays_at_its_melting_point_and_books_the_heat() {
+        // Snow under strong sunlight: the surface reaches 273.15 K and stays there while the
+        // excess melts; the budget closes with the melt term; at night it cools below again.
+        let snow = Layer {
+            thickness_m: 0.3,
+            conductivity: 0.2,
+            density: 300.0,
+            heat_capacity: 2090.0,
+        };
+        let omega = TAU / DAY;
+        for theta in [1.0, 0.5] {
+            let mut slab =
+                Slab::new(&[snow, soil()], 0.002, 1.15, Bottom::Adiabatic, 268.0).unwrap();
+            slab.theta = theta;
+            slab.melting_point = Some(273.15);
+            let (temps, b) = run(&mut slab, 3, 144, |t, ts| {
+                let sun = (600.0 * (omega * t - PI / 2.0).sin()).max(0.0);
+                (
+                    sun + 250.0 - 0.98 * 5.670_374_419e-8 * ts.powi(4) - 8.0 * (ts - 275.0),
+                    -4.0 * 0.98 * 5.670_374_419e-8 * ts.powi(3) - 8.0,
+                )
+            });
+            let surface: Vec<f64> = temps.iter().map(|t| t[0]).collect();
+            let max = surface.iter().cloned().fold(f64::MIN, f64::max);
+            let min = surface.iter().cloned().fold(f64::MAX, f64::min);
+            assert!(
+                max <= 273.15 + 1e-12 && (max - 273.15).abs() < 1e-9,
+                "θ {theta}: max {max}"
+            );
+            assert!(min < 270.0, "θ {theta}: it cools at night ({min})");
+            assert!(b.melted > 1e5, "θ {theta}: {b:?}");
+            let gap = (b.surface_in + b.bottom_in - b.melted - b.stored).abs();
+            assert!(
+                gap < 1e-6 * b.surface_in.abs().max(b.melted),
+                "θ {theta}: {b:?}"
+            );
+        }
     }
 
     #[test]

@@ -189,6 +189,9 @@ pub struct MaterialTable {
     /// K: hold the slab's bottom at this temperature (default: no heat through it).
     #[serde(default)]
     pub bottom_temperature_k: Option<f64>,
+    /// K: the surface melts rather than warm past this (default: the preset's; snow 273.15).
+    #[serde(default)]
+    pub melting_point_k: Option<f64>,
 }
 
 /// The preset a material of scenegen's built-in land-cover schemes takes when the file does not
@@ -459,6 +462,7 @@ impl TemperatureConfig {
                         emissivity: f64::NAN,
                         wetness: 0.0,
                         bottom: Bottom::Adiabatic,
+                        melting_point: None,
                     },
                     (None, None) => {
                         return Err(key_error(
@@ -529,6 +533,16 @@ impl TemperatureConfig {
                         ));
                     }
                     model.bottom = Bottom::Fixed(tb);
+                }
+                if let Some(tm) = t.melting_point_k {
+                    if !(tm.is_finite() && tm > 150.0 && tm < 400.0) {
+                        return Err(key_error(
+                            path,
+                            &format!("{key}.melting_point_k"),
+                            format!("{tm} must lie in (150, 400) K"),
+                        ));
+                    }
+                    model.melting_point = Some(tm);
                 }
                 Ok(Resolved {
                     model,
@@ -604,6 +618,15 @@ mod tests {
         .unwrap_err()
         .to_string();
         assert!(e.contains("`materials.x.albedo`"), "{e}");
+        let e = parse(&format!(
+            "{BASE}[materials]\nx = {{ preset = \"snow\", melting_point_k = 500.0 }}\n"
+        ))
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("`materials.x.melting_point_k`"), "{e}");
+        let cfg = parse(BASE).unwrap();
+        let snow = cfg.material(Path::new("t.toml"), "snow").unwrap();
+        assert_eq!(snow.model.melting_point, Some(273.15));
     }
 
     #[test]

@@ -26,7 +26,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use engine::temperature::balance::{periodic_day, Day, Drive, Facet, SurfaceOptics};
-use engine::temperature::slab::Slab;
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -339,14 +338,10 @@ fn solve(
     m: &Resolved,
 ) -> engine::temperature::balance::PeriodicDay {
     let mean_air = 0.5 * (cfg.weather.air_temperature_k[0] + cfg.weather.air_temperature_k[1]);
-    let mut slab = Slab::new(
-        &m.model.layers,
-        FIRST_NODE_M,
-        GROWTH,
-        m.model.bottom,
-        mean_air,
-    )
-    .expect("materials are checked when the file is read");
+    let mut slab = m
+        .model
+        .slab(FIRST_NODE_M, GROWTH, mean_air)
+        .expect("materials are checked when the file is read");
     let optics = SurfaceOptics {
         albedo: m.model.albedo,
         emissivity: m.model.emissivity,
