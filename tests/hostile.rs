@@ -286,6 +286,34 @@ fn hostile_inputs_fail_cleanly() {
         &x("optical_thickness = 0.2", "optical_thickness = \"abc\""),
         &e(2, &["atmosphere.optical_thickness", "line 6", "\"abc\""]),
     );
+    // A surface so cold that its Planck radiance underflows (issue 43: radiance 0, BT NaN,
+    // exit 0 before); a layer likewise.
+    let thermal = |surface: &str, layer: &str| {
+        x("seed = 3", "seed = 3\nemission = true")
+            .replace("wavelengths = [550.0]", "wavelengths = [10000.0]")
+            .replace(
+                "reflectance = 0.3",
+                &format!("reflectance = 0.3\ntemperature = {surface}"),
+            )
+            .replace(
+                "phase = { type = \"rayleigh\" }",
+                &format!("phase = {{ type = \"rayleigh\" }}\ntemperature = {layer}"),
+            )
+            .replace(
+                "type = \"directional\"\nzenith = 30.0\nazimuth = 0.0",
+                "type = \"none\"",
+            )
+    };
+    s.experiment(
+        "surface-too-cold-to-radiate",
+        &thermal("1.5", "250.0"),
+        &e(2, &["surface.temperature", "1.5 K", "underflows"]),
+    );
+    s.experiment(
+        "layer-too-cold-to-radiate",
+        &thermal("300.0", "1.0"),
+        &e(2, &["atmosphere", "1 K", "underflows"]),
+    );
     s.experiment(
         "nan-optical-thickness",
         &x("optical_thickness = 0.2", "optical_thickness = nan"),

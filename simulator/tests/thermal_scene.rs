@@ -14,7 +14,8 @@
 //!   atmosphere, a 4×4 LST GeoTIFF from 270 to 345 K; nadir ortho pixels aligned with it have
 //!   exactly the raster's temperature as brightness temperature (zero variance), and the
 //!   ortho product writes the brightness-temperature GeoTIFF.
-//! * Errors: a material without a temperature is named.
+//! * Errors: a material without a temperature is named, and one too cold to radiate anything
+//!   representable (its Planck radiance underflows).
 
 mod common;
 
@@ -274,4 +275,17 @@ fn a_material_without_temperature_is_named() {
         .unwrap()
         .to_string();
     assert!(e.contains("scene.temperatures.sand"), "{e}");
+    // A material so cold that its Planck radiance underflows at 10 µm (issue 43).
+    let cold = text.replace(
+        "[[measures]]",
+        "[scene.temperatures]\nsoil = 1.0\n[[measures]]",
+    );
+    let e = engine::config::Experiment::from_str(&cold, &common::data_dir().join("t.toml"))
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("scene.temperatures.soil") && e.contains("underflows"),
+        "{e}"
+    );
 }

@@ -319,7 +319,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
 
     let scene = resolve_scene(&cfg, &ctx, &sun, planet_radius, ground)?;
     if let (Some(_), Some(sc)) = (&thermal, &scene) {
-        check_scene_temperatures(&ctx, sc)?;
+        check_scene_temperatures(&ctx, sc, &wavelengths)?;
     }
 
     let clouds = crate::clouds::config::resolve(&ctx, &cfg.clouds, &wavelengths)?;
@@ -635,8 +635,37 @@ fn resolve_lidars(
     Ok(out)
 }
 
-/// With thermal emission, every material of the scene needs a temperature.
-fn check_scene_temperatures(ctx: &ConfigCtx, sc: &Scene) -> Result<(), ConfigError> {
+/// With thermal emission, every material of the scene needs a temperature, none so cold that
+/// its Planck radiance underflows at the shortest run wavelength (`planck::lowest_temperature`).
+fn check_scene_temperatures(
+    ctx: &ConfigCtx,
+    sc: &Scene,
+    wavelengths: &[f64],
+) -> Result<(), ConfigError> {
+    let shortest = wavelengths.iter().cloned().fold(f64::INFINITY, f64::min);
+    let t_min = crate::sources::planck::lowest_temperature(shortest);
+    if let Some((t, row, column)) = sc.lst.as_ref().and_then(|m| m.coldest()) {
+        if t < t_min {
+            return Err(ctx.err(
+                "scene.land_surface_temperature",
+                format!(
+                    "pixel (row {row}, column {column}) holds {t} K, which radiates nothing representable at {shortest} nm (its Planck radiance underflows); at the run's wavelengths temperatures must be at least {t_min:.3} K"
+                ),
+            ));
+        }
+    }
+    for (id, (name, _)) in sc.materials.iter().enumerate() {
+        if let Some(t) = sc.temperature(id as u16) {
+            if t < t_min {
+                return Err(ctx.err(
+                    format!("scene.temperatures.{name}"),
+                    format!(
+                        "{t} K radiates nothing representable at {shortest} nm (its Planck radiance underflows); at the run's wavelengths temperatures must be at least {t_min:.3} K"
+                    ),
+                ));
+            }
+        }
+    }
     let missing: Vec<&str> = sc
         .materials
         .iter()

@@ -25,6 +25,7 @@ use crate::error::{ConfigCtx, ConfigError};
 use crate::integrator::settings::{IntegratorKind, IntegratorSettings};
 use crate::measure::Measure;
 use crate::sources::illumination::Sun;
+use crate::sources::planck;
 
 /// The thermal sources of a run.
 pub struct Thermal {
@@ -82,6 +83,33 @@ pub fn resolve(
             t
         }
     };
+    // Sources so cold that their Planck radiance underflows at the shortest run wavelength
+    // emit nothing representable (issue 43): refused, naming the key.
+    let shortest = wavelengths.iter().cloned().fold(f64::INFINITY, f64::min);
+    let t_min = planck::lowest_temperature(shortest);
+    let too_cold = |key: &str, t: f64| {
+        ctx.err(
+            key,
+            format!(
+                "{t} K radiates nothing representable at {shortest} nm (its Planck radiance underflows); at the run's wavelengths temperatures must be at least {t_min:.3} K"
+            ),
+        )
+    };
+    if surface > 0.0 && surface < t_min {
+        return Err(too_cold("surface.temperature", surface));
+    }
+    for (i, l) in layers.iter().enumerate() {
+        let t = l.t_bottom.min(l.t_top);
+        if t < t_min {
+            return Err(too_cold(
+                &format!(
+                    "atmosphere (layer {i} from the ground, base {} m)",
+                    l.bottom
+                ),
+                t,
+            ));
+        }
+    }
     if sun.shines {
         if let Some(e) = sun.irradiance.iter().find(|e| e.is_nan() || **e <= 0.0) {
             return Err(ctx.err(

@@ -262,4 +262,15 @@ impl TemperatureMap {
     pub fn memory_bytes(&self) -> usize {
         self.raster.bands.iter().map(|b| b.len() * 4).sum()
     }
+
+    /// The coldest pixel (K) and its (row, column), nodata skipped.
+    pub fn coldest(&self) -> Option<(f64, usize, usize)> {
+        let w = self.raster.width;
+        self.raster.bands[0]
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| !v.is_nan())
+            .min_by(|a, b| a.1.total_cmp(b.1))
+            .map(|(k, v)| (f64::from(*v), k / w, k % w))
+    }
 }

@@ -34,6 +34,19 @@ pub fn radiance(wavelength_nm: f64, t: f64) -> f64 {
     C1L / l.powi(5) / (C2 / (l * t)).exp_m1() * 1e-9
 }
 
+/// The exponent `hc/(λkT)` above which B_λ(T) is below e^{−650} ≈ 10⁻²⁸² of its scale 2hc²/λ⁵:
+/// near enough to the smallest normal f64 (10⁻³⁰⁸) that colder sources radiate nothing the run
+/// can represent at every wavelength up to 1 mm (their radiance underflows to 0 and no
+/// brightness temperature can be recovered from it).
+const MAX_EXPONENT: f64 = 650.0;
+
+/// The lowest temperature (K) whose Planck radiance at `wavelength_nm` is representable
+/// ([`MAX_EXPONENT`]): about 2.2 K at 10 µm, 55 K at 400 nm. Thermal runs refuse colder
+/// sources, naming the key (issue 43).
+pub fn lowest_temperature(wavelength_nm: f64) -> f64 {
+    C2 / (wavelength_nm * 1e-9 * MAX_EXPONENT)
+}
+
 /// Brightness temperature (K): the T with `radiance(wavelength_nm, T) = l`; NaN for `l ≤ 0` or
 /// a non-finite `l`.
 pub fn brightness_temperature(wavelength_nm: f64, l: f64) -> f64 {
@@ -42,7 +55,8 @@ pub fn brightness_temperature(wavelength_nm: f64, l: f64) -> f64 {
     }
     let lm = wavelength_nm * 1e-9;
     let b_si = l * 1e9;
-    C2 / (lm * (C1L / (lm.powi(5) * b_si)).ln_1p())
+    // (C1L/λ⁵)/B rather than C1L/(λ⁵·B): λ⁵·B falls into subnormals for cold sources.
+    C2 / (lm * (C1L / lm.powi(5) / b_si).ln_1p())
 }
 
 /// dB_λ/dT (W m⁻² sr⁻¹ nm⁻¹ K⁻¹) at `t`: the delta method's factor for the standard error of a
@@ -75,6 +89,21 @@ mod tests {
     /// Independent check: the per-wavenumber form, B_ν(T) = 2hc²ν³/(e^{hcν/kT} − 1) per m⁻¹,
     /// with B_λ = B_ν·ν² (|dν/dλ| = 1/λ²), at 10 µm and 300 K: 9.924 W m⁻² sr⁻¹ µm⁻¹ (the
     /// textbook value, e.g. Petty 2006 fig. 6.2 reads ~9.9).
+    /// Rationale (issue 43): at the lowest accepted temperature the radiance is a positive
+    /// normal f64 and inverts to that temperature at every wavelength from 400 nm to 100 µm;
+    /// at half of it the radiance is 0 or subnormal.
+    #[test]
+    fn the_lowest_temperature_still_radiates_and_inverts() {
+        for wl in [400.0, 550.0, 10_000.0, 100_000.0] {
+            let t = lowest_temperature(wl);
+            let b = radiance(wl, t);
+            assert!(b.is_normal(), "{wl} nm at {t} K: {b}");
+            assert!((brightness_temperature(wl, b) / t - 1.0).abs() < 1e-9);
+            assert!(radiance(wl, 0.5 * t) < f64::MIN_POSITIVE, "{wl} nm");
+        }
+        assert!((lowest_temperature(10_000.0) - 2.2135).abs() < 0.001);
+    }
+
     #[test]
     fn ten_microns_at_300_k() {
         let b = radiance(10_000.0, 300.0);
