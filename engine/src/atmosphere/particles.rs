@@ -563,11 +563,25 @@ impl ParticleDataset {
                 ));
             }
         }
+        // A wavelength axis must run one way (either way): a zigzag is a damaged or
+        // hand-edited file, refused rather than silently sorted (issue 43).
+        let up = wl.windows(2).all(|p| p[1] > p[0]);
+        let down = wl.windows(2).all(|p| p[1] < p[0]);
+        if n > 1 && !up && !down {
+            let k = wl
+                .windows(3)
+                .position(|p| (p[1] - p[0]) * (p[2] - p[1]) <= 0.0)
+                .map_or(1, |k| k + 1);
+            return Err(verr(
+                wname,
+                format!(
+                    "is not monotonic: value {} at index {k} breaks the order of {}, {}, {} (wavelengths must increase or decrease strictly)",
+                    wl[k], wl[k - 1], wl[k], wl.get(k + 1).map_or(String::new(), |v| v.to_string())
+                ),
+            ));
+        }
         let mut order: Vec<usize> = (0..n).collect();
         order.sort_by(|&a, &b| wl[a].total_cmp(&wl[b]));
-        if order.windows(2).any(|w| wl[w[0]] == wl[w[1]]) {
-            return Err(verr(wname, "has repeated wavelengths".into()));
-        }
         let phase = match phase {
             PhaseSource::AerCore { p11, pol } => PhaseSource::AerCore {
                 p11: order.iter().map(|&i| p11[i].clone()).collect(),
@@ -823,6 +837,38 @@ mod tests {
                 .0,
             "top"
         );
+    }
+
+    /// Rationale (issue 43): a wavelength axis that zigzags (a damaged or hand-edited file)
+    /// is refused naming the variable and the index; one that decreases is accepted and read
+    /// in increasing order; repeated wavelengths are refused.
+    #[test]
+    fn wavelength_axes_must_run_one_way() {
+        let fin = |wl: Vec<f64>| {
+            let n = wl.len();
+            ParticleDataset::finish(
+                Path::new("aer.nc"),
+                "libRadtran",
+                ("wavelen", wl),
+                (0..n).map(|i| 1.0 + i as f64).collect(),
+                vec![0.9; n],
+                PhaseSource::Libradtran { size_index: 0 },
+            )
+        };
+        let e = fin(vec![400.0, 600.0, 500.0]).unwrap_err().to_string();
+        assert!(
+            e.contains("aer.nc")
+                && e.contains("wavelen")
+                && e.contains("not monotonic")
+                && e.contains("index 1"),
+            "{e}"
+        );
+        assert!(fin(vec![400.0, 400.0, 500.0]).is_err());
+        assert!(fin(vec![400.0, 400.0]).is_err());
+        let d = fin(vec![600.0, 500.0, 400.0]).unwrap();
+        assert_eq!(d.wavelengths, vec![400.0, 500.0, 600.0]);
+        assert_eq!(d.ext, vec![3.0, 2.0, 1.0]);
+        assert!(fin(vec![550.0]).is_ok());
     }
 
     fn eradiate(name: &str) -> PathBuf {
