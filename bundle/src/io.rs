@@ -17,6 +17,12 @@ use super::{BundleError, FORMAT_NAME, FORMAT_VERSION, NO_MATERIAL};
 /// u32.
 pub const INSTANCE_RECORD_BYTES: usize = 64;
 
+/// The largest distance (m) any point of a bundle's geometry may lie from the frame's origin:
+/// 10 000 km, beyond any region on Earth. Farther coordinates (a template scaled 1e19, a vertex
+/// at 3e38) are refused when the bundle is read, naming the tile, template or instance, before
+/// any acceleration structure is built (issue 43: they used to panic inside the BVH builder).
+pub const MAX_COORDINATE_M: f64 = 1e7;
+
 /// One terrain tile in memory.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TerrainTile {
@@ -611,6 +617,25 @@ impl Bundle {
             }
         };
 
+        // The farthest vertex from `offset` (m).
+        let reach = |positions: &[[f32; 3]]| -> f64 {
+            positions
+                .iter()
+                .map(|p| {
+                    let [x, y, z] = p.map(f64::from);
+                    (x * x + y * y + z * z).sqrt()
+                })
+                .fold(0.0, f64::max)
+        };
+        let too_far = |path: &Path, what: &str, r: f64| {
+            BundleError::Corrupt {
+            path: path.to_path_buf(),
+            message: format!(
+                "{what}: geometry reaches {r:.3e} m from the frame's origin; coordinates are bounded by {MAX_COORDINATE_M:e} m"
+            ),
+        }
+        };
+
         let (path, bytes) = read(&manifest.terrain.file)?;
         let mut terrain = Vec::with_capacity(manifest.terrain.tiles.len());
         for t in &manifest.terrain.tiles {
@@ -661,6 +686,10 @@ impl Bundle {
                     message: format!("{what}: non-finite origin {:?}", t.origin),
                 });
             }
+            let r = reach(&positions) + t.origin.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if r > MAX_COORDINATE_M {
+                return Err(too_far(&path, &what, r));
+            }
             terrain.push(TerrainTile {
                 id: t.id,
                 origin: t.origin,
@@ -676,6 +705,7 @@ impl Bundle {
         drop(bytes); // each raw buffer is freed once parsed
         let (path, bytes) = read(TEMPLATES_FILE)?;
         let mut templates = Vec::with_capacity(manifest.templates.len());
+        let mut template_reach: Vec<f64> = Vec::new();
         for t in &manifest.templates {
             let what = format!("template {} ({})", t.id, t.name);
             let p = slice(
@@ -712,6 +742,11 @@ impl Bundle {
                 .map(|c| [c[0], c[1], c[2]])
                 .collect();
             finite(&path, &positions, &what)?;
+            let r = reach(&positions);
+            if r > MAX_COORDINATE_M {
+                return Err(too_far(&path, &what, r));
+            }
+            template_reach.push(r);
             templates.push(TemplateMesh {
                 name: t.name.clone(),
                 source: t.source.clone(),
@@ -765,6 +800,17 @@ impl Bundle {
                         instances.len()
                     ),
                 });
+            }
+            // |M·v + t| ≤ ‖M‖_F·|v| + |t|: a bound on the instance's farthest point.
+            let frobenius = linear
+                .iter()
+                .map(|&a| f64::from(a) * f64::from(a))
+                .sum::<f64>()
+                .sqrt();
+            let r = frobenius * template_reach[template as usize]
+                + translation.iter().map(|c| c * c).sum::<f64>().sqrt();
+            if r > MAX_COORDINATE_M {
+                return Err(too_far(&path, &format!("instance {}", instances.len()), r));
             }
             instances.push(Instance {
                 translation,
@@ -1179,6 +1225,48 @@ mod tests {
             ],
             material_raster: vec![0, 1, 255, 0],
         }
+    }
+
+    /// Rationale (issue 43): coordinates beyond `MAX_COORDINATE_M` (an instance moved 1e300 m,
+    /// a template scaled 1e19, a template vertex at 1e20, a terrain vertex at 3e38) used to pass
+    /// every check and panic inside the BVH builder; they are refused on open, naming the part.
+    #[test]
+    fn coordinates_beyond_the_bound_are_refused() {
+        let dir = std::env::temp_dir().join(format!("bundle-far-{}", std::process::id()));
+        type Damage = Box<dyn Fn(&mut Bundle)>;
+        let cases: Vec<(Damage, &str)> = vec![
+            (
+                Box::new(|b| b.instances[0].translation[0] = 1e300),
+                "instance 0",
+            ),
+            (
+                Box::new(|b| {
+                    b.instances[1].linear = [1e19, 0.0, 0.0, 0.0, 1e19, 0.0, 0.0, 0.0, 1e19]
+                }),
+                "instance 1",
+            ),
+            (
+                Box::new(|b| b.templates[0].positions[1][0] = 1e20),
+                "template",
+            ),
+            (Box::new(|b| b.terrain[0].positions[2][2] = 3e38), "tile"),
+        ];
+        for (damage, needle) in cases {
+            let _ = std::fs::remove_dir_all(&dir);
+            let mut b = sample();
+            damage(&mut b);
+            b.write(&dir, false).unwrap();
+            let e = Bundle::open(&dir).unwrap_err().to_string();
+            assert!(
+                e.contains(needle) && e.contains("bounded by 1e7 m"),
+                "{needle}: {e}"
+            );
+        }
+        // The sample itself (an instance 100 km up) opens.
+        let _ = std::fs::remove_dir_all(&dir);
+        sample().write(&dir, false).unwrap();
+        assert!(Bundle::open(&dir).is_ok());
+        let _ = std::fs::remove_dir_all(&dir);
     }
 
     /// Rationale: the bundle is the contract between two programs; everything written must come

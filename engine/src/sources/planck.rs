@@ -41,7 +41,7 @@ pub fn radiance(wavelength_nm: f64, t: f64) -> f64 {
 const MAX_EXPONENT: f64 = 650.0;
 
 /// The lowest temperature (K) whose Planck radiance at `wavelength_nm` is representable
-/// ([`MAX_EXPONENT`]): about 2.2 K at 10 µm, 55 K at 400 nm. Thermal runs refuse colder
+/// (`hc/(λkT)` ≤ 650): about 2.2 K at 10 µm, 55 K at 400 nm. Thermal runs refuse colder
 /// sources, naming the key (issue 43).
 pub fn lowest_temperature(wavelength_nm: f64) -> f64 {
     C2 / (wavelength_nm * 1e-9 * MAX_EXPONENT)
