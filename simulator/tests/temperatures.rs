@@ -18,7 +18,8 @@
 //!   raster's temperature as brightness temperature in every open pixel, and the plate the
 //!   temperature of its material's row in `temperatures_1030.csv`.
 //! * **Thread independence**: the same files on 1 and 2 threads.
-//! * **Errors** name the key and exit with status 2; a bad `scene.temperature_table` is named
+//! * **Errors** name the key and exit with status 2 (in `simulate temperatures` and in
+//!   `simulate check`, which also accepts a valid file); a bad `scene.temperature_table` is named
 //!   with its file and line (or the unknown material).
 
 mod common;
@@ -311,7 +312,31 @@ fn errors_name_the_key_and_exit_2() {
         assert_eq!(o.status.code(), Some(2), "case {i}: {err}");
         assert!(err.contains(key), "case {i}: {err}");
         assert!(!err.contains("panicked"), "{err}");
+        // `simulate check` finds the same without computing anything.
+        let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+            .args(["-q", "check"])
+            .arg(&f)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "check, case {i}: {err}");
+        assert!(err.contains(key), "check, case {i}: {err}");
     }
+    let good = solver_file(&dir, &b, "");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_simulate"))
+        .args(["-q", "check"])
+        .arg(&good)
+        .output()
+        .unwrap();
+    assert_eq!(
+        o.status.code(),
+        Some(0),
+        "{}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    assert!(
+        String::from_utf8_lossy(&o.stdout).contains("valid temperature-solver file (2 material(s)")
+    );
     // A missing bundle names `scene.path`.
     let f = solver_file(&dir, &dir.join("nowhere"), "");
     let e = simulator::temperatures::run(&f, &dir.join("out"), false).unwrap_err();

@@ -203,10 +203,11 @@ enum Command {
         #[arg(short = 'j', long)]
         threads: Option<usize>,
     },
-    /// Validate an experiment file, or a PICS site file (detected by its `latitude` or
-    /// `catalogue` key), without running it.
+    /// Validate an experiment file, a PICS site file (detected by its `latitude` or
+    /// `catalogue` key) or a temperature-solver file (by its `weather` and `times` keys),
+    /// without running it.
     Check {
-        /// Experiment file or PICS site file (TOML).
+        /// Experiment file, PICS site file or temperature-solver file (TOML).
         experiment: PathBuf,
         /// With a site file: also validate every acquisition of this CSV (default: one sample
         /// acquisition, Sentinel-2A B4 at nadir with the Sun at 30°).
@@ -499,6 +500,20 @@ fn dispatch(cli: Cli) -> anyhow::Result<()> {
             experiment,
             acquisitions,
         } => {
+            let doc = std::fs::read_to_string(&experiment)
+                .ok()
+                .and_then(|t| t.parse::<toml::Table>().ok());
+            if doc
+                .as_ref()
+                .is_some_and(simulator::temperatures::is_solver_file)
+            {
+                let what = simulator::temperatures::check(&experiment)?;
+                println!(
+                    "{}: valid temperature-solver file ({what})",
+                    experiment.display()
+                );
+                return Ok(());
+            }
             if let Some(n) = check_site(&experiment, acquisitions.as_deref())? {
                 println!("{}: valid PICS site file ({n})", experiment.display());
                 return Ok(());

@@ -54,6 +54,37 @@ pub struct Summary {
     pub not_converged: usize,
 }
 
+/// Whether a parsed TOML document is a temperature-solver file (it has `weather` and
+/// `times`, which experiments and site files do not).
+pub fn is_solver_file(doc: &toml::Table) -> bool {
+    doc.contains_key("weather") && doc.contains_key("times")
+}
+
+/// `simulate check` of a solver file: its keys, and a thermal model for every material of its
+/// bundle (read from the manifest, no geometry loaded); returns a summary.
+pub fn check(path: &Path) -> anyhow::Result<String> {
+    let cfg = TemperatureConfig::load(path)?;
+    let base = path.parent().unwrap_or(Path::new("."));
+    let names: Vec<String> = match &cfg.scene {
+        Some(s) => bundle::Bundle::read_manifest(&base.join(&s.path))
+            .with_context(|| format!("{}: at key `scene.path`", path.display()))?
+            .materials
+            .iter()
+            .map(|m| m.name.clone())
+            .collect(),
+        None => cfg.materials.keys().cloned().collect(),
+    };
+    for n in &names {
+        cfg.material(path, n)?;
+    }
+    Ok(format!(
+        "{} material(s) with thermal models, {} output time(s), {} steps a day",
+        names.len(),
+        cfg.times.len(),
+        (1440.0 / cfg.step_minutes).round()
+    ))
+}
+
 /// Run the solver of the file at `path` into `outdir`.
 pub fn run(path: &Path, outdir: &Path, progress: bool) -> anyhow::Result<Summary> {
     let cfg = TemperatureConfig::load(path)?;
