@@ -492,6 +492,9 @@ impl Bundle {
             )));
         }
         // Refuse to write what a reader would refuse.
+        if let Some(message) = self.beyond_bounds() {
+            return Err(bad(message));
+        }
         check_material_table(&self.manifest.materials, &dir.join(MANIFEST_FILE))?;
         check_material_ids(
             &self.manifest.materials,
@@ -499,6 +502,52 @@ impl Bundle {
             &self.templates,
             dir,
         )
+    }
+
+    /// The first part of the geometry that reaches beyond [`MAX_COORDINATE_M`] from the frame's
+    /// origin, as the reader words it (terrain: tile origin + vertex; instance: |t| + ‖M‖_F ·
+    /// the template's farthest vertex).
+    fn beyond_bounds(&self) -> Option<String> {
+        let reach = |positions: &[[f32; 3]]| {
+            positions
+                .iter()
+                .map(|p| {
+                    let [x, y, z] = p.map(f64::from);
+                    (x * x + y * y + z * z).sqrt()
+                })
+                .fold(0.0, f64::max)
+        };
+        let norm = |v: &[f64]| v.iter().map(|c| c * c).sum::<f64>().sqrt();
+        let msg = |what: String, r: f64| {
+            format!(
+                "{what}: geometry reaches {r:.3e} m from the frame's origin; coordinates are bounded by {MAX_COORDINATE_M:e} m"
+            )
+        };
+        for t in &self.terrain {
+            let r = reach(&t.positions) + norm(&t.origin);
+            if r > MAX_COORDINATE_M {
+                return Some(msg(format!("terrain tile {:?}", t.id), r));
+            }
+        }
+        let template_reach: Vec<f64> = self.templates.iter().map(|t| reach(&t.positions)).collect();
+        for (k, r) in template_reach.iter().enumerate() {
+            if *r > MAX_COORDINATE_M {
+                return Some(msg(format!("template {k}"), *r));
+            }
+        }
+        for (k, i) in self.instances.iter().enumerate() {
+            let m: Vec<f64> = i.linear.iter().map(|&a| f64::from(a)).collect();
+            let r = norm(&m)
+                * template_reach
+                    .get(i.template as usize)
+                    .copied()
+                    .unwrap_or(0.0)
+                + norm(&i.translation);
+            if r > MAX_COORDINATE_M {
+                return Some(msg(format!("instance {k}"), r));
+            }
+        }
+        None
     }
 
     /// Read and validate `dir/manifest.toml` only (for summaries).
@@ -1229,7 +1278,8 @@ mod tests {
 
     /// Rationale (issue 43): coordinates beyond `MAX_COORDINATE_M` (an instance moved 1e300 m,
     /// a template scaled 1e19, a template vertex at 1e20, a terrain vertex at 3e38) used to pass
-    /// every check and panic inside the BVH builder; they are refused on open, naming the part.
+    /// every check and panic inside the BVH builder; the writer refuses to write them and the
+    /// reader refuses them on open, naming the part.
     #[test]
     fn coordinates_beyond_the_bound_are_refused() {
         let dir = std::env::temp_dir().join(format!("bundle-far-{}", std::process::id()));
@@ -1251,15 +1301,35 @@ mod tests {
             ),
             (Box::new(|b| b.terrain[0].positions[2][2] = 3e38), "tile"),
         ];
+        // The writer refuses them (scenegen never writes such a bundle) ...
         for (damage, needle) in cases {
             let _ = std::fs::remove_dir_all(&dir);
             let mut b = sample();
             damage(&mut b);
-            b.write(&dir, false).unwrap();
+            let e = b.write(&dir, false).unwrap_err().to_string();
+            assert!(
+                e.contains(needle) && e.contains("bounded by 1e7 m"),
+                "write, {needle}: {e}"
+            );
+            assert!(!dir.exists());
+        }
+        // ... and the reader refuses a bundle edited after writing (resealed digests): an
+        // instance moved 1e300 m, and one scaled 1e19.
+        for (offset, bytes, needle) in [
+            (0usize, 1e300f64.to_le_bytes().to_vec(), "instance 0"),
+            (64 + 24, 1e19f32.to_le_bytes().to_vec(), "instance 1"),
+        ] {
+            let _ = std::fs::remove_dir_all(&dir);
+            sample().write(&dir, false).unwrap();
+            let path = dir.join(INSTANCES_FILE);
+            let mut raw = std::fs::read(&path).unwrap();
+            raw[offset..offset + bytes.len()].copy_from_slice(&bytes);
+            std::fs::write(&path, raw).unwrap();
+            reseal(&dir);
             let e = Bundle::open(&dir).unwrap_err().to_string();
             assert!(
                 e.contains(needle) && e.contains("bounded by 1e7 m"),
-                "{needle}: {e}"
+                "open, {needle}: {e}"
             );
         }
         // The sample itself (an instance 100 km up) opens.
