@@ -23,6 +23,36 @@ pub const INSTANCE_RECORD_BYTES: usize = 64;
 /// any acceleration structure is built (issue 43: they used to panic inside the BVH builder).
 pub const MAX_COORDINATE_M: f64 = 1e7;
 
+/// The farthest of `positions` from the point `origin` is placed at (m): |origin| + max |v|.
+fn reach(origin: [f64; 3], positions: &[[f32; 3]]) -> f64 {
+    let far = positions
+        .iter()
+        .map(|p| {
+            let [x, y, z] = p.map(f64::from);
+            (x * x + y * y + z * z).sqrt()
+        })
+        .fold(0.0, f64::max);
+    far + origin.iter().map(|c| c * c).sum::<f64>().sqrt()
+}
+
+/// A bound on an instance's farthest point: |M·v + t| ≤ ‖M‖_F·|v| + |t|, with `template_reach`
+/// the template's farthest vertex.
+fn instance_reach(linear: &[f32; 9], translation: [f64; 3], template_reach: f64) -> f64 {
+    let frobenius = linear
+        .iter()
+        .map(|&a| f64::from(a) * f64::from(a))
+        .sum::<f64>()
+        .sqrt();
+    frobenius * template_reach + translation.iter().map(|c| c * c).sum::<f64>().sqrt()
+}
+
+/// The message for part `what` of a bundle reaching `r` m, beyond [`MAX_COORDINATE_M`].
+fn beyond_bound(what: &str, r: f64) -> String {
+    format!(
+        "{what}: geometry reaches {r:.3e} m from the frame's origin; coordinates are bounded by {MAX_COORDINATE_M:e} m"
+    )
+}
+
 /// One terrain tile in memory.
 #[derive(Clone, Debug, PartialEq)]
 pub struct TerrainTile {
@@ -508,43 +538,30 @@ impl Bundle {
     /// origin, as the reader words it (terrain: tile origin + vertex; instance: |t| + ‖M‖_F ·
     /// the template's farthest vertex).
     fn beyond_bounds(&self) -> Option<String> {
-        let reach = |positions: &[[f32; 3]]| {
-            positions
-                .iter()
-                .map(|p| {
-                    let [x, y, z] = p.map(f64::from);
-                    (x * x + y * y + z * z).sqrt()
-                })
-                .fold(0.0, f64::max)
-        };
-        let norm = |v: &[f64]| v.iter().map(|c| c * c).sum::<f64>().sqrt();
-        let msg = |what: String, r: f64| {
-            format!(
-                "{what}: geometry reaches {r:.3e} m from the frame's origin; coordinates are bounded by {MAX_COORDINATE_M:e} m"
-            )
-        };
         for t in &self.terrain {
-            let r = reach(&t.positions) + norm(&t.origin);
+            let r = reach(t.origin, &t.positions);
             if r > MAX_COORDINATE_M {
-                return Some(msg(format!("terrain tile {:?}", t.id), r));
+                return Some(beyond_bound(&format!("terrain tile {:?}", t.id), r));
             }
         }
-        let template_reach: Vec<f64> = self.templates.iter().map(|t| reach(&t.positions)).collect();
+        let template_reach: Vec<f64> = self
+            .templates
+            .iter()
+            .map(|t| reach([0.0; 3], &t.positions))
+            .collect();
         for (k, r) in template_reach.iter().enumerate() {
             if *r > MAX_COORDINATE_M {
-                return Some(msg(format!("template {k}"), *r));
+                return Some(beyond_bound(&format!("template {k}"), *r));
             }
         }
         for (k, i) in self.instances.iter().enumerate() {
-            let m: Vec<f64> = i.linear.iter().map(|&a| f64::from(a)).collect();
-            let r = norm(&m)
-                * template_reach
-                    .get(i.template as usize)
-                    .copied()
-                    .unwrap_or(0.0)
-                + norm(&i.translation);
+            let t = template_reach
+                .get(i.template as usize)
+                .copied()
+                .unwrap_or(0.0);
+            let r = instance_reach(&i.linear, i.translation, t);
             if r > MAX_COORDINATE_M {
-                return Some(msg(format!("instance {k}"), r));
+                return Some(beyond_bound(&format!("instance {k}"), r));
             }
         }
         None
@@ -666,23 +683,9 @@ impl Bundle {
             }
         };
 
-        // The farthest vertex from `offset` (m).
-        let reach = |positions: &[[f32; 3]]| -> f64 {
-            positions
-                .iter()
-                .map(|p| {
-                    let [x, y, z] = p.map(f64::from);
-                    (x * x + y * y + z * z).sqrt()
-                })
-                .fold(0.0, f64::max)
-        };
-        let too_far = |path: &Path, what: &str, r: f64| {
-            BundleError::Corrupt {
+        let too_far = |path: &Path, what: &str, r: f64| BundleError::Corrupt {
             path: path.to_path_buf(),
-            message: format!(
-                "{what}: geometry reaches {r:.3e} m from the frame's origin; coordinates are bounded by {MAX_COORDINATE_M:e} m"
-            ),
-        }
+            message: beyond_bound(what, r),
         };
 
         let (path, bytes) = read(&manifest.terrain.file)?;
@@ -735,7 +738,7 @@ impl Bundle {
                     message: format!("{what}: non-finite origin {:?}", t.origin),
                 });
             }
-            let r = reach(&positions) + t.origin.iter().map(|c| c * c).sum::<f64>().sqrt();
+            let r = reach(t.origin, &positions);
             if r > MAX_COORDINATE_M {
                 return Err(too_far(&path, &what, r));
             }
@@ -791,7 +794,7 @@ impl Bundle {
                 .map(|c| [c[0], c[1], c[2]])
                 .collect();
             finite(&path, &positions, &what)?;
-            let r = reach(&positions);
+            let r = reach([0.0; 3], &positions);
             if r > MAX_COORDINATE_M {
                 return Err(too_far(&path, &what, r));
             }
@@ -850,14 +853,7 @@ impl Bundle {
                     ),
                 });
             }
-            // |M·v + t| ≤ ‖M‖_F·|v| + |t|: a bound on the instance's farthest point.
-            let frobenius = linear
-                .iter()
-                .map(|&a| f64::from(a) * f64::from(a))
-                .sum::<f64>()
-                .sqrt();
-            let r = frobenius * template_reach[template as usize]
-                + translation.iter().map(|c| c * c).sum::<f64>().sqrt();
+            let r = instance_reach(&linear, translation, template_reach[template as usize]);
             if r > MAX_COORDINATE_M {
                 return Err(too_far(&path, &format!("instance {}", instances.len()), r));
             }

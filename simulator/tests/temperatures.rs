@@ -102,6 +102,16 @@ fn table(out: &Path, material: &str, time: &str, column: &str) -> f64 {
     panic!("no row {material} {time}");
 }
 
+/// The temperature of `material` in a `material,temperature_k` table.
+fn temperature_of(table: &str, material: &str) -> f64 {
+    table
+        .lines()
+        .find_map(|l| l.strip_prefix(material)?.strip_prefix(','))
+        .unwrap_or_else(|| panic!("no row {material} in\n{table}"))
+        .parse()
+        .unwrap()
+}
+
 /// Pixel index of local (x, y) on the 20 × 20 grid.
 fn pixel(x: f64, y: f64) -> usize {
     let (c, r) = (
@@ -166,15 +176,7 @@ fn shadows_and_sky_views_act_where_they_should() {
     // The table holds every material; the plate's (not on the terrain) is its flat sunlit one.
     let t = std::fs::read_to_string(out.join("temperatures_1030.csv")).unwrap();
     assert!(t.starts_with("material,temperature_k\n"), "{t}");
-    let shade: f64 = t
-        .lines()
-        .find(|l| l.starts_with("shade,"))
-        .unwrap()
-        .split(',')
-        .nth(1)
-        .unwrap()
-        .parse()
-        .unwrap();
+    let shade = temperature_of(&t, "shade");
     assert!((shade - table(&out, "shade", "10:30", "flat_sunlit_k")).abs() < 0.01);
     assert!(std::fs::read_to_string(out.join("diurnal.csv"))
         .unwrap()
@@ -251,15 +253,7 @@ fn thermal_runs_see_the_solved_temperatures() {
     let (t, _) = img.brightness_temperature.as_ref().unwrap();
     let lst = read_tif(&out.join("lst_1030.tif"));
     let table = std::fs::read_to_string(out.join("temperatures_1030.csv")).unwrap();
-    let shade: f64 = table
-        .lines()
-        .find(|l| l.starts_with("shade,"))
-        .unwrap()
-        .split(',')
-        .nth(1)
-        .unwrap()
-        .parse()
-        .unwrap();
+    let shade = temperature_of(&table, "shade");
     assert_eq!(t[0].len(), 400);
     for k in 0..400 {
         let (c, r) = (k % 20, k / 20);

@@ -184,7 +184,11 @@ impl Facet {
 
     /// Longwave irradiance reaching the facet at step `k` (W m⁻²).
     pub fn incoming_longwave(&self, day: &Day, k: usize) -> f64 {
-        let d = &self.drive(day, k);
+        self.longwave_under(&self.drive(day, k))
+    }
+
+    /// Longwave irradiance reaching the facet under its drive `d` ([`Facet::drive`]), W m⁻².
+    fn longwave_under(&self, d: &Drive) -> f64 {
         self.sky_view * d.sky_longwave + (1.0 - self.sky_view) * SIGMA * d.t_air.powi(4)
     }
 }
@@ -213,16 +217,18 @@ pub fn periodic_day(
 ) -> PeriodicDay {
     let n = day.steps.len();
     let eps = optics.emissivity;
+    let drives: Vec<Drive> = (0..n).map(|k| facet.drive(day, k)).collect();
     // What each step gains whatever the surface temperature.
-    let gain: Vec<f64> = (0..n)
-        .map(|k| facet.absorbed_shortwave(day, k, optics) + eps * facet.incoming_longwave(day, k))
+    let gain: Vec<f64> = drives
+        .iter()
+        .enumerate()
+        .map(|(k, d)| facet.absorbed_shortwave(day, k, optics) + eps * facet.longwave_under(d))
         .collect();
     // Start at the temperature whose day-mean balance is zero (with an adiabatic bottom the
     // periodic day's mean profile is close to uniform there): the deep nodes then need days,
     // not weeks, to settle.
-    let start = equilibrium(facet, day, &gain, optics);
+    let start = equilibrium(facet, day, &drives, &gain, optics);
     slab.fill(start.min(slab.melting_point.unwrap_or(f64::INFINITY)));
-    let drives: Vec<Drive> = (0..n).map(|k| facet.drive(day, k)).collect();
     let mut surface = vec![0.0; n];
     let mut previous_end = f64::NAN;
     let mut budget = Budget::default();
@@ -250,15 +256,21 @@ pub fn periodic_day(
     }
 }
 
-/// The constant surface temperature (K) at which the day's mean net flux is zero (Newton from
-/// the day's mean air temperature).
-fn equilibrium(facet: &Facet, day: &Day, gain: &[f64], optics: &SurfaceOptics) -> f64 {
+/// The constant surface temperature (K) at which the day's mean net flux is zero under the
+/// facet's `drives` and `gain`s (Newton from the day's mean air temperature at the facet).
+fn equilibrium(
+    facet: &Facet,
+    day: &Day,
+    drives: &[Drive],
+    gain: &[f64],
+    optics: &SurfaceOptics,
+) -> f64 {
     let n = gain.len() as f64;
     let mut t = day.steps.iter().map(|d| d.t_air).sum::<f64>() / n + facet.air_offset;
     for _ in 0..50 {
         let (mut f, mut df) = (0.0, 0.0);
-        for (k, g) in gain.iter().enumerate() {
-            let (a, b) = optics.net_flux(*g, &facet.drive(day, k), t);
+        for (g, d) in gain.iter().zip(drives) {
+            let (a, b) = optics.net_flux(*g, d, t);
             f += a;
             df += b;
         }

@@ -411,6 +411,16 @@ mod tests {
 
     const DAY: f64 = 86_400.0;
 
+    /// 5 cm of asphalt.
+    fn asphalt() -> Layer {
+        Layer {
+            thickness_m: 0.05,
+            conductivity: 0.75,
+            density: 2360.0,
+            heat_capacity: 920.0,
+        }
+    }
+
     fn soil() -> Layer {
         Layer {
             thickness_m: 1.0,
@@ -539,12 +549,7 @@ mod tests {
         // A layered slab (asphalt on gravel on soil), a nonlinear surface flux (sunlight,
         // emission, convection) and a fixed deep temperature: stored = in, step by step.
         let layers = [
-            Layer {
-                thickness_m: 0.05,
-                conductivity: 0.75,
-                density: 2360.0,
-                heat_capacity: 920.0,
-            },
+            asphalt(),
             Layer {
                 thickness_m: 0.2,
                 conductivity: 1.2,
@@ -574,15 +579,7 @@ mod tests {
         // Constant forcing, fixed bottom: the slab relaxes to the temperature where the
         // surface balance equals the conduction (T_s − T_b)/Σ(L/k). Two absorbed irradiances
         // (a sunlit and a shaded facet) differ by exactly what that balance predicts.
-        let layers = [
-            Layer {
-                thickness_m: 0.05,
-                conductivity: 0.75,
-                density: 2360.0,
-                heat_capacity: 920.0,
-            },
-            soil(),
-        ];
+        let layers = [asphalt(), soil()];
         let r: f64 = layers.iter().map(|l| l.thickness_m / l.conductivity).sum();
         let (tb, ta, h, eps, sky) = (285.0, 295.0, 12.0, 0.95, 330.0);
         let sigma = 5.670_374_419e-8;

@@ -570,7 +570,10 @@ mod tests {
     fn parse(text: &str) -> Result<TemperatureConfig, KeyError> {
         let dir = std::env::temp_dir().join(format!("tconf_{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
-        let p = dir.join(format!("t{}.toml", text.len()));
+        // One file per call: tests run in parallel, and two texts may have the same length.
+        static NEXT: std::sync::atomic::AtomicUsize = std::sync::atomic::AtomicUsize::new(0);
+        let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let p = dir.join(format!("t{k}.toml"));
         std::fs::write(&p, text).unwrap();
         TemperatureConfig::load(&p)
     }

@@ -120,7 +120,7 @@ pub fn run(path: &Path, outdir: &Path, progress: bool) -> anyhow::Result<Summary
         .iter()
         .map(|n| cfg.material(path, n))
         .collect::<Result<_, _>>()?;
-    let table = shortwave::table(&cfg, path, lat, lon)?;
+    let table = shortwave::table(&cfg, path)?;
     let (day, steps) = build_day(&cfg, lat, lon, &table)?;
     std::fs::create_dir_all(outdir)
         .with_context(|| format!("cannot create output folder {}", outdir.display()))?;
@@ -426,14 +426,17 @@ fn place(
 /// The UTC time (RFC 3339) of local clock minute `minutes` of the file's date.
 fn local_to_utc(cfg: &TemperatureConfig, minutes: u32) -> anyhow::Result<String> {
     let t = midnight(cfg)? + chrono::Duration::minutes(i64::from(minutes));
-    Ok(engine::sources::sun_position::format_utc(&t))
+    Ok(engine::sources::sun_position::format_utc(
+        &t.with_timezone(&chrono::Utc),
+    ))
 }
 
-fn midnight(cfg: &TemperatureConfig) -> anyhow::Result<chrono::DateTime<chrono::Utc>> {
+/// Local midnight of the file's date, with the local clock's offset.
+fn midnight(cfg: &TemperatureConfig) -> anyhow::Result<chrono::DateTime<chrono::FixedOffset>> {
     let text = format!("{}T00:00:00{}", cfg.date, cfg.utc_offset);
-    engine::sources::sun_position::parse_time(&text).map_err(|e| {
+    chrono::DateTime::parse_from_rfc3339(&text).map_err(|e| {
         anyhow::anyhow!(
-            "`date` = \"{}\" with `utc_offset` = \"{}\": {e}",
+            "`date` = \"{}\" with `utc_offset` = \"{}\": \"{text}\" is not an RFC 3339 time ({e})",
             cfg.date,
             cfg.utc_offset
         )
@@ -449,14 +452,9 @@ fn build_day(
 ) -> anyhow::Result<(Day, Vec<StepInfo>)> {
     let dt = cfg.step_minutes * 60.0;
     let n = (86_400.0 / dt).round() as usize;
-    let start = midnight(cfg)?;
-    let offset_h = {
-        let local: chrono::DateTime<chrono::FixedOffset> = chrono::DateTime::parse_from_rfc3339(
-            &format!("{}T00:00:00{}", cfg.date, cfg.utc_offset),
-        )
-        .context("utc_offset")?;
-        f64::from(local.offset().local_minus_utc()) / 3600.0
-    };
+    let local = midnight(cfg)?;
+    let offset_h = f64::from(local.offset().local_minus_utc()) / 3600.0;
+    let start = local.with_timezone(&chrono::Utc);
     let w = &cfg.weather;
     let (t_mean, t_amp) = (
         0.5 * (w.air_temperature_k[0] + w.air_temperature_k[1]),

@@ -97,7 +97,7 @@ fn experiment_text(cfg: &TemperatureConfig, zenith: f64) -> anyhow::Result<Strin
 
 /// The table for the file's atmosphere (`path` anchors its relative paths and names it in
 /// errors).
-pub fn table(cfg: &TemperatureConfig, path: &Path, _lat: f64, _lon: f64) -> anyhow::Result<Table> {
+pub fn table(cfg: &TemperatureConfig, path: &Path) -> anyhow::Result<Table> {
     let doy = engine::spectral::solar::day_of_year(&cfg.date)
         .map_err(|e| anyhow::anyhow!("{}: at key `date`: {e}", path.display()))?;
     let s_total = TSI * engine::spectral::solar::earth_sun_factor(doy);
