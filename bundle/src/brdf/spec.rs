@@ -107,6 +107,29 @@ fn yes() -> bool {
     true
 }
 
+/// A rough dielectric interface (GGX microfacets, Walter et al. 2007): reflection and
+/// refraction between the outside (the side the surface's front normal points to: a template
+/// triangle's winding, the terrain's upper side) and an inside of relative `refractive_index`;
+/// `roughness` is the GGX α. Scene materials only (a 1D ground cannot transmit).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RoughDielectricSpec {
+    pub refractive_index: Spectrum,
+    pub roughness: Spectrum,
+}
+
+/// A thin dielectric slab (a glass pane): specular reflection and straight transmission with
+/// the slab's internal reflections summed in closed form; `internal_transmittance` is the
+/// transmittance of one pass through the slab at normal incidence (1: no absorption). Both
+/// faces alike. Scene materials only.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ThinDielectricSpec {
+    pub refractive_index: Spectrum,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub internal_transmittance: Option<Spectrum>,
+}
+
 /// A measured BRDF: a netCDF table over (wavelength, θi, θr, Δφ) in sr⁻¹, layout in the
 /// simulator's `bsdf/tabulated.rs` and `docs/experiment.md`. `file` is relative to the bundle
 /// folder (in a manifest) or to the experiment file (in an experiment); `symmetrize` averages
@@ -132,6 +155,8 @@ pub enum BrdfSpec {
     LommelSeeliger(LommelSeeligerSpec),
     Ocean(OceanSpec),
     Tabulated(TabulatedSpec),
+    RoughDielectric(RoughDielectricSpec),
+    ThinDielectric(ThinDielectricSpec),
 }
 
 impl BrdfSpec {
@@ -147,6 +172,8 @@ impl BrdfSpec {
             BrdfSpec::LommelSeeliger(_) => "lommel_seeliger",
             BrdfSpec::Ocean(_) => "ocean",
             BrdfSpec::Tabulated(_) => "tabulated",
+            BrdfSpec::RoughDielectric(_) => "rough_dielectric",
+            BrdfSpec::ThinDielectric(_) => "thin_dielectric",
         }
     }
 
@@ -162,7 +189,10 @@ impl BrdfSpec {
             BrdfSpec::RtlsHotspot(s) => Some(&s.f_iso),
             BrdfSpec::Hapke(s) => Some(&s.w),
             BrdfSpec::LommelSeeliger(s) => Some(&s.w),
-            BrdfSpec::Ocean(_) | BrdfSpec::Tabulated(_) => None,
+            BrdfSpec::Ocean(_)
+            | BrdfSpec::Tabulated(_)
+            | BrdfSpec::RoughDielectric(_)
+            | BrdfSpec::ThinDielectric(_) => None,
         }
     }
 
@@ -210,7 +240,27 @@ impl BrdfSpec {
                 v
             }
             BrdfSpec::Tabulated(_) => Vec::new(),
+            BrdfSpec::RoughDielectric(s) => vec![
+                ("refractive_index", &s.refractive_index),
+                ("roughness", &s.roughness),
+            ],
+            BrdfSpec::ThinDielectric(s) => {
+                let mut v = vec![("refractive_index", &s.refractive_index)];
+                if let Some(t) = &s.internal_transmittance {
+                    v.push(("internal_transmittance", t));
+                }
+                v
+            }
         }
+    }
+
+    /// Whether the model transmits light through a surface into another medium or across a
+    /// slab (`rough_dielectric`, `thin_dielectric`): scene materials only.
+    pub fn is_dielectric(&self) -> bool {
+        matches!(
+            self,
+            BrdfSpec::RoughDielectric(_) | BrdfSpec::ThinDielectric(_)
+        )
     }
 }
 
@@ -262,6 +312,31 @@ pub const BRDF_PARAM_RANGES: &[ParamRange] = &[
     row("lommel_seeliger", "w", "", Range::closed(0.0, 1.0)),
     row("ocean", "wind_speed", "m/s", Range::closed(0.0, 40.0)),
     row("ocean", "refractive_index", "", Range::closed(1.0, 3.0)),
+    row(
+        "rough_dielectric",
+        "refractive_index",
+        "",
+        Range::closed(1.0, 3.0),
+    ),
+    // Below 0.001 the lobes are too narrow for f64 sampling; thin_dielectric is the smooth pane.
+    row(
+        "rough_dielectric",
+        "roughness",
+        "",
+        Range::closed(0.001, 1.0),
+    ),
+    row(
+        "thin_dielectric",
+        "refractive_index",
+        "",
+        Range::closed(1.0, 3.0),
+    ),
+    row(
+        "thin_dielectric",
+        "internal_transmittance",
+        "",
+        Range::closed(0.0, 1.0),
+    ),
 ];
 
 /// Upper bound of `reflectance + transmittance` of a `bi_lambertian` material (energy).
@@ -332,6 +407,14 @@ pub(crate) fn every_type() -> Vec<BrdfSpec> {
         BrdfSpec::Tabulated(TabulatedSpec {
             file: "brdf/sand.nc".into(),
             symmetrize: false,
+        }),
+        BrdfSpec::RoughDielectric(RoughDielectricSpec {
+            refractive_index: Spectrum::Constant(1.5),
+            roughness: Spectrum::Constant(0.2),
+        }),
+        BrdfSpec::ThinDielectric(ThinDielectricSpec {
+            refractive_index: Spectrum::Constant(1.52),
+            internal_transmittance: Some(Spectrum::Constant(0.9)),
         }),
     ]
 }

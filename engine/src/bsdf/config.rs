@@ -115,7 +115,7 @@ impl SurfaceConfig {
             .enumerate()
             .map(|(iw, &w)| {
                 Bsdf::build(&spec, iw, w)
-                    .map(super::Built::into_opaque)
+                    .and_then(super::Built::into_opaque)
                     .map_err(|e| self.error_at(ctx, key, &params, iw, w, e))
             })
             .collect()

@@ -29,6 +29,12 @@ pub enum BrdfError {
         wavelength_nm: f64,
         max: f64,
     },
+    /// A transmitting model (`rough_dielectric`, `thin_dielectric`) used where only an opaque
+    /// surface can be (the ground of a 1D atmosphere, a canopy's ground).
+    #[error(
+        "`type = \"{model}\"` transmits light and is a material of 3D scenes only: the ground of a 1D atmosphere is opaque (give it an opaque BRDF, or render the pane or water surface as a scene object)"
+    )]
+    SceneOnly { model: &'static str },
     /// A BRDF table that stops before the end its netCDF header declares, or whose classic
     /// header is damaged (`source` says how).
     #[error("BRDF table {}: {source}", path.display())]

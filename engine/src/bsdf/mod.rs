@@ -43,15 +43,18 @@ pub mod bi_lambertian;
 pub mod config;
 pub mod emissivity;
 pub mod error;
+pub mod fresnel;
 pub mod hapke;
 pub mod lambertian;
 pub mod lommel_seeliger;
 pub mod ocean;
+pub mod rough_dielectric;
 pub mod rpv;
 pub mod rtls;
 pub mod rtls_hotspot;
 pub mod table_sampler;
 pub mod tabulated;
+pub mod thin_dielectric;
 
 use glam::DVec3;
 
@@ -63,11 +66,13 @@ pub use hapke::Hapke;
 pub use lambertian::Lambertian;
 pub use lommel_seeliger::LommelSeeliger;
 pub use ocean::Ocean;
+pub use rough_dielectric::RoughDielectric;
 pub use rpv::Rpv;
 pub use rtls::Rtls;
 pub use rtls_hotspot::RtlsHotspot;
 pub use table_sampler::TableSampler;
 pub use tabulated::Tabulated;
+pub use thin_dielectric::ThinDielectric;
 
 use crate::frame::sample_cosine_hemisphere;
 use bundle::{BrdfSpec, Spectrum};
@@ -99,22 +104,34 @@ pub enum Bsdf {
     Tabulated(Tabulated),
 }
 
-/// What a BRDF spec builds at one wavelength ([`Bsdf::build`]): an opaque BRDF, or a
-/// two-sided bi-Lambertian leaf (3D scenes; a 1D ground keeps its reflection only).
+/// What a BRDF spec builds at one wavelength ([`Bsdf::build`]): an opaque BRDF, a
+/// two-sided bi-Lambertian leaf (3D scenes; a 1D ground keeps its reflection only), or a
+/// transmitting dielectric (3D scenes only).
 #[derive(Clone, Debug)]
 pub enum Built {
     Opaque(Bsdf),
     Leaf(BiLambertian),
+    /// A rough dielectric interface (`rough_dielectric.rs`).
+    Dielectric(RoughDielectric),
+    /// A thin dielectric slab, a pane (`thin_dielectric.rs`).
+    Pane(ThinDielectric),
 }
 
 impl Built {
     /// The BRDF of a 1D ground: a leaf's transmitted light enters the ground and is absorbed,
-    /// so it is the Lambertian of its reflectance (`bi_lambertian.rs`).
-    pub fn into_opaque(self) -> Bsdf {
+    /// so it is the Lambertian of its reflectance (`bi_lambertian.rs`). A dielectric has no
+    /// ground to transmit into: an error naming its type.
+    pub fn into_opaque(self) -> Result<Bsdf, BrdfError> {
         match self {
-            Built::Opaque(b) => b,
-            Built::Leaf(l) => Bsdf::Lambertian(Lambertian {
+            Built::Opaque(b) => Ok(b),
+            Built::Leaf(l) => Ok(Bsdf::Lambertian(Lambertian {
                 reflectance: l.reflectance,
+            })),
+            Built::Dielectric(_) => Err(BrdfError::SceneOnly {
+                model: "rough_dielectric",
+            }),
+            Built::Pane(_) => Err(BrdfError::SceneOnly {
+                model: "thin_dielectric",
             }),
         }
     }
@@ -171,6 +188,14 @@ impl Bsdf {
                     .as_ref()
                     .map_or(bundle::DEFAULT_WATER_INDEX, at),
                 s.shadowing,
+            )?)),
+            BrdfSpec::RoughDielectric(s) => Ok(Built::Dielectric(RoughDielectric::new(
+                at(&s.refractive_index),
+                at(&s.roughness),
+            )?)),
+            BrdfSpec::ThinDielectric(s) => Ok(Built::Pane(ThinDielectric::new(
+                at(&s.refractive_index),
+                s.internal_transmittance.as_ref().map_or(1.0, at),
             )?)),
             BrdfSpec::Tabulated(s) => {
                 let table = tabulated::BrdfTable::load(std::path::Path::new(&s.file))?;

@@ -744,7 +744,8 @@ fn check_above_scene(
     Ok(())
 }
 
-/// Spectral walks through a scene follow the scene materials' default solver only.
+/// Spectral walks through a scene follow the scene materials' default solver only, and carry
+/// no dielectric materials.
 fn check_scene_solvers(
     ctx: &ConfigCtx,
     integrator: &mut IntegratorSettings,
@@ -765,6 +766,17 @@ fn check_scene_solvers(
             return Err(ctx.err(
                 format!("scene.solvers.{name}"),
                 format!("the `{}` solver is not built into spectral walks through a scene (`integrator.spectral_walk = \"alis\"`): drop one or the other", solver.type_name()),
+            ));
+        }
+        // Dielectrics transmit with per-wavelength deltas and pane-filtered shadow rays, which
+        // the spectral walk's shared directions and visibility do not carry.
+        if let Some((name, spec)) = sc.materials.iter().find(|(_, s)| s.is_dielectric()) {
+            if integrator.drop_auto_alis() {
+                return Ok(());
+            }
+            return Err(ctx.err(
+                "integrator.spectral_walk",
+                format!("material `{name}` is a `{}`, which spectral walks through a scene (`\"alis\"`) do not carry: use \"auto\" or \"independent\"", spec.type_name()),
             ));
         }
     }

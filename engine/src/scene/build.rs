@@ -142,6 +142,7 @@ pub fn from_bundle(
         materials,
         solvers: Vec::new(),
         has_null: false,
+        panes: Default::default(),
         georef: Some(Georef {
             wkt: m.crs.wkt.clone(),
             origin,
@@ -692,6 +693,7 @@ pub fn canopy(
         materials,
         solvers: Vec::new(),
         has_null: false,
+        panes: Default::default(),
         georef: None,
         extent,
         z_range,

@@ -10,6 +10,8 @@
 //!   reflectance texture's pixel ρ gives `1 − ρ`;
 //! * bi-Lambertian leaves: `1 − ρ − τ` on both faces (a thin leaf at one temperature: what it
 //!   neither reflects nor transmits it absorbs, and so emits, into each side);
+//! * panes (`thin_dielectric`): `1 − R(μ) − T(μ)` on both faces; a `rough_dielectric`
+//!   interface absorbs nothing and emits nothing;
 //! * `mirror` solvers: `1 − R_Fresnel(μ)`; `null` surfaces and [`BLACK`] (undersides, cells
 //!   without a material) emit nothing.
 //!
@@ -32,6 +34,8 @@ enum Emitter {
     Opaque(SurfaceEmission),
     /// Isotropic emissivity (leaves).
     Grey(f64),
+    /// A pane: emissivity `1 − R(μ) − T(μ)` (its absorptance, Kirchhoff).
+    Pane(crate::bsdf::ThinDielectric),
     /// Emits nothing.
     None,
 }
@@ -56,7 +60,10 @@ impl SceneEmission {
             .enumerate()
             .map(|(id, m)| match (scene.solver(id as u16), m) {
                 (SolverSpec::Null {}, _) => Emitter::None,
-                (_, SurfaceModel::Black) => Emitter::None,
+                // An interface absorbs nothing, so emits nothing (its inside's emission is not
+                // modelled: the medium behind it is transparent).
+                (_, SurfaceModel::Black | SurfaceModel::Dielectric(_)) => Emitter::None,
+                (_, SurfaceModel::Pane(p)) => Emitter::Pane(*p),
                 (
                     _,
                     SurfaceModel::Leaf {
@@ -109,6 +116,10 @@ impl SceneEmission {
                 None => match self.emitters.get(id) {
                     Some(Emitter::Opaque(e)) => e.emissivity(mu),
                     Some(Emitter::Grey(e)) => *e,
+                    Some(Emitter::Pane(p)) => {
+                        let (r, t) = p.reflect_transmit(mu);
+                        (1.0 - r - t).max(0.0)
+                    }
                     _ => 0.0,
                 },
             },

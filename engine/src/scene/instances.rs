@@ -171,6 +171,9 @@ pub struct InstanceHit {
     pub instance: u32,
     /// Index of the triangle or disc within its template.
     pub primitive: u32,
+    /// Whether the ray meets the primitive's front face (the side its template normal — a
+    /// triangle's winding, a disc's normal — points to).
+    pub front: bool,
 }
 
 /// Per-instance record, in TLAS leaf order (64 bytes).
@@ -1243,7 +1246,8 @@ impl InstanceBvh {
         };
         // Normals transform with the inverse transpose of the linear part.
         let mut normal = (linv64(rec).transpose() * n_t).normalize();
-        if normal.dot(dir) > 0.0 {
+        let front = normal.dot(dir) <= 0.0;
+        if !front {
             normal = -normal;
         }
         Some(InstanceHit {
@@ -1252,6 +1256,7 @@ impl InstanceBvh {
             material,
             instance: self.ids[best.slot as usize],
             primitive,
+            front,
         })
     }
 

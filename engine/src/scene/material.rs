@@ -19,6 +19,15 @@
 //!   the density `(ρ or τ)/(ρ+τ)·|cos|/π` is exactly proportional to `f·|cos|`, so this is exact
 //!   importance sampling and the weight is the constant ρ+τ ([`SurfaceModel::pdf`]; tested by
 //!   χ² below).
+//! * `Dielectric(RoughDielectric)`: a rough interface between the outside (the side of the
+//!   primitive's front normal) and an inside of relative index n (`bsdf/rough_dielectric.rs`);
+//!   the scene hands the walks the interface as seen from the viewer's side
+//!   (`SurfaceHit::front`: from the inside its index is 1/n). Reflection and transmission are
+//!   continuous lobes: next-event estimates and sampling as for any BRDF.
+//! * `Pane(ThinDielectric)`: a thin slab (`bsdf/thin_dielectric.rs`), delta reflection and
+//!   straight transmission: `eval_cos` is 0 (a Sun seen through or in a pane is a delta), the
+//!   sampler picks the mirror or the straight direction in proportion to R and T (weight
+//!   R + T, exact), and shadow rays cross a pane with factor T (`Scene::visibility`).
 //! * `Black`: absorbs everything (cells of the material raster without a material, undersides of
 //!   the terrain).
 //!
@@ -27,7 +36,7 @@
 
 use glam::DVec3;
 
-use crate::bsdf::{BrdfError, Bsdf, Built};
+use crate::bsdf::{BrdfError, Bsdf, Built, RoughDielectric, ThinDielectric};
 use crate::frame::{basis_around, sample_cosine_hemisphere};
 use bundle::BrdfSpec;
 
@@ -39,6 +48,10 @@ pub enum SurfaceModel {
         reflectance: f64,
         transmittance: f64,
     },
+    /// A rough dielectric interface, seen from the outside.
+    Dielectric(RoughDielectric),
+    /// A thin dielectric slab.
+    Pane(ThinDielectric),
     Black,
 }
 
@@ -67,6 +80,8 @@ impl SurfaceModel {
                 reflectance: l.reflectance,
                 transmittance: l.transmittance,
             },
+            Built::Dielectric(d) => SurfaceModel::Dielectric(d),
+            Built::Pane(p) => SurfaceModel::Pane(p),
         })
     }
 
@@ -115,7 +130,21 @@ impl SurfaceModel {
                     transmittance * std::f64::consts::FRAC_1_PI * -ci
                 }
             }
-            SurfaceModel::Black => 0.0,
+            SurfaceModel::Dielectric(d) => {
+                let (t, b) = basis_around(n);
+                d.eval(to_local(wi, n, t, b), to_local(wo, n, t, b)) * ci.abs()
+            }
+            SurfaceModel::Pane(_) | SurfaceModel::Black => 0.0,
+        }
+    }
+
+    /// A pane's transmittance for a beam of direction `d` crossing a surface of normal `n`
+    /// (what a shadow ray keeps); `None` for every other model (opaque to shadow rays).
+    #[inline]
+    pub fn pane_transmittance(&self, n: DVec3, d: DVec3) -> Option<f64> {
+        match self {
+            SurfaceModel::Pane(p) => Some(p.reflect_transmit(n.dot(d)).1),
+            _ => None,
         }
     }
 
@@ -138,7 +167,12 @@ impl SurfaceModel {
                 let side = if ci > 0.0 { reflectance } else { transmittance };
                 side / total * ci.abs() * std::f64::consts::FRAC_1_PI
             }
-            SurfaceModel::Black => 0.0,
+            SurfaceModel::Dielectric(d) => {
+                let (t, b) = basis_around(n);
+                d.pdf(to_local(wi, n, t, b), to_local(wo, n, t, b))
+            }
+            // Delta lobes have no density with respect to solid angle.
+            SurfaceModel::Pane(_) | SurfaceModel::Black => 0.0,
         }
     }
 
@@ -178,6 +212,34 @@ impl SurfaceModel {
                     wi: t * l.x + b * l.y + side * l.z,
                     weight: total,
                     pdf: p_side * l.z * std::f64::consts::FRAC_1_PI,
+                })
+            }
+            SurfaceModel::Dielectric(d) => {
+                let (t, b) = basis_around(n);
+                let (wi, weight, pdf) = d.sample(to_local(wo, n, t, b), u)?;
+                (weight > 0.0).then_some(SurfaceSample {
+                    wi: t * wi.x + b * wi.y + n * wi.z,
+                    weight,
+                    pdf,
+                })
+            }
+            SurfaceModel::Pane(p) => {
+                let c = n.dot(wo);
+                let (r, tr) = p.reflect_transmit(c);
+                let total = r + tr;
+                if total <= 0.0 {
+                    return None;
+                }
+                // Mirror or straight on, in proportion to R and T: a delta of weight R + T.
+                let wi = if u[2] * total < r {
+                    2.0 * c * n - wo
+                } else {
+                    -wo
+                };
+                Some(SurfaceSample {
+                    wi,
+                    weight: total,
+                    pdf: 1.0,
                 })
             }
             SurfaceModel::Black => None,
@@ -233,6 +295,12 @@ mod tests {
                 550.0,
             )
             .unwrap(),
+            SurfaceModel::Dielectric(crate::bsdf::RoughDielectric::new(1.5, 0.3).unwrap()),
+            SurfaceModel::Dielectric(
+                crate::bsdf::RoughDielectric::new(1.5, 0.4)
+                    .unwrap()
+                    .flipped(),
+            ),
         ];
         for m in &models {
             // Quadrature over the sphere.
@@ -244,8 +312,7 @@ mod tests {
             let (mut sum, mut sum2) = (0.0, 0.0);
             for _ in 0..k {
                 let u = [rng.next_f64(), rng.next_f64(), rng.next_f64()];
-                let s = m.sample(n, wo, u).unwrap();
-                let x = s.weight * g(s.wi);
+                let x = m.sample(n, wo, u).map_or(0.0, |s| s.weight * g(s.wi));
                 sum += x;
                 sum2 += x * x;
             }

@@ -135,6 +135,10 @@ pub struct SurfaceHit {
     /// Whether it is the ground: the terrain or the ground plane (not an object); lidar
     /// returns are split by it.
     pub ground: bool,
+    /// Whether the ray meets the surface's front face: an object primitive's template normal
+    /// side, the upper side of the terrain and of the ground plane. A `rough_dielectric`
+    /// material's outside is its front.
+    pub front: bool,
 }
 
 /// A plane mirror of a scene ([`Scene::mirror_planes`]): the surfaces of `material` with this
@@ -208,6 +212,9 @@ pub struct Scene {
     pub(super) solvers: Vec<bundle::SolverSpec>,
     /// Whether a material is `null` (pass-through): shadow rays then skip such surfaces.
     pub(super) has_null: bool,
+    /// Whether a material is a pane (`thin_dielectric`), found on first use: shadow rays then
+    /// cross panes ([`Scene::visibility`]).
+    pub(super) panes: std::sync::OnceLock<bool>,
     /// The scene's plane mirrors, found on first use ([`Scene::mirror_planes`]; reset with
     /// the solvers).
     pub(super) mirror_planes: std::sync::OnceLock<Vec<MirrorPlane>>,
@@ -449,6 +456,7 @@ impl Scene {
                         material,
                         terrain: true,
                         ground: true,
+                        front: h.normal.z >= 0.0,
                     });
                 }
             }
@@ -458,6 +466,7 @@ impl Scene {
                 t,
                 normal,
                 material,
+                front,
                 ..
             }) = obj.intersect(o, d, 0.0, tbest)
             {
@@ -469,6 +478,7 @@ impl Scene {
                     material,
                     terrain: false,
                     ground: false,
+                    front,
                 });
             }
         }
@@ -482,10 +492,54 @@ impl Scene {
                     material: if from_above { g.material } else { BLACK },
                     terrain: false,
                     ground: true,
+                    front: from_above,
                 });
             }
         }
         best
+    }
+
+    /// Whether a material of the scene is a pane (`thin_dielectric`).
+    pub fn has_panes(&self) -> bool {
+        *self.panes.get_or_init(|| {
+            self.materials
+                .iter()
+                .any(|(_, s)| matches!(s, BrdfSpec::ThinDielectric(_)))
+        })
+    }
+
+    /// Whether a material of the scene is a dielectric (`rough_dielectric`, `thin_dielectric`).
+    pub fn has_dielectrics(&self) -> bool {
+        self.materials.iter().any(|(_, s)| s.is_dielectric())
+    }
+
+    /// The fraction of a shadow ray's light that travels from `o + tmax·d` to `o` (`d` unit):
+    /// 0 when an opaque surface is in the way, else the product of the transmittances of the
+    /// panes it crosses (`models`: the materials at the run wavelength; a thin slab does not
+    /// deviate the beam, `bsdf/thin_dielectric.rs`); `null` surfaces are crossed. Without
+    /// panes this is `occluded` as 0 or 1.
+    pub fn visibility(&self, o: DVec3, d: DVec3, tmax: f64, models: &[SurfaceModel]) -> f64 {
+        if !self.has_panes() {
+            return if self.occluded(o, d, tmax) { 0.0 } else { 1.0 };
+        }
+        let (mut o, mut left, mut v) = (o, tmax, 1.0);
+        for _ in 0..1024 {
+            let Some(h) = self.intersect(o, d, left) else {
+                return v;
+            };
+            if !matches!(self.solver(h.material), bundle::SolverSpec::Null {}) {
+                match models
+                    .get(h.material as usize)
+                    .and_then(|m| m.pane_transmittance(h.normal, d))
+                {
+                    Some(t) if t > 0.0 => v *= t,
+                    _ => return 0.0,
+                }
+            }
+            left -= h.t;
+            o = self.offset(h.point, h.normal, d);
+        }
+        0.0
     }
 
     /// Whether anything blocks `o + t·d` for `0 < t < tmax` (shadow rays).

@@ -86,7 +86,8 @@ pub(crate) fn mirror_reflectance(scene: &Scene, k: usize, cos: f64) -> f64 {
 }
 
 /// The surface at a scene hit: black for [`BLACK`], a Lambertian from the texture where one
-/// covers a terrain hit, else the material's model.
+/// covers a terrain hit, else the material's model (a dielectric seen from the side the path
+/// arrives from: flipped for hits on its back, [`SurfaceHit::front`]).
 pub(crate) fn scene_surface<'m>(
     scene: &Scene,
     models: &'m [SurfaceModel],
@@ -100,9 +101,14 @@ pub(crate) fn scene_surface<'m>(
             reflectance: r,
         })))
     } else {
-        models
-            .get(h.material as usize)
-            .map_or(Cow::Owned(SurfaceModel::Black), Cow::Borrowed)
+        match models.get(h.material as usize) {
+            // A dielectric interface met from its inside: the index ratio inverts.
+            Some(SurfaceModel::Dielectric(d)) if !h.front => {
+                Cow::Owned(SurfaceModel::Dielectric(d.flipped()))
+            }
+            Some(m) => Cow::Borrowed(m),
+            None => Cow::Owned(SurfaceModel::Black),
+        }
     };
     SurfaceAt::Scene { model, n: h.normal }
 }
@@ -219,10 +225,10 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 
     #[inline]
     fn sun_at(&self, p: DVec3) -> f64 {
-        if p.z > self.scene.z_range[1] || self.sees_sun(p) {
+        if p.z > self.scene.z_range[1] {
             self.t_sun(p.z)
         } else {
-            0.0
+            self.sun_visibility(p) * self.t_sun(p.z)
         }
     }
     #[inline]
@@ -232,11 +238,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
     #[inline]
     fn sun_at_surface(&self, h: &SurfaceHit) -> f64 {
         let start = self.scene.offset(h.point, h.normal, self.sun);
-        if self.sees_sun(start) {
-            self.t_sun(h.point.z)
-        } else {
-            0.0
-        }
+        self.sun_visibility(start) * self.t_sun(h.point.z)
     }
     #[inline]
     fn leave(&self, h: &SurfaceHit, d: DVec3) -> DVec3 {
@@ -263,17 +265,31 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
             return 0.0;
         };
         let y = m.hit.point;
-        if !self.sees_sun(self.scene.offset(y, m.hit.normal, self.sun)) {
+        let v = self.sun_visibility(self.scene.offset(y, m.hit.normal, self.sun));
+        if v <= 0.0 {
             return 0.0;
         }
         let path = self.atmosphere.optical_path(m.start.z, image.z, m.distance);
-        mirror_reflectance(self.scene, k, m.cos) * (-path).exp() * self.t_sun(y.z)
+        mirror_reflectance(self.scene, k, m.cos) * (-path).exp() * self.t_sun(y.z) * v
     }
 }
 
 impl SceneInLayers<'_> {
+    /// The fraction of sunlight the scene lets through to `p`: 1 above the clearance map, else
+    /// a shadow ray's [`Scene::visibility`] (0 behind opaque surfaces, the transmittance of
+    /// the panes crossed).
+    #[inline]
+    pub(crate) fn sun_visibility(&self, p: DVec3) -> f64 {
+        if self.clearance.as_ref().is_some_and(|c| c.clear(p)) {
+            1.0
+        } else {
+            self.scene
+                .visibility(p, self.sun, f64::INFINITY, self.models)
+        }
+    }
+
     /// Whether nothing in the scene blocks the Sun from `p`: the clearance map first, then a
-    /// shadow ray.
+    /// shadow ray (spectral walks, whose scenes have no panes).
     #[inline]
     pub(crate) fn sees_sun(&self, p: DVec3) -> bool {
         self.clearance.as_ref().is_some_and(|c| c.clear(p))
@@ -421,8 +437,11 @@ impl SceneInLayers<'_> {
         if let Some((q, _, p_seg)) = self.forced_point_below_top(p, d, reach, t_hit, rng) {
             let l = atm.layer_at_altitude(q.z);
             let omega = atm.albedo(l);
-            if omega > 0.0 && self.sees_sun(q) {
-                W::accumulate(acc, atm.phase(l), cos, omega, p_seg * self.t_sun(q.z));
+            if omega > 0.0 {
+                let v = self.sun_visibility(q);
+                if v > 0.0 {
+                    W::accumulate(acc, atm.phase(l), cos, omega, p_seg * v * self.t_sun(q.z));
+                }
             }
         }
     }

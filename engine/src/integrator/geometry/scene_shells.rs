@@ -70,13 +70,12 @@ impl SceneInShells<'_> {
     fn sun_seen(&self, p: DVec3, l: usize) -> f64 {
         let t = self.shell.transmittance_to_space(p, l, self.sun);
         let q = p - self.lift();
-        if t > 0.0
-            && !self.clearance.as_ref().is_some_and(|c| c.clear(q))
-            && self.scene.occluded(q, self.sun, f64::INFINITY)
-        {
-            0.0
-        } else {
+        if t <= 0.0 || self.clearance.as_ref().is_some_and(|c| c.clear(q)) {
             t
+        } else {
+            t * self
+                .scene
+                .visibility(q, self.sun, f64::INFINITY, self.models)
         }
     }
 
