@@ -25,7 +25,7 @@
 //! Test: |BRF − closed form| ≤ 4σ + 2e-4.
 
 mod common;
-use common::bundles::{flat_plane, lambertian, tmp, with_plate, write_plane};
+use common::bundles::{flat_plane, tmp, with_plate, write_plane};
 use common::*;
 use glam::DVec3;
 
