@@ -157,10 +157,12 @@ fn scene_aim(scene: &Scene, m: &Measure, cell: usize, rng: &mut Stream) -> Scene
             let (u1, u2) = (rng.next_f64(), rng.next_f64());
             image_aim(scene, m, cell, u1, u2)
         }
-        MeasureKind::Radiancemeter { .. }
-        | MeasureKind::DistantFlux { .. }
-        | MeasureKind::Hdrf { .. } => unreachable!(
-            "the resolver allows only distant, ortho and perspective measures with a scene"
+        MeasureKind::Radiancemeter { origin, look, .. } => SceneAim::From {
+            origin: scene.curvature.map_or(*origin, |c| c.bend(*origin)),
+            dir: *look,
+        },
+        MeasureKind::DistantFlux { .. } | MeasureKind::Hdrf { .. } => unreachable!(
+            "the resolver allows only distant, radiancemeter, ortho and perspective measures with a scene"
         ),
     }
 }

@@ -8,6 +8,7 @@ use crate::integrator::backward::{Adjoint, AtSensor};
 use crate::integrator::forward::{self, ForwardTargets, Photon};
 use crate::integrator::geometry::layers::Layers;
 use crate::integrator::geometry::scene_clouds::SceneCloudsInLayers;
+use crate::integrator::geometry::scene_layers::LampLight;
 use crate::integrator::geometry::scene_shells::SceneInShells;
 use crate::integrator::geometry::shells::Shells;
 use crate::integrator::weight::{MuellerPath, Scalar, StokesPhoton};
@@ -211,7 +212,22 @@ pub(super) fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                 )
             } else {
                 let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
-                    scene_in_layers(exp, sun, &opt.atmosphere, opt, opt.scene_emission.as_ref())
+                    let mut g = scene_in_layers(
+                        exp,
+                        sun,
+                        &opt.atmosphere,
+                        opt,
+                        opt.scene_emission.as_ref(),
+                    );
+                    // Lamps light the Sun's walks only (the Moon's are built the same way).
+                    if sun == exp.sun_dir {
+                        g.lamps = exp.lamps.as_deref().map(|lamps| LampLight {
+                            lamps,
+                            iw,
+                            scale: 1.0 / opt.irradiance,
+                        });
+                    }
+                    g
                 });
                 backward_block::<_, B>(
                     &g,

@@ -100,6 +100,7 @@ pub(super) fn scene_in_layers<'a>(
             .clouds
             .as_ref()
             .map_or(f64::NEG_INFINITY, |c| c.grid.z_range().1 + c.origin.z),
+        lamps: None,
     }
 }
 

@@ -51,6 +51,9 @@ pub struct Experiment {
     /// Moon-lit walk to the Sun-lit one (`blocks/walks.rs`), and the products' radiances and fluxes are
     /// the sum; BRFs stay in units of the Sun's irradiance.
     pub moon: Option<crate::sources::illumination::Moonlight>,
+    /// Lamps (`[[lights]]`), in the scene's local frame; their light is added by next-event
+    /// estimates at every interaction of the Sun's walks (`sources/lamps/`).
+    pub lamps: Option<Arc<crate::sources::lamps::Lamps>>,
     /// The experiment file's text (written into the products for provenance).
     pub source_text: String,
     pub source_path: PathBuf,

@@ -78,4 +78,7 @@ pub struct ExperimentConfig {
     /// `[surface]`; `docs/experiment.md`, "Thermal emission").
     #[serde(default)]
     pub emission: bool,
+    /// Lamps (`[[lights]]`, `sources/lamps/`).
+    #[serde(default)]
+    pub lights: Vec<crate::sources::lamps::LampConfig>,
 }

@@ -318,6 +318,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     let thermal = super::thermal::resolve(&cfg, &ctx, &geometry, &wavelengths, &sun)?;
 
     let scene = resolve_scene(&cfg, &ctx, &sun, planet_radius, ground)?;
+    let lamps = resolve_lamps(&cfg, &ctx, scene.as_deref(), planet_radius)?;
     if let (Some(_), Some(sc)) = (&thermal, &scene) {
         check_scene_temperatures(&ctx, sc, &wavelengths)?;
     }
@@ -373,6 +374,15 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     }
     check_moon(&cfg, &ctx, &sun, &mut integrator)?;
     check_scene_solvers(&ctx, &mut integrator, scene.as_deref())?;
+    if lamps.is_some() && (integrator.alis || integrator.spectral_alis.is_some()) {
+        // Lamps are estimated in the Sun's independent walks (`blocks/single.rs`).
+        if !integrator.drop_auto_alis() || integrator.alis {
+            return Err(ctx.err(
+                "integrator.spectral_walk",
+                "spectral (ALIS) walks do not carry lamps (`[[lights]]`) yet: use spectral_walk = \"independent\" (or \"auto\")",
+            ));
+        }
+    }
     apply_surface_solver(&cfg, &ctx, planet_radius, &mut integrator)?;
     if ckd && atmosphere.ckd.is_empty() {
         return Err(ctx.err(
@@ -448,6 +458,7 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         emission: cfg.emission,
         sun_shines: sun.shines,
         moon: sun.moon.clone(),
+        lamps,
         planet_radius,
         scene,
         clouds,
@@ -532,7 +543,7 @@ fn resolve_scene(
     ground: f64,
 ) -> Result<Option<Arc<Scene>>, ConfigError> {
     let Some(sc) = &cfg.scene else {
-        return Ok(None);
+        return Ok(flat_ground_for_lamps(cfg, ground));
     };
     // Plane-parallel layers refuse a Sun below the horizon already; in spherical shells a
     // scene may lie in twilight (the shells' sunlit air lights it; radiances only).
@@ -558,6 +569,78 @@ fn resolve_scene(
         );
     }
     Ok(Some(built))
+}
+
+/// A 1D run with lamps: its uniform ground as a flat scene at the ground altitude (lamps light
+/// it unevenly, so its paths need positions), its default area 1 km about the lamps.
+fn flat_ground_for_lamps(cfg: &ExperimentConfig, ground: f64) -> Option<Arc<Scene>> {
+    let surface = cfg.surface.as_ref()?;
+    if cfg.lights.is_empty() {
+        return None;
+    }
+    let (mut lo, mut hi) = ([f64::INFINITY; 2], [f64::NEG_INFINITY; 2]);
+    for l in &cfg.lights {
+        for k in 0..2 {
+            lo[k] = lo[k].min(l.position_m[k]);
+            hi[k] = hi[k].max(l.position_m[k]);
+        }
+    }
+    let extent = if lo[0].is_finite() && hi[0].is_finite() && lo[1].is_finite() && hi[1].is_finite()
+    {
+        [lo[0] - 500.0, lo[1] - 500.0, hi[0] + 500.0, hi[1] + 500.0]
+    } else {
+        [-500.0, -500.0, 500.0, 500.0]
+    };
+    Some(Arc::new(crate::scene::build::flat_ground(
+        surface.brdf.clone(),
+        surface.solver,
+        surface.temperature,
+        ground,
+        extent,
+    )))
+}
+
+/// The lamps of `[[lights]]` (None without any), in the scene's frame; refused where the walks
+/// do not estimate them.
+fn resolve_lamps(
+    cfg: &ExperimentConfig,
+    ctx: &ConfigCtx,
+    scene: Option<&Scene>,
+    planet_radius: Option<f64>,
+) -> Result<Option<Arc<crate::sources::lamps::Lamps>>, ConfigError> {
+    if cfg.lights.is_empty() {
+        return Ok(None);
+    }
+    let why = if cfg.polarized {
+        Some("polarized runs (`polarized = true`)")
+    } else if planet_radius.is_some() {
+        Some("spherical-shell atmospheres (use plane-parallel layers)")
+    } else if !cfg.clouds.is_empty() {
+        Some("`[[clouds]]` fields")
+    } else if cfg.mode == Mode::Ckd {
+        Some("`mode = \"ckd\"` (use monochromatic wavelengths)")
+    } else if matches!(cfg.illumination, IlluminationConfig::Moon { .. }) {
+        Some("`illumination.type = \"moon\"` (use the Moon beside the Sun, `moon = true`, or `\"none\"`)")
+    } else {
+        None
+    };
+    if let Some(why) = why {
+        return Err(ctx.err("lights", format!("lamps are not built for {why} yet")));
+    }
+    let scene = scene.ok_or_else(|| {
+        ctx.err(
+            "lights",
+            "lamps need a `[surface]` or a 3D `scene` to light",
+        )
+    })?;
+    let frame = scene::frame(scene);
+    let lamps = crate::sources::lamps::Lamps::resolve(
+        &cfg.lights,
+        ctx,
+        |x, y| frame.to_local(x, y),
+        cfg.integrator.lamp_sampling,
+    )?;
+    Ok(Some(Arc::new(lamps)))
 }
 
 /// The measures, each checked against the atmosphere's levels, the scene and the ones before it.

@@ -51,10 +51,10 @@ pub fn resolve(
             .measures
             .iter()
             .any(|m| !matches!(m, crate::measure::config::MeasureConfig::Lidar(_)));
-        if !sun.shines && passive {
+        if !sun.shines && passive && cfg.lights.is_empty() {
             return Err(ctx.err(
                 "illumination.type",
-                "\"none\" leaves nothing for the passive measures to see without thermal emission (`emission = true`); only lidar measures bring their own light",
+                "\"none\" leaves nothing for the passive measures to see without thermal emission (`emission = true`) or lamps (`[[lights]]`); only lidar measures bring their own light",
             ));
         }
         return Ok(None);

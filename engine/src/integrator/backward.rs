@@ -7,6 +7,9 @@
 //! * collision with single-scattering albedo ω: `w·ω·P(s·d)/(4π)·T_sun·V` (polarized: the
 //!   unpolarized sunlight scattered through `F` into the path's frame, [`Adjoint`]);
 //! * surface hit: `w·f(s, −d)·cos θ_s·T_sun·V`;
+//! * lamps (scene geometries of runs with `[[lights]]`, [`Geometry::lamps_at_surface`] and
+//!   [`Geometry::lamps_at_collision`]): at every surface hit and sampled collision, one lamp's
+//!   `f·|cos|·I·T·V/r²` (or `ω·P/(4π)·I·T·V/r²`) over its probability;
 //! * thermal emission (geometries that have it, [`Geometry::flight_emission`]): at every
 //!   flight, `w` times the expected emission of the flight's next collision (`(1 − ω)·B`) and,
 //!   where the flight reaches the ground, of the surface (`ε·B(T_s)` times the transmittance),
@@ -347,6 +350,12 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
                     _ => None,
                 };
                 let surface = mirror.as_ref().unwrap_or(&base);
+                if mirror.is_none() {
+                    let lamp = g.lamps_at_surface(&h, surface, -d, rng);
+                    if lamp > 0.0 {
+                        w.see_emission(tally, order, lamp);
+                    }
+                }
                 if shines && mirror.is_none() {
                     w.see_sun_surface(tally, order, surface, d, sun, || g.sun_at_surface(&h));
                     // Sunlight relayed by plane mirrors arrives from the Sun's images in them.
@@ -456,6 +465,11 @@ fn collide<G: Geometry<W>, W: Adjoint>(
         if W::phase_intensity(&a) > 0.0 {
             w.see_sun_volume(tally, order, &a, d, g.light().sun, INV_4PI);
         }
+    }
+    // Lamps: a next-event estimate at the sampled collision (unpolarized light).
+    let lamp = g.lamps_at_collision(p, omega, phase, d, rng);
+    if lamp > 0.0 {
+        w.see_emission(tally, order, lamp);
     }
     w.scatter(phase, omega, d, peak, rng)
 }

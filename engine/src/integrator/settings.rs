@@ -70,6 +70,9 @@ pub struct IntegratorSettings {
     /// scores are the mean over this many independent first-order walks, its own included
     /// (`blocks/walks.rs` `backward_block`); 1: off.
     pub first_order_splits: u32,
+    /// `integrator.lamp_sampling`: one lamp per estimate from the light tree, or every lamp
+    /// (`sources/lamps/`).
+    pub lamp_sampling: crate::sources::lamps::LampSampling,
 }
 
 /// `integrator.above_scene` (`integrator/above_scene.rs`).
@@ -234,6 +237,9 @@ pub struct IntegratorConfig {
     /// Backward walks: first-order walks per sample (1–16, default 1 = off).
     #[serde(default)]
     pub first_order_splits: Option<u32>,
+    /// Lamps: `"tree"` (default) or `"all"`.
+    #[serde(default)]
+    pub lamp_sampling: crate::sources::lamps::LampSampling,
 }
 
 /// Most first-order walks per sample (`integrator.first_order_splits`).
@@ -466,6 +472,7 @@ impl IntegratorSettings {
         let sampler = cfg.sampler.resolve_auto(&run);
         Ok(IntegratorSettings {
             first_order_splits,
+            lamp_sampling: cfg.lamp_sampling,
             above_scene: cfg.above_scene,
             forced_flights,
             replicates: sampler == Sampler::Sobol,

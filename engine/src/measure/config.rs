@@ -414,14 +414,10 @@ impl MeasureConfig {
                         .map_err(|(k, m)| ctx.err(format!("{key}.{k}"), m))?,
                 )
             }
-            MeasureConfig::Radiancemeter { .. }
-            | MeasureConfig::DistantFlux { .. }
-            | MeasureConfig::Hdrf { .. }
-                if scene.is_some() =>
-            {
+            MeasureConfig::DistantFlux { .. } | MeasureConfig::Hdrf { .. } if scene.is_some() => {
                 return Err(ctx.err(
                     key.clone(),
-                    "radiancemeter, distant_flux and hdrf measures are 1D; with a 3D scene use `perspective` or an `mdistant` with a target area",
+                    "distant_flux and hdrf measures are 1D; with a 3D scene use `perspective`, a `radiancemeter` or an `mdistant` with a target area",
                 ))
             }
             MeasureConfig::Hdrf {
@@ -485,7 +481,12 @@ fn radiancemeter(
         ctx.finite(&format!("{key}.origin[{i}]"), origin[i])?;
         ctx.finite(&format!("{key}.direction[{i}]"), direction[i])?;
     }
-    let o = DVec3::from_array(*origin) * 1e3;
+    let mut o = DVec3::from_array(*origin) * 1e3;
+    if let Some(sc) = at.scene {
+        // In a scene the position is in the scene's coordinates (km).
+        let (x, y) = sc.to_local(o.x, o.y);
+        o = DVec3::new(x, y, o.z);
+    }
     let d = DVec3::from_array(*direction);
     if d.length() < 1e-12 {
         return Err(ctx.err(format!("{key}.direction"), "must not be the zero vector"));

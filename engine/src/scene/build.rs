@@ -716,3 +716,52 @@ pub fn canopy(
     );
     Ok(scene)
 }
+
+/// The uniform ground of a 1D run as a scene (runs with lamps, `[[lights]]`, whose light is not
+/// horizontally uniform): an infinite horizontal plane at `altitude` (m) of material `brdf`
+/// (solver `solver`), nothing else; `extent` is the area measures refer to by default.
+pub fn flat_ground(
+    brdf: BrdfSpec,
+    solver: Option<bundle::SolverSpec>,
+    temperature: Option<f64>,
+    altitude: f64,
+    extent: [f64; 4],
+) -> Scene {
+    let mut scene = Scene {
+        name: "flat ground".into(),
+        terrain: None,
+        objects: None,
+        sun_maps: Default::default(),
+        mirror_planes: Default::default(),
+        reference_height: altitude,
+        ground: Some(GroundPlane {
+            altitude,
+            material: 0,
+            inside: None,
+            outside: None,
+            sphere: None,
+        }),
+        materials: vec![("ground".into(), brdf)],
+        solvers: Vec::new(),
+        has_null: false,
+        panes: Default::default(),
+        georef: None,
+        extent,
+        z_range: [altitude, altitude],
+        render_origin: DVec3::ZERO,
+        memory_bytes: 0,
+        area_mask: None,
+        periodic: None,
+        curvature: None,
+        textures: Vec::new(),
+        texture_of: Vec::new(),
+        temperatures: vec![temperature],
+        lst: None,
+        load_seconds: 0.0,
+        build_seconds: 0.0,
+    };
+    if let Some(s) = solver {
+        scene.set_solvers(vec![s]);
+    }
+    scene
+}

@@ -1,9 +1,11 @@
 //! Light sources and their ephemerides: the Sun's direction, distance and irradiance
+//! (`lamps/`: point and spot lights placed in the scene),
 //! (`illumination.rs`; `sun_position.rs`: the solar position for a time and place), the Moon
 //! (`moon.rs`) and Planck's law of thermal emission (`planck.rs`). Solar spectra are spectral
 //! data (`spectral/solar.rs`).
 
 pub mod illumination;
+pub mod lamps;
 pub mod moon;
 pub mod planck;
 pub mod sun_position;

@@ -172,6 +172,33 @@ pub trait Geometry<W: Weight> {
         0.0
     }
 
+    /// Lamps' light scattered at an atmospheric collision at `pos` (albedo `omega`, phase
+    /// function `phase`) into a path travelling along `d`: `ω·P(l̂·d)/(4π)·I·T·V/r²` in tally
+    /// units for one lamp drawn from the run's light tree with one random number of `rng`
+    /// (`sources/lamps/`). 0, drawing nothing, for geometries and runs without lamps.
+    fn lamps_at_collision(
+        &self,
+        _pos: Self::Pos,
+        _omega: f64,
+        _phase: &PhaseFunction,
+        _d: DVec3,
+        _rng: &mut Stream,
+    ) -> f64 {
+        0.0
+    }
+
+    /// Lamps' light that `surface` at hit `h` sends towards `wo`: `f·|cos|·I·T·V/r²` in tally
+    /// units, as [`Geometry::lamps_at_collision`].
+    fn lamps_at_surface(
+        &self,
+        _h: &Self::Hit,
+        _surface: &SurfaceAt,
+        _wo: DVec3,
+        _rng: &mut Stream,
+    ) -> f64 {
+        0.0
+    }
+
     /// The Sun's transmittance times the scene's visibility at an atmospheric point.
     fn sun_at(&self, pos: Self::Pos) -> f64;
     /// The surface at a hit.

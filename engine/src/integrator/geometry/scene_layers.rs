@@ -61,6 +61,18 @@ pub struct SceneInLayers<'a> {
     pub shines: bool,
     /// The top of a cloud field among the layers (m; −∞ without one): paths start above it.
     pub clouds_top: f64,
+    /// The run's lamps at this wavelength, if it has any (the Sun's walks only).
+    pub lamps: Option<LampLight<'a>>,
+}
+
+/// Lamps as one wavelength's walks see them.
+#[derive(Clone, Copy)]
+pub struct LampLight<'a> {
+    pub lamps: &'a crate::sources::lamps::Lamps,
+    /// Run wavelength index.
+    pub iw: usize,
+    /// 1/E0: lamp radiances in tally units.
+    pub scale: f64,
 }
 
 impl SceneInLayers<'_> {
@@ -116,6 +128,51 @@ pub(crate) fn scene_surface<'m>(
 impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
     type Pos = DVec3;
     type Hit = SurfaceHit;
+
+    fn lamps_at_collision(
+        &self,
+        p: DVec3,
+        omega: f64,
+        phase: &crate::phase::PhaseFunction,
+        d: DVec3,
+        rng: &mut Stream,
+    ) -> f64 {
+        let Some(l) = &self.lamps else {
+            return 0.0;
+        };
+        let u = rng.next_f64();
+        if omega <= 0.0 {
+            return 0.0;
+        }
+        let k = omega * crate::integrator::weight::INV_4PI;
+        l.lamps.gather(
+            l.iw,
+            p,
+            u,
+            |dir| k * phase.eval(dir.dot(d)),
+            |dir, r| self.lamp_seen(p, dir, r),
+        ) * l.scale
+    }
+
+    fn lamps_at_surface(
+        &self,
+        h: &SurfaceHit,
+        surface: &SurfaceAt,
+        wo: DVec3,
+        rng: &mut Stream,
+    ) -> f64 {
+        let Some(l) = &self.lamps else {
+            return 0.0;
+        };
+        let u = rng.next_f64();
+        l.lamps.gather(
+            l.iw,
+            h.point,
+            u,
+            |dir| surface.eval_cos(dir, wo),
+            |dir, r| self.lamp_seen(self.scene.offset(h.point, h.normal, dir), dir, r),
+        ) * l.scale
+    }
 
     fn light(&self) -> Light {
         Light::new(self.sun, self.sun.z)
@@ -275,6 +332,22 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 }
 
 impl SceneInLayers<'_> {
+    /// The transmittance from `p` over `r` m along unit `dir` to a lamp: the layers' along the
+    /// segment times the scene's visibility (panes included) up to just short of the lamp (a
+    /// lamp may sit on the geometry that holds it).
+    #[inline]
+    fn lamp_seen(&self, p: DVec3, dir: DVec3, r: f64) -> f64 {
+        let t = (-self.atmosphere.optical_path(p.z, dir.z, r)).exp();
+        if t <= 0.0 {
+            return 0.0;
+        }
+        let reach = r * (1.0 - 1e-9) - 1e-3;
+        if reach <= 0.0 {
+            return t;
+        }
+        t * self.scene.visibility(p, dir, reach, self.models)
+    }
+
     /// The fraction of sunlight the scene lets through to `p`: 1 above the clearance map, else
     /// a shadow ray's [`Scene::visibility`] (0 behind opaque surfaces, the transmittance of
     /// the panes crossed).

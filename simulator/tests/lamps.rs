@@ -1,0 +1,223 @@
+//! Lamps (`[[lights]]`, issue 39 item 1) against closed forms: a point lamp over a Lambertian
+//! ground (exact, zero variance: one lamp, one next-event estimate per path), the inverse-square
+//! law along a line of radiancemeters, a spot's cone cut-off, a lamp seen through an absorbing
+//! layer, a plate's shadow in a bundle, and the light tree's one-lamp estimate against every
+//! lamp's sum (z-test).
+
+mod common;
+use common::bundles::{flat_plane, lambertian, tmp, with_plate, write_plane};
+use common::*;
+
+const PI: f64 = std::f64::consts::PI;
+
+/// Radiancemeters looking straight down at ground points `xs` (m, y = 0) from `h` m.
+fn meters(xs: &[f64], h: f64, spp: u64) -> String {
+    xs.iter()
+        .enumerate()
+        .map(|(i, x)| {
+            format!(
+                "[[measures]]\ntype = \"radiancemeter\"\nid = \"m{i}\"\norigin = [{}, 0.0, {}]\ndirection = [0.0, 0.0, -1.0]\nspp = {spp}\n",
+                x / 1e3,
+                h / 1e3
+            )
+        })
+        .collect()
+}
+
+fn radiances(text: &str) -> Vec<(f64, f64)> {
+    run_rows(&experiment(text))
+        .iter()
+        .map(|r| r.radiance.unwrap())
+        .collect()
+}
+
+const NIGHT: &str =
+    "seed = 3\n[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"none\"\n";
+
+#[test]
+fn a_point_lamp_over_a_lambertian_ground_is_exact() {
+    let (rho, i0, h) = (0.4, 250.0, 10.0);
+    let xs = [0.0, 3.0, 10.0, 25.0];
+    let text = format!(
+        "{NIGHT}[surface]\ntype = \"lambertian\"\nreflectance = {rho}\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [0.0, 0.0, {h}]\nintensity = {i0}\n{}",
+        meters(&xs, 50.0, 64)
+    );
+    for (x, (l, e)) in xs.iter().zip(radiances(&text)) {
+        // E = I cos θ / r² at the ground point, L = ρE/π.
+        let r2 = x * x + h * h;
+        let want = rho / PI * i0 * (h / r2.sqrt()) / r2;
+        println!("x = {x} m: L = {l:.6e} ± {e:.1e}, closed form {want:.6e}");
+        assert!(
+            (l - want).abs() < 1e-12 * want && e < 1e-9 * want,
+            "{l} ± {e} vs {want}"
+        );
+    }
+    // Inverse square: the point below lamps at 5, 10, 20, 40 m.
+    for h in [5.0, 10.0, 20.0, 40.0] {
+        let text = format!(
+            "{NIGHT}[surface]\ntype = \"lambertian\"\nreflectance = {rho}\n\
+             [[lights]]\ntype = \"point\"\nposition_m = [0.0, 0.0, {h}]\nintensity = {i0}\n{}",
+            meters(&[0.0], 100.0, 16)
+        );
+        let l = radiances(&text)[0].0;
+        let want = rho / PI * i0 / (h * h);
+        println!("lamp at {h} m: L = {l:.6e}, closed form {want:.6e}");
+        assert!((l - want).abs() < 1e-12 * want);
+    }
+}
+
+#[test]
+fn a_spot_lights_its_cone_only() {
+    // A spot 10 m up pointing down with a 30° cone: ground points at 26.6° and 31° from its
+    // axis; with a 20° fall-off the smoothstep between.
+    let spot = |falloff: &str| {
+        format!(
+            "{NIGHT}[surface]\ntype = \"lambertian\"\nreflectance = 0.5\n\
+             [[lights]]\ntype = \"spot\"\nposition_m = [0.0, 0.0, 10.0]\nintensity = 100.0\ncone_angle = 30.0\n{falloff}{}",
+            meters(&[5.0, 6.0, 2.0], 50.0, 16)
+        )
+    };
+    let l = radiances(&spot(""));
+    let lit = |x: f64| 0.5 / PI * 100.0 * 10.0 / (x * x + 100.0f64).powf(1.5);
+    assert!((l[0].0 - lit(5.0)).abs() < 1e-12 * lit(5.0), "{:?}", l[0]);
+    assert_eq!(l[1].0, 0.0);
+    let l = radiances(&spot("falloff_angle = 10.0\n"));
+    // At 11.3° (x = 2 m): t = (cos 11.31° − cos 30°)/(cos 10° − cos 30°), smoothstep t²(3 − 2t).
+    let c = (10.0f64 / 104.0f64.sqrt()).min(1.0);
+    let (ci, co) = (10f64.to_radians().cos(), 30f64.to_radians().cos());
+    let t = (c - co) / (ci - co);
+    let want = lit(2.0) * t * t * (3.0 - 2.0 * t);
+    assert!((l[2].0 - want).abs() < 1e-12 * want, "{:?} vs {want}", l[2]);
+}
+
+#[test]
+fn a_lamp_seen_through_an_absorbing_layer() {
+    // A purely absorbing layer (τ = 0.5 over 1 km): the lamp's light crosses h·k of it to the
+    // ground point below, the radiancemeter sees the ground through its own height.
+    let (h, hm, k) = (100.0, 30.0, 0.5 / 1000.0);
+    let text = format!(
+        "{NIGHT}[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 1.0\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.5\nsingle_scattering_albedo = 0.0\n\
+         [surface]\ntype = \"lambertian\"\nreflectance = 0.3\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [0.0, 0.0, {h}]\nintensity = 5000.0\n{}",
+        meters(&[0.0], hm, 40_000)
+    );
+    let (l, e) = radiances(&text)[0];
+    let want = 0.3 / PI * 5000.0 / (h * h) * (-k * h).exp() * (-k * hm).exp();
+    println!("absorbing layer: L = {l:.6e} ± {e:.1e}, closed form {want:.6e}");
+    assert!(
+        (l - want).abs() < 4.0 * e + 1e-9 * want,
+        "{l} ± {e} vs {want}"
+    );
+}
+
+#[test]
+fn a_plate_shades_the_ground_from_a_lamp_in_a_bundle() {
+    let dir = tmp("lamp-plate");
+    let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, 0.3));
+    // A black 20 m plate 5 m up centred 30 m east; a lamp 10 m above the origin. The ground at
+    // 60 m east is behind the plate from the lamp; at 30 m west it is lit.
+    let b = with_plate(
+        &plane,
+        &dir.join("b"),
+        (30.0, 0.0, 5.0),
+        10.0,
+        7,
+        "plate",
+        lambertian(0.0),
+        None,
+    );
+    let text = format!(
+        "{NIGHT}[scene]\ntype = \"bundle\"\npath = \"{}\"\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [500000.0, 4000000.0, 10.0]\nintensity = 100.0\n\
+         [[measures]]\ntype = \"radiancemeter\"\nid = \"shade\"\norigin = [500.060, 4000.0, 0.002]\ndirection = [0.0, 0.0, -1.0]\nspp = 16\n\
+         [[measures]]\ntype = \"radiancemeter\"\nid = \"lit\"\norigin = [499.970, 4000.0, 0.002]\ndirection = [0.0, 0.0, -1.0]\nspp = 16\n",
+        b.display()
+    );
+    let l = radiances(&text);
+    let want = 0.3 / PI * 100.0 * 10.0 / (30.0f64 * 30.0 + 100.0).powf(1.5);
+    println!("shaded {:?}, lit {:?} (closed form {want})", l[0], l[1]);
+    assert_eq!(l[0].0, 0.0);
+    assert!((l[1].0 - want).abs() < 1e-9 * want);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// 400 lamps of three kinds over a Rayleigh-like scattering layer and a Lambertian ground:
+/// one lamp drawn from the light tree per estimate against every lamp at every estimate
+/// (`integrator.lamp_sampling = "all"`), at six radiancemeters; both are Monte Carlo (the
+/// air scatters), compared by z on their difference.
+#[test]
+fn the_light_tree_agrees_with_every_lamp() {
+    let mut lamps = String::new();
+    let mut s = 12345u64;
+    let mut next = || {
+        s = s
+            .wrapping_mul(6364136223846793005)
+            .wrapping_add(1442695040888963407);
+        (s >> 11) as f64 / (1u64 << 53) as f64
+    };
+    for i in 0..400 {
+        let (x, y) = (next() * 600.0 - 300.0, next() * 600.0 - 300.0);
+        let kind = match i % 3 {
+            0 => "type = \"point\"\nintensity = 40.0",
+            1 => "type = \"spot\"\nintensity = 120.0\ncone_angle = 60.0\nfalloff_angle = 40.0",
+            _ => "type = \"point\"\nintensity = \"led_4000k\"\nluminous_intensity_cd = 800\nprofile = { type = \"cosine_power\", exponent = 1 }",
+        };
+        lamps += &format!("[[lights]]\nposition_m = [{x}, {y}, 8.0]\n{kind}\n");
+    }
+    let xs = [-120.0, -10.0, 0.0, 35.0, 140.0, 290.0];
+    let text = |sampling: &str, seed: u64| {
+        format!(
+            "seed = {seed}\n[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"none\"\n\
+             [integrator]\nlamp_sampling = \"{sampling}\"\n\
+             [geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 2.0\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2\nphase = {{ type = \"rayleigh\" }}\n\
+             [surface]\ntype = \"lambertian\"\nreflectance = 0.25\n{lamps}{}",
+            meters(&xs, 40.0, 6000)
+        )
+    };
+    let tree = radiances(&text("tree", 1));
+    let all = radiances(&text("all", 2));
+    let mut zs = Vec::new();
+    for ((a, ea), (b, eb)) in tree.iter().zip(&all) {
+        let z = (a - b) / (ea * ea + eb * eb).sqrt();
+        println!("tree {a:.5e} ± {ea:.1e}, all {b:.5e} ± {eb:.1e}: z = {z:+.2}");
+        assert!(z.abs() < 4.0, "z = {z}");
+        zs.push(z);
+    }
+}
+
+#[test]
+fn lamps_where_they_are_not_built_are_refused() {
+    let base = format!(
+        "[spectral]\nwavelengths = [550.0]\n[illumination]\ntype = \"directional\"\nzenith = 30.0\n\
+         [surface]\ntype = \"lambertian\"\nreflectance = 0.3\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [0.0, 0.0, 10.0]\nintensity = 1.0\n{}",
+        meters(&[0.0], 10.0, 16)
+    );
+    for (extra, says) in [
+        ("polarized = true\n", "polarized"),
+        ("[geometry]\ntype = \"spherical_shell\"\n", "spherical"),
+    ] {
+        let e = engine::config::Experiment::from_str(
+            &format!("{extra}{base}"),
+            &data_dir().join("test.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(e.contains("lights") && e.contains(says), "{extra}: {e}");
+    }
+    // With the Sun too, the lamps add to the sunlit radiance.
+    let with = radiances(&format!("seed = 1\n{base}"));
+    let without = radiances(&format!(
+        "seed = 1\n{}",
+        base.replace(
+            "[[lights]]\ntype = \"point\"\nposition_m = [0.0, 0.0, 10.0]\nintensity = 1.0\n",
+            ""
+        )
+    ));
+    let lamp = 0.3 / PI * 1.0 / 100.0;
+    assert!(
+        (with[0].0 - without[0].0 - lamp).abs() < 1e-9,
+        "{with:?} {without:?}"
+    );
+}
