@@ -74,6 +74,8 @@ pub struct TemplateMesh {
     pub indices: Vec<[u32; 3]>,
     /// Per triangle, a material id (the `index` of a manifest material).
     pub materials: Vec<u8>,
+    /// Lamps every instance carries (the manifest's `Template::lamps`).
+    pub lamps: Vec<toml::Table>,
 }
 
 /// One placed template: world = frame origin + translation + linear · p_template.
@@ -381,6 +383,7 @@ impl Bundle {
                 triangle_count: t.indices.len() as u64,
                 bounds_min: lo,
                 bounds_max: hi,
+                lamps: t.lamps.clone(),
             });
         }
         digests.push(f.finish(TEMPLATES_FILE)?);
@@ -805,6 +808,7 @@ impl Bundle {
                 positions,
                 indices,
                 materials: bytes[mm].to_vec(),
+                lamps: t.lamps.clone(),
             });
         }
 
@@ -1255,6 +1259,7 @@ mod tests {
                 positions: vec![[0.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 0.0, 1.0]],
                 indices: vec![[0, 1, 2]],
                 materials: vec![1],
+                lamps: Vec::new(),
             }],
             instances: vec![
                 Instance {

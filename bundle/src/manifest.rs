@@ -285,6 +285,11 @@ pub struct Template {
     /// Axis-aligned bounds in the template frame, metres.
     pub bounds_min: [f32; 3],
     pub bounds_max: [f32; 3],
+    /// Lamps every instance of the template carries (streetlights): `[[lights]]` tables of an
+    /// experiment (docs/experiment.md) with `position_m` and `direction` in the template frame;
+    /// used when an experiment sets `scene.lamps = true`.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub lamps: Vec<toml::Table>,
 }
 
 /// Where the instance records are.

@@ -254,6 +254,7 @@ fn template_id(
             .collect(),
         positions: t.positions,
         indices: t.indices,
+        lamps: spec.lamps.clone(),
     });
     let id = (pop.templates.len() - 1) as u32;
     pop.ids.insert(name.to_string(), id);

@@ -813,6 +813,7 @@ impl TemplateGroups {
                     .collect(),
                 indices: tris,
                 materials: mats,
+                lamps: Vec::new(),
             });
             origins.push([ox, oy]);
         }

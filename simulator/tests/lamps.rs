@@ -111,6 +111,49 @@ fn a_lamp_seen_through_an_absorbing_layer() {
     );
 }
 
+/// In-scattered lamp light: a radiancemeter at 1 m looking straight up through a thin
+/// isotropic layer (σ = 10⁻⁵ m⁻¹ up to 1 km) over a black ground, a lamp 20 m aside at 10 m:
+/// `L = ∫ σ/(4π)·e^{−σt}·I·e^{−σr}/r² dt` (single scattering, exact to O(τ²) = 10⁻⁴ of it),
+/// by quadrature in the angle seen from the lamp (the integrand peaks where the line passes the
+/// lamp); the walk samples the flight equi-angularly.
+#[test]
+fn lamp_light_scattered_by_the_air_matches_quadrature() {
+    let (sigma, i0, top) = (1e-5, 1.0e4, 1000.0);
+    let lamp = glam::DVec3::new(20.0, 0.0, 10.0);
+    let text = format!(
+        "{NIGHT}[geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 1.0\n\
+         [atmosphere]\ntype = \"homogeneous\"\noptical_thickness = {}\nphase = {{ type = \"isotropic\" }}\n\
+         [surface]\ntype = \"lambertian\"\nreflectance = 0.0\n[integrator]\nmax_depth = 1\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [20.0, 0.0, 10.0]\nintensity = {i0}\n\
+         [[measures]]\ntype = \"radiancemeter\"\nid = \"up\"\norigin = [0.0, 0.0, 0.001]\ndirection = [0.0, 0.0, 1.0]\nspp = 20000\n",
+        sigma * top
+    );
+    let (l, e) = radiances(&text)[0];
+    // t along the beam from z = 1 m; substitute t = Δ + h tan θ.
+    let (h, delta) = (20.0f64, 9.0f64);
+    let (ta, tb) = ((-delta / h).atan(), ((top - 1.0 - delta) / h).atan());
+    let n = 200_000;
+    let mut want = 0.0;
+    for k in 0..n {
+        let th = ta + (tb - ta) * (k as f64 + 0.5) / n as f64;
+        let t = delta + h * th.tan();
+        let x = glam::DVec3::new(0.0, 0.0, 1.0 + t);
+        let r = (lamp - x).length();
+        let dt = h / th.cos().powi(2) * (tb - ta) / n as f64;
+        want += sigma / (4.0 * PI) * (-sigma * t).exp() * i0 * (-sigma * r).exp() / (r * r) * dt;
+    }
+    println!("air-scattered lamp light: L = {l:.6e} ± {e:.1e}, quadrature {want:.6e}");
+    assert!(
+        (l - want).abs() < 4.0 * e + 1e-4 * want,
+        "{l} ± {e} vs {want}"
+    );
+    assert!(
+        e < 0.01 * want,
+        "equi-angular samples: relative error {}",
+        e / want
+    );
+}
+
 #[test]
 fn a_plate_shades_the_ground_from_a_lamp_in_a_bundle() {
     let dir = tmp("lamp-plate");

@@ -43,6 +43,11 @@ pub struct TemplateSpec {
     /// Library material for template materials not in `materials`.
     #[serde(default)]
     pub default_material: Option<String>,
+    /// Lamps carried by every instance (streetlights): `[[lights]]` tables of the simulator's
+    /// experiment with `position_m` (and `direction`) in the template frame; checked by the
+    /// simulator when an experiment turns them on (`scene.lamps = true`).
+    #[serde(default)]
+    pub lamps: Vec<toml::Table>,
 }
 
 fn one() -> f64 {

@@ -459,6 +459,21 @@ impl PlaneParallel {
         }
     }
 
+    /// Extinction coefficient at altitude `z`, m⁻¹ (0 outside the atmosphere).
+    pub fn extinction_at_altitude(&self, z: f64) -> f64 {
+        let n = self.albedo.len();
+        if n == 0 || z > self.z[0] || z < self.z[n] {
+            return 0.0;
+        }
+        let i = self.layer_at_altitude(z);
+        let (zt, zb) = (self.z[i], self.z[i + 1]);
+        if zt > zb {
+            (self.tau[i + 1] - self.tau[i]) / (zt - zb)
+        } else {
+            0.0
+        }
+    }
+
     /// Optical path (extinction) along the straight ray from altitude `z0` with vertical cosine
     /// `dz` over the distance `t` (m).
     pub fn optical_path(&self, z0: f64, dz: f64, t: f64) -> f64 {

@@ -608,7 +608,11 @@ fn resolve_lamps(
     scene: Option<&Scene>,
     planet_radius: Option<f64>,
 ) -> Result<Option<Arc<crate::sources::lamps::Lamps>>, ConfigError> {
-    if cfg.lights.is_empty() {
+    let bundle_lamps = matches!(
+        cfg.scene,
+        Some(scene::SceneConfig::Bundle { lamps: true, .. })
+    );
+    if cfg.lights.is_empty() && !bundle_lamps {
         return Ok(None);
     }
     let why = if cfg.polarized {
@@ -619,8 +623,6 @@ fn resolve_lamps(
         Some("`[[clouds]]` fields")
     } else if cfg.mode == Mode::Ckd {
         Some("`mode = \"ckd\"` (use monochromatic wavelengths)")
-    } else if matches!(cfg.illumination, IlluminationConfig::Moon { .. }) {
-        Some("`illumination.type = \"moon\"` (use the Moon beside the Sun, `moon = true`, or `\"none\"`)")
     } else {
         None
     };
@@ -634,12 +636,31 @@ fn resolve_lamps(
         )
     })?;
     let frame = scene::frame(scene);
-    let lamps = crate::sources::lamps::Lamps::resolve(
+    let mut more = Vec::new();
+    if bundle_lamps {
+        for t in &scene.template_lamps {
+            more.extend(crate::sources::lamps::template_lamps(
+                &t.specs,
+                &t.sites,
+                &format!("scene.lamps: template `{}` lamps", t.template),
+                ctx,
+            )?);
+        }
+        if more.is_empty() && cfg.lights.is_empty() {
+            return Err(ctx.err(
+                "scene.lamps",
+                "the bundle's templates carry no lamps (a template's `lamps` in the region file, e.g. the built-in `streetlight`)",
+            ));
+        }
+    }
+    let lamps = crate::sources::lamps::Lamps::resolve_with(
         &cfg.lights,
         ctx,
         |x, y| frame.to_local(x, y),
         cfg.integrator.lamp_sampling,
+        more,
     )?;
+    tracing::info!("{} lamps", lamps.lamps.len());
     Ok(Some(Arc::new(lamps)))
 }
 

@@ -47,6 +47,9 @@ pub enum SceneConfig {
         /// `simulate temperatures`); `temperatures` entries win over its rows.
         #[serde(default)]
         temperature_table: Option<String>,
+        /// Light the lamps the bundle's templates carry (streetlights; `[[lights]]`).
+        #[serde(default)]
+        lamps: bool,
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
@@ -266,6 +269,7 @@ pub fn build_scene(
             temperatures,
             land_surface_temperature,
             temperature_table,
+            lamps: _,
         } => {
             validate_solvers(solvers)?;
             let bg = bundle_background(background.as_ref(), base)?;

@@ -8,8 +8,9 @@
 //!   unpolarized sunlight scattered through `F` into the path's frame, [`Adjoint`]);
 //! * surface hit: `w·f(s, −d)·cos θ_s·T_sun·V`;
 //! * lamps (scene geometries of runs with `[[lights]]`, [`Geometry::lamps_at_surface`] and
-//!   [`Geometry::lamps_at_collision`]): at every surface hit and sampled collision, one lamp's
-//!   `f·|cos|·I·T·V/r²` (or `ω·P/(4π)·I·T·V/r²`) over its probability;
+//!   [`Geometry::lamps_along_flight`]): at every surface hit one lamp's `f·|cos|·I·T·V/r²`
+//!   over its probability, and at every flight the expected `ω·P/(4π)·I·T·V/r²` of its next
+//!   collision (equi-angular sampling along the flight);
 //! * thermal emission (geometries that have it, [`Geometry::flight_emission`]): at every
 //!   flight, `w` times the expected emission of the flight's next collision (`(1 − ω)·B`) and,
 //!   where the flight reaches the ground, of the surface (`ε·B(T_s)` times the transmittance),
@@ -247,6 +248,11 @@ fn walk_from<G: Geometry<W>, W: Adjoint>(
     let mut pass_through = 0u32;
     while order <= settings.max_depth {
         let mut acc = W::zero_phase();
+        // Lamps' light scattered along the flight, in expectation (unpolarized).
+        let lamp = g.lamps_along_flight(pos, d, rng);
+        if lamp > 0.0 {
+            w.see_emission(tally, order, lamp);
+        }
         let emitted = g.flight_emission(pos, d, &w, rng);
         if emitted > 0.0 {
             w.see_emission(tally, order, emitted);
@@ -466,11 +472,7 @@ fn collide<G: Geometry<W>, W: Adjoint>(
             w.see_sun_volume(tally, order, &a, d, g.light().sun, INV_4PI);
         }
     }
-    // Lamps: a next-event estimate at the sampled collision (unpolarized light).
-    let lamp = g.lamps_at_collision(p, omega, phase, d, rng);
-    if lamp > 0.0 {
-        w.see_emission(tally, order, lamp);
-    }
+
     w.scatter(phase, omega, d, peak, rng)
 }
 

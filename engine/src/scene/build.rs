@@ -76,6 +76,7 @@ pub fn from_bundle(
     let render_origin = terrain.render_origin();
     let data = std::mem::take(&mut bundle.material_raster);
     let raster = material_raster(m, origin, data, &scene_id, identity)?;
+    let template_lamps = template_lamps(&bundle.templates, &bundle.instances);
     let objects = instance_bvh(
         std::mem::take(&mut bundle.templates),
         std::mem::take(&mut bundle.instances),
@@ -159,6 +160,7 @@ pub fn from_bundle(
         texture_of,
         temperatures,
         lst: None,
+        template_lamps,
         load_seconds: t_load,
         build_seconds: t_bvh,
     };
@@ -287,6 +289,37 @@ fn material_raster(
         });
     }
     Ok(raster)
+}
+
+/// The lamps of templates that carry some, with their instances' transforms.
+fn template_lamps(
+    templates: &[bundle::TemplateMesh],
+    instances: &[bundle::Instance],
+) -> Vec<super::world::TemplateLamps> {
+    let mut out: Vec<super::world::TemplateLamps> = Vec::new();
+    let mut slot = vec![usize::MAX; templates.len()];
+    for (i, t) in templates.iter().enumerate() {
+        if !t.lamps.is_empty() {
+            slot[i] = out.len();
+            out.push(super::world::TemplateLamps {
+                template: t.name.clone(),
+                specs: t.lamps.clone(),
+                sites: Vec::new(),
+            });
+        }
+    }
+    if out.is_empty() {
+        return out;
+    }
+    for inst in instances {
+        if let Some(&k) = slot.get(inst.template as usize) {
+            if k != usize::MAX {
+                let (_, tr) = InstanceTransform::from_bundle(inst);
+                out[k].sites.push((tr.translation, tr.linear));
+            }
+        }
+    }
+    out
 }
 
 /// The instanced objects' BVH (none without instances); the template meshes are freed once
@@ -706,6 +739,7 @@ pub fn canopy(
         texture_of: Vec::new(),
         temperatures: Vec::new(),
         lst: None,
+        template_lamps: Vec::new(),
         load_seconds: 0.0,
         build_seconds: t0.elapsed().as_secs_f64(),
     };
@@ -757,6 +791,7 @@ pub fn flat_ground(
         texture_of: Vec::new(),
         temperatures: vec![temperature],
         lst: None,
+        template_lamps: Vec::new(),
         load_seconds: 0.0,
         build_seconds: 0.0,
     };

@@ -121,6 +121,15 @@ impl GroundPlane {
     }
 }
 
+/// The lamps of one bundle template (`[[lights]]` tables, template frame) and where its
+/// instances stand (local translation, linear part).
+#[derive(Clone, Debug)]
+pub struct TemplateLamps {
+    pub template: String,
+    pub specs: Vec<toml::Table>,
+    pub sites: Vec<(DVec3, glam::Mat3)>,
+}
+
 /// A hit on the scene.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceHit {
@@ -245,6 +254,9 @@ pub struct Scene {
     pub temperatures: Vec<Option<f64>>,
     /// Land-surface temperature of terrain hits (`scene.land_surface_temperature`).
     pub lst: Option<super::texture::TemperatureMap>,
+    /// Lamps that the bundle's templates carry (streetlights), with the instances that carry
+    /// them; lit when the experiment sets `scene.lamps = true`.
+    pub template_lamps: Vec<TemplateLamps>,
     /// Time to read the inputs and to build the BVHs, s.
     pub load_seconds: f64,
     pub build_seconds: f64,

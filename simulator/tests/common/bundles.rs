@@ -348,6 +348,7 @@ pub fn with_plate_turned(
         ],
         indices: vec![[0, 1, 2], [0, 2, 3]],
         materials: vec![index; 2],
+        lamps: Vec::new(),
     });
     b.instances.push(Instance {
         translation: [cx, cy, z],
@@ -426,6 +427,7 @@ pub fn with_building_rows(
         positions,
         indices,
         materials,
+        lamps: Vec::new(),
     });
     let template = (b.templates.len() - 1) as u32;
     for &x in rows {

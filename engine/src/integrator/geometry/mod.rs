@@ -172,18 +172,14 @@ pub trait Geometry<W: Weight> {
         0.0
     }
 
-    /// Lamps' light scattered at an atmospheric collision at `pos` (albedo `omega`, phase
-    /// function `phase`) into a path travelling along `d`: `ω·P(l̂·d)/(4π)·I·T·V/r²` in tally
-    /// units for one lamp drawn from the run's light tree with one random number of `rng`
-    /// (`sources/lamps/`). 0, drawing nothing, for geometries and runs without lamps.
-    fn lamps_at_collision(
-        &self,
-        _pos: Self::Pos,
-        _omega: f64,
-        _phase: &PhaseFunction,
-        _d: DVec3,
-        _rng: &mut Stream,
-    ) -> f64 {
+    /// Lamps' light that the air scatters into a path along its next flight from `pos` along
+    /// `d`, in expectation over the flight's next collision (the expected value of
+    /// `ω·P(l̂·d)/(4π)·I·T·V/r²` there), in tally units: one lamp drawn from the run's light
+    /// tree and one point of the flight drawn in proportion to that lamp's 1/r² (equi-angular
+    /// sampling; a collision-point estimate would have infinite variance near a point lamp),
+    /// from random numbers of `rng` (`sources/lamps/`). 0, drawing nothing, for geometries
+    /// and runs without lamps.
+    fn lamps_along_flight(&self, _pos: Self::Pos, _d: DVec3, _rng: &mut Stream) -> f64 {
         0.0
     }
 

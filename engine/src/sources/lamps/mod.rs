@@ -237,14 +237,25 @@ impl Lamps {
         to_local: impl Fn(f64, f64) -> (f64, f64),
         sampling: LampSampling,
     ) -> Result<Self, ConfigError> {
-        if cfgs.len() > MAX_LAMPS {
+        Self::resolve_with(cfgs, ctx, to_local, sampling, Vec::new())
+    }
+
+    /// [`Lamps::resolve`] plus lamps resolved elsewhere (`more`: the bundle's template lamps).
+    pub fn resolve_with(
+        cfgs: &[LampConfig],
+        ctx: &ConfigCtx,
+        to_local: impl Fn(f64, f64) -> (f64, f64),
+        sampling: LampSampling,
+        more: Vec<Lamp>,
+    ) -> Result<Self, ConfigError> {
+        if cfgs.len() + more.len() > MAX_LAMPS {
             return Err(ctx.err(
                 "lights",
-                format!("{} lamps: at most {MAX_LAMPS}", cfgs.len()),
+                format!("{} lamps: at most {MAX_LAMPS}", cfgs.len() + more.len()),
             ));
         }
         let mut ies_cache: std::collections::HashMap<String, Arc<Photometry>> = Default::default();
-        let mut lamps = Vec::with_capacity(cfgs.len());
+        let mut lamps = Vec::with_capacity(cfgs.len() + more.len());
         for (i, c) in cfgs.iter().enumerate() {
             lamps.push(resolve_one(
                 c,
@@ -254,6 +265,7 @@ impl Lamps {
                 &mut ies_cache,
             )?);
         }
+        lamps.extend(more);
         let power: Vec<f64> = lamps
             .iter()
             .map(|l| {
@@ -314,6 +326,26 @@ impl Lamps {
         }
     }
 
+    /// A lamp's contribution estimated by `est(position, lamp)` (which samples what it needs
+    /// itself) over its probability: one lamp drawn from the tree at `p` with `u`, or the sum
+    /// over every lamp.
+    #[inline]
+    pub fn gather_along(
+        &self,
+        _iw: usize,
+        p: DVec3,
+        u: f64,
+        mut est: impl FnMut(DVec3, &Lamp) -> f64,
+    ) -> f64 {
+        match self.sampling {
+            LampSampling::All => self.lamps.iter().map(|l| est(l.position, l)).sum(),
+            LampSampling::Tree => match self.tree.sample(p, u) {
+                Some((k, prob)) => est(self.lamps[k].position, &self.lamps[k]) / prob,
+                None => 0.0,
+            },
+        }
+    }
+
     /// The lamp positions' bounding box (min, max).
     pub fn bounds(&self) -> (DVec3, DVec3) {
         self.lamps.iter().fold(
@@ -321,6 +353,37 @@ impl Lamps {
             |(lo, hi), l| (lo.min(l.position), hi.max(l.position)),
         )
     }
+}
+
+/// The lamps that a bundle template carries on each of its instances: every spec (a
+/// `[[lights]]` table in the template frame) resolved once (errors name `key`), then placed at
+/// each site (translation, linear part): positions transformed, axes turned.
+pub fn template_lamps(
+    specs: &[toml::Table],
+    sites: &[(DVec3, glam::Mat3)],
+    key: &str,
+    ctx: &ConfigCtx,
+) -> Result<Vec<Lamp>, ConfigError> {
+    let mut out = Vec::with_capacity(specs.len() * sites.len());
+    let mut cache = Default::default();
+    for (k, spec) in specs.iter().enumerate() {
+        let key = format!("{key}[{k}]");
+        let cfg = LampConfig::deserialize(toml::Value::Table(spec.clone()))
+            .map_err(|e| ctx.err(key.clone(), e.to_string()))?;
+        let base = resolve_one(&cfg, &key, ctx, &|x, y| (x, y), &mut cache)?;
+        for (t, m) in sites {
+            let m = m.as_dmat3();
+            let turn = |v: DVec3| (m * v).try_normalize().unwrap_or(v);
+            let mut lamp = base.clone();
+            lamp.position = *t + m * base.position;
+            lamp.axis = turn(base.axis);
+            if let Profile::Ies { c0, .. } = &mut lamp.profile {
+                *c0 = turn(*c0);
+            }
+            out.push(lamp);
+        }
+    }
+    Ok(out)
 }
 
 fn resolve_one(
