@@ -5,7 +5,7 @@
 //! lamp's sum (z-test).
 
 mod common;
-use common::bundles::{flat_plane, lambertian, tmp, with_plate, write_plane};
+use common::bundles::{flat_plane, lambertian, tmp, with_plate, with_plate_turned, write_plane};
 use common::*;
 
 const PI: f64 = std::f64::consts::PI;
@@ -263,4 +263,63 @@ fn lamps_where_they_are_not_built_are_refused() {
         (with[0].0 - without[0].0 - lamp).abs() < 1e-9,
         "{with:?} {without:?}"
     );
+}
+
+/// A template that carries a lamp (a streetlight's), instanced turned by 90° about z: the
+/// lamp stands where the instance's transform puts it, and lights the ground in closed form
+/// when `scene.lamps = true` (and not without it). A bad key in a template lamp is refused
+/// naming the template.
+#[test]
+fn template_lamps_follow_their_instances() {
+    let dir = tmp("template-lamp");
+    let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, 0.3));
+    // Rotation by +90° about z (column-major): x → y.
+    let turn = [0.0, 1.0, 0.0, -1.0, 0.0, 0.0, 0.0, 0.0, 1.0];
+    let out = dir.join("b");
+    with_plate_turned(
+        &plane,
+        &out,
+        (0.0, 0.0, 5.0),
+        0.05,
+        turn,
+        7,
+        "post",
+        lambertian(0.2),
+        None,
+    );
+    let mut b = bundle::Bundle::open(&out).unwrap();
+    let lamp = |key: &str| {
+        format!("type = \"point\"\nposition_m = [3.0, 0.0, 5.0]\nintensity = 50.0\n{key}")
+            .parse::<toml::Table>()
+            .unwrap()
+    };
+    b.templates.last_mut().unwrap().lamps = vec![lamp("")];
+    b.write(&out, true).unwrap();
+    let text = |lamps: bool| {
+        format!(
+            "{NIGHT}[scene]\ntype = \"bundle\"\npath = \"{}\"\nlamps = {lamps}\n\
+             [[lights]]\ntype = \"point\"\nposition_m = [500000.0, 3999000.0, 10.0]\nintensity = 1.0\n\
+             [[measures]]\ntype = \"radiancemeter\"\nid = \"under\"\norigin = [500.0, 4000.003, 0.002]\ndirection = [0.0, 0.0, -1.0]\nspp = 16\n",
+            out.display()
+        )
+    };
+    // The instance puts the lamp at (0, 3, 10): straight above the meter's ground point (the
+    // other lamp, 1 km south, adds 0.3/π·1·10/(1000² + 10²)^1.5).
+    let far = 0.3 / PI * 10.0 / (1003.0f64.powi(2) + 100.0).powf(1.5);
+    let l = radiances(&text(true))[0].0;
+    let want = 0.3 / PI * 50.0 / 100.0 + far;
+    println!("template lamp: L = {l:.6e}, closed form {want:.6e}");
+    assert!((l - want).abs() < 1e-9 * want, "{l} vs {want}");
+    let l = radiances(&text(false))[0].0;
+    assert!((l - far).abs() < 1e-9 * far, "{l} vs {far}");
+    b.templates.last_mut().unwrap().lamps = vec![lamp("colour = \"red\"\n")];
+    b.write(&out, true).unwrap();
+    let e = engine::config::Experiment::from_str(&text(true), &data_dir().join("test.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("template `plate`") && e.contains("colour"),
+        "{e}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
 }

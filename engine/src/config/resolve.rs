@@ -653,13 +653,22 @@ fn resolve_lamps(
             ));
         }
     }
-    let lamps = crate::sources::lamps::Lamps::resolve_with(
+    let mut lamps = crate::sources::lamps::Lamps::resolve_with(
         &cfg.lights,
         ctx,
         |x, y| frame.to_local(x, y),
         cfg.integrator.lamp_sampling,
         more,
     )?;
+    if let Some(k) = cfg.integrator.lamp_samples {
+        if !(1..=64).contains(&k) {
+            return Err(ctx.err(
+                "integrator.lamp_samples",
+                format!("{k} must be an integer in 1..=64"),
+            ));
+        }
+        lamps.samples = k;
+    }
     tracing::info!("{} lamps", lamps.lamps.len());
     Ok(Some(Arc::new(lamps)))
 }

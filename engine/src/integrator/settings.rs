@@ -240,6 +240,9 @@ pub struct IntegratorConfig {
     /// Lamps: `"tree"` (default) or `"all"`.
     #[serde(default)]
     pub lamp_sampling: crate::sources::lamps::LampSampling,
+    /// Lamps: lamps drawn per next-event estimate at a surface (1–64, default 1).
+    #[serde(default)]
+    pub lamp_samples: Option<u32>,
 }
 
 /// Most first-order walks per sample (`integrator.first_order_splits`).

@@ -131,7 +131,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 
     /// Equi-angular sampling (Kulla & Fajardo 2012, *Importance sampling techniques for path
     /// tracing in participating media*, EGSR): on the flight's segment up to its first hit (or
-    /// the atmosphere's boundary), for the lamp drawn at the segment's middle (up to 2 km on),
+    /// the atmosphere's boundary), for the lamp drawn at the segment's lower end,
     /// a point `t` with density ∝ 1/(h² + (t − Δ)²), h the lamp's distance from the line and Δ
     /// its projection: the estimate `σ_s(t)·e^{−τ(0,t)}·P/(4π)·I·T_l·V/r²/pdf(t)/P_lamp` is
     /// then bounded where the collision estimate's 1/r² is not.
@@ -162,10 +162,12 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         if t_end <= 0.0 {
             return 0.0;
         }
-        let mid = p + d * (0.5 * t_end.min(2000.0));
+        // The lamp is drawn for the segment's lower end (lamps stand on the ground, and the
+        // light scattered near them dominates).
+        let low = if d.z < 0.0 { p + d * t_end } else { p };
         l.lamps.gather_along(
             l.iw,
-            mid,
+            low,
             u0,
             |c: DVec3, lamp: &crate::sources::lamps::Lamp| {
                 let delta = (c - p).dot(d);
@@ -222,14 +224,32 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         let Some(l) = &self.lamps else {
             return 0.0;
         };
-        let u = rng.next_f64();
-        l.lamps.gather(
-            l.iw,
-            h.point,
-            u,
-            |dir| surface.eval_cos(dir, wo),
-            |dir, r| self.lamp_seen(self.scene.offset(h.point, h.normal, dir), dir, r),
-        ) * l.scale
+        // One-sided surfaces take light from the viewer's side only (leaves and dielectrics
+        // from both).
+        let normal = match surface {
+            SurfaceAt::Scene {
+                model:
+                    std::borrow::Cow::Borrowed(SurfaceModel::Opaque(_))
+                    | std::borrow::Cow::Owned(SurfaceModel::Opaque(_)),
+                n,
+            } => Some(*n),
+            _ => None,
+        };
+        // `lamp_samples` lamps drawn independently, averaged.
+        let k = l.lamps.samples.max(1);
+        let mut sum = 0.0;
+        for _ in 0..k {
+            let u = rng.next_f64();
+            sum += l.lamps.gather(
+                l.iw,
+                h.point,
+                normal,
+                u,
+                |dir| surface.eval_cos(dir, wo),
+                |dir, r| self.lamp_seen(self.scene.offset(h.point, h.normal, dir), dir, r),
+            );
+        }
+        sum * l.scale / k as f64
     }
 
     fn light(&self) -> Light {

@@ -77,7 +77,7 @@ impl Photometry {
             return Err("the photometric data end before the angle counts".into());
         }
         let count = |v: f64, what: &str| {
-            if v >= 1.0 && v <= 10_000.0 && v.fract() == 0.0 {
+            if (1.0..=10_000.0).contains(&v) && v.fract() == 0.0 {
                 Ok(v as usize)
             } else {
                 Err(format!("{what} = {v} must be a whole number in 1..=10000"))

@@ -226,6 +226,8 @@ pub struct Lamps {
     pub lamps: Vec<Lamp>,
     tree: LightTree,
     pub sampling: LampSampling,
+    /// Lamps drawn per next-event estimate at a surface (`integrator.lamp_samples`), averaged.
+    pub samples: u32,
 }
 
 impl Lamps {
@@ -278,12 +280,13 @@ impl Lamps {
             tree: LightTree::new(&positions, &power),
             lamps,
             sampling,
+            samples: 1,
         })
     }
 
     /// The lamps' light reaching point `p` at run wavelength `iw`, gathered by
     /// `Σ g(l̂)·I(−l̂)·seen(l̂, r)/r²/P`: one lamp drawn from the tree with the uniform number
-    /// `u` (or every lamp), `l̂` the unit direction from `p` to the lamp, `g` the surface's or
+    /// `u` (or every lamp; `normal`: a one-sided surface's, for the tree's receiver term), `l̂` the unit direction from `p` to the lamp, `g` the surface's or
     /// the air's factor for light arriving from `l̂` and `seen` the transmittance and
     /// visibility over the distance `r` (called only where `g` and the intensity are > 0).
     #[inline]
@@ -291,6 +294,7 @@ impl Lamps {
         &self,
         iw: usize,
         p: DVec3,
+        normal: Option<DVec3>,
         u: f64,
         mut g: impl FnMut(DVec3) -> f64,
         mut seen: impl FnMut(DVec3, f64) -> f64,
@@ -319,7 +323,7 @@ impl Lamps {
         };
         match self.sampling {
             LampSampling::All => self.lamps.iter().map(|l| one(l, 1.0)).sum(),
-            LampSampling::Tree => match self.tree.sample(p, u) {
+            LampSampling::Tree => match self.tree.sample(p, normal, u) {
                 Some((k, prob)) => one(&self.lamps[k], prob),
                 None => 0.0,
             },
@@ -339,7 +343,7 @@ impl Lamps {
     ) -> f64 {
         match self.sampling {
             LampSampling::All => self.lamps.iter().map(|l| est(l.position, l)).sum(),
-            LampSampling::Tree => match self.tree.sample(p, u) {
+            LampSampling::Tree => match self.tree.sample(p, None, u) {
                 Some((k, prob)) => est(self.lamps[k].position, &self.lamps[k]) / prob,
                 None => 0.0,
             },
@@ -650,11 +654,11 @@ mod tests {
         // A Lambertian floor's cos θ, and a made-up visibility that hides some lamps.
         let g = |l: DVec3| l.z.max(0.0);
         let seen = |l: DVec3, r: f64| if l.x > 0.9 { 0.0 } else { (-r / 300.0).exp() };
-        let exact = all.gather(0, p, 0.0, g, seen);
+        let exact = all.gather(0, p, Some(DVec3::Z), 0.0, g, seen);
         let n = 200_000;
         let (mut s, mut s2) = (0.0, 0.0);
         for _ in 0..n {
-            let v = tree.gather(0, p, rng.next_f64(), g, seen);
+            let v = tree.gather(0, p, Some(DVec3::Z), rng.next_f64(), g, seen);
             s += v;
             s2 += v * v;
         }

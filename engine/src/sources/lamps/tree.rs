@@ -13,7 +13,10 @@
 //! `w_k = Φ_k / max(d_k², 1 m²)`, d_k the distance from p to the child's box (0 inside it: the
 //! box's nearest possible lamp, so the lamps around p are found in O(log N) choices that
 //! favour them, rather than halved at each level as a distance to the box's centre would); the
-//! lamp's probability is the product of the choices, returned with it. Every lamp of positive power keeps a
+//! lamp's probability is the product of the choices, returned with it. On a one-sided surface
+//! the weight also holds Conty Estevez & Kulla's receiver term, a bound of the cosine between
+//! the surface normal and the directions to the box (at least 0.01): on the ground under a city
+//! of lamps, a far box is seen at grazing angles and brings little. Every lamp of positive power keeps a
 //! positive probability at every point, so the estimate `contribution/P` is unbiased whatever
 //! the weights' quality (they only change the variance; tested in `mod.rs` against estimating
 //! every lamp).
@@ -95,16 +98,22 @@ impl LightTree {
     }
 
     #[inline]
-    fn weight(&self, k: u32, p: DVec3) -> f64 {
+    fn weight(&self, k: u32, p: DVec3, normal: Option<DVec3>) -> f64 {
         let n = &self.nodes[k as usize];
         // The squared distance from p to the box (its nearest lamp's distance at most), at
         // least MIN_DISTANCE_M².
         let d = (n.lo - p).max(p - n.hi).max(DVec3::ZERO);
-        n.power / d.length_squared().max(MIN_DISTANCE_M * MIN_DISTANCE_M)
+        let w = n.power / d.length_squared().max(MIN_DISTANCE_M * MIN_DISTANCE_M);
+        match normal {
+            None => w,
+            Some(nr) => w * receiver_cosine(n, p, nr),
+        }
     }
 
-    /// Draw a lamp for shading point `p` from the uniform number `u`: its index and probability.
-    pub fn sample(&self, p: DVec3, mut u: f64) -> Option<(usize, f64)> {
+    /// Draw a lamp for shading point `p` (on a surface of unit normal `normal`, which only
+    /// light from its side reaches; `None` in the air or on two-sided leaves) from the uniform
+    /// number `u`: its index and probability.
+    pub fn sample(&self, p: DVec3, normal: Option<DVec3>, mut u: f64) -> Option<(usize, f64)> {
         if self.nodes.is_empty() {
             return None;
         }
@@ -114,7 +123,7 @@ impl LightTree {
             match self.nodes[k as usize].kind {
                 Ok(lamp) => return Some((lamp as usize, prob)),
                 Err((l, r)) => {
-                    let (wl, wr) = (self.weight(l, p), self.weight(r, p));
+                    let (wl, wr) = (self.weight(l, p, normal), self.weight(r, p, normal));
                     let pl = if wl + wr > 0.0 { wl / (wl + wr) } else { 0.5 };
                     // Reuse the number: rescaled into the chosen branch.
                     if u < pl {
@@ -132,24 +141,51 @@ impl LightTree {
     }
 
     /// The probability with which [`LightTree::sample`] draws lamp `lamp` at `p` (tests).
-    pub fn probability(&self, p: DVec3, lamp: usize) -> f64 {
-        fn walk(t: &LightTree, k: u32, p: DVec3, lamp: usize) -> Option<f64> {
+    pub fn probability(&self, p: DVec3, normal: Option<DVec3>, lamp: usize) -> f64 {
+        fn walk(t: &LightTree, k: u32, p: DVec3, nr: Option<DVec3>, lamp: usize) -> Option<f64> {
             match t.nodes[k as usize].kind {
                 Ok(i) => (i as usize == lamp).then_some(1.0),
                 Err((l, r)) => {
-                    let (wl, wr) = (t.weight(l, p), t.weight(r, p));
+                    let (wl, wr) = (t.weight(l, p, nr), t.weight(r, p, nr));
                     let pl = if wl + wr > 0.0 { wl / (wl + wr) } else { 0.5 };
-                    walk(t, l, p, lamp)
+                    walk(t, l, p, nr, lamp)
                         .map(|q| q * pl)
-                        .or_else(|| walk(t, r, p, lamp).map(|q| q * (1.0 - pl)))
+                        .or_else(|| walk(t, r, p, nr, lamp).map(|q| q * (1.0 - pl)))
                 }
             }
         }
         if self.nodes.is_empty() {
             return 0.0;
         }
-        walk(self, 0, p, lamp).unwrap_or(0.0)
+        walk(self, 0, p, normal, lamp).unwrap_or(0.0)
     }
+}
+
+/// An upper bound of the cosine between the surface normal `nr` at `p` and the directions from
+/// `p` to the box of `n` (Conty Estevez & Kulla 2018's receiver term): the angle to the box's
+/// centre less the box's angular radius; at least 0.01, so that every lamp keeps a positive
+/// probability (lamps behind the surface bring nothing, but a bound that is too tight would
+/// bias nothing either: only zero would).
+#[inline]
+fn receiver_cosine(n: &Node, p: DVec3, nr: DVec3) -> f64 {
+    let c = 0.5 * (n.lo + n.hi);
+    let v = c - p;
+    let d = v.length();
+    let r = 0.5 * (n.hi - n.lo).length();
+    if d <= r || d <= 0.0 {
+        return 1.0;
+    }
+    let cos_c = (nr.dot(v) / d).clamp(-1.0, 1.0);
+    let sin_a = r / d;
+    let cos_a = (1.0 - sin_a * sin_a).max(0.0).sqrt();
+    // cos(θ_c − α) when θ_c > α, else 1.
+    let sin_c = (1.0 - cos_c * cos_c).max(0.0).sqrt();
+    let cos_bound = if cos_c >= cos_a {
+        1.0
+    } else {
+        cos_c * cos_a + sin_c * sin_a
+    };
+    cos_bound.clamp(0.01, 1.0)
 }
 
 #[cfg(test)]
@@ -167,7 +203,8 @@ mod tests {
         power[7] = 0.0;
         let t = LightTree::new(&pos, &power);
         let p = DVec3::new(300.0, 420.0, 0.0);
-        let probs: Vec<f64> = (0..n).map(|i| t.probability(p, i)).collect();
+        let up = Some(DVec3::Z);
+        let probs: Vec<f64> = (0..n).map(|i| t.probability(p, up, i)).collect();
         assert!((probs.iter().sum::<f64>() - 1.0).abs() < 1e-12);
         assert_eq!(probs[7], 0.0);
         assert!(probs.iter().enumerate().all(|(i, q)| i == 7 || *q > 0.0));
@@ -181,7 +218,7 @@ mod tests {
         let draws = 400_000;
         let mut count = vec![0usize; n];
         for _ in 0..draws {
-            let (i, q) = t.sample(p, rng.next_f64()).unwrap();
+            let (i, q) = t.sample(p, up, rng.next_f64()).unwrap();
             assert!((q - probs[i]).abs() < 1e-12);
             count[i] += 1;
         }
@@ -197,6 +234,8 @@ mod tests {
             chi2 < df + 5.0 * (2.0 * df).sqrt(),
             "χ² {chi2} for {df} lamps"
         );
-        assert!(LightTree::new(&pos, &vec![0.0; n]).sample(p, 0.3).is_none());
+        assert!(LightTree::new(&pos, &vec![0.0; n])
+            .sample(p, None, 0.3)
+            .is_none());
     }
 }
