@@ -184,7 +184,7 @@ pub trait Geometry<W: Weight> {
     }
 
     /// Lamps' light that `surface` at hit `h` sends towards `wo`: `f·|cos|·I·T·V/r²` in tally
-    /// units, as [`Geometry::lamps_at_collision`].
+    /// units, one lamp drawn as in [`Geometry::lamps_along_flight`].
     fn lamps_at_surface(
         &self,
         _h: &Self::Hit,
