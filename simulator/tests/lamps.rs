@@ -323,3 +323,32 @@ fn template_lamps_follow_their_instances() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Emitting materials (`scene.emitters`, lit windows): a black emitting plate seen from above
+/// shows its radiance exactly; under a 4 km emitting ceiling 5 m up, a Lambertian floor of
+/// reflectance ρ shows ρ·L_e (it receives π·L_e from the ceiling).
+#[test]
+fn emitting_materials_shine_in_closed_form() {
+    let dir = tmp("emitters");
+    let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, 0.3));
+    let b = with_plate(&plane, &dir.join("b"), (0.0, 0.0, 5.0), 2000.0, 7, "window", lambertian(0.0), None);
+    let (le, rho) = (0.01, 0.3);
+    let text = format!(
+        "{NIGHT}[scene]\ntype = \"bundle\"\npath = \"{}\"\n[scene.emitters]\nwindow = {le}\n\
+         [[measures]]\ntype = \"radiancemeter\"\nid = \"above\"\norigin = [500.0, 4000.0, 0.05]\ndirection = [0.0, 0.0, -1.0]\nspp = 16\n\
+         [[measures]]\ntype = \"radiancemeter\"\nid = \"floor\"\norigin = [500.0, 4000.0, 0.002]\ndirection = [0.0, 0.0, -1.0]\nspp = 4000\n",
+        b.display()
+    );
+    let l = radiances(&text);
+    println!("emitting plate {:?} (L_e {le}), floor under it {:?} (ρL_e {})", l[0], l[1], rho * le);
+    assert!((l[0].0 - le).abs() < 1e-12 && l[0].1 < 1e-12);
+    assert!((l[1].0 - rho * le).abs() < 4.0 * l[1].1 + 1e-4 * rho * le, "{:?}", l[1]);
+    let e = engine::config::Experiment::from_str(
+        &text.replace("window = 0.01", "windw = 0.01"),
+        &data_dir().join("test.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(e.contains("scene.emitters.windw"), "{e}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -612,7 +612,12 @@ fn resolve_lamps(
         cfg.scene,
         Some(scene::SceneConfig::Bundle { lamps: true, .. })
     );
-    if cfg.lights.is_empty() && !bundle_lamps {
+    let emitters = match &cfg.scene {
+        Some(scene::SceneConfig::Bundle { emitters, .. }) => Some(emitters),
+        _ => None,
+    }
+    .filter(|e| !e.is_empty());
+    if cfg.lights.is_empty() && !bundle_lamps && emitters.is_none() {
         return Ok(None);
     }
     let why = if cfg.polarized {
@@ -660,6 +665,15 @@ fn resolve_lamps(
         cfg.integrator.lamp_sampling,
         more,
     )?;
+    if let Some(emitters) = emitters {
+        lamps.emitters = vec![Vec::new(); scene.materials.len()];
+        for (name, radiance) in emitters {
+            let key = format!("scene.emitters.{name}");
+            let id = crate::scene::world::material_id(&scene.materials, name)
+                .map_err(|e| ctx.err(key.clone(), e.to_string()))?;
+            lamps.emitters[id] = crate::spectral::SpectrumExt::expand(radiance, ctx, &key, 0.0, 1e6)?;
+        }
+    }
     if let Some(k) = cfg.integrator.lamp_samples {
         if !(1..=64).contains(&k) {
             return Err(ctx.err(

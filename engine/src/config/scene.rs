@@ -50,6 +50,10 @@ pub enum SceneConfig {
         /// Light the lamps the bundle's templates carry (streetlights; `[[lights]]`).
         #[serde(default)]
         lamps: bool,
+        /// Emitting materials by name (lit windows, screens): their surfaces' radiance,
+        /// W m⁻² sr⁻¹ nm⁻¹, the same in every direction (`[scene.emitters] window = 0.002`).
+        #[serde(default)]
+        emitters: BTreeMap<String, crate::spectral::Spectrum>,
     },
     /// Discrete-leaf canopy (RAMI / ROMC layouts).
     Canopy {
@@ -270,6 +274,7 @@ pub fn build_scene(
             land_surface_temperature,
             temperature_table,
             lamps: _,
+            emitters: _,
         } => {
             validate_solvers(solvers)?;
             let bg = bundle_background(background.as_ref(), base)?;

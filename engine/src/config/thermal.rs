@@ -51,10 +51,16 @@ pub fn resolve(
             .measures
             .iter()
             .any(|m| !matches!(m, crate::measure::config::MeasureConfig::Lidar(_)));
-        if !sun.shines && passive && cfg.lights.is_empty() {
+        let lit = !cfg.lights.is_empty()
+            || matches!(
+                &cfg.scene,
+                Some(super::scene::SceneConfig::Bundle { lamps, emitters, .. })
+                    if *lamps || !emitters.is_empty()
+            );
+        if !sun.shines && passive && !lit {
             return Err(ctx.err(
                 "illumination.type",
-                "\"none\" leaves nothing for the passive measures to see without thermal emission (`emission = true`) or lamps (`[[lights]]`); only lidar measures bring their own light",
+                "\"none\" leaves nothing for the passive measures to see without thermal emission (`emission = true`) or lamps (`[[lights]]`, `scene.lamps`, `scene.emitters`); only lidar measures bring their own light",
             ));
         }
         return Ok(None);

@@ -139,6 +139,9 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         let Some(l) = &self.lamps else {
             return 0.0;
         };
+        if l.lamps.lamps.is_empty() {
+            return 0.0;
+        }
         let (u0, u1) = (rng.next_f64(), rng.next_f64());
         let atm = self.atmosphere;
         if atm.total_tau() <= 0.0 {
@@ -224,6 +227,17 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         let Some(l) = &self.lamps else {
             return 0.0;
         };
+        // An emitting material's own radiance (both faces, every direction).
+        let own = l
+            .lamps
+            .emitters
+            .get(h.material as usize)
+            .and_then(|e| e.get(l.iw))
+            .copied()
+            .unwrap_or(0.0);
+        if l.lamps.lamps.is_empty() {
+            return own * l.scale;
+        }
         // One-sided surfaces take light from the viewer's side only (leaves and dielectrics
         // from both).
         let normal = match surface {
@@ -249,7 +263,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
                 |dir, r| self.lamp_seen(self.scene.offset(h.point, h.normal, dir), dir, r),
             );
         }
-        sum * l.scale / k as f64
+        (sum / k as f64 + own) * l.scale
     }
 
     fn light(&self) -> Light {

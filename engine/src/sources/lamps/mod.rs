@@ -228,6 +228,9 @@ pub struct Lamps {
     pub sampling: LampSampling,
     /// Lamps drawn per next-event estimate at a surface (`integrator.lamp_samples`), averaged.
     pub samples: u32,
+    /// Emitting scene materials (`scene.emitters`): per material id, the radiance its surfaces
+    /// send in every direction at each run wavelength, W m⁻² sr⁻¹ nm⁻¹ (empty: none).
+    pub emitters: Vec<Vec<f64>>,
 }
 
 impl Lamps {
@@ -281,6 +284,7 @@ impl Lamps {
             lamps,
             sampling,
             samples: 1,
+            emitters: Vec::new(),
         })
     }
 
