@@ -331,7 +331,16 @@ fn template_lamps_follow_their_instances() {
 fn emitting_materials_shine_in_closed_form() {
     let dir = tmp("emitters");
     let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, 0.3));
-    let b = with_plate(&plane, &dir.join("b"), (0.0, 0.0, 5.0), 2000.0, 7, "window", lambertian(0.0), None);
+    let b = with_plate(
+        &plane,
+        &dir.join("b"),
+        (0.0, 0.0, 5.0),
+        2000.0,
+        7,
+        "window",
+        lambertian(0.0),
+        None,
+    );
     let (le, rho) = (0.01, 0.3);
     let text = format!(
         "{NIGHT}[scene]\ntype = \"bundle\"\npath = \"{}\"\n[scene.emitters]\nwindow = {le}\n\
@@ -340,9 +349,18 @@ fn emitting_materials_shine_in_closed_form() {
         b.display()
     );
     let l = radiances(&text);
-    println!("emitting plate {:?} (L_e {le}), floor under it {:?} (ρL_e {})", l[0], l[1], rho * le);
+    println!(
+        "emitting plate {:?} (L_e {le}), floor under it {:?} (ρL_e {})",
+        l[0],
+        l[1],
+        rho * le
+    );
     assert!((l[0].0 - le).abs() < 1e-12 && l[0].1 < 1e-12);
-    assert!((l[1].0 - rho * le).abs() < 4.0 * l[1].1 + 1e-4 * rho * le, "{:?}", l[1]);
+    assert!(
+        (l[1].0 - rho * le).abs() < 4.0 * l[1].1 + 1e-4 * rho * le,
+        "{:?}",
+        l[1]
+    );
     let e = engine::config::Experiment::from_str(
         &text.replace("window = 0.01", "windw = 0.01"),
         &data_dir().join("test.toml"),

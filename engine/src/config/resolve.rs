@@ -671,7 +671,8 @@ fn resolve_lamps(
             let key = format!("scene.emitters.{name}");
             let id = crate::scene::world::material_id(&scene.materials, name)
                 .map_err(|e| ctx.err(key.clone(), e.to_string()))?;
-            lamps.emitters[id] = crate::spectral::SpectrumExt::expand(radiance, ctx, &key, 0.0, 1e6)?;
+            lamps.emitters[id] =
+                crate::spectral::SpectrumExt::expand(radiance, ctx, &key, 0.0, 1e6)?;
         }
     }
     if let Some(k) = cfg.integrator.lamp_samples {
