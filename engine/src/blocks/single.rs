@@ -211,23 +211,14 @@ pub(super) fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     |_, _| {},
                 )
             } else {
-                let (g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
-                    let mut g = scene_in_layers(
-                        exp,
-                        sun,
-                        &opt.atmosphere,
-                        opt,
-                        opt.scene_emission.as_ref(),
-                    );
-                    // Lamps light the Sun's walks only (the Moon's are built the same way).
-                    if sun == exp.sun_dir {
-                        g.lamps = exp.lamps.as_deref().map(|lamps| LampLight {
-                            lamps,
-                            iw,
-                            scale: 1.0 / opt.irradiance,
-                        });
-                    }
-                    g
+                let (mut g, moon) = sun_and_moon(exp, ids, &ratio, |sun| {
+                    scene_in_layers(exp, sun, &opt.atmosphere, opt, opt.scene_emission.as_ref())
+                });
+                // Lamps light the Sun's walks only, not the Moon's beside them.
+                g.lamps = exp.lamps.as_deref().map(|lamps| LampLight {
+                    lamps,
+                    iw,
+                    scale: 1.0 / opt.irradiance,
                 });
                 backward_block::<_, B>(
                     &g,

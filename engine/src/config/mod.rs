@@ -82,3 +82,16 @@ pub struct ExperimentConfig {
     #[serde(default)]
     pub lights: Vec<crate::sources::lamps::LampConfig>,
 }
+
+impl ExperimentConfig {
+    /// Whether the run has lamps or emitters of its own: `[[lights]]`, a bundle's template
+    /// lamps (`scene.lamps = true`) or emitting materials (`scene.emitters`).
+    pub fn has_lamps(&self) -> bool {
+        !self.lights.is_empty()
+            || matches!(
+                &self.scene,
+                Some(scene::SceneConfig::Bundle { lamps, emitters, .. })
+                    if *lamps || !emitters.is_empty()
+            )
+    }
+}

@@ -617,7 +617,7 @@ fn resolve_lamps(
         _ => None,
     }
     .filter(|e| !e.is_empty());
-    if cfg.lights.is_empty() && !bundle_lamps && emitters.is_none() {
+    if !cfg.has_lamps() {
         return Ok(None);
     }
     let why = if cfg.polarized {

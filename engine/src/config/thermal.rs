@@ -51,13 +51,7 @@ pub fn resolve(
             .measures
             .iter()
             .any(|m| !matches!(m, crate::measure::config::MeasureConfig::Lidar(_)));
-        let lit = !cfg.lights.is_empty()
-            || matches!(
-                &cfg.scene,
-                Some(super::scene::SceneConfig::Bundle { lamps, emitters, .. })
-                    if *lamps || !emitters.is_empty()
-            );
-        if !sun.shines && passive && !lit {
+        if !sun.shines && passive && !cfg.has_lamps() {
             return Err(ctx.err(
                 "illumination.type",
                 "\"none\" leaves nothing for the passive measures to see without thermal emission (`emission = true`) or lamps (`[[lights]]`, `scene.lamps`, `scene.emitters`); only lidar measures bring their own light",

@@ -520,11 +520,6 @@ impl Scene {
         })
     }
 
-    /// Whether a material of the scene is a dielectric (`rough_dielectric`, `thin_dielectric`).
-    pub fn has_dielectrics(&self) -> bool {
-        self.materials.iter().any(|(_, s)| s.is_dielectric())
-    }
-
     /// The fraction of a shadow ray's light that travels from `o + tmax·d` to `o` (`d` unit):
     /// 0 when an opaque surface is in the way, else the product of the transmittances of the
     /// panes it crosses (`models`: the materials at the run wavelength; a thin slab does not

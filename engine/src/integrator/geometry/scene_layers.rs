@@ -168,11 +168,9 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         // The lamp is drawn for the segment's lower end (lamps stand on the ground, and the
         // light scattered near them dominates).
         let low = if d.z < 0.0 { p + d * t_end } else { p };
-        l.lamps.gather_along(
-            l.iw,
-            low,
-            u0,
-            |c: DVec3, lamp: &crate::sources::lamps::Lamp| {
+        l.lamps
+            .draw(low, None, u0, |lamp: &crate::sources::lamps::Lamp| {
+                let c = lamp.position;
                 let delta = (c - p).dot(d);
                 let h = (c - p - d * delta).length();
                 if h < 1e-9 {
@@ -213,8 +211,8 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
                     * i
                     * seen
                     / (r2 * pdf)
-            },
-        ) * l.scale
+            })
+            * l.scale
     }
 
     fn lamps_at_surface(
@@ -241,12 +239,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         // One-sided surfaces take light from the viewer's side only (leaves and dielectrics
         // from both).
         let normal = match surface {
-            SurfaceAt::Scene {
-                model:
-                    std::borrow::Cow::Borrowed(SurfaceModel::Opaque(_))
-                    | std::borrow::Cow::Owned(SurfaceModel::Opaque(_)),
-                n,
-            } => Some(*n),
+            SurfaceAt::Scene { model, n } if matches!(**model, SurfaceModel::Opaque(_)) => Some(*n),
             _ => None,
         };
         // `lamp_samples` lamps drawn independently, averaged.

@@ -289,10 +289,10 @@ impl Lamps {
     }
 
     /// The lamps' light reaching point `p` at run wavelength `iw`, gathered by
-    /// `Σ g(l̂)·I(−l̂)·seen(l̂, r)/r²/P`: one lamp drawn from the tree with the uniform number
-    /// `u` (or every lamp; `normal`: a one-sided surface's, for the tree's receiver term), `l̂` the unit direction from `p` to the lamp, `g` the surface's or
-    /// the air's factor for light arriving from `l̂` and `seen` the transmittance and
-    /// visibility over the distance `r` (called only where `g` and the intensity are > 0).
+    /// `Σ g(l̂)·I(−l̂)·seen(l̂, r)/r²/P` over the lamps of [`Lamps::draw`] (`normal`, `u` as
+    /// there): `l̂` the unit direction from `p` to the lamp, `g` the surface's or the air's
+    /// factor for light arriving from `l̂` and `seen` the transmittance and visibility over the
+    /// distance `r` (called only where `g` and the intensity are > 0).
     #[inline]
     pub fn gather(
         &self,
@@ -303,7 +303,7 @@ impl Lamps {
         mut g: impl FnMut(DVec3) -> f64,
         mut seen: impl FnMut(DVec3, f64) -> f64,
     ) -> f64 {
-        let mut one = |lamp: &Lamp, prob: f64| {
+        self.draw(p, normal, u, |lamp| {
             let v = lamp.position - p;
             let r2 = v.length_squared();
             if r2 <= 0.0 {
@@ -323,43 +323,28 @@ impl Lamps {
             if t <= 0.0 {
                 return 0.0;
             }
-            f * i * t / (r2 * prob)
-        };
-        match self.sampling {
-            LampSampling::All => self.lamps.iter().map(|l| one(l, 1.0)).sum(),
-            LampSampling::Tree => match self.tree.sample(p, normal, u) {
-                Some((k, prob)) => one(&self.lamps[k], prob),
-                None => 0.0,
-            },
-        }
+            f * i * t / r2
+        })
     }
 
-    /// A lamp's contribution estimated by `est(position, lamp)` (which samples what it needs
-    /// itself) over its probability: one lamp drawn from the tree at `p` with `u`, or the sum
-    /// over every lamp.
+    /// A lamp's estimate `est(lamp)` over the lamp's probability, for one lamp drawn from the
+    /// tree at `p` with the uniform number `u` (`normal`: a one-sided surface's, for the tree's
+    /// receiver term); with `lamp_sampling = "all"` the sum of every lamp's.
     #[inline]
-    pub fn gather_along(
+    pub fn draw(
         &self,
-        _iw: usize,
         p: DVec3,
+        normal: Option<DVec3>,
         u: f64,
-        mut est: impl FnMut(DVec3, &Lamp) -> f64,
+        mut est: impl FnMut(&Lamp) -> f64,
     ) -> f64 {
         match self.sampling {
-            LampSampling::All => self.lamps.iter().map(|l| est(l.position, l)).sum(),
-            LampSampling::Tree => match self.tree.sample(p, None, u) {
-                Some((k, prob)) => est(self.lamps[k].position, &self.lamps[k]) / prob,
+            LampSampling::All => self.lamps.iter().map(&mut est).sum(),
+            LampSampling::Tree => match self.tree.sample(p, normal, u) {
+                Some((k, prob)) => est(&self.lamps[k]) / prob,
                 None => 0.0,
             },
         }
-    }
-
-    /// The lamp positions' bounding box (min, max).
-    pub fn bounds(&self) -> (DVec3, DVec3) {
-        self.lamps.iter().fold(
-            (DVec3::splat(f64::INFINITY), DVec3::splat(f64::NEG_INFINITY)),
-            |(lo, hi), l| (lo.min(l.position), hi.max(l.position)),
-        )
     }
 }
 

@@ -110,6 +110,17 @@ impl LightTree {
         }
     }
 
+    /// The probability of taking child `l` rather than `r` at `p`.
+    #[inline]
+    fn left_probability(&self, l: u32, r: u32, p: DVec3, normal: Option<DVec3>) -> f64 {
+        let (wl, wr) = (self.weight(l, p, normal), self.weight(r, p, normal));
+        if wl + wr > 0.0 {
+            wl / (wl + wr)
+        } else {
+            0.5
+        }
+    }
+
     /// Draw a lamp for shading point `p` (on a surface of unit normal `normal`, which only
     /// light from its side reaches; `None` in the air or on two-sided leaves) from the uniform
     /// number `u`: its index and probability.
@@ -123,8 +134,7 @@ impl LightTree {
             match self.nodes[k as usize].kind {
                 Ok(lamp) => return Some((lamp as usize, prob)),
                 Err((l, r)) => {
-                    let (wl, wr) = (self.weight(l, p, normal), self.weight(r, p, normal));
-                    let pl = if wl + wr > 0.0 { wl / (wl + wr) } else { 0.5 };
+                    let pl = self.left_probability(l, r, p, normal);
                     // Reuse the number: rescaled into the chosen branch.
                     if u < pl {
                         u /= pl;
@@ -146,8 +156,7 @@ impl LightTree {
             match t.nodes[k as usize].kind {
                 Ok(i) => (i as usize == lamp).then_some(1.0),
                 Err((l, r)) => {
-                    let (wl, wr) = (t.weight(l, p, nr), t.weight(r, p, nr));
-                    let pl = if wl + wr > 0.0 { wl / (wl + wr) } else { 0.5 };
+                    let pl = t.left_probability(l, r, p, nr);
                     walk(t, l, p, nr, lamp)
                         .map(|q| q * pl)
                         .or_else(|| walk(t, r, p, nr, lamp).map(|q| q * (1.0 - pl)))
