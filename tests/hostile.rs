@@ -228,6 +228,18 @@ fn write_lc(path: &Path, code: u8) {
     .unwrap();
 }
 
+/// The value at `path` of a TOML table (keys, or list positions as numbers).
+fn value_at<'a>(t: &'a mut toml::Table, path: &[&str]) -> &'a mut toml::Value {
+    let mut v = t.get_mut(path[0]).unwrap();
+    for k in &path[1..] {
+        v = match k.parse::<usize>() {
+            Ok(i) => &mut v.as_array_mut().unwrap()[i],
+            Err(_) => v.get_mut(*k).unwrap(),
+        };
+    }
+    v
+}
+
 fn copy_dir(from: &Path, to: &Path) {
     std::fs::create_dir_all(to).unwrap();
     for e in std::fs::read_dir(from).unwrap().flatten() {
@@ -610,6 +622,162 @@ fn hostile_inputs_fail_cleanly() {
         "nan-geotransform",
         &|d| edit_manifest(d, "geotransform = [", "geotransform = [nan, "),
         &["manifest.toml"],
+    );
+
+    // A bundle that cannot lie (issue 43): names confined to the folder, regular files only,
+    // tabulated tables hashed, and the manifest's numbers cross-checked. Each damage keeps
+    // every digest right, so only the new checks can catch it.
+    let edit_table = |d: &Path, change: &dyn Fn(&mut toml::Table)| {
+        let p = d.join("manifest.toml");
+        let mut t: toml::Table = std::fs::read_to_string(&p).unwrap().parse().unwrap();
+        change(&mut t);
+        std::fs::write(&p, toml::to_string(&t).unwrap()).unwrap();
+    };
+    damaged(
+        &mut s,
+        "absolute-file-name",
+        &|d| edit_manifest(d, "file = \"terrain.bin\"", "file = \"/etc/passwd\""),
+        &[
+            "terrain.file",
+            "/etc/passwd",
+            "not a file inside the bundle",
+        ],
+    );
+    damaged(
+        &mut s,
+        "dotdot-file-name",
+        // The entry names the intact bundle's file, whose size and hash match.
+        &|d| {
+            let p = d.join("manifest.toml");
+            let t = std::fs::read_to_string(&p).unwrap();
+            std::fs::write(
+                &p,
+                t.replace("\"terrain.bin\"", "\"../bundle/terrain.bin\""),
+            )
+            .unwrap();
+        },
+        &["terrain.file", "../bundle/terrain.bin"],
+    );
+    damaged(
+        &mut s,
+        "symlink-leaving-the-bundle",
+        &|d| {
+            std::fs::remove_file(d.join("terrain.bin")).unwrap();
+            std::os::unix::fs::symlink("../bundle/terrain.bin", d.join("terrain.bin")).unwrap();
+        },
+        &["terrain.bin", "symbolic link", "outside the bundle folder"],
+    );
+    damaged(
+        &mut s,
+        "symlink-to-etc-passwd",
+        &|d| {
+            std::fs::remove_file(d.join("materials.u8")).unwrap();
+            std::os::unix::fs::symlink("/etc/passwd", d.join("materials.u8")).unwrap();
+        },
+        &["materials.u8", "outside the bundle folder"],
+    );
+    damaged(
+        &mut s,
+        "fifo-buffer",
+        &|d| {
+            std::fs::remove_file(d.join("terrain.bin")).unwrap();
+            let ok = std::process::Command::new("mkfifo")
+                .arg(d.join("terrain.bin"))
+                .status()
+                .unwrap();
+            assert!(ok.success());
+        },
+        &["terrain.bin", "FIFO"],
+    );
+    damaged(
+        &mut s,
+        "tabulated-table-outside",
+        &|d| {
+            edit_table(d, &|t| {
+                let mut b = toml::Table::new();
+                b.insert("type".into(), "tabulated".into());
+                b.insert("file".into(), "../../../../../etc/passwd".into());
+                *value_at(t, &["materials", "0", "brdf"]) = toml::Value::Table(b);
+            })
+        },
+        &["materials[0].brdf.file", "etc/passwd"],
+    );
+    damaged(
+        &mut s,
+        "tabulated-table-not-hashed",
+        &|d| {
+            std::fs::create_dir_all(d.join("brdf")).unwrap();
+            std::fs::write(d.join("brdf/table.nc"), "a table added after the build").unwrap();
+            edit_table(d, &|t| {
+                let mut b = toml::Table::new();
+                b.insert("type".into(), "tabulated".into());
+                b.insert("file".into(), "brdf/table.nc".into());
+                *value_at(t, &["materials", "0", "brdf"]) = toml::Value::Table(b);
+            })
+        },
+        &["brdf/table.nc", "no size and SHA-256"],
+    );
+    let swap_totals = |d: &Path| {
+        edit_table(d, &|t| {
+            let v = value_at(t, &["terrain", "vertex_count"]).clone();
+            let n = value_at(t, &["terrain", "triangle_count"]).clone();
+            *value_at(t, &["terrain", "vertex_count"]) = n;
+            *value_at(t, &["terrain", "triangle_count"]) = v;
+        })
+    };
+    damaged(
+        &mut s,
+        "swapped-terrain-totals",
+        &swap_totals,
+        &["terrain.vertex_count", "tiles' sums"],
+    );
+    damaged(
+        &mut s,
+        "raster-reshaped-same-bytes",
+        &|d| {
+            edit_table(d, &|t| {
+                let w = value_at(t, &["material_raster", "width"])
+                    .as_integer()
+                    .unwrap();
+                let h = value_at(t, &["material_raster", "height"])
+                    .as_integer()
+                    .unwrap();
+                *value_at(t, &["material_raster", "width"]) = (w * h).into();
+                *value_at(t, &["material_raster", "height"]) = 1.into();
+            })
+        },
+        &["material raster", "does not match the extent"],
+    );
+    damaged(
+        &mut s,
+        "raster-pixel-halved",
+        &|d| {
+            edit_table(d, &|t| {
+                let px = value_at(t, &["material_raster", "geotransform", "1"]);
+                *px = (px.as_float().unwrap() / 2.0).into();
+            })
+        },
+        &["material raster", "does not match the extent"],
+    );
+    damaged(
+        &mut s,
+        "histogram-lies",
+        &|d| {
+            edit_table(d, &|t| {
+                let h = value_at(t, &["material_raster", "histogram", "0"]);
+                *h = (h.as_integer().unwrap() + 1).into();
+            })
+        },
+        &["material_raster.histogram"],
+    );
+    let verify_dir = root.join("bundle-verify-totals");
+    copy_dir(&root.join("bundle"), &verify_dir);
+    swap_totals(&verify_dir);
+    let o = s.scenegen(&["info", "--verify", verify_dir.to_str().unwrap()]);
+    s.check(
+        "info --verify with swapped terrain totals",
+        &o,
+        &e(2, &["terrain.vertex_count", "tiles' sums"]),
     );
 
     // ---- output folders and command lines ----

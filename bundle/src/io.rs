@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 
 use sha2::{Digest, Sha256};
 
+use super::checks;
 use super::manifest::*;
-use super::{BundleError, FORMAT_NAME, FORMAT_VERSION, NO_MATERIAL};
+use super::{BrdfSpec, BundleError, FORMAT_NAME, FORMAT_VERSION, NO_MATERIAL};
 
 /// Bytes of one record of `instances.bin`: translation [f64; 3] (local frame, metres), linear
 /// part [f32; 9] (column-major 3×3: rotation × scale, template frame → local frame), template id
@@ -101,10 +102,12 @@ pub struct Bundle {
 }
 
 const TERRAIN_FILE: &str = "terrain.bin";
-const TEMPLATES_FILE: &str = "templates.bin";
+pub(crate) const TEMPLATES_FILE: &str = "templates.bin";
 const INSTANCES_FILE: &str = "instances.bin";
 const MATERIALS_FILE: &str = "materials.u8";
 const MANIFEST_FILE: &str = "manifest.toml";
+/// The folder of a bundle that holds its materials' tables (tabulated BRDFs).
+const TABLES_DIR: &str = "brdf";
 
 /// A file being written with its running SHA-256 and length.
 struct HashedFile {
@@ -228,6 +231,7 @@ pub fn check_replaceable(dir: &Path) -> Result<(), BundleError> {
     })?;
     let mut foreign = Vec::new();
     let mut any = false;
+    let mut tables = false;
     for e in entries {
         let e = e.map_err(|source| BundleError::Write {
             path: dir.to_path_buf(),
@@ -235,8 +239,12 @@ pub fn check_replaceable(dir: &Path) -> Result<(), BundleError> {
         })?;
         any = true;
         let name = e.file_name().to_string_lossy().into_owned();
-        let regular = e.file_type().is_ok_and(|t| t.is_file());
-        if !(regular && BUNDLE_FILES.contains(&name.as_str())) {
+        let kind = e.file_type().ok();
+        if name == TABLES_DIR && kind.is_some_and(|t| t.is_dir()) {
+            tables = true;
+            continue;
+        }
+        if !(kind.is_some_and(|t| t.is_file()) && BUNDLE_FILES.contains(&name.as_str())) {
             foreign.push(name);
         }
     }
@@ -261,6 +269,34 @@ pub fn check_replaceable(dir: &Path) -> Result<(), BundleError> {
     }
     if !table.get("format_version").is_some_and(|v| v.is_integer()) {
         return Err(not("its manifest.toml has no integer format_version".into()));
+    }
+    if tables {
+        // The tables folder holds only files the manifest lists (and hashes).
+        let listed: Vec<&str> = table
+            .get("provenance")
+            .and_then(|p| p.get("files"))
+            .and_then(|f| f.as_array())
+            .map(|a| {
+                a.iter()
+                    .filter_map(|d| d.get("file").and_then(|f| f.as_str()))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let d = dir.join(TABLES_DIR);
+        let entries = std::fs::read_dir(&d).map_err(|source| BundleError::Write {
+            path: d.clone(),
+            source,
+        })?;
+        for e in entries {
+            let e = e.map_err(|source| BundleError::Write {
+                path: d.clone(),
+                source,
+            })?;
+            let name = format!("{TABLES_DIR}/{}", e.file_name().to_string_lossy());
+            if !(e.file_type().is_ok_and(|t| t.is_file()) && listed.contains(&name.as_str())) {
+                foreign.push(name);
+            }
+        }
     }
     if !foreign.is_empty() {
         foreign.sort();
@@ -428,6 +464,42 @@ impl Bundle {
         m.material_raster.histogram = hist;
         digests.push(f.finish(MATERIALS_FILE)?);
 
+        // Tabulated materials' tables: copied into `brdf/` and hashed like the buffers.
+        let mut copied: Vec<(PathBuf, String)> = Vec::new();
+        for mat in &mut m.materials {
+            let BrdfSpec::Tabulated(t) = &mut mat.brdf else {
+                continue;
+            };
+            let source = PathBuf::from(&t.file);
+            if let Some((_, name)) = copied.iter().find(|(p, _)| *p == source) {
+                t.file = name.clone();
+                continue;
+            }
+            let base = source
+                .file_name()
+                .map(|n| n.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "table".into());
+            let mut name = format!("{TABLES_DIR}/{base}");
+            let mut k = 2;
+            while copied.iter().any(|(_, n)| *n == name) {
+                name = format!("{TABLES_DIR}/{k}-{base}");
+                k += 1;
+            }
+            let bytes = std::fs::read(&source).map_err(|source_err| BundleError::Read {
+                path: source.clone(),
+                source: source_err,
+            })?;
+            if copied.is_empty() {
+                let d = tmp.join(TABLES_DIR);
+                std::fs::create_dir(&d).map_err(|source| BundleError::Write { path: d, source })?;
+            }
+            let mut f = HashedFile::create(tmp.join(&name))?;
+            f.put(&bytes)?;
+            digests.push(f.finish(&name)?);
+            t.file = name.clone();
+            copied.push((source, name));
+        }
+
         m.provenance.files = digests;
         let text = toml::to_string(&m).map_err(|e| BundleError::Manifest {
             path: tmp.join(MANIFEST_FILE),
@@ -573,6 +645,7 @@ impl Bundle {
     /// Read and validate `dir/manifest.toml` only (for summaries).
     pub fn read_manifest(dir: &Path) -> Result<Manifest, BundleError> {
         let path = dir.join(MANIFEST_FILE);
+        checks::regular_inside(dir, &path)?;
         let text = std::fs::read_to_string(&path).map_err(|source| BundleError::Read {
             path: path.clone(),
             source,
@@ -619,6 +692,7 @@ impl Bundle {
                 message: format!("at key `area.wkt`: {message}"),
             })?;
         }
+        checks::names_confined(&m, dir, &path)?;
         Ok(m)
     }
 
@@ -627,14 +701,30 @@ impl Bundle {
     /// count, vertex, transform, geotransform and material id is checked before use.
     pub fn open(dir: &Path) -> Result<Bundle, BundleError> {
         let manifest = Self::read_manifest(dir)?;
-        check_georeference(&manifest, &dir.join(MANIFEST_FILE))?;
-        let names = [
+        let mpath = dir.join(MANIFEST_FILE);
+        check_georeference(&manifest, &mpath)?;
+        // The four buffers, then every tabulated material's table (hashed like the buffers,
+        // so a table swapped after the build is refused; its bytes are read by the simulator).
+        let mut names = vec![
             manifest.terrain.file.as_str(),
             TEMPLATES_FILE,
             manifest.instances.file.as_str(),
             manifest.material_raster.file.as_str(),
         ];
+        for (_, f) in checks::table_files(&manifest) {
+            if !names.contains(&f) {
+                names.push(f);
+            }
+        }
         let mut files = read_verified(dir, &manifest, &names)?;
+        files.truncate(4);
+        let lens: Vec<u64> = files.iter().map(|(_, b)| b.len() as u64).collect();
+        checks::totals_and_layout(&manifest, &mpath, |name| {
+            names[..4]
+                .iter()
+                .position(|n| *n == name)
+                .map_or(0, |k| lens[k])
+        })?;
         let mut read = |name: &str| -> Result<(PathBuf, Vec<u8>), BundleError> {
             let k = names
                 .iter()
@@ -802,6 +892,7 @@ impl Bundle {
                 return Err(too_far(&path, &what, r));
             }
             template_reach.push(r);
+            checks::template_bounds(&manifest, &mpath, templates.len(), &positions)?;
             templates.push(TemplateMesh {
                 name: t.name.clone(),
                 source: t.source.clone(),
@@ -869,6 +960,7 @@ impl Bundle {
         }
 
         drop(bytes);
+        checks::instances_per_template(&manifest, &mpath, instances.iter().map(|i| i.template))?;
         let (path, material_raster) = read(&manifest.material_raster.file)?;
         let r = &manifest.material_raster;
         if material_raster.len() != r.width as usize * r.height as usize {
@@ -882,8 +974,9 @@ impl Bundle {
                 ),
             });
         }
-        check_material_table(&manifest.materials, &dir.join(MANIFEST_FILE))?;
+        check_material_table(&manifest.materials, &mpath)?;
         check_material_ids(&manifest.materials, &material_raster, &templates, dir)?;
+        checks::histogram(&manifest, &mpath, &material_raster)?;
         Ok(Bundle {
             manifest,
             terrain,
@@ -899,6 +992,7 @@ impl Bundle {
         check_georeference(m, &dir.join(MANIFEST_FILE))?;
         for d in &m.provenance.files {
             let path = dir.join(&d.file);
+            checks::regular_inside(dir, &path)?;
             let meta = std::fs::metadata(&path).map_err(|source| BundleError::Read {
                 path: path.clone(),
                 source,
@@ -910,10 +1004,11 @@ impl Bundle {
         Ok(())
     }
 
-    /// Recompute the SHA-256 of every binary file and compare with the manifest (what
-    /// [`Bundle::open`] also does; this checks without building the bundle in memory).
+    /// Everything [`Bundle::open`] checks (every file's SHA-256, the manifest's cross-checks,
+    /// every offset, vertex and material id), plus the digest of every other file
+    /// `provenance.files` lists; the bundle read is dropped.
     pub fn verify(dir: &Path) -> Result<(), BundleError> {
-        let m = Self::read_manifest(dir)?;
+        let m = Self::open(dir)?.manifest;
         let names: Vec<&str> = m.provenance.files.iter().map(|d| d.file.as_str()).collect();
         read_verified(dir, &m, &names).map(|_| ())
     }
@@ -941,6 +1036,7 @@ fn read_verified(
             .map(|&name| {
                 s.spawn(move || -> Result<(PathBuf, Vec<u8>), BundleError> {
                     let path = dir.join(name);
+                    checks::regular_inside(dir, &path)?;
                     let expect = manifest
                         .provenance
                         .files
@@ -949,7 +1045,7 @@ fn read_verified(
                         .ok_or_else(|| BundleError::Manifest {
                             path: dir.join(MANIFEST_FILE),
                             message: format!(
-                                "`provenance.files` has no size and SHA-256 for `{name}`"
+                                "`provenance.files` has no size and SHA-256 for `{name}` (every file a bundle uses is hashed)"
                             ),
                         })?;
                     let bytes = std::fs::read(&path).map_err(|source| BundleError::Read {
@@ -1140,13 +1236,13 @@ fn u32s(b: &[u8]) -> Vec<u32> {
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
     /// Records the current size and SHA-256 of every binary file in the manifest, as a writer
     /// would: tests that damage a buffer's *content* call it so that the checks behind the
     /// digest (ids, vertices, counts) are reached.
-    pub(super) fn reseal(dir: &Path) {
+    pub(crate) fn reseal(dir: &Path) {
         let mut m = Bundle::read_manifest(dir).unwrap();
         for d in &mut m.provenance.files {
             let bytes = std::fs::read(dir.join(&d.file)).unwrap();
@@ -1157,7 +1253,7 @@ mod tests {
     }
     use crate::{BiLambertianSpec, BrdfSpec, LambertianSpec, RpvSpec, Spectrum};
 
-    pub(super) fn sample() -> Bundle {
+    pub(crate) fn sample() -> Bundle {
         let manifest = Manifest {
             format: FORMAT_NAME.into(),
             format_version: FORMAT_VERSION,

@@ -28,6 +28,7 @@
 //! (reader; re-exported there as `simulator::bundle`).
 
 mod brdf;
+mod checks;
 mod io;
 mod manifest;
 mod solver;

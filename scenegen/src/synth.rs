@@ -77,6 +77,59 @@ pub fn write_geotiff<T: GdalType + Copy>(
             })
         })?;
     }
+    // Written beside the destination, closed, read back whole, then renamed: GDAL does not
+    // always report a full disk, and a truncated GeoTIFF must never take the file's place.
+    let tmp = {
+        let mut t = path.as_os_str().to_owned();
+        t.push(format!(".tmp-{}", std::process::id()));
+        std::path::PathBuf::from(t)
+    };
+    let result = write_geotiff_at(&tmp, width, height, gt, srs, nodata, data)
+        .and_then(|()| read_back::<T>(&tmp, width, height))
+        .and_then(|()| {
+            std::fs::rename(&tmp, path).map_err(|source| {
+                ScenegenError::Bundle(bundle::BundleError::Write {
+                    path: path.to_path_buf(),
+                    source,
+                })
+            })
+        });
+    if result.is_err() {
+        let _ = std::fs::remove_file(&tmp);
+    }
+    result
+}
+
+/// Reads every pixel of the one-band GeoTIFF `path` (`width × height`): a file cut short by a
+/// full disk fails here, naming it.
+fn read_back<T: GdalType + Copy>(
+    path: &Path,
+    width: usize,
+    height: usize,
+) -> Result<(), ScenegenError> {
+    let what = || format!("read back {} (a full disk?)", path.display());
+    let ds = gdal::Dataset::open(path).map_err(gdal_err(what()))?;
+    let band = ds.rasterband(1).map_err(gdal_err(what()))?;
+    if band.size() != (width, height) {
+        return Err(ScenegenError::Bundle(bundle::BundleError::Write {
+            path: path.to_path_buf(),
+            source: std::io::Error::other("the written GeoTIFF has the wrong size"),
+        }));
+    }
+    band.read_as::<T>((0, 0), (width, height), (width, height), None)
+        .map_err(gdal_err(what()))?;
+    Ok(())
+}
+
+fn write_geotiff_at<T: GdalType + Copy>(
+    path: &Path,
+    width: usize,
+    height: usize,
+    gt: Option<[f64; 6]>,
+    srs: Option<&str>,
+    nodata: Option<f64>,
+    data: Vec<T>,
+) -> Result<(), ScenegenError> {
     let drv = DriverManager::get_driver_by_name("GTiff").map_err(gdal_err("GTiff driver"))?;
     let mut opts = gdal::raster::RasterCreationOptions::new();
     opts.add_name_value("COMPRESS", "DEFLATE")

@@ -323,6 +323,13 @@ fn write_material_tiff(
                 source: std::io::Error::other("GDAL could not set the category names"),
             });
         }
+        ds.close().map_err(gerr("close"))?;
+        // GDAL does not always report a full disk: read every pixel back before the rename,
+        // so a truncated GeoTIFF never takes the product's place.
+        let back = gdal::Dataset::open(&tmp).map_err(gerr("read back (a full disk?)"))?;
+        back.rasterband(1)
+            .and_then(|b| b.read_as::<u8>((0, 0), (p.width, p.height), (p.width, p.height), None))
+            .map_err(gerr("read back (a full disk?)"))?;
         Ok(())
     })();
     // GDAL keeps the category names in its PAM side-car (`.aux.xml`), which follows the file.

@@ -112,7 +112,7 @@ fn rpv_table_reproduces_rpv_1d() {
     }
 }
 
-/// A bundle material `tabulated` whose file lies in the bundle's folder (`brdf/rpv.nc`)
+/// A bundle material `tabulated` whose table the writer copied into the bundle (`brdf/rpv.nc`)
 /// reproduces the same bundle with the RPV material (scene walk, 500 nm).
 #[test]
 fn rpv_table_reproduces_rpv_bundle_material() {
@@ -122,8 +122,11 @@ fn rpv_table_reproduces_rpv_bundle_material() {
         g: Spectrum::Constant(K_G_RHOC.1),
         rho_c: Some(Spectrum::Constant(K_G_RHOC.2)),
     });
+    // The writer copies the table into the bundle (`brdf/rpv.nc`) and hashes it.
+    let table = tmp("tabulated-bundle-table").join("rpv.nc");
+    write_rpv_table(&table);
     let tab = BrdfSpec::Tabulated(TabulatedSpec {
-        file: "brdf/rpv.nc".into(),
+        file: table.to_string_lossy().into_owned(),
         symmetrize: false,
     });
     let mut rows = Vec::new();
@@ -131,8 +134,9 @@ fn rpv_table_reproduces_rpv_bundle_material() {
         let mut plane = flat_plane(2000.0, 0.0, -1000.0, 0.2);
         plane.materials[0].1 = spec;
         let b = write_plane(&tmp(&format!("tabulated-bundle-{name}")), &plane);
-        std::fs::create_dir_all(b.join("brdf")).unwrap();
-        write_rpv_table(&b.join("brdf/rpv.nc"));
+        if name == "tab" {
+            assert!(b.join("brdf/rpv.nc").is_file());
+        }
         let text = format!(
             "seed = {seed}\n[spectral]\nwavelengths = [500.0]\n{ATMOSPHERE}\
              [illumination]\ntype = \"directional\"\nzenith = 30.0\nazimuth = 0.0\n\

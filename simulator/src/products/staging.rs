@@ -6,6 +6,11 @@
 //! commit (a full disk, a GDAL or netCDF error) leaves the previous products untouched and the
 //! staging folder removed. The output folder's lock (`output_lock.rs`) makes this the only
 //! writer, so a leftover `.staging-*` folder is from a killed run and is removed.
+//!
+//! The moves themselves are not one atomic step: while they run, `OUTPUT/.products-incomplete`
+//! lists the new products, and it is removed only after the last move and deletion. A kill in
+//! between leaves it, so a reader (or the next run, which warns and replaces the set) can tell
+//! a complete product set from a mixed one.
 
 use std::path::{Path, PathBuf};
 
@@ -13,6 +18,11 @@ use crate::error::OutputError;
 
 /// The list of the last committed run's products, one file name per line.
 pub const PRODUCTS_LIST: &str = ".products";
+
+/// Present only while a commit moves products into place: a folder holding it (after a kill
+/// during those renames) has a mixed product set, the new products listed in it beside the
+/// previous run's others. The next commit into the folder replaces the set and removes it.
+pub const INCOMPLETE_MARKER: &str = ".products-incomplete";
 
 /// Products being written; see the module doc.
 pub struct Staging {
@@ -38,6 +48,14 @@ impl Staging {
                     let _ = std::fs::remove_dir_all(e.path());
                 }
             }
+        }
+        let marker = out.join(INCOMPLETE_MARKER);
+        if marker.is_file() {
+            tracing::warn!(
+                "{} holds a mixed product set: a previous run was stopped while moving its products into place ({} lists the new ones); this run replaces the set",
+                out.display(),
+                marker.display()
+            );
         }
         let dir = out.join(format!(".staging-{}", std::process::id()));
         std::fs::create_dir_all(&dir).map_err(io(&dir))?;
@@ -102,6 +120,9 @@ impl Staging {
         let mut all: Vec<String> = self.names.clone();
         all.extend(old.iter().filter(|o| !self.names.contains(o)).cloned());
         crate::products::write_atomic(&list, (all.join("\n") + "\n").as_bytes())?;
+        // The marker says "mixed" until every move and deletion is done.
+        let marker = self.out.join(INCOMPLETE_MARKER);
+        crate::products::write_atomic(&marker, (self.names.join("\n") + "\n").as_bytes())?;
         for n in &self.names {
             let to = self.out.join(n);
             std::fs::rename(self.dir.join(n), &to).map_err(io(&to))?;
@@ -113,6 +134,7 @@ impl Staging {
             }
         }
         crate::products::write_atomic(&list, (self.names.join("\n") + "\n").as_bytes())?;
+        std::fs::remove_file(&marker).map_err(io(&marker))?;
         let _ = std::fs::remove_dir_all(&self.dir);
         self.committed = true;
         Ok(self.names.iter().map(|n| self.out.join(n)).collect())
@@ -183,6 +205,29 @@ mod tests {
         std::fs::write(s.path("c.csv"), "4").unwrap();
         s.commit().unwrap();
         assert!(out.join("notes.txt").exists() && !out.join("a.csv").exists());
+        std::fs::remove_dir_all(&out).unwrap();
+    }
+
+    /// Rationale (issue 43): a kill while products move into place left a new results.nc
+    /// beside the old GeoTIFFs with nothing saying so. The marker exists exactly while the
+    /// moves run: a complete commit leaves none, and one left by a killed commit (simulated
+    /// here by the state it leaves: the marker and part of the moves) is replaced by the next.
+    #[test]
+    fn interrupted_commit_is_marked_until_the_next_one() {
+        let out = tmp("marker");
+        let mut s = Staging::new(&out).unwrap();
+        std::fs::write(s.path("a.csv"), "1").unwrap();
+        s.commit().unwrap();
+        assert!(!out.join(INCOMPLETE_MARKER).exists());
+        // A killed commit: marker written, a.csv moved, img.tif not yet.
+        std::fs::write(out.join(INCOMPLETE_MARKER), "a.csv\nimg.tif\n").unwrap();
+        std::fs::write(out.join("a.csv"), "2").unwrap();
+        let mut s = Staging::new(&out).unwrap();
+        std::fs::write(s.path("a.csv"), "3").unwrap();
+        std::fs::write(s.path("img.tif"), "3").unwrap();
+        s.commit().unwrap();
+        assert!(!out.join(INCOMPLETE_MARKER).exists());
+        assert_eq!(std::fs::read_to_string(out.join("img.tif")).unwrap(), "3");
         std::fs::remove_dir_all(&out).unwrap();
     }
 }
