@@ -770,6 +770,12 @@ fn hostile_inputs_fail_cleanly() {
         },
         &["material_raster.histogram"],
     );
+    damaged(
+        &mut s,
+        "instances-file-is-terrain",
+        &|d| edit_manifest(d, "file = \"instances.bin\"", "file = \"terrain.bin\""),
+        &["instances.file", "terrain.file"],
+    );
     let verify_dir = root.join("bundle-verify-totals");
     copy_dir(&root.join("bundle"), &verify_dir);
     swap_totals(&verify_dir);
@@ -978,6 +984,61 @@ fn hostile_inputs_fail_cleanly() {
         ),
         &e(2, &["density_per_ha"]),
     );
+    // The build's memory is estimated before anything is placed (issue 43: a 9.9e7-instance
+    // density exhausted the machine); the limit is lowered here to what this region exceeds.
+    std::fs::write(
+        root.join("region-memory.toml"),
+        format!(
+            "{REGION}[[population]]\nclasses = [18]\ntemplate = \"tree\"\ndensity_per_ha = 1000\n"
+        ),
+    )
+    .unwrap();
+    let o = {
+        let out = std::process::Command::new(&s.scenegen)
+            .args(["build", "-q", "region-memory.toml", "-o", "bundle-memory"])
+            .env("EOSIM_MEMORY_LIMIT", "50000000")
+            .current_dir(&root)
+            .output()
+            .unwrap();
+        e2e::Outcome {
+            code: out.status.code(),
+            stdout: String::from_utf8_lossy(&out.stdout).into_owned(),
+            stderr: String::from_utf8_lossy(&out.stderr).into_owned(),
+            seconds: 0.0,
+        }
+    };
+    s.check(
+        "build beyond the machine's memory",
+        &o,
+        &e(
+            2,
+            &["population[0].density_per_ha", "GiB of memory", "available"],
+        ),
+    );
+    if root.join("bundle-memory").exists() {
+        s.failures
+            .push("build beyond the machine's memory: an output folder was left".into());
+    }
+    // A geographic DEM in 0…360° longitudes over an area at −5.7°: named as such, not as a
+    // DEM that "misses 360° on the west".
+    write_geotiff(
+        &root.join("dem360.tif"),
+        40,
+        40,
+        Some([354.28, 0.001, 0.0, 45.02, 0.0, -0.001]),
+        Some("EPSG:4326"),
+        Some(-32768.0),
+        (0..1600)
+            .map(|k| 300.0 + (k % 40) as f32)
+            .collect::<Vec<f32>>(),
+    )
+    .unwrap();
+    s.region(
+        "dem-in-0-360-longitudes",
+        &r("centre = [5.7, 45.0]", "centre = [-5.7, 45.0]")
+            .replace("files = [\"dem.tif\"]", "files = [\"dem360.tif\"]"),
+        &e(2, &["dem360.tif", "beyond 180°", "−180…180°"]),
+    );
     s.region(
         "negative-tolerance",
         &format!("{REGION}[terrain]\ntolerance_m = -1\n"),
@@ -1038,4 +1099,128 @@ fn hostile_inputs_fail_cleanly() {
         s.failures.join("\n\n")
     );
     std::fs::remove_dir_all(&root).unwrap();
+}
+
+/// A full disk while a GeoTIFF is written (issue 43): `simulate preview` used to rename a
+/// truncated file into place (its dataset was dropped, errors ignored) and `scenegen
+/// mesh-to-dem` to exit 0 with an unreadable `dem.tif`. Both now read the file back before the
+/// rename: exit 1, nothing at the destination, no temporary left. Needs root to mount a small
+/// tmpfs (skipped, saying so, otherwise); mesh-to-dem needs the shared Libya-4 mesh.
+#[test]
+fn full_disk_geotiffs_never_take_their_place() {
+    let uid = std::process::Command::new("id")
+        .arg("-u")
+        .output()
+        .map(|o| String::from_utf8_lossy(&o.stdout).trim().to_string())
+        .unwrap_or_default();
+    if uid != "0" {
+        println!("SKIPPED: mounting a small tmpfs needs root (uid {uid})");
+        return;
+    }
+    let root = temp_dir("hostile-fulldisk");
+    let mnt = root.join("mnt");
+    std::fs::create_dir_all(&mnt).unwrap();
+    let mounted = std::process::Command::new("mount")
+        .args(["-t", "tmpfs", "-o", "size=1m", "tmpfs"])
+        .arg(&mnt)
+        .status()
+        .is_ok_and(|s| s.success());
+    if !mounted {
+        println!("SKIPPED: `mount -t tmpfs` failed (no CAP_SYS_ADMIN here)");
+        return;
+    }
+    let result = std::panic::catch_unwind(|| {
+        let (simulate, scenegen) = (binary("simulate").unwrap(), binary("scenegen").unwrap());
+        write_dem(&root.join("dem.tif"), Some(LOCAL), |_| {});
+        write_lc(&root.join("lc.tif"), 18);
+        std::fs::write(root.join("region.toml"), REGION).unwrap();
+        let a = |v: &[&str]| v.iter().map(|s| s.to_string()).collect::<Vec<_>>();
+        let o = run(
+            &scenegen,
+            &a(&["build", "-q", "region.toml", "-o", "bundle"]),
+            &root,
+        );
+        assert_eq!(o.code, Some(0), "{}", o.stderr);
+        // 10 m pixels: a 220 × 220 material GeoTIFF (48 KiB) that cannot fit in 12 KiB.
+        std::fs::write(
+            root.join("preview.toml"),
+            SCENE_EXPERIMENT
+                .replace(
+                    "path = \"bundle\"",
+                    &format!("path = \"{}\"", root.join("bundle").display()),
+                )
+                .replace("pixel_size_m = 400.0", "pixel_size_m = 10.0"),
+        )
+        .unwrap();
+        let fill_to = |left: u64| {
+            let _ = std::fs::remove_file(mnt.join("fill"));
+            let df = std::process::Command::new("df")
+                .args(["-B1", "--output=avail"])
+                .arg(&mnt)
+                .output()
+                .unwrap();
+            let free: u64 = String::from_utf8_lossy(&df.stdout)
+                .lines()
+                .last()
+                .and_then(|l| l.trim().parse().ok())
+                .unwrap();
+            std::fs::write(
+                mnt.join("fill"),
+                vec![0u8; free.saturating_sub(left) as usize],
+            )
+            .unwrap();
+        };
+        fill_to(12 << 10);
+        let out = mnt.join("preview");
+        let o = run(
+            &simulate,
+            &a(&["preview", "-q", "preview.toml", "-o", out.to_str().unwrap()]),
+            &root,
+        );
+        assert_eq!(o.code, Some(1), "{}", o.stderr);
+        assert!(!o.stderr.contains("panicked"), "{}", o.stderr);
+        let left: Vec<String> = std::fs::read_dir(&out)
+            .map(|d| {
+                d.flatten()
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .collect()
+            })
+            .unwrap_or_default();
+        assert!(
+            !left
+                .iter()
+                .any(|n| n.ends_with(".tif") || n.contains("partial")),
+            "{left:?}"
+        );
+        if let Some(shared) = e2e::shared_dir() {
+            let mesh = shared.join("data/terrain/libya4_20km.ply");
+            let dem = mnt.join("dem.tif");
+            let o = run(
+                &scenegen,
+                &a(&[
+                    "mesh-to-dem",
+                    "-q",
+                    mesh.to_str().unwrap(),
+                    "--centre",
+                    "23.39,28.55",
+                    "-o",
+                    dem.to_str().unwrap(),
+                ]),
+                &root,
+            );
+            assert_eq!(o.code, Some(1), "{}", o.stderr);
+            assert!(o.stderr.contains("dem.tif"), "{}", o.stderr);
+            let left: Vec<String> = std::fs::read_dir(&mnt)
+                .unwrap()
+                .flatten()
+                .map(|e| e.file_name().to_string_lossy().into_owned())
+                .collect();
+            assert!(!left.iter().any(|n| n.starts_with("dem")), "{left:?}");
+        }
+    });
+    let _ = std::process::Command::new("umount").arg(&mnt).status();
+    let _ = std::fs::remove_dir_all(&root);
+    if let Err(p) = result {
+        std::panic::resume_unwind(p);
+    }
 }

@@ -114,6 +114,26 @@ pub(crate) fn names_confined(m: &Manifest, dir: &Path, manifest: &Path) -> Resul
             manifest,
         )?;
     }
+    // The four buffers are four files.
+    let buffers = [
+        ("terrain.file", m.terrain.file.as_str()),
+        ("templates", super::io::TEMPLATES_FILE),
+        ("instances.file", m.instances.file.as_str()),
+        ("material_raster.file", m.material_raster.file.as_str()),
+    ];
+    for (i, (key, name)) in buffers.iter().enumerate() {
+        let same = buffers[..i]
+            .iter()
+            .find(|(_, n)| Path::new(n) == Path::new(name));
+        if let Some((other, _)) = same {
+            return Err(BundleError::Manifest {
+                path: manifest.to_path_buf(),
+                message: format!(
+                    "`{key}` = {name:?} names the file of `{other}`; the terrain, templates, instances and material raster are four files"
+                ),
+            });
+        }
+    }
     for (k, name) in table_files(m) {
         confined(dir, name, &format!("materials[{k}].brdf.file"), manifest)?;
     }
@@ -553,7 +573,7 @@ mod tests {
     /// summaries all rendered. Each is refused naming the key.
     #[test]
     fn manifest_numbers_are_cross_checked() {
-        let cases: [(&str, &str, &str, &[&str]); 7] = [
+        let cases: [(&str, &str, &str, &[&str]); 8] = [
             (
                 "totals",
                 "dem_samples = 49\nvertex_count = 3\ntriangle_count = 1",
@@ -583,6 +603,12 @@ mod tests {
                 "per_template = [",
                 "per_template = [0, ",
                 &["instances.per_template", "2 entries for 1 templates"],
+            ),
+            (
+                "same-file",
+                "file = \"instances.bin\"",
+                "file = \"terrain.bin\"",
+                &["instances.file", "names the file of `terrain.file`"],
             ),
             (
                 "count",

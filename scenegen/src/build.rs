@@ -427,7 +427,13 @@ pub fn build(
     };
     let material_raster = materials.map_raster(&codes, &lc_name, &scheme.name)?;
     pb.finish_and_clear();
-    check_instance_budget(region, &mgrid, &codes)?;
+    check_instance_budget(
+        region,
+        &mgrid,
+        &codes,
+        (grid.width * grid.height) as u64,
+        available_memory(),
+    )?;
     stage("landcover", &mut t);
 
     let pb = bar(opts, "terrain: triangulating");
@@ -713,17 +719,45 @@ pub fn build(
 /// renderer's memory with its instance BVH, so 10⁸ instances need some 20 GiB.
 pub const MAX_INSTANCES: f64 = 1.0e8;
 
-/// Refuse, before placing anything, a population whose expected instance count (density ×
+/// Build memory per instance placed (bytes): 64-byte records, the placement's working copies
+/// and the write buffer; measured 138 B from 1.27·10⁶ to 5.07·10⁶ instances on Grenoble.
+const BUILD_BYTES_PER_INSTANCE: f64 = 150.0;
+/// Build memory per DEM sample (heights, the TIN's vertices and triangles, tiles).
+const BUILD_BYTES_PER_DEM_SAMPLE: f64 = 80.0;
+/// Build memory per land-cover cell (codes, the material raster).
+const BUILD_BYTES_PER_CELL: f64 = 16.0;
+/// Build memory of the program and its libraries.
+const BUILD_BASE_BYTES: f64 = 64.0 * (1u64 << 20) as f64;
+
+/// Memory this machine can give without swapping (`MemAvailable` of `/proc/meminfo`, bytes),
+/// or `$EOSIM_MEMORY_LIMIT` (bytes) where set.
+fn available_memory() -> Option<u64> {
+    if let Some(v) = std::env::var("EOSIM_MEMORY_LIMIT")
+        .ok()
+        .and_then(|v| v.trim().parse().ok())
+    {
+        return Some(v);
+    }
+    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
+    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
+}
+
+/// Refuse, before placing anything, a build whose memory (instances, DEM, land cover; an
+/// estimate) exceeds what the machine has available, or a population whose expected instance
+/// count (density ×
 /// area of the land-cover cells of its classes) exceeds [`MAX_INSTANCES`], naming the rule that
 /// places the most and the memory it would take.
 fn check_instance_budget(
     region: &Region,
     mgrid: &Grid,
     codes: &[Option<i64>],
+    dem_samples: u64,
+    memory: Option<u64>,
 ) -> Result<(), ScenegenError> {
-    let Some(rules) = &region.population else {
-        return Ok(());
-    };
+    let no_rules = Vec::new();
+    let rules = region.population.as_ref().unwrap_or(&no_rules);
     let mut cells: BTreeMap<i64, u64> = BTreeMap::new();
     for c in codes.iter().flatten() {
         *cells.entry(*c).or_default() += 1;
@@ -741,14 +775,45 @@ fn check_instance_budget(
         })
         .collect();
     let total: f64 = per_rule.iter().sum();
+    let heaviest = per_rule
+        .iter()
+        .enumerate()
+        .max_by(|a, b| a.1.total_cmp(b.1));
+    // Memory the build will need (measured, BENCHMARKS.md "scenegen"): per instance placed,
+    // per DEM sample, per land-cover cell, and a base; refused above what the machine has.
+    let need = BUILD_BASE_BYTES
+        + BUILD_BYTES_PER_INSTANCE * total
+        + BUILD_BYTES_PER_DEM_SAMPLE * dem_samples as f64
+        + BUILD_BYTES_PER_CELL * codes.len() as f64;
+    if let Some(limit) = memory.filter(|&m| need > m as f64) {
+        let gib = |b: f64| b / (1u64 << 30) as f64;
+        let (key, what) = match heaviest {
+            Some((k, most)) if BUILD_BYTES_PER_INSTANCE * most > 0.5 * need => (
+                format!("population[{k}].density_per_ha"),
+                format!("{total:.3e} instances, this rule {most:.3e}"),
+            ),
+            _ => (
+                "dem.spacing_m".to_string(),
+                format!(
+                    "{dem_samples} DEM samples, {} land-cover cells",
+                    codes.len()
+                ),
+            ),
+        };
+        return Err(ScenegenError::Region {
+            path: region.path.clone(),
+            key,
+            message: format!(
+                "the build would need about {:.1} GiB of memory ({what}), more than the {:.1} GiB this machine has available: lower the densities, coarsen the grids or shrink the area",
+                gib(need),
+                gib(limit as f64)
+            ),
+        });
+    }
     if total <= MAX_INSTANCES {
         return Ok(());
     }
-    let (k, most) = per_rule
-        .iter()
-        .enumerate()
-        .max_by(|a, b| a.1.total_cmp(b.1))
-        .expect("a rule");
+    let (k, most) = heaviest.expect("a rule places instances");
     Err(ScenegenError::Region {
         path: region.path.clone(),
         key: format!("population[{k}].density_per_ha"),

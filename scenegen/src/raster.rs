@@ -322,6 +322,29 @@ pub fn check_coverage(
         return Ok(());
     }
     let geographic = src.is_geographic();
+    if geographic {
+        // A raster in 0…360° longitudes (or −180…180° for an area given past 180°) that would
+        // cover the area one turn away: say so instead of "misses 360° on the west".
+        for turn in [360.0, -360.0] {
+            let covered = have[0] - (need[0] + turn) <= px
+                && need[2] + turn - have[2] <= px
+                && miss[1] <= px
+                && miss[3] <= px;
+            if covered {
+                return Err(input(
+                    path,
+                    format!(
+                        "the {role} uses longitudes {} ({:.4}…{:.4}°), the area lies at {:.4}…{:.4}°: the {role} covers it one turn ({turn:+}°) away. Rewrite it in −180…180° longitudes (e.g. `gdalwarp -t_srs EPSG:4326 --config CENTER_LONG 0 in.tif out.tif`)",
+                        if turn > 0.0 { "beyond 180°" } else { "below −180°" },
+                        have[0],
+                        have[2],
+                        need[0],
+                        need[2]
+                    ),
+                ));
+            }
+        }
+    }
     let lat = frame.centre_lon_lat[1].to_radians();
     let describe = |m: f64, side: usize| {
         if geographic {

@@ -154,6 +154,13 @@ fn checksum(bytes: &[u8]) -> u64 {
 /// recently used).
 pub(crate) fn load(dir: &Path, key: &[u8; 16]) -> Option<Cached> {
     let path = file(dir, key);
+    // Only a regular file is opened: a FIFO (or device) in its place would block the read.
+    if !std::fs::metadata(&path).is_ok_and(|m| m.is_file()) {
+        if path.exists() {
+            tracing::debug!("{}: not a regular file, ignored", path.display());
+        }
+        return None;
+    }
     let bytes = std::fs::read(&path).ok()?;
     let parsed = parse(&bytes, key);
     match &parsed {
@@ -332,8 +339,8 @@ mod tests {
         }
     }
 
-    /// A stored tree reads back equal; another key, a flipped byte or a cut file read as no
-    /// tree; the key depends on every box bit and the kind; only the most recent files are
+    /// A stored tree reads back equal; another key, a flipped byte, a cut file or a FIFO read
+    /// as no tree; the key depends on every box bit and the kind; only the most recent files are
     /// kept.
     #[test]
     fn round_trip_and_rejections() {
@@ -360,6 +367,13 @@ mod tests {
         }
         std::fs::write(&path, &good[..good.len() - 9]).unwrap();
         assert_eq!(load(&dir, &k), None);
+        // A FIFO in the file's place is passed over at once (issue 43: it blocked forever).
+        std::fs::remove_file(&path).unwrap();
+        let made = std::process::Command::new("mkfifo").arg(&path).status();
+        if made.is_ok_and(|s| s.success()) {
+            assert_eq!(load(&dir, &k), None);
+            std::fs::remove_file(&path).unwrap();
+        }
         // Pruning keeps KEEP files.
         for i in 0..KEEP as u32 + 3 {
             let b = vec![Aabb::new(

@@ -302,6 +302,22 @@ impl TemperatureConfig {
                 format!("{} must be positive", self.tolerance_k),
             );
         }
+        if chrono::NaiveDate::parse_from_str(&self.date, "%Y-%m-%d").is_err() {
+            return bad(
+                "date",
+                format!("\"{}\" is not a calendar date YYYY-MM-DD", self.date),
+            );
+        }
+        let offset = format!("2000-01-01T00:00:00{}", self.utc_offset);
+        if chrono::DateTime::parse_from_rfc3339(&offset).is_err() {
+            return bad(
+                "utc_offset",
+                format!(
+                    "\"{}\" is not an offset from UTC (\"+02:00\", \"-05:00\" or \"Z\")",
+                    self.utc_offset
+                ),
+            );
+        }
         if self.times.is_empty() {
             return bad("times", "give at least one local time \"HH:MM\"".into());
         }
@@ -594,6 +610,19 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("`times[0]`"), "{e}");
+        // Date and offset are checked with the file (`simulate check`), not when the run starts.
+        for (from, to, key) in [
+            ("2026-07-15", "2026-02-30", "`date`"),
+            ("2026-07-15", "15/07/2026", "`date`"),
+        ] {
+            let e = parse(&BASE.replace(from, to)).unwrap_err().to_string();
+            assert!(e.contains(key), "{e}");
+        }
+        let e = parse(&format!("utc_offset = \"+2h\"\n{BASE}"))
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("`utc_offset`") && e.contains("+2h"), "{e}");
+        assert!(parse(&format!("utc_offset = \"-05:00\"\n{BASE}")).is_ok());
         let e = parse(&BASE.replace("[288.0, 300.0]", "[300.0, 288.0]"))
             .unwrap_err()
             .to_string();
