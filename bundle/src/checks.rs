@@ -312,10 +312,7 @@ fn footprint(m: &Manifest, manifest: &Path) -> Result<(), BundleError> {
 
 /// The raster's recorded `histogram` against its pixels (entries beyond the list count 0).
 pub(crate) fn histogram(m: &Manifest, manifest: &Path, raster: &[u8]) -> Result<(), BundleError> {
-    let mut got = [0u64; 256];
-    for &v in raster {
-        got[v as usize] += 1;
-    }
+    let got = pixel_counts(raster);
     let rec = &m.material_raster.histogram;
     if rec.len() > 256 {
         return Err(BundleError::Manifest {
@@ -338,6 +335,31 @@ pub(crate) fn histogram(m: &Manifest, manifest: &Path, raster: &[u8]) -> Result<
         });
     }
     Ok(())
+}
+
+/// Pixels per material id of a raster (the manifest's `histogram`, before truncation).
+pub(crate) fn pixel_counts(raster: &[u8]) -> [u64; 256] {
+    let mut n = [0u64; 256];
+    for &v in raster {
+        n[v as usize] += 1;
+    }
+    n
+}
+
+/// Axis-aligned bounds of a template's vertices (zeros for a template without any), as the
+/// manifest records them.
+pub(crate) fn bounds(positions: &[[f32; 3]]) -> ([f32; 3], [f32; 3]) {
+    if positions.is_empty() {
+        return ([0.0; 3], [0.0; 3]);
+    }
+    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
+    for p in positions {
+        for j in 0..3 {
+            lo[j] = lo[j].min(p[j]);
+            hi[j] = hi[j].max(p[j]);
+        }
+    }
+    (lo, hi)
 }
 
 /// Instances counted per template against `per_template`.
@@ -372,16 +394,7 @@ pub(crate) fn template_bounds(
     k: usize,
     positions: &[[f32; 3]],
 ) -> Result<(), BundleError> {
-    let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-    for p in positions {
-        for j in 0..3 {
-            lo[j] = lo[j].min(p[j]);
-            hi[j] = hi[j].max(p[j]);
-        }
-    }
-    if positions.is_empty() {
-        (lo, hi) = ([0.0; 3], [0.0; 3]);
-    }
+    let (lo, hi) = bounds(positions);
     let t = &m.templates[k];
     if t.bounds_min != lo || t.bounds_max != hi {
         return Err(BundleError::Manifest {

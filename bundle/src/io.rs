@@ -395,16 +395,7 @@ impl Bundle {
             // Keep 4-byte alignment of the next template's floats.
             let pad = (4 - (f.len % 4) as usize) % 4;
             f.put(&[0u8; 4][..pad])?;
-            let (mut lo, mut hi) = ([f32::INFINITY; 3], [f32::NEG_INFINITY; 3]);
-            for p in &t.positions {
-                for k in 0..3 {
-                    lo[k] = lo[k].min(p[k]);
-                    hi[k] = hi[k].max(p[k]);
-                }
-            }
-            if t.positions.is_empty() {
-                (lo, hi) = ([0.0; 3], [0.0; 3]);
-            }
+            let (lo, hi) = checks::bounds(&t.positions);
             m.templates.push(Template {
                 id: id as u32,
                 name: t.name.clone(),
@@ -454,10 +445,7 @@ impl Bundle {
         let mut f = HashedFile::create(tmp.join(MATERIALS_FILE))?;
         f.put(&self.material_raster)?;
         m.material_raster.file = MATERIALS_FILE.into();
-        let mut hist = vec![0u64; 256];
-        for &v in &self.material_raster {
-            hist[v as usize] += 1;
-        }
+        let mut hist = checks::pixel_counts(&self.material_raster).to_vec();
         let last = hist.iter().rposition(|&c| c > 0).map_or(0, |i| i + 1);
         let table_end = m.materials.iter().map(|x| x.index as usize + 1).max();
         hist.truncate(last.max(table_end.unwrap_or(0)));
