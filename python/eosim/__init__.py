@@ -7,7 +7,8 @@ one call. See ``docs/python.md``.
 """
 
 from ._native import ConfigError, SimulationError, __version__
-from .bundles import Bundle, build_bundle, open_bundle
+from ._checks import InputFileNotFoundError
+from .bundles import Bundle, OutputExistsError, build_bundle, open_bundle
 from .experiment import Experiment, load, run
 from ._sources import read_toml
 from .pics import pics
@@ -15,6 +16,8 @@ from .pics import pics
 __all__ = [
     "Bundle",
     "ConfigError",
+    "InputFileNotFoundError",
+    "OutputExistsError",
     "Experiment",
     "SimulationError",
     "__version__",

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 from . import _native
+from ._checks import existing, flag
 from ._sources import Source, toml_source
 
 
@@ -54,13 +55,29 @@ class Bundle:
 
 def open_bundle(path) -> Bundle:
     """Open (the manifest, files checked present) the bundle in folder ``path``."""
-    d = _native.open_bundle(os.fspath(path))
+    d = _native.open_bundle(existing(path, "bundle folder"))
     return Bundle(Path(path), **d)
 
 
 def build_bundle(region: Source, output, *, force: bool = False, base_dir=None) -> Bundle:
     """Build the bundle of ``region`` (a region file, TOML string or dict: ``docs/region.md``)
     into folder ``output`` (``force``: replace an existing bundle) and open it."""
+    flag("force", force)
+    if not isinstance(output, (str, os.PathLike)):
+        raise TypeError(f"output must be a folder path, not {type(output).__name__}")
     text, p = toml_source(region, base_dir)
+    if os.path.exists(os.fspath(output)) and not force:
+        import errno
+
+        raise OutputExistsError(
+            errno.EEXIST,
+            "output folder already exists (pass force=True to replace a bundle)",
+            os.fspath(output),
+        )
     _native.build_bundle(text, p, os.fspath(output), force)
     return open_bundle(output)
+
+
+class OutputExistsError(FileExistsError, _native.SimulationError):
+    """``build_bundle`` into an existing folder without ``force=True``. Both a
+    ``FileExistsError`` and an :class:`eosim.SimulationError`."""

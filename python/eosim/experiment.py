@@ -8,6 +8,7 @@ from typing import Callable, Optional, Union
 import xarray as xr
 
 from . import _native
+from ._checks import count, existing
 from ._dataset import to_dataset
 from ._progress import reporter
 from ._sources import Source, toml_source
@@ -28,22 +29,26 @@ class Experiment:
     @classmethod
     def from_file(cls, path: Union[str, os.PathLike], *, spp: Optional[int] = None) -> "Experiment":
         """An experiment file; relative paths inside are taken from its folder."""
-        text, p = toml_source(os.fspath(path))
-        return cls(_native.load_experiment(text, p, spp))
+        text, p = toml_source(existing(path, "experiment file"))
+        return cls(_native.load_experiment(text, p, count("spp", spp)))
 
     @classmethod
     def from_toml(cls, text: str, *, base_dir=None, spp: Optional[int] = None) -> "Experiment":
         """TOML text (named ``<string>`` in errors); relative paths from ``base_dir``."""
         from pathlib import Path
 
+        if not isinstance(text, str):
+            raise TypeError(f"text must be a str of TOML, not {type(text).__name__}")
         p = (Path(base_dir) if base_dir is not None else Path()) / "<string>"
-        return cls(_native.load_experiment(text, p, spp))
+        return cls(_native.load_experiment(text, p, count("spp", spp)))
 
     @classmethod
     def from_dict(cls, d: dict, *, base_dir=None, spp: Optional[int] = None) -> "Experiment":
         """A dict with the keys of an experiment file (named ``<dict>`` in errors)."""
+        if not isinstance(d, dict):
+            raise TypeError(f"d must be a dict, not {type(d).__name__}")
         text, p = toml_source(d, base_dir)
-        return cls(_native.load_experiment(text, p, spp))
+        return cls(_native.load_experiment(text, p, count("spp", spp)))
 
     @property
     def wavelengths(self) -> list:
@@ -89,6 +94,7 @@ class Experiment:
         Ctrl-C (KeyboardInterrupt) stops the run within one block of samples.
         """
         out = None if output is None else os.fspath(output)
+        threads = count("threads", threads)
         with reporter(progress, "simulate", "walks") as cb:
             raw = self._native.run(cb, threads, out)
         return to_dataset(raw)
@@ -104,7 +110,7 @@ def load(source: Source, *, base_dir=None, spp: Optional[int] = None) -> Experim
     """An experiment from a file path, a TOML string or a dict (see ``_sources.toml_source``).
     Invalid input raises :class:`eosim.ConfigError` naming the key path."""
     text, p = toml_source(source, base_dir)
-    return Experiment(_native.load_experiment(text, p, spp))
+    return Experiment(_native.load_experiment(text, p, count("spp", spp)))
 
 
 def run(
@@ -117,5 +123,7 @@ def run(
     base_dir=None,
 ) -> xr.Dataset:
     """Load (unless given an :class:`Experiment`) and run; see :meth:`Experiment.run`."""
+    count("spp", spp)
+    count("threads", threads)
     exp = source if isinstance(source, Experiment) else load(source, base_dir=base_dir, spp=spp)
     return exp.run(progress=progress, threads=threads, output=output)

@@ -14,6 +14,7 @@ import xarray as xr
 from . import _native
 from ._dataset import to_dataset
 from ._progress import reporter
+from ._checks import count, existing
 from ._sources import Source, as_dict, toml_source
 
 _COLUMNS = ("time_utc", "vza", "vaa", "srf", "sza", "saa")
@@ -35,7 +36,7 @@ def _rows(acquisitions) -> list:
     """Acquisitions as ``(time_utc, vza, vaa, srf, sza, saa)`` tuples: a CSV path (checked by
     the simulator), a pandas DataFrame, or a list of dicts with those keys."""
     if isinstance(acquisitions, (str, os.PathLike)):
-        return _native.read_acquisitions(os.fspath(acquisitions))
+        return _native.read_acquisitions(existing(acquisitions, "acquisitions file"))
     if hasattr(acquisitions, "to_dict"):  # pandas DataFrame
         acquisitions = acquisitions.to_dict("records")
     rows = []
@@ -104,6 +105,7 @@ def pics(
     dimension named by the key path. Acquisition ``k`` uses seed ``k`` as in ``simulate pics``.
     The site's data and scene are loaded in this process and reused across acquisitions.
     """
+    count("threads", threads)
     if isinstance(site, (list, tuple)):
         return _sites(site, acquisitions, vary=vary, progress=progress, threads=threads,
                       base_dir=base_dir)

@@ -1,0 +1,127 @@
+"""Hostile inputs from Python (issue 42): each raises the exception a Python user expects
+(``TypeError``/``ValueError`` naming the argument, ``FileNotFoundError`` for a missing file,
+``FileExistsError`` for an existing output, :class:`eosim.ConfigError` naming the key path for a
+bad experiment value) and never an ``OverflowError``, a panic or a Rust type name."""
+
+import copy
+import os
+
+import pytest
+
+import eosim
+from conftest import RAYLEIGH
+
+
+def with_(path, value):
+    """RAYLEIGH with the value at ``path`` (keys and list indices) replaced."""
+    d = copy.deepcopy(RAYLEIGH)
+    node = d
+    for k in path[:-1]:
+        node = node[k]
+    node[path[-1]] = value
+    return d
+
+
+def without(path):
+    d = copy.deepcopy(RAYLEIGH)
+    node = d
+    for k in path[:-1]:
+        node = node[k]
+    del node[path[-1]]
+    return d
+
+
+# (case, call, exception, regex the message must match)
+ARGUMENTS = [
+    ("negative spp", lambda: eosim.run(RAYLEIGH, spp=-5, progress=False), ValueError, r"spp = -5"),
+    ("zero spp", lambda: eosim.load(RAYLEIGH, spp=0), ValueError, r"spp = 0"),
+    ("float spp", lambda: eosim.load(RAYLEIGH, spp=10.5), TypeError, r"spp must be an integer"),
+    ("string spp", lambda: eosim.load(RAYLEIGH, spp="100"), TypeError, r"spp must be an integer"),
+    ("bool spp", lambda: eosim.load(RAYLEIGH, spp=True), TypeError, r"spp"),
+    ("negative threads", lambda: eosim.run(RAYLEIGH, threads=-1, progress=False), ValueError, r"threads = -1"),
+    ("zero threads", lambda: eosim.load(RAYLEIGH, spp=10).run(threads=0, progress=False), ValueError, r"threads = 0"),
+    ("float threads", lambda: eosim.run(RAYLEIGH, threads=2.0, progress=False), TypeError, r"threads"),
+    ("missing experiment file", lambda: eosim.run("no_such_experiment.toml"), FileNotFoundError, r"no_such_experiment\.toml"),
+    ("missing file via from_file", lambda: eosim.Experiment.from_file("absent.toml"), FileNotFoundError, r"absent\.toml"),
+    ("missing file is also a ConfigError", lambda: eosim.load("absent2.toml"), eosim.ConfigError, r"absent2\.toml"),
+    ("number as a source", lambda: eosim.load(42), TypeError, r"path, a TOML string or a dict"),
+    ("from_dict of a list", lambda: eosim.Experiment.from_dict([1, 2]), TypeError, r"d must be a dict"),
+    ("from_toml of bytes", lambda: eosim.Experiment.from_toml(b"seed = 1"), TypeError, r"text must be a str"),
+    ("missing bundle folder", lambda: eosim.open_bundle("no_such_bundle"), FileNotFoundError, r"no_such_bundle"),
+    ("missing acquisitions file", lambda: eosim.pics(RAYLEIGH, "no_such.csv", progress=False), FileNotFoundError, r"no_such\.csv"),
+    ("negative pics threads", lambda: eosim.pics(RAYLEIGH, [], threads=-2, progress=False), ValueError, r"threads = -2"),
+    ("missing region file", lambda: eosim.build_bundle("no_region.toml", "out_x"), FileNotFoundError, r"no_region\.toml"),
+    ("force not a bool", lambda: eosim.build_bundle("no_region.toml", "out_x", force="yes"), TypeError, r"force must be True or False"),
+]
+
+KEYS = [
+    ("albedo out of range", with_(["atmosphere", "single_scattering_albedo"], 1.5), r"atmosphere\.single_scattering_albedo"),
+    ("negative optical thickness", with_(["atmosphere", "optical_thickness"], -0.1), r"atmosphere\.optical_thickness"),
+    ("NaN optical thickness", with_(["atmosphere", "optical_thickness"], float("nan")), r"atmosphere\.optical_thickness"),
+    ("string zenith", with_(["illumination", "zenith"], "30"), r"illumination\.zenith"),
+    ("zenith beyond 90", with_(["illumination", "zenith"], 95.0), r"illumination\.zenith"),
+    ("misspelt key", with_(["surface", "reflectanse"], 0.2), r"reflectanse"),
+    ("reflectance above one", with_(["surface", "reflectance"], 1.2), r"surface\.reflectance"),
+    ("unknown surface type", with_(["surface", "type"], "velvet"), r"velvet"),
+    ("negative wavelength", with_(["spectral", "wavelengths"], [-450.0]), r"spectral\.wavelengths"),
+    ("empty wavelengths", with_(["spectral", "wavelengths"], []), r"spectral\.wavelengths"),
+    ("measure spp negative", with_(["measures", 0, "spp"], -5), r"measures\[0\]\.spp"),
+    ("measure zenith as string", with_(["measures", 0, "zeniths"], [0.0, "30"]), r"measures\[0\]\.zeniths"),
+    ("measure type unknown", with_(["measures", 0, "type"], "camera"), r"camera"),
+    ("no illumination", without(["illumination"]), r"illumination"),
+    ("no measures", without(["measures"]), r"measures"),
+    ("atmosphere type unknown", with_(["atmosphere", "type"], "soup"), r"soup"),
+    ("seed negative", with_(["seed"], -1), r"seed"),
+    ("phase g out of range", with_(["atmosphere", "phase"], {"type": "hg", "g": 1.5}), r"atmosphere\.phase"),
+]
+
+
+@pytest.mark.parametrize("name,call,exc,pattern", ARGUMENTS, ids=[a[0] for a in ARGUMENTS])
+def test_bad_arguments(name, call, exc, pattern, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(exc, match=pattern) as info:
+        call()
+    assert not isinstance(info.value, OverflowError)
+    for word in ("u64", "f64", "usize", "panicked"):
+        assert word not in str(info.value), str(info.value)
+
+
+@pytest.mark.parametrize("name,d,pattern", KEYS, ids=[k[0] for k in KEYS])
+def test_bad_values_name_the_key(name, d, pattern):
+    with pytest.raises(eosim.ConfigError, match=pattern) as info:
+        eosim.load(d)
+    msg = str(info.value)
+    assert "<dict>" in msg, msg
+    for word in ("u64", "f64", "usize", "panicked"):
+        assert word not in msg, msg
+
+
+def test_existing_bundle_output_says_force_true(tmp_path):
+    (tmp_path / "taken").mkdir()
+    region = tmp_path / "region.toml"
+    region.write_text("seed = 1\n")
+    with pytest.raises(FileExistsError, match=r"force=True") as info:
+        eosim.build_bundle(region, tmp_path / "taken")
+    assert isinstance(info.value, eosim.SimulationError)
+    assert "--force" not in str(info.value)
+
+
+def test_read_toml_remembers_its_folder(tmp_path, monkeypatch):
+    # An experiment whose phase table is a relative path: read as a dict, changed and run
+    # from another folder, it still finds the table (the dict remembers the file's folder).
+    import shutil
+
+    from conftest import REPO
+
+    (tmp_path / "exp").mkdir()
+    shutil.copy(REPO / "simulator/tests/data/fixtures/watercloud.mie.cdf", tmp_path / "exp")
+    d = copy.deepcopy(RAYLEIGH)
+    d["atmosphere"]["phase"] = {"type": "tabulated", "file": "watercloud.mie.cdf", "wavelength": 800.0}
+    d["spectral"]["wavelengths"] = [800.0]
+    (tmp_path / "exp" / "e.toml").write_text(eosim._native.dict_to_toml(d))
+    monkeypatch.chdir(tmp_path)
+    back = eosim.read_toml(os.path.join("exp", "e.toml"))
+    assert back.base_dir is not None and back.base_dir.name == "exp"
+    back["seed"] = 9
+    exp = eosim.load(back, spp=10)
+    assert exp.seed == 9
