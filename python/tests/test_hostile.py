@@ -125,3 +125,16 @@ def test_read_toml_remembers_its_folder(tmp_path, monkeypatch):
     back["seed"] = 9
     exp = eosim.load(back, spp=10)
     assert exp.seed == 9
+
+
+def test_pics_of_a_read_toml_site_finds_its_files(tmp_path, monkeypatch):
+    # Used to end in "netcdf error(2)": the dict had lost the folder its relative paths need.
+    from conftest import REPO
+
+    site = eosim.read_toml(REPO / "examples/pics/libya4_site.toml")
+    monkeypatch.chdir(tmp_path)
+    row = {"time_utc": "2026-01-15T09:45:00Z", "vza": 5.2, "vaa": 103.0, "srf": "sentinel_2a-msi-4"}
+    ds = eosim.pics(site, [row], progress=False)
+    assert ds.sizes["acquisition"] == 1
+    r = float(ds.reflectance[0])
+    assert 0.05 < r < 1.0, r
