@@ -138,3 +138,16 @@ def test_pics_of_a_read_toml_site_finds_its_files(tmp_path, monkeypatch):
     assert ds.sizes["acquisition"] == 1
     r = float(ds.reflectance[0])
     assert 0.05 < r < 1.0, r
+
+
+@pytest.mark.parametrize("name,d,pattern", KEYS, ids=[k[0] for k in KEYS])
+def test_simulate_check_names_the_same_key(name, d, pattern, simulate, tmp_path):
+    import subprocess
+
+    f = tmp_path / "bad.toml"
+    f.write_text(eosim._native.dict_to_toml(d))
+    p = subprocess.run([str(simulate), "check", str(f)], capture_output=True, text=True)
+    assert p.returncode == 2, p.stderr
+    import re
+
+    assert re.search(pattern, p.stderr), p.stderr
