@@ -151,3 +151,12 @@ def test_simulate_check_names_the_same_key(name, d, pattern, simulate, tmp_path)
     import re
 
     assert re.search(pattern, p.stderr), p.stderr
+
+
+def test_run_spp_fills_measures_without_one():
+    d = copy.deepcopy(RAYLEIGH)
+    for m in d["measures"]:
+        del m["spp"]
+    with pytest.raises(eosim.ConfigError, match=r"measures\[0\]\.spp.*spp=N"):
+        eosim.load(d)
+    assert eosim.load(d, spp=50).measures == ["toa_pp", "flux"]

@@ -114,6 +114,14 @@ impl Experiment {
         if let Some(n) = spp {
             cfg.measures.iter_mut().for_each(|m| m.set_spp(n));
         }
+        let unset = crate::measure::config::SPP_UNSET;
+        if let Some(k) = cfg.measures.iter().position(|m| m.spp() == unset) {
+            return Err(ConfigError::Invalid {
+                path: path.to_path_buf(),
+                key: format!("measures[{k}].spp"),
+                message: "missing required key `spp` (samples per direction or pixel): give it in the measure, or for every measure of the run with `simulate run --spp N` (Python: `spp=N`)".into(),
+            });
+        }
         let mut exp = resolve(cfg, text, path)?;
         // The products' provenance and the checkpoints' hash must see the override.
         if let Some(n) = spp {
@@ -1117,6 +1125,30 @@ fn g_point_state(
 #[cfg(test)]
 mod tests {
     use super::plain_closed_choice;
+
+    /// Rationale (issue 42): Eradiate users give the sample count once for the run
+    /// (`eosim.run(exp, spp=N)`, `simulate run --spp N`); a measure may then leave `spp` out.
+    /// Without an override a missing `spp` is named at `measures[k].spp`.
+    #[test]
+    fn run_spp_fills_measures_without_one() {
+        use crate::config::Experiment;
+        let text = "[spectral]\nwavelengths = [550.0]\n[atmosphere]\ntype = \"homogeneous\"\n\
+                    optical_thickness = 0.1\nsingle_scattering_albedo = 1.0\nphase = { type = \"rayleigh\" }\n\
+                    [surface]\ntype = \"lambertian\"\nreflectance = 0.2\n\
+                    [illumination]\ntype = \"directional\"\nzenith = 30.0\n\
+                    [[measures]]\nid = \"a\"\ntype = \"mdistant\"\nazimuth = 0.0\nzeniths = [0.0]\nspp = 10\n\
+                    [[measures]]\nid = \"b\"\ntype = \"mdistant\"\nazimuth = 0.0\nzeniths = [0.0]\n";
+        let p = std::path::Path::new("x.toml");
+        let e = Experiment::from_str(text, p).unwrap_err().to_string();
+        assert!(
+            e.contains("measures[1].spp")
+                && e.contains("missing required key")
+                && e.contains("--spp"),
+            "{e}"
+        );
+        let exp = Experiment::parse_with_spp(text, p, Some(77)).unwrap();
+        assert!(exp.measures.iter().all(|m| m.spp == 77));
+    }
 
     /// serde's words for closed choices become the resolvers' (the value, the allowed values).
     #[test]

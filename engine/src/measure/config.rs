@@ -11,6 +11,14 @@ use super::{Area, Camera, FluxDirection, Measure, MeasureKind, OrthoGrid};
 use crate::error::{ConfigCtx, ConfigError};
 use crate::frame::direction_from_angles;
 
+/// `spp` left out of a measure: filled by a run's override (`simulate run --spp N`,
+/// `eosim.run(..., spp=N)`), else refused naming `measures[k].spp`.
+pub const SPP_UNSET: u64 = u64::MAX;
+
+fn spp_unset() -> u64 {
+    SPP_UNSET
+}
+
 #[derive(Clone, Debug, Deserialize)]
 #[serde(tag = "type", rename_all = "snake_case", deny_unknown_fields)]
 pub enum MeasureConfig {
@@ -34,6 +42,7 @@ pub enum MeasureConfig {
         /// 3D scenes: height of the target area, m (default: the top of the scene).
         #[serde(default)]
         target_height_m: Option<f64>,
+        #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
@@ -53,6 +62,7 @@ pub enum MeasureConfig {
         #[serde(default)]
         azimuth: f64,
         /// Samples per pixel (the maximum when `target_rel_stderr` is set).
+        #[serde(default = "spp_unset")]
         spp: u64,
         /// Stop when the **median** relative standard error of the pixels' BRF is at most this.
         #[serde(default)]
@@ -79,6 +89,7 @@ pub enum MeasureConfig {
         /// pixels.
         width: usize,
         height: usize,
+        #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
@@ -97,6 +108,7 @@ pub enum MeasureConfig {
         /// degrees: azimuth fixing the Stokes meridian plane when the view is vertical.
         #[serde(default)]
         frame_azimuth: Option<f64>,
+        #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
@@ -109,6 +121,7 @@ pub enum MeasureConfig {
         /// "up" (default): upwelling flux; "down": downwelling (direct + diffuse).
         #[serde(default)]
         direction: Option<FluxDirection>,
+        #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
@@ -130,6 +143,7 @@ pub enum MeasureConfig {
         /// degrees.
         #[serde(default)]
         azimuths: Option<Vec<f64>>,
+        #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
         target_rel_stderr: Option<f64>,
@@ -225,6 +239,11 @@ impl MeasureConfig {
             } => (id, *spp, *target_rel_stderr),
             MeasureConfig::Lidar(l) => (&l.id, l.spp, None),
         }
+    }
+
+    /// Samples per direction or pixel ([`SPP_UNSET`] where the file leaves `spp` out).
+    pub fn spp(&self) -> u64 {
+        self.common().1
     }
 
     /// The measure's `id`.
