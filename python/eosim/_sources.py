@@ -23,7 +23,7 @@ def toml_source(source: Source, base_dir: str | os.PathLike | None = None) -> tu
         base_dir = getattr(source, "base_dir", None)
     base = Path(base_dir) if base_dir is not None else Path()
     if isinstance(source, Mapping):
-        return _native.dict_to_toml(dict(source)), base / "<dict>"
+        return _native.dict_to_toml(_eradiate_style(dict(source))), base / "<dict>"
     if isinstance(source, str) and ("\n" in source or "=" in source):
         return source, base / "<string>"
     path = Path(existing(source, "input file"))
@@ -31,6 +31,24 @@ def toml_source(source: Source, base_dir: str | os.PathLike | None = None) -> tu
         return path.read_text(encoding="utf-8"), path
     except OSError as e:
         raise _native.ConfigError(f"cannot read {path}: {e.strerror or e}") from None
+
+
+def _eradiate_style(d: dict) -> dict:
+    """Input as Eradiate users write it: a single measure table for ``measures``, and tuples
+    or ``range`` objects wherever lists go (the scalar ``wavelengths`` is read by the
+    simulator itself)."""
+
+    def lists(v):
+        if isinstance(v, Mapping):
+            return {k: lists(x) for k, x in v.items()}
+        if isinstance(v, (tuple, range, list)):
+            return [lists(x) for x in v]
+        return v
+
+    out = lists(d)
+    if isinstance(out.get("measures"), Mapping):
+        out["measures"] = [out["measures"]]
+    return out
 
 
 class TomlDict(dict):

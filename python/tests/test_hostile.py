@@ -160,3 +160,15 @@ def test_run_spp_fills_measures_without_one():
     with pytest.raises(eosim.ConfigError, match=r"measures\[0\]\.spp.*spp=N"):
         eosim.load(d)
     assert eosim.load(d, spp=50).measures == ["toa_pp", "flux"]
+
+
+def test_eradiate_style_input():
+    # One measure table instead of a list, tuples and ranges where lists go, a scalar wavelength.
+    d = copy.deepcopy(RAYLEIGH)
+    d["measures"] = dict(d["measures"][0], zeniths=range(-60, 61, 60))
+    d["spectral"]["wavelengths"] = 550.0
+    d["illumination"]["zenith"] = 30.0
+    exp = eosim.load(d, spp=20)
+    assert exp.measures == ["toa_pp"] and exp.wavelengths == [550.0]
+    d["measures"]["zeniths"] = (-30.0, 0.0, 30.0)
+    assert eosim.load(d, spp=20).measures == ["toa_pp"]
