@@ -32,4 +32,10 @@ def to_dataset(raw: dict) -> xr.Dataset:
     ds = xr.Dataset(variables, attrs=_attrs(raw["attrs"]))
     # decode_coords="all": the grid-mapping variables of ortho images become coordinates, so
     # rioxarray finds the CRS of every image variable (`ds.toa_brf.rio.crs`).
-    return xr.decode_cf(ds, decode_coords="all")
+    ds = xr.decode_cf(ds, decode_coords="all")
+    # Image variables carry their no-data value (NaN: pixels with no sample), so that
+    # rioxarray's `ds.toa_brf.rio.nodata` is set and `rio.to_raster` writes it.
+    for v in ds.data_vars.values():
+        if "grid_mapping" in v.encoding and v.dtype.kind == "f":
+            v.encoding.setdefault("_FillValue", np.nan)
+    return ds

@@ -1,6 +1,7 @@
 """The Dataset of a run equals the ``results.nc`` the command line writes for the same
 experiment and seed (read with ``xarray.open_dataset(..., decode_coords="all")``)."""
 
+import numpy as np
 import xarray as xr
 
 import eosim
@@ -43,5 +44,6 @@ def test_ortho_image_equals_results_nc_and_reads_with_rioxarray(simulate, grenob
     assert brf.rio.crs is not None
     assert brf.rio.crs.to_wkt() == xr.open_dataset(nc, decode_coords="all").toa_brf.rio.crs.to_wkt()
     assert brf.rio.resolution() == (250.0, -250.0)
+    assert np.isnan(brf.rio.nodata)  # issue 42: images carry their no-data value
     assert "toa_spatial_ref" in ds.coords
     assert ds.toa_x.attrs["units"] == "m" and ds.toa_y.attrs["units"] == "m"
