@@ -6,6 +6,7 @@ bad experiment value) and never an ``OverflowError``, a panic or a Rust type nam
 import copy
 import os
 
+import numpy as np
 import pytest
 
 import eosim
@@ -172,3 +173,22 @@ def test_eradiate_style_input():
     assert exp.measures == ["toa_pp"] and exp.wavelengths == [550.0]
     d["measures"]["zeniths"] = (-30.0, 0.0, 30.0)
     assert eosim.load(d, spp=20).measures == ["toa_pp"]
+
+
+def test_signed_zenith_and_per_measure_access():
+    import matplotlib
+
+    matplotlib.use("Agg")
+    ds = eosim.run(RAYLEIGH, spp=200, progress=False)
+    # hplane zeniths [-60, 0, 60] come back signed, in the order given; the flux has none.
+    np.testing.assert_array_equal(ds.zenith.values[:3], [-60.0, 0.0, 60.0])
+    assert np.isnan(ds.zenith.values[3])
+    ds.brf.sel(wavelength=550.0).plot(x="zenith")  # the principal plane, unfolded
+    pp = ds.eosim.measure("toa_pp")
+    assert pp.brf.dims == ("wavelength", "zenith") and pp.sizes["zenith"] == 3
+    assert str(pp.measure_type.values) == "mdistant"
+    flux = ds.eosim.measure("flux")
+    assert flux.sizes["direction"] == 1 and np.isfinite(flux.flux.values).all()
+    assert set(ds.eosim.measures()) == {"toa_pp", "flux"}
+    with pytest.raises(KeyError, match="toa_pp"):
+        ds.eosim.measure("nope")
