@@ -13,7 +13,7 @@ import xarray as xr
 
 from . import _native
 from ._dataset import to_dataset
-from ._progress import reporter
+from ._progress import parts_reporter, reporter
 from ._checks import count, existing
 from ._sources import Source, as_dict, toml_source
 
@@ -115,21 +115,29 @@ def pics(
         return _sweep(text, path, rows, progress, threads)
     if len(vary) != 1:
         raise _native.ConfigError("vary: give one key path (nest calls to vary more)")
-    (key, values), = vary.items()
+    (name, spec), = vary.items()
+    # {name: (key path, values)} names the dimension `name`; {key path: values} by the path.
+    if isinstance(spec, tuple) and len(spec) == 2 and isinstance(spec[0], str):
+        key, values = spec
+    else:
+        key, values = name, spec
     values = list(values)
     base, path = as_dict(site, base_dir)
     parts = []
-    for v in values:
-        d = copy.deepcopy(base)
-        _set(d, key, v)
-        parts.append(_sweep(_native.dict_to_toml(d), path, rows, progress, threads))
-    # Every data variable gains the dimension (the acquisitions' own columns repeat).
-    return xr.concat(parts, dim=xr.DataArray(values, dims=key, name=key), data_vars="all",
-                     coords="minimal", compat="equals", join="exact")
+    with parts_reporter(progress, "pics", "acquisitions", len(values)) as part:
+        for k, v in enumerate(values):
+            d = copy.deepcopy(base)
+            _set(d, key, v)
+            parts.append(_sweep(_native.dict_to_toml(d), path, rows, part(k), threads))
+    # The swept variables gain the dimension; the acquisitions' own columns (time, angles,
+    # band, Sun) are the same at every value and stay as they are.
+    coord = xr.DataArray(values, dims=name, name=name, attrs={"key_path": key})
+    return xr.concat(parts, dim=coord, data_vars="different", coords="minimal",
+                     compat="equals", join="exact")
 
 
 def _sweep(text, path, rows, progress, threads) -> xr.Dataset:
-    with reporter(progress, "pics", "acq") as cb:
+    with reporter(progress, "pics", "acquisitions") as cb:
         raw = _native.pics_sweep(text, path, rows, cb, threads)
     return to_dataset(raw)
 

@@ -9,7 +9,7 @@ import pytest
 import xarray as xr
 
 import eosim
-from conftest import REPO
+from conftest import REPO, RAYLEIGH
 
 # A site that needs no data files: a Rayleigh layer over a Lambertian sand at Libya-4.
 SITE = {
@@ -148,3 +148,26 @@ def test_ctrl_c_interrupts_a_sweep(sigint):
     with pytest.raises(KeyboardInterrupt):
         eosim.pics(long, ACQS, progress=False)
     timer.cancel()
+
+
+def test_sweep_short_name_one_progress_and_no_repeats():
+    seen = []
+    ds = eosim.pics(SITE, ACQS[:2], vary={"tau": ("atmosphere.optical_thickness", [0.05, 0.5])},
+                    progress=lambda done, total: seen.append((done, total)))
+    assert ds.reflectance.dims == ("tau", "acquisition")
+    assert ds.tau.attrs["key_path"] == "atmosphere.optical_thickness"
+    # The acquisitions' own columns are not repeated along the swept dimension.
+    assert "tau" not in ds.vza.dims and "tau" not in ds.time_utc.dims
+    # One progress for the whole sweep: one total, counts that only grow, ending at the total.
+    assert len({t for _, t in seen}) == 1
+    assert [d for d, _ in seen] == sorted(d for d, _ in seen) and seen[-1][0] == seen[-1][1]
+
+
+def test_progress_in_a_log_is_plain_lines(capsys):
+    eosim.run(RAYLEIGH, spp=200, progress=True)
+    err = capsys.readouterr().err
+    assert "\r" not in err, repr(err)
+    lines = [l for l in err.splitlines() if l.startswith("simulate:")]
+    assert lines and " walks (" in lines[-1]
+    done, total = lines[-1].split(":")[1].split()[0].split("/")
+    assert done == total
