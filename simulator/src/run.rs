@@ -46,6 +46,13 @@ pub fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
         b.set_length(total);
         return b;
     }
+    if !std::io::IsTerminal::is_terminal(&std::io::stderr()) {
+        // A log file or a batch job: no redrawn bar, plain lines at every 10 % instead.
+        let b = ProgressBar::hidden();
+        b.set_length(total);
+        log_progress_lines(&b, "simulate", "walks");
+        return b;
+    }
     let b = ProgressBar::new(total);
     // The bar counts walks (one per sample and direction cell of a backward walk, one per sample
     // of a forward walk), so its rate is in walks per second, said with the unit.
@@ -61,6 +68,38 @@ pub fn progress_bar(exp: &Experiment, progress: bool) -> ProgressBar {
         Err(e) => tracing::debug!("progress bar template: {e}"),
     }
     b
+}
+
+/// For a hidden bar (stderr is not a terminal): a thread that writes a plain line to stderr
+/// each time the count passes a tenth of the total, and at the end (`what: done/total unit
+/// (elapsed s)`); it stops when the bar is finished or dropped.
+pub fn log_progress_lines(b: &ProgressBar, what: &'static str, unit: &'static str) {
+    let weak = b.downgrade();
+    let t0 = std::time::Instant::now();
+    let spawned = std::thread::Builder::new()
+        .name("progress-lines".into())
+        .spawn(move || {
+            let mut next = 1u64;
+            loop {
+                std::thread::sleep(std::time::Duration::from_millis(200));
+                let Some(b) = weak.upgrade() else { return };
+                let (pos, len) = (b.position(), b.length().unwrap_or(0).max(1));
+                let finished = b.is_finished() || pos >= len;
+                if finished || pos * 10 >= next * len {
+                    eprintln!(
+                        "{what}: {pos}/{len} {unit} ({:.1} s)",
+                        t0.elapsed().as_secs_f64()
+                    );
+                    next = pos * 10 / len + 1;
+                }
+                if finished {
+                    return;
+                }
+            }
+        });
+    if let Err(e) = spawned {
+        tracing::debug!("progress lines: {e}");
+    }
 }
 
 /// Never set: the cancellation flag of runs that cannot be cancelled.
