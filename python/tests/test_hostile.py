@@ -192,3 +192,10 @@ def test_signed_zenith_and_per_measure_access():
     assert set(ds.eosim.measures()) == {"toa_pp", "flux"}
     with pytest.raises(KeyError, match="toa_pp"):
         ds.eosim.measure("nope")
+
+
+def test_dict_errors_quote_no_generated_toml():
+    with pytest.raises(eosim.ConfigError) as info:
+        eosim.load(with_(["measures", 0, "zeniths"], [0.0, "30"]))
+    msg = str(info.value)
+    assert "measures[0].zeniths" in msg and "(line " not in msg and " | " not in msg, msg

@@ -91,10 +91,14 @@ impl Experiment {
             } else {
                 String::new()
             };
+            // A dict from Python is written as TOML the user never saw: name the key path
+            // only, without a line of that text.
+            let from_dict = path.file_name().is_some_and(|n| n == "<dict>");
             let line = (!key.is_empty())
                 .then(|| line_of(text, &key))
                 .flatten()
-                .or(toml_line);
+                .or(toml_line)
+                .filter(|_| !from_dict);
             let at = match (key.is_empty(), line) {
                 (false, Some(n)) => format!("at key `{key}` (line {n}): "),
                 (false, None) => format!("at key `{key}`: "),
