@@ -117,7 +117,7 @@ pub(crate) fn names_confined(m: &Manifest, dir: &Path, manifest: &Path) -> Resul
     // The four buffers are four files.
     let buffers = [
         ("terrain.file", m.terrain.file.as_str()),
-        ("templates", super::io::TEMPLATES_FILE),
+        ("templates", super::TEMPLATES_FILE),
         ("instances.file", m.instances.file.as_str()),
         ("material_raster.file", m.material_raster.file.as_str()),
     ];
@@ -252,11 +252,11 @@ pub(crate) fn totals_and_layout(
         }
         at = at.saturating_add((4 - at % 4) % 4);
     }
-    let file_len = len(super::io::TEMPLATES_FILE);
+    let file_len = len(super::TEMPLATES_FILE);
     if at != file_len {
         return Err(bad(format!(
             "the templates describe {at} bytes, {} has {file_len}",
-            super::io::TEMPLATES_FILE
+            super::TEMPLATES_FILE
         )));
     }
     // Instances: one count per template, summing to the total.

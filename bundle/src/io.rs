@@ -102,7 +102,7 @@ pub struct Bundle {
 }
 
 const TERRAIN_FILE: &str = "terrain.bin";
-pub(crate) const TEMPLATES_FILE: &str = "templates.bin";
+use super::TEMPLATES_FILE;
 const INSTANCES_FILE: &str = "instances.bin";
 const MATERIALS_FILE: &str = "materials.u8";
 const MANIFEST_FILE: &str = "manifest.toml";

@@ -48,6 +48,8 @@ pub const FORMAT_VERSION: u32 = 1;
 pub const FORMAT_NAME: &str = "eo-scene-bundle";
 /// Material-raster value meaning "no material" (outside the land-cover data).
 pub const NO_MATERIAL: u8 = 255;
+/// The templates buffer's file name (fixed: the manifest has no key for it).
+pub(crate) const TEMPLATES_FILE: &str = "templates.bin";
 
 /// Errors from reading or writing a bundle; each names the file and what is wrong.
 #[derive(Debug, thiserror::Error)]
