@@ -159,6 +159,31 @@ fn bytes(count: u64, each: u64, what: &str, manifest: &Path) -> Result<u64, Bund
     })
 }
 
+/// Parts `(key, offset, bytes)` of `what` laid back to back from byte `at`: each must start
+/// where the previous one ended. Returns the byte after the last.
+fn back_to_back(mut at: u64, what: &str, parts: &[(&str, u64, u64)]) -> Result<u64, String> {
+    for &(key, off, size) in parts {
+        if off != at {
+            return Err(format!(
+                "{what}: `{key}` = {off}, where the layout puts byte {at}"
+            ));
+        }
+        at = at.saturating_add(size);
+    }
+    Ok(at)
+}
+
+/// The layout of `what` ends at byte `at`, which must be the length `file_len` of `file`.
+fn ends_at(at: u64, what: &str, file: &str, file_len: u64) -> Result<(), String> {
+    if at == file_len {
+        Ok(())
+    } else {
+        Err(format!(
+            "the {what} describe {at} bytes, {file} has {file_len}"
+        ))
+    }
+}
+
 /// The manifest's totals and layout against its own tables and the file sizes `len(name)`.
 pub(crate) fn totals_and_layout(
     m: &Manifest,
@@ -186,7 +211,7 @@ pub(crate) fn totals_and_layout(
     let mut at = 0u64;
     for x in &t.tiles {
         let what = format!("terrain tile {:?}", x.id);
-        let want = [
+        let parts = [
             (
                 "positions_offset",
                 x.positions_offset,
@@ -203,23 +228,10 @@ pub(crate) fn totals_and_layout(
                 bytes(x.triangle_count, 12, &what, manifest)?,
             ),
         ];
-        for (key, off, size) in want {
-            if off != at {
-                return Err(bad(format!(
-                    "{what}: `{key}` = {off}, where the layout puts byte {at}"
-                )));
-            }
-            at = at.saturating_add(size);
-        }
+        at = back_to_back(at, &what, &parts).map_err(bad)?;
     }
-    let file_len = len(&t.file);
-    if at != file_len {
-        return Err(bad(format!(
-            "the terrain tiles describe {at} bytes, {} has {file_len}",
-            t.file
-        )));
-    }
-    // Templates: ids in order, contiguous.
+    ends_at(at, "terrain tiles", &t.file, len(&t.file)).map_err(bad)?;
+    // Templates: ids in order, contiguous, each padded to 4 bytes.
     let mut at = 0u64;
     for (k, x) in m.templates.iter().enumerate() {
         if x.id as usize != k {
@@ -229,7 +241,7 @@ pub(crate) fn totals_and_layout(
             )));
         }
         let what = format!("template {k} ({})", x.name);
-        let offs = [
+        let parts = [
             (
                 "positions_offset",
                 x.positions_offset,
@@ -242,23 +254,11 @@ pub(crate) fn totals_and_layout(
             ),
             ("materials_offset", x.materials_offset, x.triangle_count),
         ];
-        for (key, off, size) in offs {
-            if off != at {
-                return Err(bad(format!(
-                    "{what}: `{key}` = {off}, where the layout puts byte {at}"
-                )));
-            }
-            at = at.saturating_add(size);
-        }
+        at = back_to_back(at, &what, &parts).map_err(bad)?;
         at = at.saturating_add((4 - at % 4) % 4);
     }
-    let file_len = len(super::TEMPLATES_FILE);
-    if at != file_len {
-        return Err(bad(format!(
-            "the templates describe {at} bytes, {} has {file_len}",
-            super::TEMPLATES_FILE
-        )));
-    }
+    let file = super::TEMPLATES_FILE;
+    ends_at(at, "templates", file, len(file)).map_err(bad)?;
     // Instances: one count per template, summing to the total.
     let i = &m.instances;
     if i.per_template.len() != m.templates.len() {

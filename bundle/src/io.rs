@@ -693,17 +693,7 @@ impl Bundle {
         check_georeference(&manifest, &mpath)?;
         // The four buffers, then every tabulated material's table (hashed like the buffers,
         // so a table swapped after the build is refused; its bytes are read by the simulator).
-        let mut names = vec![
-            manifest.terrain.file.as_str(),
-            TEMPLATES_FILE,
-            manifest.instances.file.as_str(),
-            manifest.material_raster.file.as_str(),
-        ];
-        for (_, f) in checks::table_files(&manifest) {
-            if !names.contains(&f) {
-                names.push(f);
-            }
-        }
+        let names = used_files(&manifest);
         let mut files = read_verified(dir, &manifest, &names)?;
         files.truncate(4);
         let lens: Vec<u64> = files.iter().map(|(_, b)| b.len() as u64).collect();
@@ -997,9 +987,34 @@ impl Bundle {
     /// `provenance.files` lists; the bundle read is dropped.
     pub fn verify(dir: &Path) -> Result<(), BundleError> {
         let m = Self::open(dir)?.manifest;
-        let names: Vec<&str> = m.provenance.files.iter().map(|d| d.file.as_str()).collect();
+        // `open` hashed the files it uses; the digests of any others the manifest lists.
+        let used = used_files(&m);
+        let names: Vec<&str> = m
+            .provenance
+            .files
+            .iter()
+            .map(|d| d.file.as_str())
+            .filter(|n| !used.contains(n))
+            .collect();
         read_verified(dir, &m, &names).map(|_| ())
     }
+}
+
+/// The files `Bundle::open` reads and hashes: the four buffers (terrain, templates,
+/// instances, material raster, in that order), then every tabulated material's table.
+fn used_files(m: &Manifest) -> Vec<&str> {
+    let mut names = vec![
+        m.terrain.file.as_str(),
+        TEMPLATES_FILE,
+        m.instances.file.as_str(),
+        m.material_raster.file.as_str(),
+    ];
+    for (_, f) in checks::table_files(m) {
+        if !names.contains(&f) {
+            names.push(f);
+        }
+    }
+    names
 }
 
 /// A buffer whose size differs from the manifest's record.

@@ -123,8 +123,20 @@ fn format_known(known: &[u8]) -> String {
 /// Peak resident memory of this process (VmHWM), bytes; `None` where /proc is not available.
 /// Used by the benchmarks that write (`scenegen bench`) and load (`simulate bench-scene`) bundles.
 pub fn peak_rss_bytes() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with("VmHWM:"))?;
-    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    Some(kb * 1024)
+    kib_field("/proc/self/status", "VmHWM:")
+}
+
+/// A memory figure of this machine from `/proc/meminfo` (`"MemTotal:"`, `"MemAvailable:"`),
+/// bytes; `None` where it is not available. Used by the memory checks of `simulate` (the
+/// run's estimate against the total) and `scenegen` (the build's against what is available).
+pub fn meminfo_bytes(field: &str) -> Option<u64> {
+    kib_field("/proc/meminfo", field)
+}
+
+/// The `field` line (`NAME:  1234 kB`) of a /proc file, in bytes.
+fn kib_field(file: &str, field: &str) -> Option<u64> {
+    let s = std::fs::read_to_string(file).ok()?;
+    let line = s.lines().find(|l| l.starts_with(field))?;
+    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    kib.checked_mul(1024)
 }

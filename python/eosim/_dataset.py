@@ -99,6 +99,13 @@ class EosimAccessor:
 
     def __init__(self, ds: xr.Dataset):
         self._ds = ds
+        self._planes = None
+
+    def _hplanes(self) -> dict:
+        # Parsed from the experiment text once per Dataset (xarray keeps the accessor).
+        if self._planes is None:
+            self._planes = _hplane_azimuths(self._ds)
+        return self._planes
 
     def measures(self) -> dict:
         ids = [str(x) for x in self._ds.measure_id.values]
@@ -114,6 +121,6 @@ class EosimAccessor:
         if "direction" in ds.dims and "direction_measure" in ds.coords:
             keep = np.flatnonzero(ds.direction_measure.values == k)
             out = out.isel(direction=keep)
-            if k in _hplane_azimuths(ds) and "zenith" in out.coords:
+            if k in self._hplanes() and "zenith" in out.coords:
                 out = out.swap_dims(direction="zenith")
         return out

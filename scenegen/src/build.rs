@@ -738,10 +738,7 @@ fn available_memory() -> Option<u64> {
     {
         return Some(v);
     }
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemAvailable:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    kib.checked_mul(1024)
+    bundle::meminfo_bytes("MemAvailable:")
 }
 
 /// Refuse, before placing anything, a build whose memory (instances, DEM, land cover; an

@@ -80,10 +80,7 @@ pub fn estimate(exp: &Experiment) -> MemoryEstimate {
 
 /// Total memory of this machine, bytes (Linux), or None.
 pub fn total_memory() -> Option<u64> {
-    let text = std::fs::read_to_string("/proc/meminfo").ok()?;
-    let line = text.lines().find(|l| l.starts_with("MemTotal:"))?;
-    let kib: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
-    kib.checked_mul(1024)
+    bundle::meminfo_bytes("MemTotal:")
 }
 
 /// Human-readable bytes (MiB or GiB).
