@@ -9,12 +9,14 @@
 //! | `mod.rs` | [`TaskWalks`], the one entry point: what a task builds once (spectral ALIS group tables, CKD ALIS tables), its blocks and its above-scene pool; [`method_for`] |
 //! | `single.rs` | one wavelength (and its CKD g-points): forward or backward, scalar or polarized, layers, shells or a scene |
 //! | `spectral.rs` | spectral ALIS groups: one walk carries every wavelength of a group; the above-scene pool |
+//! | `bands.rs` | sensor bands (`spectral.bands`): each sample walks the set of band nodes its index draws |
 //! | `walks.rs` | the backward block loop shared by all (`backward_block`): streams, first-order splits, the Moon beside the Sun |
 //! | `streams.rs` | the random streams of samples, split walks, the Moon, groups and pools |
 //!
 //! Block boundaries and random streams depend only on sample indices, so a block's sums do not
 //! depend on the thread that runs it.
 
+mod bands;
 mod single;
 mod spectral;
 mod streams;
@@ -30,6 +32,7 @@ pub use crate::accum::Method;
 /// of walks that end where they first go below the scene's top.
 pub use crate::integrator::scene_alis::SceneChannelTally as PoolEntry;
 
+use bands::{band_pool, run_block_bands, BandGroups};
 use single::{alis_layers, run_block};
 use spectral::{above_scene_pool, run_block_spectral, SpectralGroup};
 
@@ -90,6 +93,8 @@ pub struct TaskWalks<'e> {
     group: Vec<usize>,
     im: usize,
     spectral: Option<SpectralGroup>,
+    /// Runs with sensor bands: the group's walks per set of band nodes.
+    bands: Option<BandGroups>,
     ckd_alis: Option<crate::integrator::backward_alis::Layers>,
 }
 
@@ -97,16 +102,21 @@ impl<'e> TaskWalks<'e> {
     /// The task (measure `im`, wavelength indices `group`: one index unless the run walks
     /// spectral ALIS groups).
     pub fn new(exp: &'e Experiment, group: &[usize], im: usize) -> Self {
-        let spectral = exp
-            .integrator
-            .spectral_alis
-            .map(|_| SpectralGroup::new(exp, group));
-        assert!(spectral.is_some() || group.len() == 1);
+        let bands = exp.bands.as_ref().map(|bw| BandGroups::new(bw, group));
+        let spectral = match bands {
+            Some(_) => None,
+            None => exp
+                .integrator
+                .spectral_alis
+                .map(|_| SpectralGroup::new(exp, group)),
+        };
+        assert!(spectral.is_some() || bands.is_some() || group.len() == 1);
         TaskWalks {
             exp,
             group: group.to_vec(),
             im,
             spectral,
+            bands,
             ckd_alis: alis_layers(exp, group[0]),
         }
     }
@@ -119,17 +129,20 @@ impl<'e> TaskWalks<'e> {
     /// Whether the task's blocks take the light above the scene from a pool
     /// ([`pools_above_scene`]; only spectral groups pool).
     pub fn pooled(&self) -> bool {
-        self.spectral.is_some() && pools_above_scene(self.exp, &self.exp.measures[self.im])
+        (self.spectral.is_some() || self.bands.is_some())
+            && pools_above_scene(self.exp, &self.exp.measures[self.im])
     }
 
     /// Entries `range` of the task's above-scene pool (entry `s` serves sample `s` of every
     /// pixel), on streams keyed by the group, the measure and the sample, not the pixel. Empty
     /// when the task does not pool.
     pub fn pool(&self, range: std::ops::Range<u64>) -> Vec<PoolEntry> {
-        match &self.spectral {
-            Some(sg) if self.pooled() => {
-                above_scene_pool(self.exp, sg, &self.group, self.im, range)
-            }
+        if !self.pooled() {
+            return Vec::new();
+        }
+        match (&self.spectral, &self.bands) {
+            (Some(sg), _) => above_scene_pool(self.exp, sg, &self.group, self.im, range),
+            (_, Some(bg)) => band_pool(self.exp, bg, &self.group, self.im, range),
             _ => Vec::new(),
         }
     }
@@ -144,6 +157,9 @@ impl<'e> TaskWalks<'e> {
         range: std::ops::Range<u64>,
         pool: Option<&[PoolEntry]>,
     ) -> Vec<Accum> {
+        if let Some(bg) = &self.bands {
+            return run_block_bands(self.exp, bg, &self.group, self.im, cell, range, pool);
+        }
         match &self.spectral {
             Some(sg) => run_block_spectral(self.exp, sg, &self.group, self.im, cell, range, pool),
             None => vec![run_block(

@@ -100,7 +100,19 @@ pub(super) fn run_block_alis(
             surface_emission: &surface_emission,
         },
     };
-    channel_walks(exp, &g, iw as u64, &[exp.moon_ratio(iw)], im, cell, range)
+    let mut acc = Accum::new(g.outputs());
+    channel_walks(
+        &mut acc,
+        exp,
+        &g,
+        iw as u64,
+        &[exp.moon_ratio(iw)],
+        im,
+        cell,
+        range,
+        None,
+    );
+    acc
 }
 
 pub(super) fn run_block_at(

@@ -17,35 +17,41 @@ use crate::sensor;
 
 use super::streams::{sample_stream, SampleStreams, MOON_STREAM};
 
-/// Backward walks over channels `g` (one accumulator cell per output: the bin mean, or one per
+/// Backward walks over channels `g` into `acc` (one cell per output: the bin mean, or one per
 /// wavelength), stream family `key`; `moon_ratio`: E_moon/E_sun per output (used with the Moon
 /// beside the Sun).
 #[allow(clippy::too_many_arguments)]
 pub(super) fn channel_walks(
+    acc: &mut Accum,
     exp: &Experiment,
     g: &crate::integrator::backward_alis::Channels,
     key: u64,
     moon_ratio: &[f64],
     im: usize,
     cell: usize,
-    range: std::ops::Range<u64>,
-) -> Accum {
+    samples: impl IntoIterator<Item = u64>,
+    factors: Option<&[f64]>,
+) {
     let m = &exp.measures[im];
     let toa = g.reference.toa();
     let ids = [key, im as u64, cell as u64];
     let (geometry, moon) = sun_and_moon(exp, ids, moon_ratio, |dir| {
         ReferenceLayers::new(g, dir).with_sun_shining(exp.sun_shines)
     });
-    backward_block(
+    backward_block_into(
+        acc,
         &geometry,
         moon.as_ref(),
         &exp.integrator,
-        g.outputs(),
-        range,
+        samples,
         SampleStreams::new(exp, ids),
         |rng| Some(sensor::backward_start_altitude(toa, m, cell, rng)),
         |g, _| ChannelPath::new(g),
-        |_, _| {},
+        |_, t| {
+            if let Some(f) = factors {
+                scale::<ChannelPath>(t, f);
+            }
+        },
     )
 }
 
@@ -129,13 +135,33 @@ pub(super) fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
     moon: Option<&'g MoonWalks<'_, G>>,
     settings: &crate::integrator::settings::IntegratorSettings,
     cells: usize,
-    range: std::ops::Range<u64>,
+    samples: impl IntoIterator<Item = u64>,
     streams: SampleStreams,
     start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
     weight: impl Fn(&'g G, DVec3) -> W,
     pool: impl Fn(u64, &mut W::Tally),
 ) -> Accum {
     let mut acc = W::accum(cells);
+    backward_block_into(
+        &mut acc, g, moon, settings, samples, streams, start, weight, pool,
+    );
+    acc
+}
+
+/// [`backward_block`] recording into `acc` (its cells: one, or one per channel).
+#[allow(clippy::too_many_arguments)]
+pub(super) fn backward_block_into<'g, G: Geometry<W>, W: Adjoint>(
+    acc: &mut Accum,
+    g: &'g G,
+    moon: Option<&'g MoonWalks<'_, G>>,
+    settings: &crate::integrator::settings::IntegratorSettings,
+    samples: impl IntoIterator<Item = u64>,
+    streams: SampleStreams,
+    start: impl Fn(&mut Stream) -> Option<(G::Pos, DVec3)>,
+    weight: impl Fn(&'g G, DVec3) -> W,
+    pool: impl Fn(u64, &mut W::Tally),
+) {
+    let cells = acc.n.len();
     if settings.replicates {
         acc.enable_replicates();
     }
@@ -148,7 +174,7 @@ pub(super) fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
         ..settings.clone()
     });
     let ones = vec![1.0; cells.max(1)];
-    for s in range {
+    for s in samples {
         let mut rng = streams.sample(s);
         acc.begin_sample(s);
         let mut t = match start(&mut rng) {
@@ -178,7 +204,13 @@ pub(super) fn backward_block<'g, G: Geometry<W>, W: Adjoint>(
             }
         }
         pool(s, &mut t);
-        W::record(&mut acc, 0, &t, k);
+        W::record(acc, 0, &t, k);
     }
-    acc
+}
+
+/// Multiply every channel's scores of tally `t` by `f` (per channel).
+pub(super) fn scale<W: Adjoint>(t: &mut W::Tally, f: &[f64]) {
+    let mut scaled = W::zero_tally();
+    W::add_tally(&mut scaled, t, f);
+    *t = scaled;
 }

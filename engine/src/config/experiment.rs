@@ -18,6 +18,10 @@ pub struct Experiment {
     pub wavelengths: Vec<f64>,
     /// The sensor band the wavelengths sample, if `spectral.srf` was given.
     pub band: Option<Band>,
+    /// `spectral.bands`: the run's outputs are these bands (`wavelengths` and `optics` then
+    /// hold one entry per band: its effective wavelength and band irradiance), walked by
+    /// spectral Monte Carlo over their nodes (`spectral/bands.rs`).
+    pub bands: Option<super::bands::BandWalks>,
     /// One per wavelength.
     pub optics: Vec<OpticalState>,
     /// Solar zenith and azimuth, radians.

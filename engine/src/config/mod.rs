@@ -23,6 +23,7 @@
 //! the resolvers convert to SI (m, radians) and check ranges. The parts report errors through
 //! [`crate::error::ConfigCtx`], which names the file and the key path.
 
+pub mod bands;
 pub mod diagnostics;
 pub mod experiment;
 pub mod memory;

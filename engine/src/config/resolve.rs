@@ -300,9 +300,28 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
     };
     let ckd = cfg.mode == Mode::Ckd;
     let absorption_data = cfg.atmosphere.as_ref().and_then(|a| a.absorption_data());
-    let (wavelengths, band) = cfg
+    // Sensor bands in mono mode place their nodes by the solar spectrum.
+    let solar = |w: &[f64]| -> Result<Vec<f64>, ConfigError> {
+        let c = ConfigCtx {
+            nw: w.len(),
+            wavelengths: w,
+            ..ctx
+        };
+        let spherical = cfg
+            .geometry
+            .resolve(&c)
+            .map(|g| g.planet_radius.is_some())
+            .unwrap_or(false);
+        Ok(cfg.illumination.resolve(&c, w, spherical)?.irradiance)
+    };
+    let crate::spectral::Sampling {
+        wavelengths,
+        band,
+        bands,
+        centres,
+    } = cfg
         .spectral
-        .resolve(&ctx, cfg.mode, || ckd_bins(&ctx, absorption_data))?;
+        .resolve(&ctx, cfg.mode, || ckd_bins(&ctx, absorption_data), &solar)?;
     let nw = wavelengths.len();
     let ctx = ConfigCtx {
         nw,
@@ -378,6 +397,8 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             emission: cfg.emission,
             atmosphere: atmosphere.layers.iter().any(|l| !l.is_empty()),
             images: measures.iter().any(|m| m.is_image()),
+            bands: !bands.is_empty(),
+            srf: band.is_some(),
         },
     )?;
 
@@ -412,10 +433,12 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         toa,
         planet_radius,
     };
-    let optics = build_optics(&inputs, atmosphere, surfaces)?;
+    let mut optics = build_optics(&inputs, atmosphere, surfaces)?;
 
     let atmospheres: Vec<&PlaneParallel> = optics.iter().map(|o| &o.atmosphere).collect();
-    if let Err(e) = crate::integrator::backward_alis::check_spectral_groups(
+    if !bands.is_empty() {
+        // The bands' sets are checked with them (`config/bands.rs`).
+    } else if let Err(e) = crate::integrator::backward_alis::check_spectral_groups(
         &integrator,
         &ctx,
         &wavelengths,
@@ -437,6 +460,28 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
             ));
         }
     }
+    // The run's outputs: its wavelengths, or its bands.
+    let mut outputs = wavelengths.clone();
+    let band_walks = if bands.is_empty() {
+        None
+    } else {
+        let walks = super::bands::resolve(
+            &ctx,
+            &bands,
+            &centres,
+            &mut outputs,
+            &mut optics,
+            &integrator,
+            sun.zenith_deg,
+        )?;
+        if sun.moon.is_some() {
+            return Err(ctx.err(
+                "spectral.bands",
+                "sensor bands are not rendered with the Moon beside the Sun yet (render the bands by day, or the Moon with `srf`)",
+            ));
+        }
+        Some(walks)
+    };
     // After every check that may turn off the walks that `"auto"` chose.
     check_above_scene(&ctx, &integrator, scene.as_deref(), &sun)?;
     if let Some(b) = &band {
@@ -453,8 +498,9 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         }
     }
     let exp = Experiment {
-        wavelengths,
+        wavelengths: outputs,
         band,
+        bands: band_walks,
         optics,
         sun_zenith: sun.zenith_deg.to_radians(),
         sun_azimuth: sun.azimuth_deg.to_radians(),

@@ -178,9 +178,7 @@ impl SpectralWalk {
     /// would refuse an explicit `"alis"` (solvers, emission, unsupported groups) fall back to
     /// independent walks for `"auto"` ([`IntegratorSettings::spectral_alis_auto`]).
     pub fn resolve_auto(run: &RunShape, kind: IntegratorKind) -> SpectralWalk {
-        let alis_pays = run.scene
-            && run.wavelengths >= 2
-            && !run.ckd
+        let alis_pays = ((run.scene && run.wavelengths >= 2 && !run.ckd && !run.srf) || run.bands)
             && !run.polarized
             && !run.spherical
             && !run.emission
@@ -271,6 +269,12 @@ pub struct RunShape {
     pub atmosphere: bool,
     /// Some measure is an image (ortho or perspective).
     pub images: bool,
+    /// Several sensor bands (`spectral.bands`): their nodes are walked as channels of grouped
+    /// walks (`spectral/bands.rs`), in CKD mode too.
+    pub bands: bool,
+    /// One sensor band (`spectral.srf`): its wavelengths' errors are combined in quadrature,
+    /// so they must be independent walks.
+    pub srf: bool,
 }
 
 impl RunShape {
@@ -358,7 +362,13 @@ impl IntegratorSettings {
             SpectralWalk::Auto | SpectralWalk::Independent => None,
             SpectralWalk::Alis => {
                 let key = "integrator.spectral_walk";
-                if run.ckd {
+                if run.srf {
+                    return Err(ctx.err(
+                        key,
+                        "\"alis\" would correlate the wavelengths of an `srf` band, whose errors are combined as independent: use `spectral.bands = [...]` for grouped walks over sensor bands",
+                    ));
+                }
+                if run.ckd && !run.bands {
                     return Err(ctx.err(
                         key,
                         "is used only with mode = \"mono\" (CKD bins: integrator.ckd_walk = \"alis\")",
@@ -570,6 +580,8 @@ mod tests {
             emission: false,
             atmosphere,
             images,
+            bands: false,
+            srf: false,
         }
     }
 

@@ -4,6 +4,7 @@
 //! (spectral ALIS groups), shared by the resolver and the run driver; solar spectra
 //! (`solar.rs`) and sensors' spectral response functions (`srf.rs`).
 
+pub mod bands;
 pub mod solar;
 pub mod srf;
 
@@ -138,6 +139,12 @@ pub struct SpectralConfig {
     /// A sensor band (embedded SRF name or CSV file): sample it and add band-weighted outputs.
     #[serde(default)]
     pub srf: Option<String>,
+    /// Several sensor bands rendered together, each output a band (`bands.rs`).
+    #[serde(default)]
+    pub bands: Option<Vec<String>>,
+    /// `bands` in mono mode: wavelengths of equal share per band (default 64).
+    #[serde(default)]
+    pub band_nodes: Option<usize>,
     /// nm: spacing of the wavelengths sampling an SRF (default 5).
     #[serde(default)]
     pub wavelength_step: Option<f64>,
@@ -157,9 +164,26 @@ pub struct Band {
     pub weights: Vec<f64>,
 }
 
+/// The solar irradiance (W m⁻² nm⁻¹) at the given wavelengths (nm), as the experiment's
+/// illumination gives it: how sensor bands in mono mode place their nodes.
+pub type SolarAt<'a> = dyn Fn(&[f64]) -> Result<Vec<f64>, ConfigError> + 'a;
+
+/// What `[spectral]` resolves to: the run's wavelengths, the sensor band they sample
+/// (`srf`), or the sensor bands (`bands`, [`bands`]), each with one
+/// weight per run wavelength (zero outside the band).
+#[derive(Clone, Debug)]
+pub struct Sampling {
+    pub wavelengths: Vec<f64>,
+    pub band: Option<Band>,
+    pub bands: Vec<Band>,
+    /// `bands` in mono mode: per band, its effective wavelength and irradiance from the fine
+    /// grid its nodes were drawn on (empty otherwise: computed from the nodes).
+    pub centres: Vec<bands::BandCentre>,
+}
+
 impl SpectralConfig {
-    /// The run's wavelengths (nm) and the sensor band they sample. In CKD mode a sensor band is
-    /// sampled by the bins of the absorption data, which `ckd_bins` reads when it is needed
+    /// The run's wavelengths (nm) and the sensor band(s) they sample. In CKD mode a sensor band
+    /// is sampled by the bins of the absorption data, which `ckd_bins` reads when it is needed
     /// (`None`: bins too wide to sample a band, e.g. RRTMGP's; the band is then sampled every
     /// `wavelength_step` nm). `ctx.nw` is not used.
     pub fn resolve(
@@ -167,7 +191,8 @@ impl SpectralConfig {
         ctx: &ConfigCtx,
         mode: Mode,
         ckd_bins: impl FnOnce() -> Result<Option<Vec<(f64, f64)>>, ConfigError>,
-    ) -> Result<(Vec<f64>, Option<Band>), ConfigError> {
+        irradiance: &SolarAt,
+    ) -> Result<Sampling, ConfigError> {
         let ckd = mode == Mode::Ckd;
         if self.g_point.is_some() && !ckd {
             return Err(ctx.err("spectral.g_point", "is used only with mode = \"ckd\""));
@@ -175,92 +200,122 @@ impl SpectralConfig {
         if self.g_points.is_some() && !ckd {
             return Err(ctx.err("spectral.g_points", "is used only with mode = \"ckd\""));
         }
-        let (wavelengths, band) = match (&self.wavelengths, &self.srf) {
-            (Some(w), None) => {
+        let given = [
+            self.wavelengths.is_some(),
+            self.srf.is_some(),
+            self.bands.is_some(),
+        ];
+        if given.iter().filter(|&&g| g).count() > 1 {
+            return Err(ctx.err(
+                "spectral",
+                "give one of `wavelengths`, `srf` (one sensor band) or `bands` (several), not more",
+            ));
+        }
+        let bins = if ckd && (self.srf.is_some() || self.bands.is_some()) {
+            ckd_bins()?
+        } else {
+            None
+        };
+        let sample = |key: &str, name: &str| -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
+            let srf = load_srf(ctx, key, name)?;
+            self.sample_band(ctx, key, name, &srf, bins.as_deref())
+        };
+        let sampling = match (&self.wavelengths, &self.srf, &self.bands) {
+            (Some(w), _, _) => {
                 if self.wavelength_step.is_some() {
-                    return Err(ctx.err("spectral.wavelength_step", "is used only with `srf`"));
+                    return Err(ctx.err(
+                        "spectral.wavelength_step",
+                        "is used only with `srf` or `bands`",
+                    ));
                 }
-                (w.clone(), None)
+                Sampling {
+                    wavelengths: w.clone(),
+                    band: None,
+                    bands: Vec::new(),
+                    centres: Vec::new(),
+                }
             }
-            (None, Some(name)) => {
-                let srf = match Srf::builtin(name)
-                    .map_err(|e| ctx.err("spectral.srf", e.to_string()))?
-                {
-                    Some(s) => s,
-                    None => {
-                        let fpath = ctx.file(name);
-                        let text = std::fs::read_to_string(&fpath).map_err(|e| {
-                            ctx.err("spectral.srf", format!("\"{name}\" is neither an embedded SRF (e.g. \"sentinel_2a-msi-4\") nor a readable file ({}: {e})", fpath.display()))
-                        })?;
-                        Srf::from_csv(name, &text).map_err(|e| {
-                            ctx.err("spectral.srf", format!("{}: {e}", fpath.display()))
-                        })?
+            (_, Some(name), _) => {
+                let (w, weights) = sample("spectral.srf", name)?;
+                Sampling {
+                    wavelengths: w,
+                    band: Some(Band {
+                        name: name.clone(),
+                        weights,
+                    }),
+                    bands: Vec::new(),
+                    centres: Vec::new(),
+                }
+            }
+            (_, _, Some(names)) => {
+                if names.is_empty() {
+                    return Err(ctx.err("spectral.bands", "must name at least one sensor band"));
+                }
+                for (i, name) in names.iter().enumerate() {
+                    if names[..i].contains(name) {
+                        return Err(ctx.err(
+                            format!("spectral.bands[{i}]"),
+                            format!("\"{name}\" is listed twice"),
+                        ));
                     }
-                };
-                let bins = if ckd { ckd_bins()? } else { None };
-                if let Some(bins) = bins {
+                }
+                if ckd {
+                    if self.band_nodes.is_some() {
+                        return Err(ctx.err(
+                            "spectral.band_nodes",
+                            "is used only with mode = \"mono\": in CKD mode the bins' g-points are the nodes",
+                        ));
+                    }
+                    if bins.is_none() {
+                        return Err(ctx.err(
+                            "atmosphere.absorption_data",
+                            "`spectral.bands` in mode = \"ckd\" needs absorption data with narrow bins (the eradiate v0 file or an axsdb database), not RRTMGP's bands",
+                        ));
+                    }
+                    let mut each = Vec::new();
+                    for (i, name) in names.iter().enumerate() {
+                        each.push(sample(&format!("spectral.bands[{i}]"), name)?);
+                    }
+                    bands::union(names, each)
+                } else {
                     if self.wavelength_step.is_some() {
                         return Err(ctx.err(
                             "spectral.wavelength_step",
-                            "is not used in mode = \"ckd\": the absorption data's bins sample the band",
+                            "is not used with `bands`: each band is sampled at `band_nodes` wavelengths of equal share",
                         ));
                     }
-                    let weights = srf.bin_weights(&bins);
-                    let (mut w, mut wt) = (Vec::new(), Vec::new());
-                    for (&(lo, hi), &x) in bins.iter().zip(&weights) {
-                        if x > 0.0 {
-                            w.push(0.5 * (lo + hi));
-                            wt.push(x);
-                        }
-                    }
-                    if w.is_empty() {
+                    let k = self.band_nodes.unwrap_or(bands::BAND_NODES);
+                    if !(1..=bands::MAX_NODES).contains(&k) {
                         return Err(ctx.err(
-                            "spectral.srf",
-                            format!("band \"{name}\" overlaps no bin of the absorption data"),
+                            "spectral.band_nodes",
+                            format!("{k} must lie in 1 … {}", bands::MAX_NODES),
                         ));
                     }
-                    (
-                        w,
-                        Some(Band {
-                            name: name.clone(),
-                            weights: wt,
-                        }),
-                    )
-                } else {
-                    let step = self.wavelength_step.unwrap_or(5.0);
-                    if !(step > 0.0 && step.is_finite()) {
-                        return Err(ctx.err(
-                            "spectral.wavelength_step",
-                            format!("{step} nm must be positive"),
-                        ));
+                    let mut each = Vec::new();
+                    for (i, name) in names.iter().enumerate() {
+                        let key = format!("spectral.bands[{i}]");
+                        let srf = load_srf(ctx, &key, name)?;
+                        let grid = bands::fine_grid(&srf);
+                        let e0 = irradiance(&grid)?;
+                        each.push(
+                            bands::quantile_nodes(&srf, &grid, &e0, k)
+                                .map_err(|m| ctx.err(key.as_str(), m))?,
+                        );
                     }
-                    let (w, weights) = srf.grid(step).map_err(|e| {
-                        let key = match e {
-                            SpectrumError::TooManyWavelengths { .. } => "spectral.wavelength_step",
-                            _ => "spectral.srf",
-                        };
-                        ctx.err(key, e.to_string())
-                    })?;
-                    (
-                        w,
-                        Some(Band {
-                            name: name.clone(),
-                            weights,
-                        }),
-                    )
+                    bands::union_quantiles(names, each)
                 }
             }
-            (Some(_), Some(_)) => {
-                return Err(ctx.err("spectral", "give either `wavelengths` or `srf`, not both"))
-            }
-            (None, None) => {
-                return Err(ctx.err("spectral", "give `wavelengths` (nm) or a sensor band `srf`"))
+            (None, None, None) => {
+                return Err(ctx.err(
+                    "spectral",
+                    "give `wavelengths` (nm), a sensor band `srf` or sensor bands `bands`",
+                ))
             }
         };
-        if wavelengths.is_empty() {
+        if sampling.wavelengths.is_empty() {
             return Err(ctx.err("spectral.wavelengths", "must list at least one wavelength"));
         }
-        for (i, w) in wavelengths.iter().enumerate() {
+        for (i, w) in sampling.wavelengths.iter().enumerate() {
             if !w.is_finite() || !(MIN_WAVELENGTH_NM..=MAX_WAVELENGTH_NM).contains(w) {
                 return Err(ctx.err(
                     format!("spectral.wavelengths[{i}]"),
@@ -270,8 +325,70 @@ impl SpectralConfig {
                 ));
             }
         }
-        Ok((wavelengths, band))
+        Ok(sampling)
     }
+
+    /// The wavelengths sampling sensor band `srf` (key `key`, named `name`) and their weights:
+    /// the absorption data's bins overlapping it (`bins`, CKD mode) or a grid every
+    /// `wavelength_step` nm.
+    fn sample_band(
+        &self,
+        ctx: &ConfigCtx,
+        key: &str,
+        name: &str,
+        srf: &Srf,
+        bins: Option<&[(f64, f64)]>,
+    ) -> Result<(Vec<f64>, Vec<f64>), ConfigError> {
+        if let Some(bins) = bins {
+            if self.wavelength_step.is_some() {
+                return Err(ctx.err(
+                    "spectral.wavelength_step",
+                    "is not used in mode = \"ckd\": the absorption data's bins sample the band",
+                ));
+            }
+            let weights = srf.bin_weights(bins);
+            let (mut w, mut wt) = (Vec::new(), Vec::new());
+            for (&(lo, hi), &x) in bins.iter().zip(&weights) {
+                if x > 0.0 {
+                    w.push(0.5 * (lo + hi));
+                    wt.push(x);
+                }
+            }
+            if w.is_empty() {
+                return Err(ctx.err(
+                    key,
+                    format!("band \"{name}\" overlaps no bin of the absorption data"),
+                ));
+            }
+            return Ok((w, wt));
+        }
+        let step = self.wavelength_step.unwrap_or(5.0);
+        if !(step > 0.0 && step.is_finite()) {
+            return Err(ctx.err(
+                "spectral.wavelength_step",
+                format!("{step} nm must be positive"),
+            ));
+        }
+        srf.grid(step).map_err(|e| {
+            let key = match e {
+                SpectrumError::TooManyWavelengths { .. } => "spectral.wavelength_step",
+                _ => key,
+            };
+            ctx.err(key, e.to_string())
+        })
+    }
+}
+
+/// Sensor band `name` (key `key`): an embedded SRF or a `wavelength_nm,response` CSV file.
+fn load_srf(ctx: &ConfigCtx, key: &str, name: &str) -> Result<Srf, ConfigError> {
+    if let Some(s) = Srf::builtin(name).map_err(|e| ctx.err(key, e.to_string()))? {
+        return Ok(s);
+    }
+    let fpath = ctx.file(name);
+    let text = std::fs::read_to_string(&fpath).map_err(|e| {
+        ctx.err(key, format!("\"{name}\" is neither an embedded SRF (e.g. \"sentinel_2a-msi-4\") nor a readable file ({}: {e})", fpath.display()))
+    })?;
+    Srf::from_csv(name, &text).map_err(|e| ctx.err(key, format!("{}: {e}", fpath.display())))
 }
 
 /// The wavelength groups of a wavelength list and group size (None: one wavelength each).

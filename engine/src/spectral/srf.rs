@@ -119,7 +119,8 @@ impl Srf {
         })
     }
 
-    fn at(&self, nm: f64) -> f64 {
+    /// The response at `nm` (linear between samples, 0 outside).
+    pub fn at(&self, nm: f64) -> f64 {
         let w = &self.wavelength;
         if nm < w[0] || nm > w[w.len() - 1] {
             return 0.0;

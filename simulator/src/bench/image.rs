@@ -35,8 +35,18 @@ const S2_NATIVE: [(f64, &[f64]); 3] = [
     (60.0, &[443.0, 945.0, 1375.0]),
 ];
 
+/// Sentinel-2 MSI band numbers by native resolution (m), for `--native s2` over runs with
+/// sensor bands (`spectral.bands`, matched by name: `sentinel_2a-msi-8a` is band "8a").
+const S2_NATIVE_BANDS: [(f64, &[&str]); 3] = [
+    (10.0, &["2", "3", "4", "8"]),
+    (20.0, &["5", "6", "7", "8a", "11", "12"]),
+    (60.0, &["1", "9", "10"]),
+];
+
 /// One band's figures.
 struct Band {
+    /// The band's name in runs with sensor bands.
+    name: Option<String>,
     wavelength: f64,
     median_rel: f64,
     spread: f64,
@@ -91,6 +101,7 @@ pub fn run(
             let median_rel = r.acc.median_rel_stderr();
             let spread = median_rel * (n as f64).sqrt();
             Band {
+                name: exp.bands.as_ref().map(|b| b.names[r.wavelength].clone()),
                 wavelength: exp.wavelengths[r.wavelength],
                 median_rel,
                 spread,
@@ -161,10 +172,17 @@ fn native_s2(bands: &[Band], us_per_sample: f64, groups: usize, tile_km: f64, ex
     println!(
         "\nSentinel-2 native resolutions (assumption: CPU per sample ∝ walks per sample, {groups} here):"
     );
-    for (res, centres) in S2_NATIVE {
+    for ((res, centres), (_, numbers)) in S2_NATIVE.iter().zip(S2_NATIVE_BANDS) {
         let members: Vec<&Band> = bands
             .iter()
-            .filter(|b| centres.iter().any(|c| (c - b.wavelength).abs() < 1.0))
+            .filter(|b| match &b.name {
+                // Sensor bands by name (their effective wavelengths are not the nominal centres).
+                Some(n) => {
+                    let number = n.rsplit('-').next().unwrap_or("");
+                    n.starts_with("sentinel_2") && numbers.contains(&number)
+                }
+                None => centres.iter().any(|c| (c - b.wavelength).abs() < 1.0),
+            })
             .collect();
         if members.is_empty() {
             println!("  {res} m: none of its bands is in the experiment");

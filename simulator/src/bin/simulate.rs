@@ -905,9 +905,18 @@ fn write_products(
             img.id, img.width, img.height
         );
         let quantity = if img.has_brf { "BRF" } else { "radiance" };
-        for (w, (b, e, s)) in exp.wavelengths.iter().zip(products::imagery::medians(img)) {
+        for (i, (w, (b, e, s))) in exp
+            .wavelengths
+            .iter()
+            .zip(products::imagery::medians(img))
+            .enumerate()
+        {
+            let band = exp
+                .bands
+                .as_ref()
+                .map_or(String::new(), |bw| format!(" ({})", bw.names[i]));
             println!(
-                "{:<16} {w:>8.2} nm: median {quantity} {}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
+                "{:<16} {w:>8.2} nm{band}: median {quantity} {}, median rel. stderr {:.3}%, median single-scattering fraction {:.3}",
                 img.id,
                 summary_value(b),
                 100.0 * e,

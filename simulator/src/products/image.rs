@@ -33,7 +33,7 @@
 //!
 //! # PNG quicklook (`write_quicklook_png`)
 //!
-//! * **True colour** when the run has wavelengths within ±30 nm of 660, 550 and 440 nm (the closest
+//! * **True colour** when the run has wavelengths within ±55 nm of 660, 550 and 440 nm (Sentinel-2’s 665, 560 and 490 nm bands qualify) (the closest
 //!   to each goes to R, G and B); otherwise **grey** from the wavelength closest to 550 nm (or the
 //!   mean of all channels when the wavelengths are not known: `wavelengths_nm` empty or of another
 //!   length than `channels`).
@@ -273,7 +273,7 @@ fn set_unit(band: &gdal::raster::RasterBand, unit: &str) -> gdal::errors::Result
 
 /// Reference wavelengths (nm) of the true-colour channels R, G, B and the tolerance.
 const RGB_NM: [f64; 3] = [660.0, 550.0, 440.0];
-const RGB_TOLERANCE_NM: f64 = 30.0;
+const RGB_TOLERANCE_NM: f64 = 55.0;
 
 /// Index of the wavelength closest to `target`.
 fn closest(wavelengths_nm: &[f64], target: f64) -> Option<usize> {
@@ -331,7 +331,7 @@ fn fmt_nm(w: f64) -> String {
 
 /// PNG quicklook (8-bit, written atomically). `channels` holds one image per wavelength (same
 /// size, row-major, row 0 north); `wavelengths_nm` their wavelengths. True colour when the run
-/// has wavelengths within ±30 nm of 660, 550 and 440 nm (closest for R, G, B), otherwise grey from
+/// has wavelengths within ±55 nm of 660, 550 and 440 nm (Sentinel-2’s 665, 560 and 490 nm bands qualify) (closest for R, G, B), otherwise grey from
 /// the channel closest to 550 nm (the mean of all channels when the wavelengths are not given).
 /// Common linear stretch from 0 to the 99th percentile of the finite drawn values, then sRGB
 /// gamma; non-finite pixels magenta (colour) or black (grey). Returns a short description of what
@@ -801,7 +801,7 @@ mod tests {
         assert_eq!(img.get_pixel(3, 0).0, [0, 0, 0]);
         assert_eq!(img.get_pixel(0, 0).0, [255, 255, 255]);
         assert!(img.get_pixel(2, 0).0[0] < 255 && img.get_pixel(2, 0).0[0] > 0);
-        // Wavelengths out of the ±30 nm windows: grey from the one closest to 550 nm.
+        // Wavelengths out of the ±55 nm windows: grey from the one closest to 550 nm.
         let d = write_quicklook_png(&path, w, h, &[490.0, 560.0, 865.0], &[&c550, &c550, &nir])?;
         assert!(d.starts_with("grey from 560 nm"), "{d}");
 

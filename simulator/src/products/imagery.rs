@@ -331,9 +331,19 @@ pub fn write_files(
                 .wavelengths
                 .iter()
                 .zip(data.iter())
-                .map(|(w, v)| ImageBand {
-                    name: format!("{name}_{w}nm"),
-                    description: format!("{long} at {w} nm"),
+                .enumerate()
+                .map(|(i, (w, v))| ImageBand {
+                    name: match &exp.bands {
+                        Some(b) => format!("{name}_{}", b.names[i]),
+                        None => format!("{name}_{w}nm"),
+                    },
+                    description: match &exp.bands {
+                        Some(b) => format!(
+                            "{long} in band {} (effective wavelength {w} nm)",
+                            b.names[i]
+                        ),
+                        None => format!("{long} at {w} nm"),
+                    },
                     values: v,
                     unit: units.to_string(),
                     wavelength_nm: Some(*w),
@@ -342,6 +352,9 @@ pub fn write_files(
                 })
                 .collect();
             let mut md = meta.clone();
+            if let Some(b) = &exp.bands {
+                md.push(("bands".into(), b.names.join(",")));
+            }
             md.push(("units".into(), units.into()));
             md.push(("quantity".into(), long.into()));
             md.push((

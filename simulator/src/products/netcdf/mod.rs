@@ -102,7 +102,18 @@ fn write_globals(f: &mut netcdf::FileMut, exp: &Experiment) -> Result<(), netcdf
         v.put_attribute("units", "nm")?;
         v.put_attribute("long_name", "wavelength")?;
         v.put_attribute("standard_name", "radiation_wavelength")?;
+        if let Some(b) = &exp.bands {
+            // Runs with sensor bands: each "wavelength" is a band, at its effective wavelength.
+            v.put_attribute(
+                "comment",
+                "sensor bands (spectral.bands): the effective wavelength of each band, sum(S·λ)/sum(S)",
+            )?;
+            v.put_attribute("band_names", b.names.join(","))?;
+        }
         v.put_values(&exp.wavelengths, ..)?;
+    }
+    if let Some(b) = &exp.bands {
+        f.add_attribute("bands", b.names.join(","))?;
     }
     Ok(())
 }
