@@ -10,6 +10,7 @@ from ._native import ConfigError, SimulationError, __version__
 from ._checks import InputFileNotFoundError
 from .bundles import Bundle, OutputExistsError, build_bundle, open_bundle
 from .experiment import Experiment, load, run
+from ._keys import keys
 from ._sources import read_toml
 from .pics import pics
 
@@ -22,6 +23,7 @@ __all__ = [
     "SimulationError",
     "__version__",
     "build_bundle",
+    "keys",
     "load",
     "open_bundle",
     "pics",
