@@ -12,8 +12,27 @@ from . import _native
 
 
 class InputFileNotFoundError(FileNotFoundError, _native.ConfigError):
-    """An input file (experiment, region, site, acquisitions) that does not exist. Both a
-    ``FileNotFoundError`` and an :class:`eosim.ConfigError`."""
+    """Raised when an input file given to a function does not exist.
+
+    The file may be an experiment, a region, a site, an acquisitions CSV or a bundle folder
+    passed by path. Both a ``FileNotFoundError`` (``errno`` is ``ENOENT``, ``filename`` the
+    path as given) and an :class:`eosim.ConfigError`, so either ``except`` clause catches it.
+    Files named inside an experiment (a phase table, a profile) are reported by a
+    ``ConfigError`` naming their key instead.
+
+    See Also
+    --------
+    ConfigError : Every invalid input.
+
+    Examples
+    --------
+    >>> import eosim
+    >>> try:
+    ...     eosim.load("no_such_experiment.toml")
+    ... except eosim.InputFileNotFoundError as e:
+    ...     print(e.filename, isinstance(e, FileNotFoundError), isinstance(e, eosim.ConfigError))
+    no_such_experiment.toml True True
+    """
 
 
 def count(name: str, value, *, minimum: int = 1) -> Optional[int]:
@@ -35,10 +54,11 @@ def flag(name: str, value) -> bool:
     return value
 
 
-def existing(path, what: str) -> str:
-    """``path`` (str or path-like) if the file exists, else :class:`InputFileNotFoundError`."""
+def existing(path, what: str, accepted: str = "a path") -> str:
+    """``path`` (str or path-like) if the file exists, else :class:`InputFileNotFoundError`;
+    ``TypeError`` saying what the argument may be (``accepted``) for anything else."""
     if not isinstance(path, (str, os.PathLike)):
-        raise TypeError(f"{what} must be a path, a TOML string or a dict, not {type(path).__name__}")
+        raise TypeError(f"{what} must be {accepted}, not {type(path).__name__}")
     p = os.fspath(path)
     if not os.path.exists(p):
         import errno

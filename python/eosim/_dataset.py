@@ -89,12 +89,41 @@ def _signed_zenith(ds: xr.Dataset) -> xr.Dataset:
 
 @xr.register_dataset_accessor("eosim")
 class EosimAccessor:
-    """``ds.eosim``: views of a run's Dataset.
+    """``ds.eosim``: one measure at a time from the Dataset of a run.
 
-    ``ds.eosim.measure("toa")`` is the Dataset of one measure: its directions only (indexed by
-    the signed ``zenith`` for ``hplane`` measures, so ``.brf.plot(x="zenith")`` needs no
-    selection), its per-measure variables as scalars, the run's attributes.
-    ``ds.eosim.measures()`` is ``{id: Dataset}`` for every measure.
+    Importing ``eosim`` registers this accessor on every ``xarray.Dataset``; it serves the
+    results of :func:`eosim.run` and :meth:`Experiment.run` (and a ``results.nc`` reopened
+    with xarray, whose ``measure_id`` and ``direction_measure`` it reads). In a run's
+    Dataset the non-image measures share the dimensions ``measure`` and ``direction``;
+    :meth:`measure` cuts out one of them.
+
+    Parameters
+    ----------
+    ds : xarray.Dataset
+        The Dataset (xarray passes it: write ``ds.eosim``).
+
+    See Also
+    --------
+    eosim.run : Makes such Datasets.
+
+    Examples
+    --------
+    >>> import eosim
+    >>> ds = eosim.run({
+    ...     "spectral": {"wavelengths": [450.0, 550.0]},
+    ...     "atmosphere": {"type": "homogeneous", "optical_thickness": 0.1},
+    ...     "surface": {"type": "lambertian", "reflectance": 0.3},
+    ...     "illumination": {"type": "directional", "zenith": 30.0, "azimuth": 0.0},
+    ...     "measures": [
+    ...         {"id": "pp", "type": "mdistant", "construct": "hplane", "azimuth": 0.0,
+    ...          "zeniths": [-60.0, -30.0, 0.0, 30.0, 60.0]},
+    ...         {"id": "up", "type": "distant_flux"},
+    ...     ],
+    ... }, spp=1000, threads=1, progress=False)
+    >>> ds.eosim.measure("pp").brf.dims
+    ('wavelength', 'zenith')
+    >>> list(ds.eosim.measures())
+    ['pp', 'up']
     """
 
     def __init__(self, ds: xr.Dataset):
@@ -108,10 +137,99 @@ class EosimAccessor:
         return self._planes
 
     def measures(self) -> dict:
+        """Every non-image measure of the run, each as :meth:`measure` gives it.
+
+        Returns
+        -------
+        dict of str to xarray.Dataset
+            ``{measure id: Dataset}``, in the experiment's order.
+
+        See Also
+        --------
+        measure : One measure.
+
+        Examples
+        --------
+        >>> import eosim
+        >>> ds = eosim.run({
+        ...     "spectral": {"wavelengths": [450.0, 550.0]},
+        ...     "atmosphere": {"type": "homogeneous", "optical_thickness": 0.1},
+        ...     "surface": {"type": "lambertian", "reflectance": 0.3},
+        ...     "illumination": {"type": "directional", "zenith": 30.0, "azimuth": 0.0},
+        ...     "measures": [
+        ...         {"id": "pp", "type": "mdistant", "construct": "hplane", "azimuth": 0.0,
+        ...          "zeniths": [-60.0, -30.0, 0.0, 30.0, 60.0]},
+        ...         {"id": "up", "type": "distant_flux"},
+        ...     ],
+        ... }, spp=1000, threads=1, progress=False)
+        >>> parts = ds.eosim.measures()
+        >>> list(parts)
+        ['pp', 'up']
+        >>> parts["pp"].sizes["zenith"], parts["up"].sizes["direction"]
+        (5, 1)
+        """
         ids = [str(x) for x in self._ds.measure_id.values]
         return {i: self.measure(i) for i in ids}
 
     def measure(self, measure_id: str) -> xr.Dataset:
+        """The part of the run's Dataset that belongs to one measure.
+
+        Parameters
+        ----------
+        measure_id : str
+            The measure's ``id``, as in the experiment (``ds.measure_id`` lists them).
+
+        Returns
+        -------
+        xarray.Dataset
+            The measure's directions only, its per-measure variables (``measure_type``,
+            ``flux_altitude``...) as scalars, and the run's attributes. An ``hplane``
+            (principal-plane) measure is indexed by ``zenith``, the view zenith in degrees
+            signed as its ``zeniths`` key gives it (negative on the side opposite its
+            ``azimuth``), so ``.brf.plot(x="zenith")`` draws the plane unfolded; other
+            measures keep the dimension ``direction`` with ``vza`` and ``vaa`` (degrees).
+            Variables of other measures' images are kept as they are.
+
+        Raises
+        ------
+        KeyError
+            If the run has no such measure (the message lists its measures). Image
+            measures (``ortho``, ``perspective``) are not served here: their variables
+            (``ID_brf``...) have dimensions of their own in the Dataset itself.
+
+        See Also
+        --------
+        measures : Every measure at once.
+
+        Examples
+        --------
+        >>> import eosim
+        >>> ds = eosim.run({
+        ...     "spectral": {"wavelengths": [450.0, 550.0]},
+        ...     "atmosphere": {"type": "homogeneous", "optical_thickness": 0.1},
+        ...     "surface": {"type": "lambertian", "reflectance": 0.3},
+        ...     "illumination": {"type": "directional", "zenith": 30.0, "azimuth": 0.0},
+        ...     "measures": [
+        ...         {"id": "pp", "type": "mdistant", "construct": "hplane", "azimuth": 0.0,
+        ...          "zeniths": [-60.0, -30.0, 0.0, 30.0, 60.0]},
+        ...         {"id": "up", "type": "distant_flux"},
+        ...     ],
+        ... }, spp=1000, threads=1, progress=False)
+        >>> pp = ds.eosim.measure("pp")
+        >>> pp.zenith.values.tolist()
+        [-60.0, -30.0, 0.0, 30.0, 60.0]
+        >>> pp.vaa.values.tolist()                     # the far side of the plane
+        [180.0, 180.0, 0.0, 0.0, 0.0]
+        >>> pp.brf.sel(wavelength=550.0, zenith=-30.0).shape
+        ()
+        >>> str(ds.eosim.measure("up").measure_type.values)
+        'distant_flux'
+        >>> try:
+        ...     ds.eosim.measure("toa")
+        ... except KeyError as e:
+        ...     print(e)
+        "no measure 'toa'; the run's measures are ['pp', 'up']"
+        """
         ds = self._ds
         ids = [str(x) for x in ds.measure_id.values]
         if measure_id not in ids:

@@ -26,7 +26,7 @@ def toml_source(source: Source, base_dir: str | os.PathLike | None = None) -> tu
         return _native.dict_to_toml(_eradiate_style(dict(source))), base / "<dict>"
     if isinstance(source, str) and ("\n" in source or "=" in source):
         return source, base / "<string>"
-    path = Path(existing(source, "input file"))
+    path = Path(existing(source, "input file", "a path, a TOML string or a dict"))
     try:
         return path.read_text(encoding="utf-8"), path
     except OSError as e:
@@ -66,10 +66,78 @@ def as_dict(source: Source, base_dir: str | os.PathLike | None = None) -> tuple[
 
 
 def read_toml(source: Source, base_dir: str | os.PathLike | None = None) -> dict:
-    """A TOML file (or TOML string, or dict: copied) as a dict, e.g. to change a few keys of an
-    experiment, site or region file before running it. The dict remembers the folder of the
-    file (its ``base_dir`` attribute), so relative paths inside still resolve when it is
-    passed back; ``base_dir`` given here or to the function it is passed to overrides it."""
+    """Read a TOML file (an experiment, a site or a region) into a dict.
+
+    Use it to change a few keys of a file before running it. The dict remembers the folder
+    of the file (its ``base_dir`` attribute), so the file's relative paths (phase tables,
+    profiles, DEMs) still resolve when the dict is passed to :func:`run`, :func:`load`,
+    :func:`pics` or :func:`build_bundle`, whatever the current folder; a ``base_dir`` given
+    to those functions wins.
+
+    Parameters
+    ----------
+    source : str, os.PathLike or dict
+        The path of a TOML file, TOML text (a string holding ``=`` or a newline), or a dict
+        (copied).
+    base_dir : str or os.PathLike, optional
+        The folder to remember instead of the file's (for a string or a dict, the folder
+        their relative paths are taken from).
+
+    Returns
+    -------
+    dict
+        The TOML document as nested dicts and lists (a ``dict`` subclass with a
+        ``base_dir`` attribute: a ``pathlib.Path``, or None for a string or dict without
+        `base_dir`).
+
+    Raises
+    ------
+    TypeError
+        If `source` is not a path, a string or a dict, or a dict's value has no TOML form.
+    InputFileNotFoundError
+        If the file does not exist.
+    ConfigError
+        If the text is not valid TOML (the message gives the line and column), or the file
+        cannot be read.
+
+    See Also
+    --------
+    load : Validate an experiment (from the dict, a file or a string).
+
+    Examples
+    --------
+    >>> import pathlib, tempfile
+    >>> import eosim
+    >>> folder = tempfile.TemporaryDirectory()
+    >>> f = pathlib.Path(folder.name) / "exp.toml"
+    >>> _ = f.write_text('''
+    ... seed = 3
+    ... [spectral]
+    ... wavelengths = [550.0]
+    ... [surface]
+    ... type = "lambertian"
+    ... reflectance = 0.3
+    ... [illumination]
+    ... type = "directional"
+    ... zenith = 30.0
+    ... [[measures]]
+    ... id = "toa"
+    ... type = "mdistant"
+    ... azimuth = 0.0
+    ... zeniths = [0.0]
+    ... spp = 1000
+    ... ''')
+    >>> d = eosim.read_toml(f)
+    >>> d["seed"], d["surface"]["reflectance"], d["measures"][0]["id"]
+    (3, 0.3, 'toa')
+    >>> d.base_dir == f.parent
+    True
+    >>> d["surface"]["reflectance"] = 0.5
+    >>> ds = eosim.run(d, threads=1, progress=False)
+    >>> float(ds.brf.squeeze())                     # no atmosphere: the ground's BRF
+    0.5
+    >>> folder.cleanup()
+    """
     d, path = as_dict(source, base_dir)
     out = TomlDict(d)
     if base_dir is not None:

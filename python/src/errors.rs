@@ -1,4 +1,5 @@
-//! The package's exceptions and the conversion of the crates' errors into them.
+//! The package's exceptions and the conversion of the crates' errors into them. The Python
+//! layer (`eosim/_errors.py`) replaces the one-line docstrings below with full numpydoc ones.
 
 use pyo3::create_exception;
 use pyo3::exceptions::{PyRuntimeError, PyValueError};

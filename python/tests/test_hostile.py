@@ -48,6 +48,9 @@ ARGUMENTS = [
     ("number as a source", lambda: eosim.load(42), TypeError, r"path, a TOML string or a dict"),
     ("from_dict of a list", lambda: eosim.Experiment.from_dict([1, 2]), TypeError, r"d must be a dict"),
     ("from_toml of bytes", lambda: eosim.Experiment.from_toml(b"seed = 1"), TypeError, r"text must be a str"),
+    ("from_file of a number", lambda: eosim.Experiment.from_file(7), TypeError, r"experiment file must be a path, not int"),
+    ("bundle folder as a number", lambda: eosim.open_bundle(7), TypeError, r"bundle folder must be a path, not int"),
+    ("acquisitions as a number", lambda: eosim.pics(RAYLEIGH, 7, progress=False), TypeError, r"acquisitions must be a CSV file path"),
     ("missing bundle folder", lambda: eosim.open_bundle("no_such_bundle"), FileNotFoundError, r"no_such_bundle"),
     ("missing acquisitions file", lambda: eosim.pics(RAYLEIGH, "no_such.csv", progress=False), FileNotFoundError, r"no_such\.csv"),
     ("negative pics threads", lambda: eosim.pics(RAYLEIGH, [], threads=-2, progress=False), ValueError, r"threads = -2"),
@@ -95,6 +98,13 @@ def test_bad_values_name_the_key(name, d, pattern):
     assert "<dict>" in msg, msg
     for word in ("u64", "f64", "usize", "panicked"):
         assert word not in msg, msg
+
+
+def test_from_file_takes_a_name_holding_equals_as_a_path(tmp_path, monkeypatch):
+    # load() reads a string holding "=" as TOML text; from_file() always reads a file.
+    monkeypatch.chdir(tmp_path)
+    (tmp_path / "tau=0.3.toml").write_text(eosim._native.dict_to_toml(RAYLEIGH))
+    assert eosim.Experiment.from_file("tau=0.3.toml").measures == ["toa_pp", "flux"]
 
 
 def test_existing_bundle_output_says_force_true(tmp_path):
