@@ -47,6 +47,7 @@ pub fn passive_radiance(exp: &Experiment, lidar: &Lidar, k: usize) -> Stat {
         id: format!("{}_background", lidar.id),
         spp: BACKGROUND_SPP,
         target_rel_stderr: None,
+        target_scale: Vec::new(),
         target_fraction: 1.0,
         adaptive: false,
         kind,

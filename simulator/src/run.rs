@@ -357,13 +357,16 @@ fn run_task(
         }
         // Images stop on the pixel error of quantile `target_fraction` (the median by default),
         // other measures on the worst cell (the worst wavelength of a group).
+        // Per-output targets: each output's error in units of the tightest target.
+        let scale = |k: usize| m.target_scale.get(group[k]).copied().unwrap_or(1.0);
         let rel = accs
             .iter()
-            .map(|acc| {
+            .enumerate()
+            .map(|(k, acc)| {
                 if m.is_image() {
-                    acc.quantile_rel_stderr(m.target_fraction)
+                    acc.quantile_rel_stderr(m.target_fraction) / scale(k)
                 } else {
-                    acc.max_rel_stderr()
+                    acc.max_rel_stderr() / scale(k)
                 }
             })
             .fold(0.0, f64::max);
@@ -412,7 +415,8 @@ fn run_task(
                 let c = walk_cells[i] - first_cell;
                 let rel_c = accs
                     .iter()
-                    .map(|acc| acc.cell_rel_stderr(c))
+                    .enumerate()
+                    .map(|(k, acc)| acc.cell_rel_stderr(c) / scale(k))
                     .fold(0.0, f64::max);
                 // A pixel stops only once its error is both small and trusted (its heavy-tail
                 // check, which the run's stop also needs); in the last round (the schedule at

@@ -415,3 +415,40 @@ fn band_config_errors() {
     .to_string();
     assert!(e.contains("spectral.bands") && e.contains("scalar"), "{e}");
 }
+
+/// Per-band targets (`target_rel_stderr` as a list): every band meets its own target, and the
+/// run stops as soon as they all do (a loose target on one band costs nothing); a list of the
+/// wrong length names the key.
+#[test]
+fn per_band_targets() {
+    let bands = bands_list(&["sentinel_2a-msi-2", "sentinel_2a-msi-11"]);
+    let text = text_1d(&bands, 6, 4_000_000, None);
+    let with = |t: &str| {
+        text.replace(
+            "spp = 4000000\n",
+            &format!("spp = 4000000\ntarget_rel_stderr = {t}\n"),
+        )
+    };
+    let rows = run_rows(&experiment(&with("[0.004, 0.02]")));
+    let rel = |r: &Row| r.brf.unwrap().1 / r.brf.unwrap().0;
+    let n = rows[0].n_samples;
+    for r in &rows[..2] {
+        assert!(rel(r) <= 0.004, "band 0: {}", rel(r));
+    }
+    for r in &rows[2..] {
+        assert!(rel(r) <= 0.02, "band 1: {}", rel(r));
+    }
+    // Both at the tighter target take at least as many samples.
+    let both = run_rows(&experiment(&with("0.004")));
+    assert!(both[0].n_samples >= n, "{} < {n}", both[0].n_samples);
+    let err = engine::config::Experiment::from_str(
+        &with("[0.004, 0.02, 0.03]"),
+        &common::data_dir().join("t.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("measures[0].target_rel_stderr") && err.contains("one per band"),
+        "{err}"
+    );
+}

@@ -482,6 +482,17 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         }
         Some(walks)
     };
+    crate::measure::config::finish_targets(
+        &ctx,
+        &measures,
+        // An `srf` run's target is its band's: one number.
+        if band.is_some() { 1 } else { outputs.len() },
+        if band_walks.is_some() || band.is_some() {
+            "band"
+        } else {
+            "wavelength"
+        },
+    )?;
     // After every check that may turn off the walks that `"auto"` chose.
     check_above_scene(&ctx, &integrator, scene.as_deref(), &sun)?;
     if let Some(b) = &band {

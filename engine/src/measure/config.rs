@@ -45,7 +45,8 @@ pub enum MeasureConfig {
         #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
-        target_rel_stderr: Option<f64>,
+        #[serde(deserialize_with = "target_list")]
+        target_rel_stderr: Option<Vec<f64>>,
     },
     /// A georeferenced TOA image of a 3D scene seen from one direction (parallel projection,
     /// orthorectified on the terrain).
@@ -66,7 +67,8 @@ pub enum MeasureConfig {
         spp: u64,
         /// Stop when the **median** relative standard error of the pixels' BRF is at most this.
         #[serde(default)]
-        target_rel_stderr: Option<f64>,
+        #[serde(deserialize_with = "target_list")]
+        target_rel_stderr: Option<Vec<f64>>,
         /// The fraction of pixels that must meet `target_rel_stderr` (default 0.5: the median).
         #[serde(default)]
         target_fraction: Option<f64>,
@@ -92,7 +94,8 @@ pub enum MeasureConfig {
         #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
-        target_rel_stderr: Option<f64>,
+        #[serde(deserialize_with = "target_list")]
+        target_rel_stderr: Option<Vec<f64>>,
         /// As for `ortho`.
         #[serde(default)]
         target_fraction: Option<f64>,
@@ -111,7 +114,8 @@ pub enum MeasureConfig {
         #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
-        target_rel_stderr: Option<f64>,
+        #[serde(deserialize_with = "target_list")]
+        target_rel_stderr: Option<Vec<f64>>,
     },
     DistantFlux {
         id: String,
@@ -124,7 +128,8 @@ pub enum MeasureConfig {
         #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
-        target_rel_stderr: Option<f64>,
+        #[serde(deserialize_with = "target_list")]
+        target_rel_stderr: Option<Vec<f64>>,
     },
     /// The hemispherical–directional reflectance factor at a level of a 1D atmosphere (the
     /// surface by default) in a list of directions laid out as an `mdistant`'s.
@@ -146,7 +151,8 @@ pub enum MeasureConfig {
         #[serde(default = "spp_unset")]
         spp: u64,
         #[serde(default)]
-        target_rel_stderr: Option<f64>,
+        #[serde(deserialize_with = "target_list")]
+        target_rel_stderr: Option<Vec<f64>>,
     },
     /// A pulsed laser and its receiver (`lidar/`): resolved apart from the passive measures
     /// into the experiment's `lidars`.
@@ -199,7 +205,7 @@ pub struct MeasureContext<'a> {
 }
 
 impl MeasureConfig {
-    fn common(&self) -> (&String, u64, Option<f64>) {
+    fn common(&self) -> (&String, u64, Option<&[f64]>) {
         match self {
             MeasureConfig::Mdistant {
                 id,
@@ -236,7 +242,7 @@ impl MeasureConfig {
                 spp,
                 target_rel_stderr,
                 ..
-            } => (id, *spp, *target_rel_stderr),
+            } => (id, *spp, target_rel_stderr.as_deref()),
             MeasureConfig::Lidar(l) => (&l.id, l.spp, None),
         }
     }
@@ -276,10 +282,17 @@ impl MeasureConfig {
         let (id, spp, target) = self.common();
         let (fraction, adaptive) = self.check_sampling(ctx, &key, earlier)?;
         let kind = self.kind(ctx, &key, at)?;
+        // The tightest target drives the rounds; the others are scales of it (checked against
+        // the run's outputs by `finish_targets` once they are known).
+        let tightest = target.map(|t| t.iter().copied().fold(f64::INFINITY, f64::min));
         Ok(Measure {
             id: id.clone(),
             spp,
-            target_rel_stderr: target,
+            target_rel_stderr: tightest,
+            target_scale: target
+                .filter(|t| t.len() > 1)
+                .map(|t| t.iter().map(|x| x / tightest.unwrap_or(1.0)).collect())
+                .unwrap_or_default(),
             target_fraction: fraction.unwrap_or(0.5),
             adaptive: adaptive.unwrap_or(true),
             kind,
@@ -314,12 +327,25 @@ impl MeasureConfig {
                 format!("{spp} must be at least 2 (a standard error needs two samples)"),
             ));
         }
-        if let Some(t) = target {
-            if !(t > 0.0 && t < 1.0) {
+        if let Some(list) = target {
+            if list.is_empty() {
                 return Err(ctx.err(
                     format!("{key}.target_rel_stderr"),
-                    format!("{t} must lie in (0, 1)"),
+                    "must be a number or list one per wavelength (or band) of the run",
                 ));
+            }
+            for (i, &t) in list.iter().enumerate() {
+                if !(t > 0.0 && t < 1.0) {
+                    let at = if list.len() > 1 {
+                        format!("[{i}]")
+                    } else {
+                        String::new()
+                    };
+                    return Err(ctx.err(
+                        format!("{key}.target_rel_stderr{at}"),
+                        format!("{t} must lie in (0, 1)"),
+                    ));
+                }
             }
         }
         let (fraction, adaptive) = match self {
@@ -864,6 +890,49 @@ fn camera(
         width,
         height,
     })
+}
+
+/// `target_rel_stderr`: a number, or a list with one per output of the run (wavelength, or
+/// band with `spectral.bands`).
+fn target_list<'de, D: serde::Deserializer<'de>>(d: D) -> Result<Option<Vec<f64>>, D::Error> {
+    #[derive(serde::Deserialize)]
+    #[serde(untagged)]
+    enum T {
+        One(f64),
+        Many(Vec<f64>),
+    }
+    Ok(Some(
+        match T::deserialize(d).map_err(|_| {
+            serde::de::Error::custom(
+                "expected a number or a list of numbers, one per wavelength or band",
+            )
+        })? {
+            T::One(x) => vec![x],
+            T::Many(v) => v,
+        },
+    ))
+}
+
+/// Per-output targets (`target_rel_stderr` as a list) checked against the run's `outputs`
+/// (wavelengths, or bands): one value each.
+pub fn finish_targets(
+    ctx: &ConfigCtx,
+    measures: &[Measure],
+    outputs: usize,
+    what: &str,
+) -> Result<(), ConfigError> {
+    for (i, m) in measures.iter().enumerate() {
+        if !m.target_scale.is_empty() && m.target_scale.len() != outputs {
+            return Err(ctx.err(
+                format!("measures[{i}].target_rel_stderr"),
+                format!(
+                    "lists {} targets: give one number, or one per {what} of the run ({outputs})",
+                    m.target_scale.len()
+                ),
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// With a sensor band, `target_rel_stderr` is the target of the band-weighted result: each of

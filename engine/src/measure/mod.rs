@@ -43,8 +43,12 @@ pub struct Measure {
     pub id: String,
     /// Samples per direction (the maximum when `target_rel_stderr` is set).
     pub spp: u64,
-    /// Stop once every direction's relative standard error is at most this (optional).
+    /// Stop once every direction's relative standard error is at most this (optional; with
+    /// per-output targets, the tightest of them).
     pub target_rel_stderr: Option<f64>,
+    /// Per-output targets (`target_rel_stderr` given as a list, one per wavelength or band):
+    /// each output's target over the tightest (≥ 1); empty when one target serves all.
+    pub target_scale: Vec<f64>,
     /// Images: the fraction of pixels that must meet `target_rel_stderr` (0.5: the median
     /// pixel; 1: every pixel); other measures: every cell must (the value is not used).
     pub target_fraction: f64,
