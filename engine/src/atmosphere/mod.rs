@@ -557,14 +557,11 @@ impl PlaneParallel {
     }
 }
 
-/// `expm1(x)/x`, continuous at 0.
+/// `(expm1(x), expm1(x)/x)`, the second continuous at 0.
 #[inline]
-pub(crate) fn exprel(x: f64) -> f64 {
-    if x.abs() < 1e-8 {
-        1.0 + 0.5 * x
-    } else {
-        x.exp_m1() / x
-    }
+fn expm1_rel(x: f64) -> (f64, f64) {
+    let m = x.exp_m1();
+    (m, if x.abs() < 1e-8 { 1.0 + 0.5 * x } else { m / x })
 }
 
 impl PlaneParallel {
@@ -612,35 +609,62 @@ impl PlaneParallel {
         }
         let a = 1.0 / dz.abs();
         // Runs of layers with equal optics: in optical depth the integrand does not see the
-        // boundaries between them, so one integral serves the run.
+        // boundaries between them, so one integral serves the run. The integrand's value at a
+        // run's start comes from the previous run's end when they meet (one `expm1` per run,
+        // not an `exp` and an `expm1`: atmospheres with absorption have a run per layer).
         let tau = &self.tau;
         if dz < 0.0 {
-            // Downwards: runs from the one holding tau_a to the bottom.
+            // Downwards: runs from the one holding tau_a to the bottom. e(t) = e^{−a(t−τa)−bt}.
+            let k = a + b;
+            let mut carried: Option<(f64, f64)> = None; // (t, e(t)) at the last run's end
             for r in &self.runs {
                 let (t1, t2) = (tau[r.lo].max(tau_a).max(tau_lo), tau[r.hi].min(tau_hi));
                 if t2 <= t1 {
                     continue;
                 }
                 let d = t2 - t1;
-                let i = a * (-a * (t1 - tau_a) - b * t1).exp() * d * exprel(-(a + b) * d);
-                f(r.rep, i);
+                let e1 = match carried {
+                    Some((t, e)) if t == t1 => e,
+                    _ => (-a * (t1 - tau_a) - b * t1).exp(),
+                };
+                let (m, rel) = expm1_rel(-k * d);
+                f(r.rep, a * e1 * d * rel);
+                carried = Some((t2, e1 * (1.0 + m)));
             }
         } else {
-            // Upwards: runs from the one holding tau_a to the top.
-            for r in &self.runs {
-                let (t1, t2) = (tau[r.lo].max(tau_lo), tau[r.hi].min(tau_a).min(tau_hi));
+            // Upwards: runs from the one holding tau_a to the top, ∫_{t1}^{t2} a e^{−a(τa−τ)}
+            // e^{−bτ} dτ. With a > b the integrand grows with τ: anchored at each run's lower
+            // end (t2), carried upwards through the runs in decreasing τ; otherwise at t1.
+            let k = a - b;
+            let mut carried: Option<(f64, f64)> = None;
+            let run = |r: &Run| (tau[r.lo].max(tau_lo), tau[r.hi].min(tau_a).min(tau_hi));
+            let mut visit = |r: &Run, f: &mut dyn FnMut(usize, f64)| {
+                let (t1, t2) = run(r);
                 if t2 <= t1 {
-                    continue;
+                    return;
                 }
                 let d = t2 - t1;
-                // ∫_{t1}^{t2} a e^{−a(τa−τ)} e^{−bτ} dτ, anchored at the end where the integrand
-                // is largest so that the exponentials cannot overflow.
-                let i = if a > b {
-                    a * (-a * (tau_a - t2) - b * t2).exp() * d * exprel(-(a - b) * d)
+                let (anchor, other, x) = if a > b {
+                    (t2, t1, -k * d)
                 } else {
-                    a * (-a * (tau_a - t1) - b * t1).exp() * d * exprel((a - b) * d)
+                    (t1, t2, k * d)
                 };
-                f(r.rep, i);
+                let e = match carried {
+                    Some((t, e)) if t == anchor => e,
+                    _ => (-a * (tau_a - anchor) - b * anchor).exp(),
+                };
+                let (m, rel) = expm1_rel(x);
+                f(r.rep, a * e * d * rel);
+                carried = Some((other, e * (1.0 + m)));
+            };
+            if a > b {
+                for r in self.runs.iter().rev() {
+                    visit(r, &mut f);
+                }
+            } else {
+                for r in &self.runs {
+                    visit(r, &mut f);
+                }
             }
         }
     }

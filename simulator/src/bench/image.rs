@@ -6,7 +6,9 @@
 //! prints, per band:
 //! * the median relative standard error σ at `n` samples, and the per-sample spread `σ·√n`
 //!   (the relative standard deviation of one sample of the median pixel);
-//! * the samples per pixel to reach `--target` at the median pixel, `n_t = (σ√n / target)²`;
+//! * the samples per pixel to reach `--target` at the median pixel, `n_t = (σ√n / target)²`
+//!   (per band: `--target` times the band's target over the tightest when the measure lists
+//!   per-band targets, `target_rel_stderr = [...]`);
 //! * the CPU per sample of all bands together: `(CPU of the run − CPU of the set-up) / (pixels
 //!   × n)`, process CPU (every thread), so the figure does not depend on the thread count;
 //!
@@ -48,6 +50,8 @@ struct Band {
     /// The band's name in runs with sensor bands.
     name: Option<String>,
     wavelength: f64,
+    /// Its target (`--target`, times its scale when the experiment lists per-band targets).
+    target: f64,
     median_rel: f64,
     spread: f64,
     n_target: f64,
@@ -100,12 +104,16 @@ pub fn run(
         .map(|r| {
             let median_rel = r.acc.median_rel_stderr();
             let spread = median_rel * (n as f64).sqrt();
+            // Per-band targets in the experiment (`target_rel_stderr` as a list) scale `target`
+            // as they scale the tightest of them.
+            let t = target * m.target_scale.get(r.wavelength).copied().unwrap_or(1.0);
             Band {
                 name: exp.bands.as_ref().map(|b| b.names[r.wavelength].clone()),
                 wavelength: exp.wavelengths[r.wavelength],
                 median_rel,
                 spread,
-                n_target: (spread / target).powi(2),
+                target: t,
+                n_target: (spread / t).powi(2),
             }
         })
         .collect();
@@ -130,16 +138,18 @@ pub fn run(
         rayon::current_num_threads()
     );
     println!(
-        "\n{:>9} {:>12} {:>14} {:>16}",
-        "band nm", "median σ %", "spread σ√n", "spp for target"
+        "\n{:>9} {:>12} {:>14} {:>9} {:>16}  band",
+        "band nm", "median σ %", "spread σ√n", "target %", "spp for target"
     );
     for b in &bands {
         println!(
-            "{:>9.1} {:>12.3} {:>14.4} {:>16.0}",
+            "{:>9.1} {:>12.3} {:>14.4} {:>9.2} {:>16.0}  {}",
             b.wavelength,
             100.0 * b.median_rel,
             b.spread,
-            b.n_target.ceil()
+            100.0 * b.target,
+            b.n_target.ceil(),
+            b.name.as_deref().unwrap_or("")
         );
     }
     let worst = bands
@@ -147,8 +157,12 @@ pub fn run(
         .max_by(|a, b| a.n_target.total_cmp(&b.n_target))
         .expect("at least one band");
     println!(
-        "\nto {:.2} % at the median pixel of every band: {:.0} samples per pixel (set by {} nm)",
-        100.0 * target,
+        "\nto {} at the median pixel of every band: {:.0} samples per pixel (set by {:.1} nm)",
+        if m.target_scale.is_empty() {
+            format!("{:.2} %", 100.0 * target)
+        } else {
+            "its target".to_string()
+        },
         worst.n_target.ceil(),
         worst.wavelength
     );
