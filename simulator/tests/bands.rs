@@ -27,14 +27,6 @@ use common::bundles::{tmp, write_two_material_slope};
 use common::{check_all, experiment, run_on_1_and_2_threads, run_rows, Cmp};
 use simulator::products::{band_rows, Row};
 
-fn ckd_file() -> Option<PathBuf> {
-    let p = std::env::var_os("SIMULATOR_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"))
-        .join("ckd/eradiate_v0_ckd/afgl1986-us_standard-10nm.nc");
-    p.exists().then_some(p)
-}
-
 /// A 1D experiment: `spectral` is the body of the `[spectral]` table, `ckd` the absorption
 /// file in CKD mode.
 fn text_1d(spectral: &str, seed: u64, spp: u64, ckd: Option<&Path>) -> String {
@@ -101,6 +93,15 @@ fn compare_with_srf(
     check_all(case, &cmps).unwrap();
 }
 
+/// The `srf` run of every band of `bands`, from its experiment text `text(index, band)`.
+fn srf_runs(bands: &[&str], text: impl Fn(usize, &str) -> String) -> Vec<(Vec<Row>, f64)> {
+    bands
+        .iter()
+        .enumerate()
+        .map(|(i, b)| srf_rows(&text(i, b)))
+        .collect()
+}
+
 /// The `srf` run of a band as rows shaped like a band run's (band BRF and radiance), and its
 /// band irradiance.
 fn srf_rows(text: &str) -> (Vec<Row>, f64) {
@@ -113,25 +114,11 @@ fn srf_rows(text: &str) -> (Vec<Row>, f64) {
         .map(|b| Row {
             measure: b.measure,
             kind: b.kind,
-            method: "backward",
-            wavelength_nm: 0.0,
             vza: b.vza,
             vaa: b.vaa,
             radiance: b.radiance,
             brf: b.brf,
-            brf_single: None,
-            brf_multiple: None,
-            albedo: None,
-            flux: None,
-            flux_direct: None,
-            flux_diffuse: None,
-            hdrf: None,
-            brf_q: None,
-            brf_u: None,
-            brf_v: None,
-            dolp: None,
-            brightness_temperature: None,
-            n_samples: 0,
+            ..Row::default()
         })
         .collect();
     (rows, e0)
@@ -198,18 +185,14 @@ fn bands_equal_their_srf_quadrature() {
         exp.wavelengths
     );
     let band_run = run_rows(&exp);
-    let srf: Vec<(Vec<Row>, f64)> = bands
-        .iter()
-        .enumerate()
-        .map(|(i, b)| {
-            srf_rows(&text_1d(
-                &format!("srf = \"{b}\"\nwavelength_step = 2.0"),
-                10 + i as u64,
-                20_000,
-                None,
-            ))
-        })
-        .collect();
+    let srf = srf_runs(&bands, |i, b| {
+        text_1d(
+            &format!("srf = \"{b}\"\nwavelength_step = 2.0"),
+            10 + i as u64,
+            20_000,
+            None,
+        )
+    });
     compare_with_srf(
         "mono bands vs srf runs",
         &bands,
@@ -221,25 +204,21 @@ fn bands_equal_their_srf_quadrature() {
 
 #[test]
 fn ckd_bands_equal_their_srf_quadrature() {
-    let Some(file) = ckd_file() else {
+    let Some(file) = common::ckd_v0_file() else {
         eprintln!("skipped: shared data folder not found");
         return;
     };
     let bands = ["sentinel_2a-msi-3", "sentinel_2a-msi-9"];
     let exp = experiment(&text_1d(&bands_list(&bands), 2, 400_000, Some(&file)));
     let band_run = run_rows(&exp);
-    let srf: Vec<(Vec<Row>, f64)> = bands
-        .iter()
-        .enumerate()
-        .map(|(i, b)| {
-            srf_rows(&text_1d(
-                &format!("srf = \"{b}\""),
-                20 + i as u64,
-                16 * 4096,
-                Some(&file),
-            ))
-        })
-        .collect();
+    let srf = srf_runs(&bands, |i, b| {
+        text_1d(
+            &format!("srf = \"{b}\""),
+            20 + i as u64,
+            16 * 4096,
+            Some(&file),
+        )
+    });
     compare_with_srf(
         "CKD bands vs srf runs",
         &bands,
@@ -257,7 +236,7 @@ fn ckd_bands_equal_their_srf_quadrature() {
 /// (band, direction) pairs the bounds [0.8, 1.25] are about 3.5σ.
 #[test]
 fn band_errors_are_honest() {
-    let Some(file) = ckd_file() else {
+    let Some(file) = common::ckd_v0_file() else {
         eprintln!("skipped: shared data folder not found");
         return;
     };
@@ -331,18 +310,14 @@ fn band_scene_equals_srf_runs() {
         &AREA.replace("SPP", "40000"),
     ));
     let band_run = run_rows(&exp);
-    let srf: Vec<(Vec<Row>, f64)> = bands
-        .iter()
-        .enumerate()
-        .map(|(i, name)| {
-            srf_rows(&scene_text(
-                &format!("srf = \"{name}\"\nwavelength_step = 5.0"),
-                &b,
-                30 + i as u64,
-                &AREA.replace("SPP", "8000"),
-            ))
-        })
-        .collect();
+    let srf = srf_runs(&bands, |i, name| {
+        scene_text(
+            &format!("srf = \"{name}\"\nwavelength_step = 5.0"),
+            &b,
+            30 + i as u64,
+            &AREA.replace("SPP", "8000"),
+        )
+    });
     compare_with_srf(
         "scene bands vs srf runs",
         &bands,

@@ -4,17 +4,9 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 use common::{check_all, experiment, run_rows, Cmp};
-
-fn ckd_file() -> Option<PathBuf> {
-    let p = std::env::var_os("SIMULATOR_SHARED_DATA")
-        .map(PathBuf::from)
-        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"))
-        .join("ckd/eradiate_v0_ckd/afgl1986-us_standard-10nm.nc");
-    p.exists().then_some(p)
-}
 
 fn text(file: &Path, seed: u64, wavelength: f64, g_point: Option<usize>, spp: u64) -> String {
     let g = g_point.map_or(String::new(), |g| format!("g_point = {g}\n"));
@@ -36,7 +28,7 @@ fn text(file: &Path, seed: u64, wavelength: f64, g_point: Option<usize>, spp: u6
 /// 750 nm bin's.
 #[test]
 fn ckd_run_equals_the_g_point_quadrature() {
-    let Some(file) = ckd_file() else {
+    let Some(file) = common::ckd_v0_file() else {
         eprintln!("skipped: shared data folder not found");
         return;
     };
@@ -112,7 +104,7 @@ fn ckd_run_equals_the_g_point_quadrature() {
 /// bins, a correlated-k file without `mode = "ckd"`, a g-point index out of range.
 #[test]
 fn ckd_errors_name_the_key() {
-    let Some(file) = ckd_file() else {
+    let Some(file) = common::ckd_v0_file() else {
         eprintln!("skipped: shared data folder not found");
         return;
     };
@@ -143,7 +135,7 @@ fn ckd_errors_name_the_key() {
 /// is larger than the default round growth).
 #[test]
 fn ckd_rounds_are_whole_g_cycles() {
-    let Some(file) = ckd_file() else {
+    let Some(file) = common::ckd_v0_file() else {
         eprintln!("skipped: shared data folder not found");
         return;
     };
@@ -166,7 +158,7 @@ fn ckd_rounds_are_whole_g_cycles() {
 /// of the per-bin rows. `wavelength_step` is refused (bins are the sampling).
 #[test]
 fn ckd_band_is_sampled_by_bins() {
-    let Some(file) = ckd_file() else {
+    let Some(file) = common::ckd_v0_file() else {
         eprintln!("skipped: shared data folder not found");
         return;
     };

@@ -14,7 +14,7 @@ use crate::integrator::scene_alis::SceneChannelTally;
 use crate::optics::OpticalState;
 use crate::spectral::bands::{BandDraws, Sets};
 
-use super::spectral::{group_walks, pool_entry, SpectralGroup};
+use super::spectral::{group_walks, pool_entry, split_cells, SpectralGroup};
 use super::streams::{GROUP_STREAM, POOL_STREAM};
 
 /// What a task of band group `group` (band indices) builds once: the group's sets
@@ -88,13 +88,7 @@ pub(super) fn run_block_bands(
             Some(factors),
         );
     }
-    (0..group.len())
-        .map(|c| {
-            let mut a = Accum::new(1);
-            a.merge_cell(0, &all, c);
-            a
-        })
-        .collect()
+    split_cells(&all)
 }
 
 /// Entries `range` of the above-scene pool of ortho measure `im` over bands `group`: entry `s`

@@ -96,10 +96,15 @@ pub(super) fn run_block_spectral(
     group_walks(
         &mut all, exp, sg, &opts, key, &ratio, im, cell, range, pool, None,
     );
-    (0..group.len())
+    split_cells(&all)
+}
+
+/// One accumulator per cell of `all` (one per wavelength or band of a group).
+pub(super) fn split_cells(all: &Accum) -> Vec<Accum> {
+    (0..all.n.len())
         .map(|c| {
             let mut a = Accum::new(1);
-            a.merge_cell(0, &all, c);
+            a.merge_cell(0, all, c);
             a
         })
         .collect()

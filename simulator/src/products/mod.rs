@@ -102,7 +102,7 @@ pub fn write_all(
 }
 
 /// One output row: one measure, wavelength and direction.
-#[derive(Clone, Debug)]
+#[derive(Clone, Debug, Default)]
 pub struct Row {
     pub measure: String,
     pub kind: &'static str,
@@ -216,23 +216,8 @@ pub fn rows(exp: &Experiment, results: &[MeasureResult]) -> Vec<Row> {
                 kind: m.type_name(),
                 method: r.method.name(),
                 wavelength_nm: exp.wavelengths[r.wavelength],
-                vza: None,
-                vaa: None,
-                radiance: None,
-                brf: None,
-                brf_single: None,
-                brf_multiple: None,
-                albedo: None,
-                flux: None,
-                flux_direct: None,
-                flux_diffuse: None,
-                hdrf: None,
-                brf_q: None,
-                brf_u: None,
-                brf_v: None,
-                dolp: None,
-                brightness_temperature: None,
                 n_samples: r.acc.n[c],
+                ..Row::default()
             };
             if r.acc.is_polarized() && !m.is_flux() {
                 use engine::integrator::{Q, U, V};

@@ -13,6 +13,16 @@ pub fn data_dir() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data")
 }
 
+/// The eradiate v0 CKD file of the shared data folder (`SIMULATOR_SHARED_DATA` or
+/// `../shared/data`), if present.
+pub fn ckd_v0_file() -> Option<PathBuf> {
+    let p = std::env::var_os("SIMULATOR_SHARED_DATA")
+        .map(PathBuf::from)
+        .unwrap_or_else(|| Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/data"))
+        .join("ckd/eradiate_v0_ckd/afgl1986-us_standard-10nm.nc");
+    p.exists().then_some(p)
+}
+
 pub fn experiment(text: &str) -> Experiment {
     // Relative paths in test experiments are taken from tests/data.
     Experiment::from_str(text, &data_dir().join("test.toml"))
