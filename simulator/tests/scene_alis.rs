@@ -268,11 +268,14 @@ fn bench_image_projects_from_what_it_measured() {
             .lines()
             .find(|l| l.trim_start().starts_with(w))
             .unwrap_or_else(|| panic!("no row for {w}:\n{stdout}"));
+        // nm, median σ %, spread, target %, spp for target (no band name: wavelengths).
         let v: Vec<f64> = line
             .split_whitespace()
             .map(|x| x.parse().unwrap())
             .collect();
-        let (sigma, spread, n_t) = (v[1] / 100.0, v[2], v[3]);
+        assert_eq!(v.len(), 5, "{line}");
+        assert_eq!(v[3], 1.0, "{line}");
+        let (sigma, spread, n_t) = (v[1] / 100.0, v[2], v[4]);
         assert!((spread - sigma * 8.0).abs() < 2e-4, "{line}");
         assert!(
             (n_t - (sigma * 8.0 / 0.01f64).powi(2)).abs() <= 1.0 + 2e-3 * n_t,
