@@ -4,7 +4,7 @@
 
 use crate::atmosphere::PlaneParallel;
 use crate::error::{ConfigCtx, ConfigError};
-use crate::integrator::backward_alis::{group_reference, Layers};
+use crate::integrator::backward_alis::unsupported_group;
 use crate::integrator::settings::IntegratorSettings;
 use crate::optics::OpticalState;
 use crate::spectral::bands::{BandCentre, BandDraws, MAX_NODES};
@@ -157,9 +157,7 @@ pub(super) fn resolve(
         for set in &walks.sets(&g).nodes {
             let atms: Vec<&PlaneParallel> =
                 set.iter().map(|&n| &walks.nodes[n].atmosphere).collect();
-            let central = IntegratorSettings::reference_member(&atms, true);
-            let reference = group_reference(atms[central], &atms);
-            if let Some(i) = Layers::unsupported_layer(&reference, &atms) {
+            if let Some((i, _)) = unsupported_group(&atms, true) {
                 return Err(ctx.err(
                     "spectral.bands",
                     format!(

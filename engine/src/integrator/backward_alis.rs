@@ -1228,6 +1228,15 @@ impl<'a> Geometry<ChannelPath<'a>> for ReferenceLayers<'a> {
     }
 }
 
+/// The first layer (from the top) where some channel of a walk over `atms` scatters but the
+/// walk's reference does not, and the reference's member, if any: such a walk would miss
+/// paths. `scene`: the reference is chosen as 3D scene walks choose it.
+pub fn unsupported_group(atms: &[&PlaneParallel], scene: bool) -> Option<(usize, usize)> {
+    let member = IntegratorSettings::reference_member(atms, scene);
+    let reference = group_reference(atms[member], atms);
+    Layers::unsupported_layer(&reference, atms).map(|i| (i, member))
+}
+
 /// Spectral ALIS (`integrator.spectral_walk = "alis"`): each group's reference (its central wavelength's scattering) must scatter
 /// wherever one of its wavelengths does, or the walks would miss paths. `atmospheres` holds
 /// the atmosphere of every run wavelength.
@@ -1243,9 +1252,8 @@ pub fn check_spectral_groups(
     };
     for group in crate::spectral::wavelength_groups_of(wavelengths, Some(n)) {
         let atms: Vec<&PlaneParallel> = group.iter().map(|&iw| atmospheres[iw]).collect();
-        let central = group[IntegratorSettings::reference_member(&atms, scene)];
-        let reference = group_reference(atmospheres[central], &atms);
-        if let Some(i) = Layers::unsupported_layer(&reference, &atms) {
+        if let Some((i, member)) = unsupported_group(&atms, scene) {
+            let central = group[member];
             return Err(ctx.err(
                 "integrator.spectral_walk",
                 format!(
