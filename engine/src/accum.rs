@@ -44,6 +44,14 @@ pub struct Accum {
     /// The replicate of the samples being added (set per sample by the walks; not stored).
     #[serde(skip)]
     pub rep_now: Option<usize>,
+    /// An independent estimate added to every cell's mean, with the variance of its mean,
+    /// `[cell * ncomp + component]` (empty: none): the lamps' light of nadir ortho images from
+    /// forward photons (`integrator/lamp_photons.rs`), whose batches' scatter gives its error.
+    /// [`Accum::mean_stderr`] adds the mean and the variance to the samples' own.
+    #[serde(default)]
+    pub extra_mean: Vec<f64>,
+    #[serde(default)]
+    pub extra_var: Vec<f64>,
 }
 
 /// Independent scramblings per cell in quasi-random runs (see [`Accum::rep_sum`]).
@@ -92,6 +100,8 @@ impl Accum {
             rep_n: Vec::new(),
             rep_sum: Vec::new(),
             rep_now: None,
+            extra_mean: Vec::new(),
+            extra_var: Vec::new(),
         }
     }
 
@@ -108,6 +118,8 @@ impl Accum {
             rep_n: Vec::new(),
             rep_sum: Vec::new(),
             rep_now: None,
+            extra_mean: Vec::new(),
+            extra_var: Vec::new(),
         }
     }
 
@@ -155,7 +167,24 @@ impl Accum {
                 self.rep_sum.len()
             ));
         }
+        if !(self.extra_mean.is_empty() && self.extra_var.is_empty())
+            && (self.extra_mean.len() != cells * nc || self.extra_var.len() != cells * nc)
+        {
+            return Err(format!(
+                "added estimates of the wrong length ({} means, {} variances for {cells} cells)",
+                self.extra_mean.len(),
+                self.extra_var.len()
+            ));
+        }
+        if let Some(i) = self.extra_var.iter().position(|&v| v < 0.0) {
+            return Err(format!(
+                "`extra_var`[{i}] = {} is negative",
+                self.extra_var[i]
+            ));
+        }
         let all = [
+            ("extra_mean", &self.extra_mean),
+            ("extra_var", &self.extra_var),
             ("sum", &self.sum),
             ("sum2", &self.sum2),
             ("sum3", &self.sum3),
@@ -217,6 +246,18 @@ impl Accum {
             }
         }
         Ok(())
+    }
+
+    /// Add an independent estimate (mean `mean`, variance of that mean `var`) to component `k`
+    /// of `cell` ([`Accum::extra_mean`]).
+    pub fn add_extra(&mut self, cell: usize, k: usize, mean: f64, var: f64) {
+        if self.extra_mean.is_empty() {
+            self.extra_mean = vec![0.0; self.n.len() * self.ncomp];
+            self.extra_var = vec![0.0; self.n.len() * self.ncomp];
+        }
+        let o = cell * self.ncomp + k;
+        self.extra_mean[o] += mean;
+        self.extra_var[o] += var;
     }
 
     /// Keep per-replicate sums (quasi-random runs); the walks then set [`Accum::rep_now`] to
@@ -340,6 +381,8 @@ impl Accum {
         self.sum4.iter_mut().for_each(|x| *x *= (f * f) * (f * f));
         self.max.iter_mut().for_each(|x| *x *= f.abs());
         self.rep_sum.iter_mut().for_each(|x| *x *= f);
+        self.extra_mean.iter_mut().for_each(|x| *x *= f);
+        self.extra_var.iter_mut().for_each(|x| *x *= f * f);
     }
 
     /// The heavy-tail diagnostic of the total in `cell`; `None` with fewer than
@@ -416,6 +459,12 @@ impl Accum {
         for (a, b) in self.max.iter_mut().zip(&other.max) {
             *a = a.max(*b);
         }
+        for c in 0..other.extra_mean.len() / other.ncomp.max(1) {
+            for k in 0..other.ncomp {
+                let o = c * other.ncomp + k;
+                self.add_extra(c, k, other.extra_mean[o], other.extra_var[o]);
+            }
+        }
         if !other.rep_n.is_empty() {
             self.enable_replicates();
             for (a, b) in self.rep_n.iter_mut().zip(&other.rep_n) {
@@ -443,6 +492,12 @@ impl Accum {
         self.sum3[to] += other.sum3[from];
         self.sum4[to] += other.sum4[from];
         self.max[to] = self.max[to].max(other.max[from]);
+        if !other.extra_mean.is_empty() {
+            for j in 0..k {
+                let o = from * k + j;
+                self.add_extra(to, j, other.extra_mean[o], other.extra_var[o]);
+            }
+        }
         if !other.rep_n.is_empty() {
             self.enable_replicates();
             for r in 0..REPLICATES {
@@ -464,15 +519,19 @@ impl Accum {
             return (f64::NAN, f64::NAN);
         }
         let o = cell * self.ncomp + k;
+        let (xm, xv) = match (self.extra_mean.get(o), self.extra_var.get(o)) {
+            (Some(&a), Some(&b)) => (a, b),
+            _ => (0.0, 0.0),
+        };
         let m = self.sum[o] / n;
         if let Some(v) = self.replicate_cov(cell, k, k) {
-            return (m, v.max(0.0).sqrt());
+            return (m + xm, (v.max(0.0) + xv).sqrt());
         }
         if n < 2.0 {
-            return (m, f64::NAN);
+            return (m + xm, f64::NAN);
         }
         let var = ((self.sum2[o] / n - m * m) * n / (n - 1.0)).max(0.0);
-        (m, (var / n).sqrt())
+        (m + xm, (var / n + xv).sqrt())
     }
 
     /// Covariance of the means of (I, Q), (I, U) or (Q, U) (`pair` = 0, 1, 2) in `cell`.

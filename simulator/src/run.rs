@@ -197,6 +197,64 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
         .collect()
 }
 
+/// Add the forward lamp photons' image of measure `im` at wavelength `iw` to `acc` (cells
+/// `tile` of the measure): [`engine::blocks::LAMP_BATCHES`] independent batches, run in
+/// parallel and summed in batch order (thread-count independent); their mean, and its
+/// variance from their scatter, go into `acc`'s added estimates (`Accum::add_extra`).
+fn add_lamp_photons(
+    exp: &Experiment,
+    iw: usize,
+    im: usize,
+    tile: std::ops::Range<usize>,
+    acc: &mut Accum,
+    cancel: &AtomicBool,
+) {
+    use engine::accum::{MULTIPLE, SINGLE, TOTAL};
+    let t0 = std::time::Instant::now();
+    let nb = engine::blocks::LAMP_BATCHES;
+    let cells = exp.measures[im].cell_count();
+    // Per cell: sums over batches of (single, multiple, total) and of their squares.
+    let mut s1 = vec![0.0; 3 * cells];
+    let mut s2 = vec![0.0; 3 * cells];
+    let batches: Vec<u64> = (0..nb).collect();
+    // A few batches at a time: each holds a whole image.
+    for chunk in batches.chunks(rayon::current_num_threads().max(1)) {
+        let parts: Vec<Vec<f64>> = chunk
+            .par_iter()
+            .map(|&b| {
+                if cancel.load(Ordering::Relaxed) {
+                    return Vec::new();
+                }
+                engine::blocks::lamp_batch(exp, iw, im, b)
+            })
+            .collect();
+        for part in parts.iter().filter(|p| !p.is_empty()) {
+            for c in 0..cells {
+                let (a, b) = (part[2 * c], part[2 * c + 1]);
+                for (j, x) in [a, b, a + b].into_iter().enumerate() {
+                    s1[3 * c + j] += x;
+                    s2[3 * c + j] += x * x;
+                }
+            }
+        }
+    }
+    let n = nb as f64;
+    for (i, c) in tile.enumerate() {
+        for (j, k) in [SINGLE, MULTIPLE, TOTAL].into_iter().enumerate() {
+            let m = s1[3 * c + j] / n;
+            let var = ((s2[3 * c + j] / n - m * m) * n / (n - 1.0)).max(0.0) / n;
+            acc.add_extra(i, k, m, var);
+        }
+    }
+    tracing::info!(
+        "measure `{}` at {} nm: lamps by forward photons, {} batches in {:.1} s",
+        exp.measures[im].id,
+        exp.wavelengths[iw],
+        nb,
+        t0.elapsed().as_secs_f64()
+    );
+}
+
 /// The most blocks one round of a task lists at once.
 const MAX_ROUND_BLOCKS: u64 = 1 << 18;
 /// Blocks run in parallel before their sums are merged (and their accumulators freed).
@@ -263,6 +321,7 @@ fn run_task(
     };
     let unit = bs * cycle as u64;
     let first_cell = tile.start;
+    let tile_cells = tile.clone();
     let (cells, walk_cells): (usize, Vec<usize>) = if method == Method::Forward {
         (m.cell_count(), vec![0])
     } else {
@@ -276,6 +335,11 @@ fn run_task(
         }
     };
     let mut accs: Vec<Accum> = group.iter().map(|_| new_acc()).collect();
+    if exp.lamp_photon_pixels(m).is_some() {
+        for (acc, &iw) in accs.iter_mut().zip(group) {
+            add_lamp_photons(exp, iw, im, tile_cells.clone(), acc, cancel);
+        }
+    }
     let mut done = 0u64;
     // Rounds: the whole budget at once, or growing rounds until the target is met.
     let mut next = match m.target_rel_stderr {

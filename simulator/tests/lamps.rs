@@ -370,3 +370,155 @@ fn emitting_materials_shine_in_closed_form() {
     assert!(e.contains("scene.emitters.windw"), "{e}");
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Nadir ortho images of a bundle take their lamps' light from forward photons
+/// (`integrator/lamp_photons.rs`): per pixel mean, standard error and sample count.
+fn image_cells(exp: &engine::config::Experiment) -> Vec<(f64, f64)> {
+    let res = simulator::run::run(exp, false);
+    let to_rad = exp.optics[0].irradiance * exp.mu_norm() / PI;
+    let acc = &res[0].acc;
+    (0..acc.n.len())
+        .map(|c| {
+            let (m, e) = acc.mean_stderr(c, engine::accum::TOTAL);
+            (m * to_rad, e * to_rad)
+        })
+        .collect()
+}
+
+const WINDOW: &str = "window_m = [499950.0, 3999950.0, 500050.0, 4000050.0]";
+
+/// One isotropic lamp 30 m over a Lambertian plane without air, a 100 m nadir image at 10 m:
+/// every pixel against `ρ/(π·A)·∫ I h/r³ dA` over its square (midpoint quadrature), by the
+/// forward photons' batch errors; the errors' scale against the residuals.
+#[test]
+fn forward_photons_match_the_closed_form_over_a_plane() {
+    let dir = tmp("lamp-photons-plane");
+    let (rho, i0, h) = (0.4, 250.0, 30.0);
+    let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, rho));
+    let text = format!(
+        "{NIGHT}[scene]\ntype = \"bundle\"\npath = \"{}\"\n[integrator]\nlamp_photons = 131072\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [500000.0, 4000000.0, {h}]\nintensity = {i0}\n\
+         [[measures]]\ntype = \"ortho\"\nid = \"img\"\npixel_size_m = 10.0\n{WINDOW}\nspp = 32\n",
+        plane.display()
+    );
+    let exp = experiment(&text);
+    assert!(exp.lamp_photon_pixels(&exp.measures[0]).is_some());
+    let px = image_cells(&exp);
+    assert_eq!(px.len(), 100);
+    let (mut zs, mut worst) = (Vec::new(), 0.0f64);
+    for (c, (l, e)) in px.iter().enumerate() {
+        let (col, row) = ((c % 10) as f64, (c / 10) as f64);
+        let (x0, y1) = (-50.0 + 10.0 * col, 50.0 - 10.0 * row);
+        let n = 60;
+        let mut sum = 0.0;
+        for i in 0..n {
+            for j in 0..n {
+                let x = x0 + (i as f64 + 0.5) * 10.0 / n as f64;
+                let y = y1 - (j as f64 + 0.5) * 10.0 / n as f64;
+                let r2 = x * x + y * y + h * h;
+                sum += i0 * h / (r2 * r2.sqrt());
+            }
+        }
+        let want = rho / PI * sum / (n * n) as f64;
+        let z = (l - want) / e;
+        worst = worst.max(((l - want) / want).abs());
+        assert!(
+            (l - want).abs() <= K * e + 1e-9 * want,
+            "pixel {c}: {l:.6e} ± {e:.1e} vs closed form {want:.6e} (z = {z:+.2})"
+        );
+        zs.push(z);
+    }
+    let mean = zs.iter().sum::<f64>() / zs.len() as f64;
+    let rms = (zs.iter().map(|z| z * z).sum::<f64>() / zs.len() as f64).sqrt();
+    println!("100 pixels against the closed form: z mean {mean:+.3}, RMS {rms:.3}, largest relative difference {worst:.2e}");
+    assert!(
+        mean.abs() < 0.5 && (0.6..1.5).contains(&rms),
+        "z mean {mean}, RMS {rms}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A bundle with a reflecting plate, six lamps of three kinds and a scattering layer: the
+/// nadir image by forward photons (the default) against the backward walks' next-event
+/// estimates of every lamp (`lamp_estimator = "backward"`, `lamp_sampling = "all"`), pixel by
+/// pixel (z on the difference); the forward image is the same on 1 and 2 threads; and over 16
+/// seeds the forward errors are honest (scatter of the seeds' pixel values against the
+/// reported errors).
+#[test]
+fn forward_photons_agree_with_backward_walks() {
+    let dir = tmp("lamp-photons-plate");
+    let plane = write_plane(&dir, &flat_plane(1000.0, 0.0, -500.0, 0.3));
+    let b = with_plate(
+        &plane,
+        &dir.join("b"),
+        (15.0, -10.0, 3.0),
+        12.0,
+        7,
+        "plate",
+        lambertian(0.6),
+        None,
+    );
+    let lamps = "[[lights]]\ntype = \"point\"\nposition_m = [499970.0, 4000020.0, 8.0]\nintensity = 60.0\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [500035.0, 4000030.0, 8.0]\nintensity = 90.0\nprofile = { type = \"cosine_power\", exponent = 1.5 }\n\
+         [[lights]]\ntype = \"spot\"\nposition_m = [500000.0, 3999960.0, 9.0]\nintensity = 150.0\ncone_angle = 50.0\nfalloff_angle = 30.0\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [499940.0, 3999990.0, 8.0]\nintensity = 40.0\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [500060.0, 3999970.0, 6.0]\nintensity = \"hps\"\nluminous_intensity_cd = 500\nprofile = { type = \"cosine_power\", exponent = 1 }\n\
+         [[lights]]\ntype = \"point\"\nposition_m = [500010.0, 4000000.0, 10.0]\nintensity = 30.0\n";
+    let text = |seed: u64, integrator: &str, spp: u64| {
+        format!(
+            "seed = {seed}\n[spectral]\nwavelengths = [590.0]\n[illumination]\ntype = \"none\"\n\
+             [integrator]\n{integrator}\n\
+             [geometry]\ntype = \"plane_parallel\"\ntoa_altitude = 2.0\n[atmosphere]\ntype = \"homogeneous\"\noptical_thickness = 0.2\nphase = {{ type = \"rayleigh\" }}\n\
+             [scene]\ntype = \"bundle\"\npath = \"{}\"\n{lamps}\
+             [[measures]]\ntype = \"ortho\"\nid = \"img\"\npixel_size_m = 20.0\n{WINDOW}\nspp = {spp}\n",
+            b.display()
+        )
+    };
+    let fwd_exp = experiment(&text(1, "lamp_photons = 4096", 16));
+    let fwd = image_cells(&fwd_exp);
+    let back = image_cells(&experiment(&text(
+        2,
+        "lamp_estimator = \"backward\"\nlamp_sampling = \"all\"",
+        16_000,
+    )));
+    let mut zs = Vec::new();
+    for (c, ((a, ea), (b, eb))) in fwd.iter().zip(&back).enumerate() {
+        let z = (a - b) / (ea * ea + eb * eb).sqrt();
+        println!(
+            "pixel {c:2}: forward {a:.5e} ± {ea:.1e}, backward {b:.5e} ± {eb:.1e}: z = {z:+.2}"
+        );
+        assert!(z.abs() < K, "pixel {c}: z = {z}");
+        zs.push(z);
+    }
+    let n = zs.len() as f64;
+    let mean = zs.iter().sum::<f64>() / n;
+    let rms = (zs.iter().map(|z| z * z).sum::<f64>() / n).sqrt();
+    println!("{n} pixels, forward against backward: z mean {mean:+.3}, RMS {rms:.3}");
+    assert!(
+        mean.abs() < 0.6 && (0.6..1.4).contains(&rms),
+        "z mean {mean}, RMS {rms}"
+    );
+
+    // Thread-count independence.
+    let (one, two) = run_on_1_and_2_threads(&fwd_exp);
+    assert_eq!(
+        one[0].acc, two[0].acc,
+        "the forward image depends on the thread count"
+    );
+
+    // Honest errors: 16 seeds at the default photon count.
+    let seeds: Vec<Vec<(f64, f64)>> = (0..16)
+        .map(|s| image_cells(&experiment(&text(100 + s, "", 16))))
+        .collect();
+    let (mut scatter2, mut reported2) = (0.0, 0.0);
+    for c in 0..seeds[0].len() {
+        let v: Vec<f64> = seeds.iter().map(|p| p[c].0).collect();
+        let m = v.iter().sum::<f64>() / v.len() as f64;
+        scatter2 += v.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / (v.len() - 1) as f64;
+        reported2 += seeds.iter().map(|p| p[c].1 * p[c].1).sum::<f64>() / v.len() as f64;
+    }
+    let ratio = (scatter2 / reported2).sqrt();
+    println!("16 seeds: scatter over seeds / reported error, pooled over pixels: {ratio:.3}");
+    assert!((0.85..1.15).contains(&ratio), "scatter/reported {ratio}");
+    let _ = std::fs::remove_dir_all(&dir);
+}

@@ -10,6 +10,7 @@
 //! | `single.rs` | one wavelength (and its CKD g-points): forward or backward, scalar or polarized, layers, shells or a scene |
 //! | `spectral.rs` | spectral ALIS groups: one walk carries every wavelength of a group; the above-scene pool |
 //! | `bands.rs` | sensor bands (`spectral.bands`): each sample walks the set of band nodes its index draws |
+//! | `lamp_photons.rs` | one batch of forward lamp photons for a nadir ortho image |
 //! | `walks.rs` | the backward block loop shared by all (`backward_block`): streams, first-order splits, the Moon beside the Sun |
 //! | `streams.rs` | the random streams of samples, split walks, the Moon, groups and pools |
 //!
@@ -17,6 +18,7 @@
 //! depend on the thread that runs it.
 
 mod bands;
+mod lamp_photons;
 mod single;
 mod spectral;
 mod streams;
@@ -33,6 +35,7 @@ pub use crate::accum::Method;
 pub use crate::integrator::scene_alis::SceneChannelTally as PoolEntry;
 
 use bands::{band_pool, run_block_bands, BandGroups};
+pub use lamp_photons::{lamp_batch, LAMP_BATCHES};
 use single::{alis_layers, run_block};
 use spectral::{above_scene_pool, run_block_spectral, SpectralGroup};
 

@@ -227,10 +227,14 @@ pub(super) fn run_block_with<F: Photon, B: Adjoint + AtSensor>(
                     scene_in_layers(exp, sun, &opt.atmosphere, opt, opt.scene_emission.as_ref())
                 });
                 // Lamps light the Sun's walks only, not the Moon's beside them.
+                // Forward photons carry the point lamps of nadir ortho images
+                // (`blocks/lamp_photons.rs`).
+                let points = exp.lamp_photon_pixels(m).is_none();
                 g.lamps = exp.lamps.as_deref().map(|lamps| LampLight {
                     lamps,
                     iw,
                     scale: 1.0 / opt.irradiance,
+                    points,
                 });
                 backward_block::<_, B>(
                     &g,

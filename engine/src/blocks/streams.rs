@@ -18,6 +18,10 @@ pub(super) const GROUP_STREAM: u64 = 1 << 62;
 /// by the group, the measure and the sample index, not the pixel.
 pub(super) const POOL_STREAM: u64 = 1 << 60;
 
+/// Tag of the streams of forward lamp photons (`blocks/lamp_photons.rs`): keyed by wavelength,
+/// measure, batch and lamp.
+pub(super) const LAMP_STREAM: u64 = 1 << 58;
+
 /// Tag of the streams of first-order split walks (`integrator.first_order_splits`): they are
 /// independent of the samples' own walks.
 pub(super) const SPLIT_STREAM: u64 = 1 << 59;

@@ -80,6 +80,41 @@ impl Experiment {
         }
     }
 
+    /// The pixels of measure `m` when forward photons carry its lamps' light
+    /// (`integrator/lamp_photons.rs`): a nadir `ortho` image of a flat-frame scene (not bent
+    /// onto the planet) without rough dielectric interfaces (their radiance transmission is not
+    /// reciprocal), in a run with point lamps and `integrator.lamp_estimator` not
+    /// `"backward"`. `None`: the backward walks' next-event estimates carry them.
+    pub fn lamp_photon_pixels(
+        &self,
+        m: &Measure,
+    ) -> Option<crate::integrator::lamp_photons::NadirPixels> {
+        use crate::sources::lamps::LampEstimator;
+        let lamps = self.lamps.as_deref()?;
+        if lamps.lamps.is_empty() || lamps.estimator == LampEstimator::Backward {
+            return None;
+        }
+        let crate::measure::MeasureKind::Ortho(g) = &m.kind else {
+            return None;
+        };
+        let scene = self.scene.as_deref()?;
+        let rough = self.optics.iter().any(|o| {
+            o.scene_models
+                .iter()
+                .any(|s| matches!(s, crate::scene::material::SurfaceModel::Dielectric(_)))
+        });
+        if g.vza != 0.0 || scene.curvature.is_some() || rough || self.planet_radius.is_some() {
+            return None;
+        }
+        Some(crate::integrator::lamp_photons::NadirPixels {
+            x0: g.geotransform[0],
+            y1: g.geotransform[3],
+            pixel: g.geotransform[1],
+            width: g.width,
+            height: g.height,
+        })
+    }
+
     /// The cosine that normalises samples and BRFs: cos SZA when the Sun is above the target's
     /// horizon, else 1 (twilight in spherical shells: radiance only, no BRF).
     pub fn mu_norm(&self) -> f64 {

@@ -534,6 +534,20 @@ pub fn resolve(cfg: ExperimentConfig, text: &str, path: &Path) -> Result<Experim
         source_text: text.to_string(),
         source_path: path.to_path_buf(),
     };
+    if let Some(l) = exp.lamps.as_deref() {
+        if l.estimator == crate::sources::lamps::LampEstimator::Forward {
+            if let Some(k) = exp
+                .measures
+                .iter()
+                .position(|m| exp.lamp_photon_pixels(m).is_none())
+            {
+                return Err(ctx.err(
+                    "integrator.lamp_estimator",
+                    format!("\"forward\" serves nadir ortho images of scenes without rough dielectrics, not measures[{k}] (`{}`): use \"auto\" (forward photons where they apply, backward walks elsewhere)", exp.measures[k].id),
+                ));
+            }
+        }
+    }
     super::memory::check(&exp, super::memory::total_memory())?;
     Ok(exp)
 }
@@ -753,6 +767,16 @@ fn resolve_lamps(
         }
         lamps.samples = k;
     }
+    if let Some(n) = cfg.integrator.lamp_photons {
+        if !(16..=1_000_000).contains(&n) {
+            return Err(ctx.err(
+                "integrator.lamp_photons",
+                format!("{n} must be an integer in 16..=1000000"),
+            ));
+        }
+        lamps.photons = n;
+    }
+    lamps.estimator = cfg.integrator.lamp_estimator;
     tracing::info!("{} lamps", lamps.lamps.len());
     Ok(Some(Arc::new(lamps)))
 }

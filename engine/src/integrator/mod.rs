@@ -32,6 +32,7 @@ pub mod backward_alis;
 pub mod forward;
 pub mod forward_emission;
 pub mod geometry;
+pub mod lamp_photons;
 pub mod peak_sampling;
 pub mod scene_alis;
 pub mod settings;

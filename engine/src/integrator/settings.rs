@@ -241,6 +241,13 @@ pub struct IntegratorConfig {
     /// Lamps: lamps drawn per next-event estimate at a surface (1–64, default 1).
     #[serde(default)]
     pub lamp_samples: Option<u32>,
+    /// Lamps: `"auto"` (default: forward photons for nadir ortho images), `"backward"` or
+    /// `"forward"` (`integrator/lamp_photons.rs`).
+    #[serde(default)]
+    pub lamp_estimator: crate::sources::lamps::LampEstimator,
+    /// Lamps: forward photons per lamp and wavelength (16–10⁶, default 256).
+    #[serde(default)]
+    pub lamp_photons: Option<u32>,
 }
 
 /// Most first-order walks per sample (`integrator.first_order_splits`).

@@ -63,6 +63,8 @@ fn sums_digest(key: &str, first_cell: usize, acc: &Accum) -> String {
         &acc.sum4,
         &acc.max,
         &acc.rep_sum,
+        &acc.extra_mean,
+        &acc.extra_var,
     ] {
         eat(&(v.len() as u64).to_le_bytes());
         v.iter().for_each(|x| eat(&x.to_bits().to_le_bytes()));

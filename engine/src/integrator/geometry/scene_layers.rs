@@ -73,6 +73,9 @@ pub struct LampLight<'a> {
     pub iw: usize,
     /// 1/E0: lamp radiances in tally units.
     pub scale: f64,
+    /// Whether the walks estimate the point lamps (false where forward photons carry them,
+    /// `integrator/lamp_photons.rs`: only emitting materials are then seen here).
+    pub points: bool,
 }
 
 impl SceneInLayers<'_> {
@@ -139,7 +142,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
         let Some(l) = &self.lamps else {
             return 0.0;
         };
-        if l.lamps.lamps.is_empty() {
+        if l.lamps.lamps.is_empty() || !l.points {
             return 0.0;
         }
         let (u0, u1) = (rng.next_f64(), rng.next_f64());
@@ -233,7 +236,7 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
             .and_then(|e| e.get(l.iw))
             .copied()
             .unwrap_or(0.0);
-        if l.lamps.lamps.is_empty() {
+        if l.lamps.lamps.is_empty() || !l.points {
             return own * l.scale;
         }
         // One-sided surfaces take light from the viewer's side only (leaves and dielectrics

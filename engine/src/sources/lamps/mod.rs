@@ -195,7 +195,7 @@ impl Lamp {
     }
 
     /// `∫ shape dΩ` over the sphere, sr.
-    fn solid_angle(&self) -> f64 {
+    pub fn solid_angle(&self) -> f64 {
         use std::f64::consts::PI;
         match &self.profile {
             Profile::Isotropic => 4.0 * PI,
@@ -208,6 +208,23 @@ impl Lamp {
         }
     }
 }
+
+/// Which estimator carries the lamps' light (`integrator.lamp_estimator`).
+#[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
+#[serde(rename_all = "snake_case")]
+pub enum LampEstimator {
+    /// Forward photons for nadir ortho images (`integrator/lamp_photons.rs`), next-event
+    /// estimates in the backward walks for every other measure.
+    #[default]
+    Auto,
+    /// Next-event estimates in the backward walks for every measure.
+    Backward,
+    /// Forward photons; every measure must be a nadir ortho image.
+    Forward,
+}
+
+/// Default `integrator.lamp_photons`: photons per lamp and wavelength.
+pub const LAMP_PHOTONS: u32 = 256;
 
 /// How the walks pick lamps (`integrator.lamp_sampling`).
 #[derive(Clone, Copy, Debug, Default, Deserialize, PartialEq)]
@@ -228,6 +245,11 @@ pub struct Lamps {
     pub sampling: LampSampling,
     /// Lamps drawn per next-event estimate at a surface (`integrator.lamp_samples`), averaged.
     pub samples: u32,
+    /// `integrator.lamp_estimator`.
+    pub estimator: LampEstimator,
+    /// `integrator.lamp_photons`: forward photons per lamp (on average, in proportion to its
+    /// power) and wavelength.
+    pub photons: u32,
     /// Emitting scene materials (`scene.emitters`): per material id, the radiance its surfaces
     /// send in every direction at each run wavelength, W m⁻² sr⁻¹ nm⁻¹ (empty: none).
     pub emitters: Vec<Vec<f64>>,
@@ -284,6 +306,8 @@ impl Lamps {
             lamps,
             sampling,
             samples: 1,
+            estimator: LampEstimator::Auto,
+            photons: LAMP_PHOTONS,
             emitters: Vec::new(),
         })
     }
