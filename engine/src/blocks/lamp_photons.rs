@@ -49,8 +49,10 @@ pub fn lamp_batch(exp: &Experiment, iw: usize, im: usize, batch: u64) -> Vec<f64
         None,
     ))
     .normalization;
-    let n = lamps.photons.div_ceil(LAMP_BATCHES as u32).max(1);
-    let k = norm / opt.irradiance * mean_power / f64::from(n) / (px.pixel * px.pixel);
+    // Photons per lamp of mean power in this batch (may be below 1: lamps then send one with
+    // that probability).
+    let n = f64::from(lamps.photons) / LAMP_BATCHES as f64;
+    let k = norm / opt.irradiance * mean_power / n / (px.pixel * px.pixel);
     for (l, lamp) in lamps.lamps.iter().enumerate() {
         let mut rng = Stream::new(
             exp.seed,

@@ -117,6 +117,12 @@ impl Experiment {
         })?;
         if let Some(n) = spp {
             cfg.measures.iter_mut().for_each(|m| m.set_spp(n));
+            // A quick look: the lamps' forward photons shrink with the samples.
+            let photons = cfg
+                .integrator
+                .lamp_photons
+                .unwrap_or(crate::sources::lamps::LAMP_PHOTONS);
+            cfg.integrator.lamp_photons = Some(photons.min(n.clamp(1, u64::from(u32::MAX)) as u32));
         }
         let unset = crate::measure::config::SPP_UNSET;
         if let Some(k) = cfg.measures.iter().position(|m| m.spp() == unset) {
@@ -768,10 +774,10 @@ fn resolve_lamps(
         lamps.samples = k;
     }
     if let Some(n) = cfg.integrator.lamp_photons {
-        if !(16..=1_000_000).contains(&n) {
+        if !(1..=1_000_000).contains(&n) {
             return Err(ctx.err(
                 "integrator.lamp_photons",
-                format!("{n} must be an integer in 16..=1000000"),
+                format!("{n} must be an integer in 1..=1000000"),
             ));
         }
         lamps.photons = n;

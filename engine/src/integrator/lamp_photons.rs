@@ -97,13 +97,14 @@ pub fn emit(lamp: &Lamp, u1: f64, u2: f64) -> (DVec3, f64) {
     }
 }
 
-/// Photons per lamp and batch: `n_l = ⌊n·Φ_l/Φ̄ + u⌋` (see the module header).
+/// Photons per lamp and batch: `n_l = ⌊n·Φ_l/Φ̄ + u⌋` (see the module header; `n` may be
+/// below 1).
 #[inline]
-pub fn photon_count(n: u32, power: f64, mean_power: f64, u: f64) -> u32 {
+pub fn photon_count(n: f64, power: f64, mean_power: f64, u: f64) -> u32 {
     if power <= 0.0 || mean_power <= 0.0 {
         return 0;
     }
-    (f64::from(n) * power / mean_power + u).floor() as u32
+    (n * power / mean_power + u).floor() as u32
 }
 
 /// The golden ratio's fractional part (azimuth lattice of a lamp's photons).
@@ -413,22 +414,20 @@ mod tests {
     #[test]
     fn photon_counts_are_unbiased() {
         for (n, p, m) in [
-            (8u32, 1.0, 1.0),
-            (8, 0.37, 1.0),
-            (3, 2.6, 1.1),
-            (1, 0.01, 1.0),
+            (8.0, 1.0, 1.0),
+            (8.0, 0.37, 1.0),
+            (3.0, 2.6, 1.1),
+            (1.0, 0.01, 1.0),
+            (0.25, 1.3, 1.0),
         ] {
             let k = 10_000;
             let mean = (0..k)
                 .map(|i| f64::from(photon_count(n, p, m, (i as f64 + 0.5) / k as f64)))
                 .sum::<f64>()
                 / k as f64;
-            assert!(
-                (mean - f64::from(n) * p / m).abs() < 1e-3,
-                "{n} {p} {m}: {mean}"
-            );
+            assert!((mean - n * p / m).abs() < 1e-3, "{n} {p} {m}: {mean}");
         }
-        assert_eq!(photon_count(8, 0.0, 1.0, 0.9), 0);
+        assert_eq!(photon_count(8.0, 0.0, 1.0, 0.9), 0);
     }
 
     #[test]

@@ -9,6 +9,9 @@
 //!   **every** direction of a distant measure is added, so one walk serves all directions at
 //!   once (the method of MYSTIC and SMART-G). Generic over the weight (scalar, or a Stokes
 //!   vector); plane-parallel layers. Used for `mdistant` and `distant_flux` in 1D.
+//! * [`lamp_photons`]: photons leave the lamps (`[[lights]]`) and score, at every surface and
+//!   along every flight, the radiance they send up to the pixel of a nadir ortho image under
+//!   them (light tracing with local estimates): the lamps' part of such images.
 //! * [`backward_alis`]: the backward estimator for many spectral channels at once (CKD g-points,
 //!   or neighbouring wavelengths): one path sampled in a reference atmosphere, one weight per
 //!   channel (Emde et al. 2011); [`scene_alis`] carries its wavelength walk into 3D scenes.

@@ -245,7 +245,7 @@ pub struct IntegratorConfig {
     /// `"forward"` (`integrator/lamp_photons.rs`).
     #[serde(default)]
     pub lamp_estimator: crate::sources::lamps::LampEstimator,
-    /// Lamps: forward photons per lamp and wavelength (16–10⁶, default 256).
+    /// Lamps: forward photons per lamp and wavelength (1–10⁶, default 256).
     #[serde(default)]
     pub lamp_photons: Option<u32>,
 }
