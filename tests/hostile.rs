@@ -561,6 +561,30 @@ fn hostile_inputs_fail_cleanly() {
         .replacen("[[measures]]", "[[measures]]", 1),
         &e(2, &["scene.textures"]),
     );
+    let lit = |integrator: &str, measure: &str| {
+        format!(
+            "{}[integrator]\n{integrator}\n[[lights]]\ntype = \"point\"\nposition_m = [0.0, 0.0, 8.0]\nintensity = 10.0\n",
+            sx("pixel_size_m = 400.0", measure)
+        )
+    };
+    s.experiment(
+        "lamp-photons-zero",
+        &lit("lamp_photons = 0", "pixel_size_m = 400.0"),
+        &e(2, &["integrator.lamp_photons", "0"]),
+    );
+    s.experiment(
+        "lamp-estimator-unknown",
+        &lit("lamp_estimator = \"sideways\"", "pixel_size_m = 400.0"),
+        &e(2, &["lamp_estimator", "sideways"]),
+    );
+    s.experiment(
+        "lamp-estimator-forward-off-nadir",
+        &lit(
+            "lamp_estimator = \"forward\"",
+            "pixel_size_m = 400.0\nzenith = 20.0",
+        ),
+        &e(2, &["integrator.lamp_estimator", "img"]),
+    );
     let damaged = |s: &mut Suite, name: &str, damage: &dyn Fn(&Path), needles: &[&str]| {
         let dir = root.join(format!("bundle-{name}"));
         copy_dir(&root.join("bundle"), &dir);
