@@ -481,7 +481,7 @@ const LAST_BELOW_ONE: f64 = 1.0 - f64::EPSILON / 2.0;
 
 /// Most `null` surfaces a path crosses in a row before it is dropped (a guard against a ray
 /// caught between coincident pass-through surfaces).
-const MAX_PASS_THROUGH: u32 = 64;
+pub(crate) const MAX_PASS_THROUGH: u32 = 64;
 
 /// How a surface continues a path: `n` directions drawn from its sampler, or the `classic`
 /// quadrature's `n_θ × n_φ` fixed nodes.

@@ -160,9 +160,6 @@ pub fn trace_lamp(
     }
 }
 
-/// Most `null` surfaces a photon crosses in a row (as the backward walks).
-const MAX_PASS_THROUGH: u32 = 64;
-
 #[inline]
 fn score(out: &mut [f64], cell: usize, order: u32, x: f64) {
     out[2 * cell + usize::from(order > 1)] += x;
@@ -213,7 +210,7 @@ fn photon(
         } else if let Some(h) = hit {
             if let SolverSpec::Null {} = Geometry::<Scalar>::solver(g, &h) {
                 pass += 1;
-                if pass > MAX_PASS_THROUGH {
+                if pass > super::backward::MAX_PASS_THROUGH {
                     return;
                 }
                 pos = Geometry::<Scalar>::leave(g, &h, d);
@@ -247,24 +244,6 @@ fn photon(
     }
 }
 
-/// Where the flight from `p` along `d` (first hit at `t_hit`) ends: its hit, else where it
-/// leaves the layers (through the top, or below the scene and the ground).
-#[inline]
-fn flight_end(g: &SceneInLayers, p: DVec3, d: DVec3, t_hit: f64) -> f64 {
-    let atm = g.atmosphere;
-    if t_hit.is_finite() {
-        t_hit
-    } else if d.z > 1e-12 {
-        ((atm.toa() - p.z) / d.z).max(0.0)
-    } else if d.z < -1e-12 {
-        let bottom = g.scene.z_range[0].min(atm.ground()) - 1.0;
-        ((bottom - p.z) / d.z).max(0.0)
-    } else {
-        // Horizontal: as far as lamps reach (the backward walks' equi-angular segment).
-        5e4
-    }
-}
-
 /// The expected air-scattering estimate of the flight from `p` along `d` (first hit at
 /// `t_hit`), in the flight's parts above and below the scene's top: in each part `K` points
 /// drawn by stratified inversion of the optical path restricted to it (one random number),
@@ -285,7 +264,7 @@ fn air_points(
     out: &mut [f64],
 ) {
     let atm = g.atmosphere;
-    let t_end = flight_end(g, p, d, t_hit);
+    let t_end = g.flight_end(p, d, t_hit);
     // Where the flight crosses the scene's top (t_end if it does not).
     let top = g.scene.z_range[1];
     let below = p.z <= top;

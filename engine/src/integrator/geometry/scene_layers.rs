@@ -151,20 +151,11 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
             return 0.0;
         }
         // The segment: to the first hit, else to where the flight leaves the layers.
-        let t_end = match self.scene.intersect(p, d, f64::INFINITY) {
-            Some(h) => h.t,
-            None => {
-                let (top, bottom) = (atm.toa(), self.scene.z_range[0].min(0.0) - 1.0);
-                if d.z > 1e-12 {
-                    ((top - p.z) / d.z).max(0.0)
-                } else if d.z < -1e-12 {
-                    ((bottom - p.z) / d.z).max(0.0)
-                } else {
-                    // Horizontal: as far as the lamps reach (50 km).
-                    5e4
-                }
-            }
-        };
+        let t_hit = self
+            .scene
+            .intersect(p, d, f64::INFINITY)
+            .map_or(f64::INFINITY, |h| h.t);
+        let t_end = self.flight_end(p, d, t_hit);
         if t_end <= 0.0 {
             return 0.0;
         }
@@ -420,6 +411,24 @@ impl<W: Weight> Geometry<W> for SceneInLayers<'_> {
 }
 
 impl SceneInLayers<'_> {
+    /// Where the flight from `p` along unit `d` whose first hit is at `t_hit` (∞: none) ends:
+    /// at the hit, else where it leaves the layers (through the top, or 1 m below the lower of
+    /// the scene and the ground); a horizontal one after 50 km (as far as lamps reach).
+    #[inline]
+    pub(crate) fn flight_end(&self, p: DVec3, d: DVec3, t_hit: f64) -> f64 {
+        let atm = self.atmosphere;
+        if t_hit.is_finite() {
+            t_hit
+        } else if d.z > 1e-12 {
+            ((atm.toa() - p.z) / d.z).max(0.0)
+        } else if d.z < -1e-12 {
+            let bottom = self.scene.z_range[0].min(atm.ground()) - 1.0;
+            ((bottom - p.z) / d.z).max(0.0)
+        } else {
+            5e4
+        }
+    }
+
     /// The transmittance from `p` over `r` m along unit `dir` to a lamp: the layers' along the
     /// segment times the scene's visibility (panes included) up to just short of the lamp (a
     /// lamp may sit on the geometry that holds it).
