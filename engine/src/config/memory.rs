@@ -5,7 +5,9 @@
 //! Estimate: every (wavelength, measure) result stays in memory until the products are
 //! written. A result cell holds its accumulators ([`crate::accum::Accum`]: the count, sums and
 //! sums of squares per Stokes component, cross products when polarized, third and fourth
-//! powers and maximum of I): 80 bytes scalar, 152 polarized; products add half as much again.
+//! powers and maximum of I): 80 bytes scalar, 152 polarized; products add half as much again;
+//! images whose lamps come from forward photons hold an added estimate per cell (48 bytes)
+//! and, while the photons run, their batch sums.
 //! The scene is already loaded by the time this runs, and its own figure is added.
 //! Refused above the machine's total memory (`/proc/meminfo`; no limit where it is unknown).
 
@@ -61,9 +63,18 @@ pub fn estimate(exp: &Experiment) -> MemoryEstimate {
     let mut results: u64 = 0;
     let mut heaviest: Option<(String, u64)> = None;
     for (k, m) in exp.measures.iter().enumerate() {
+        // Lamps by forward photons (`integrator/lamp_photons.rs`): the added estimate's means
+        // and variances (48 B per cell and wavelength), and while a wavelength's photons run
+        // its batch sums and a few batch images (about 128 B per cell).
+        let photons: u64 = if exp.lamp_photon_pixels(m).is_some() {
+            48
+        } else {
+            0
+        };
         let b = (m.cell_count() as u64)
             .saturating_mul(nw)
-            .saturating_mul(per);
+            .saturating_mul(per + photons)
+            .saturating_add((m.cell_count() as u64).saturating_mul(128 * (photons > 0) as u64));
         results = results.saturating_add(b);
         if heaviest.as_ref().is_none_or(|(_, h)| b > *h) {
             heaviest = Some((size_key(k, &m.kind), b));
