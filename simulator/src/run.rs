@@ -197,62 +197,115 @@ fn tasks(exp: &Experiment) -> Vec<(Vec<usize>, usize)> {
         .collect()
 }
 
-/// Add the forward lamp photons' image of measure `im` at wavelength `iw` to `acc` (cells
-/// `tile` of the measure): [`engine::blocks::LAMP_BATCHES`] independent batches, run in
-/// parallel and summed in batch order (thread-count independent); their mean, and its
-/// variance from their scatter, go into `acc`'s added estimates (`Accum::add_extra`).
-fn add_lamp_photons(
-    exp: &Experiment,
+/// Photon sets a lamp image may grow to (`LampSums::grow`): 16 × `integrator.lamp_photons`.
+const MAX_LAMP_SETS: u64 = 16;
+
+/// The forward lamp photons' image of measure `im` at wavelength `iw`
+/// (`integrator/lamp_photons.rs`): per cell of the measure, the sums over batches of the
+/// (single, multiple, total) scores and of their squares. Batches are independent estimates of
+/// the whole image ([`engine::blocks::LAMP_BATCHES`] per set, each with `lamp_photons` photons
+/// per lamp), run in parallel and summed in batch order (thread-count independent).
+struct LampSums {
     iw: usize,
     im: usize,
-    tile: std::ops::Range<usize>,
-    acc: &mut Accum,
-    cancel: &AtomicBool,
-) {
-    use engine::accum::{MULTIPLE, SINGLE, TOTAL};
-    let t0 = std::time::Instant::now();
-    let nb = engine::blocks::LAMP_BATCHES;
-    let cells = exp.measures[im].cell_count();
-    // Per cell: sums over batches of (single, multiple, total) and of their squares.
-    let mut s1 = vec![0.0; 3 * cells];
-    let mut s2 = vec![0.0; 3 * cells];
-    let batches: Vec<u64> = (0..nb).collect();
-    // A few batches at a time: each holds a whole image.
-    for chunk in batches.chunks(rayon::current_num_threads().max(1)) {
-        let parts: Vec<Vec<f64>> = chunk
-            .par_iter()
-            .map(|&b| {
-                if cancel.load(Ordering::Relaxed) {
-                    return Vec::new();
-                }
-                engine::blocks::lamp_batch(exp, iw, im, b)
-            })
-            .collect();
-        for part in parts.iter().filter(|p| !p.is_empty()) {
-            for c in 0..cells {
-                let (a, b) = (part[2 * c], part[2 * c + 1]);
-                for (j, x) in [a, b, a + b].into_iter().enumerate() {
-                    s1[3 * c + j] += x;
-                    s2[3 * c + j] += x * x;
+    batches: u64,
+    s1: Vec<f64>,
+    s2: Vec<f64>,
+}
+
+impl LampSums {
+    fn new(exp: &Experiment, iw: usize, im: usize) -> Self {
+        let cells = exp.measures[im].cell_count();
+        LampSums {
+            iw,
+            im,
+            batches: 0,
+            s1: vec![0.0; 3 * cells],
+            s2: vec![0.0; 3 * cells],
+        }
+    }
+
+    /// One more set of batches.
+    fn grow(&mut self, exp: &Experiment, cancel: &AtomicBool) {
+        let t0 = std::time::Instant::now();
+        let next: Vec<u64> = (self.batches..self.batches + engine::blocks::LAMP_BATCHES).collect();
+        let cells = self.s1.len() / 3;
+        // A few batches at a time: each holds a whole image.
+        for chunk in next.chunks(rayon::current_num_threads().max(1)) {
+            let parts: Vec<Vec<f64>> = chunk
+                .par_iter()
+                .map(|&b| {
+                    if cancel.load(Ordering::Relaxed) {
+                        return Vec::new();
+                    }
+                    engine::blocks::lamp_batch(exp, self.iw, self.im, b)
+                })
+                .collect();
+            for part in parts.iter().filter(|p| !p.is_empty()) {
+                for c in 0..cells {
+                    let (a, b) = (part[2 * c], part[2 * c + 1]);
+                    for (j, x) in [a, b, a + b].into_iter().enumerate() {
+                        self.s1[3 * c + j] += x;
+                        self.s2[3 * c + j] += x * x;
+                    }
                 }
             }
         }
+        self.batches += engine::blocks::LAMP_BATCHES;
+        tracing::info!(
+            "measure `{}` at {} nm: lamps by forward photons, {} batches ({:.1} s)",
+            exp.measures[self.im].id,
+            exp.wavelengths[self.iw],
+            self.batches,
+            t0.elapsed().as_secs_f64()
+        );
     }
-    let n = nb as f64;
-    for (i, c) in tile.enumerate() {
-        for (j, k) in [SINGLE, MULTIPLE, TOTAL].into_iter().enumerate() {
-            let m = s1[3 * c + j] / n;
-            let var = ((s2[3 * c + j] / n - m * m) * n / (n - 1.0)).max(0.0) / n;
-            acc.add_extra(i, k, m, var);
+
+    /// Mean and variance of the mean of component `j` (0 single, 1 multiple, 2 total) in
+    /// measure cell `c`.
+    fn mean_var(&self, c: usize, j: usize) -> (f64, f64) {
+        let n = self.batches as f64;
+        let m = self.s1[3 * c + j] / n;
+        let var = ((self.s2[3 * c + j] / n - m * m) * n / (n - 1.0)).max(0.0) / n;
+        (m, var)
+    }
+
+    /// Set `acc`'s added estimates (cells `tile` of the measure) to this image.
+    fn apply(&self, acc: &mut Accum, tile: std::ops::Range<usize>) {
+        use engine::accum::{MULTIPLE, SINGLE, TOTAL};
+        acc.extra_mean.clear();
+        acc.extra_var.clear();
+        for (i, c) in tile.enumerate() {
+            for (j, k) in [SINGLE, MULTIPLE, TOTAL].into_iter().enumerate() {
+                let (m, v) = self.mean_var(c, j);
+                acc.add_extra(i, k, m, v);
+            }
         }
     }
-    tracing::info!(
-        "measure `{}` at {} nm: lamps by forward photons, {} batches in {:.1} s",
-        exp.measures[im].id,
-        exp.wavelengths[iw],
-        nb,
-        t0.elapsed().as_secs_f64()
-    );
+
+    /// The `q`-quantile over the tile's cells of this image's own standard error relative to
+    /// the cell's combined mean in `acc` (the walks cannot bring a cell's error below it).
+    fn quantile_rel(&self, acc: &Accum, tile: std::ops::Range<usize>, q: f64) -> f64 {
+        let mut r: Vec<f64> = tile
+            .enumerate()
+            .map(|(i, c)| {
+                let e = self.mean_var(c, 2).1.sqrt();
+                let m = acc.mean_stderr(i, engine::accum::TOTAL).0.abs();
+                if m > 0.0 {
+                    e / m
+                } else if e > 0.0 {
+                    f64::INFINITY
+                } else {
+                    0.0
+                }
+            })
+            .collect();
+        if r.is_empty() {
+            return 0.0;
+        }
+        r.sort_by(|a, b| a.total_cmp(b));
+        r[((q * r.len() as f64) as usize).min(r.len() - 1)]
+    }
 }
 
 /// The most blocks one round of a task lists at once.
@@ -335,9 +388,15 @@ fn run_task(
         }
     };
     let mut accs: Vec<Accum> = group.iter().map(|_| new_acc()).collect();
+    // Lamps by forward photons: one set of batches now; more where the photons' own error
+    // keeps an image from its target (below).
+    let mut lamps: Vec<LampSums> = Vec::new();
     if exp.lamp_photon_pixels(m).is_some() {
         for (acc, &iw) in accs.iter_mut().zip(group) {
-            add_lamp_photons(exp, iw, im, tile_cells.clone(), acc, cancel);
+            let mut l = LampSums::new(exp, iw, im);
+            l.grow(exp, cancel);
+            l.apply(acc, tile_cells.clone());
+            lamps.push(l);
         }
     }
     let mut done = 0u64;
@@ -436,11 +495,22 @@ fn run_task(
             .fold(0.0, f64::max);
         // A standard error that cannot be trusted (heavy tails, `heavy_tail.rs`) does not stop
         // the run early.
-        let trusted = || {
+        let trusted = |accs: &[Accum]| {
             accs.iter()
                 .all(|acc| (0..acc.n.len()).all(|c| acc.tail(c).is_none_or(|t| t.trusted())))
         };
-        let reached = m.target_rel_stderr.is_some_and(|t| rel <= t) && trusted();
+        let reached = m.target_rel_stderr.is_some_and(|t| rel <= t) && trusted(&accs);
+        // Lamp images whose photons alone are above the target at its quantile (the walks
+        // cannot lower that part) get another set of photons, up to MAX_LAMP_SETS sets.
+        if let (false, Some(t)) = (reached, m.target_rel_stderr) {
+            for (k, (l, acc)) in lamps.iter_mut().zip(accs.iter_mut()).enumerate() {
+                let own = l.quantile_rel(acc, tile_cells.clone(), m.target_fraction);
+                if own > t * scale(k) && l.batches < MAX_LAMP_SETS * engine::blocks::LAMP_BATCHES {
+                    l.grow(exp, cancel);
+                    l.apply(acc, tile_cells.clone());
+                }
+            }
+        }
         if done >= m.spp || reached {
             let left: u64 = have.iter().map(|&h| m.spp.saturating_sub(h)).sum();
             bar.inc(left * per_walk);
@@ -510,7 +580,7 @@ fn run_task(
         tracing::debug!(
             "measure `{}`: {done} samples, relative standard error {rel:.4} (trusted: {}), next round to {next} ({} of {} cells sampled)",
             m.id,
-            trusted(),
+            trusted(&accs),
             want.iter().zip(&have).filter(|(w, h)| w > h).count(),
             want.len()
         );

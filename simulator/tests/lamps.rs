@@ -499,6 +499,27 @@ fn forward_photons_agree_with_backward_walks() {
         "z mean {mean}, RMS {rms}"
     );
 
+    // A target the first photons miss: more photon sets until the median pixel meets it.
+    let median = |px: &[(f64, f64)]| {
+        let mut rel: Vec<f64> = px
+            .iter()
+            .map(|&(l, e)| if l > 0.0 { e / l } else { f64::INFINITY })
+            .collect();
+        rel.sort_by(|a, b| a.total_cmp(b));
+        rel[rel.len() / 2]
+    };
+    let first = median(&image_cells(&experiment(&text(
+        5,
+        "lamp_photons = 1024",
+        64,
+    ))));
+    let aimed = median(&image_cells(&experiment(
+        &text(5, "lamp_photons = 1024", 64)
+            .replace("spp = 64\n", "spp = 64\ntarget_rel_stderr = 0.05\n"),
+    )));
+    println!("lamp_photons = 1024: median pixel {first:.4}; with a 5 % target {aimed:.4}");
+    assert!(first > 0.05 && aimed <= 0.05, "{first} {aimed}");
+
     // Thread-count independence.
     let (one, two) = run_on_1_and_2_threads(&fwd_exp);
     assert_eq!(
