@@ -553,13 +553,7 @@ impl Accum {
     /// infinite for a zero mean with an error; NaN with fewer than two samples).
     fn rel_stderr(&self, cell: usize) -> f64 {
         let (m, e) = self.mean_stderr(cell, TOTAL);
-        if m.abs() > 0.0 {
-            e / m.abs()
-        } else if e > 0.0 {
-            f64::INFINITY
-        } else {
-            0.0
-        }
+        relative(m, e)
     }
 
     /// Median over cells of the relative standard error of the total (cells without an
@@ -572,13 +566,10 @@ impl Accum {
     /// the value at index ⌊q·N⌋ (the last for q = 1) of the sorted errors, so that a fraction q
     /// of the cells is at most it (cells without an estimate count as infinite).
     pub fn quantile_rel_stderr(&self, q: f64) -> f64 {
-        let mut r: Vec<f64> = (0..self.n.len()).map(|c| self.cell_rel_stderr(c)).collect();
-        if r.is_empty() {
-            return 0.0;
-        }
-        r.sort_by(|a, b| a.total_cmp(b));
-        let i = ((q * r.len() as f64) as usize).min(r.len() - 1);
-        r[i]
+        quantile(
+            (0..self.n.len()).map(|c| self.cell_rel_stderr(c)).collect(),
+            q,
+        )
     }
 
     /// The relative standard error of the total of `cell` (infinite without an estimate).
@@ -597,6 +588,28 @@ impl Accum {
             .map(|c| self.rel_stderr(c))
             .fold(0.0, f64::max)
     }
+}
+
+/// The relative error `e/|m|` of a mean `m` with standard error `e`: 0 for a zero mean with
+/// zero error, infinite for a zero mean with an error.
+pub fn relative(m: f64, e: f64) -> f64 {
+    if m.abs() > 0.0 {
+        e / m.abs()
+    } else if e > 0.0 {
+        f64::INFINITY
+    } else {
+        0.0
+    }
+}
+
+/// The `q`-quantile (0 < q ≤ 1) of `r`: the value at index ⌊q·N⌋ (the last for q = 1) of the
+/// sorted values, so that a fraction q of them is at most it; 0 for none.
+pub fn quantile(mut r: Vec<f64>, q: f64) -> f64 {
+    if r.is_empty() {
+        return 0.0;
+    }
+    r.sort_by(|a, b| a.total_cmp(b));
+    r[((q * r.len() as f64) as usize).min(r.len() - 1)]
 }
 
 /// Which walk serves a measure.

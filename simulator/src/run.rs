@@ -286,25 +286,14 @@ impl LampSums {
     /// The `q`-quantile over the tile's cells of this image's own standard error relative to
     /// the cell's combined mean in `acc` (the walks cannot bring a cell's error below it).
     fn quantile_rel(&self, acc: &Accum, tile: std::ops::Range<usize>, q: f64) -> f64 {
-        let mut r: Vec<f64> = tile
+        let r = tile
             .enumerate()
             .map(|(i, c)| {
                 let e = self.mean_var(c, 2).1.sqrt();
-                let m = acc.mean_stderr(i, engine::accum::TOTAL).0.abs();
-                if m > 0.0 {
-                    e / m
-                } else if e > 0.0 {
-                    f64::INFINITY
-                } else {
-                    0.0
-                }
+                engine::accum::relative(acc.mean_stderr(i, engine::accum::TOTAL).0, e)
             })
             .collect();
-        if r.is_empty() {
-            return 0.0;
-        }
-        r.sort_by(|a, b| a.total_cmp(b));
-        r[((q * r.len() as f64) as usize).min(r.len() - 1)]
+        engine::accum::quantile(r, q)
     }
 }
 
